@@ -1,0 +1,40 @@
+# sonar3d: the two set-up commands (each installs what it needs, builds, then runs).
+#   make demo   simulate the default scene end to end
+#   make test   build and pass the tests
+BUILD ?= build
+JOBS ?= 2
+CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
+SONAR3D = $(BUILD)/bin/sonar3d
+DEMO_OUT ?= $(BUILD)/demo
+
+.PHONY: all deps configure build demo test bench clean format
+
+all: build
+
+deps:
+	bash scripts/install-deps.sh
+
+configure: deps
+	cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
+
+build: configure
+	cmake --build $(BUILD) -j$(JOBS)
+
+demo: build
+	$(SONAR3D) simulate data/scenes/reference_objects.yaml -o $(DEMO_OUT)/dataset
+	$(SONAR3D) info $(DEMO_OUT)/dataset
+	$(SONAR3D) preview $(DEMO_OUT)/dataset --frame 130 -o $(DEMO_OUT)/sphere_frame.png
+	@echo "demo: dataset in $(DEMO_OUT)/dataset, a preview image in $(DEMO_OUT)/sphere_frame.png"
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
+
+bench: build
+	$(SONAR3D) bench
+	$(BUILD)/bench/bench_sim --benchmark_min_time=2
+
+format:
+	clang-format -i $$(git ls-files '*.cpp' '*.hpp')
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,23 @@
+#pragma once
+// Each subcommand registers itself on the CLI11 app and runs through a library call: no
+// algorithm lives here.
+#include <CLI/CLI.hpp>
+
+#include <functional>
+
+namespace sonar3d::cli {
+
+struct GlobalOptions {
+  bool quiet = false;  // no progress bars
+};
+
+// Registers the subcommand and returns the function that runs it once parsed.
+using Runner = std::function<int()>;
+void add_simulate(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_evaluate(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_info(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_bench(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run);
+
+}  // namespace sonar3d::cli

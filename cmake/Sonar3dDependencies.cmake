@@ -1,0 +1,27 @@
+# Every dependency comes from a Debian package (scripts/install-deps.sh) and is used through an
+# imported target.
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(TBB REQUIRED)
+find_package(embree 3 REQUIRED)
+find_package(assimp REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(fmt REQUIRED)
+
+# Debian splits OpenCV into per-module -dev packages; only the full libopencv-dev ships the CMake
+# config, so we import the three modules we use ourselves rather than install all of OpenCV.
+find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
+foreach(mod core imgproc imgcodecs)
+  find_library(OPENCV_${mod}_LIBRARY opencv_${mod} REQUIRED)
+  if(NOT TARGET opencv::${mod})
+    add_library(opencv::${mod} UNKNOWN IMPORTED)
+    set_target_properties(opencv::${mod} PROPERTIES
+      IMPORTED_LOCATION ${OPENCV_${mod}_LIBRARY}
+      INTERFACE_INCLUDE_DIRECTORIES ${OPENCV_INCLUDE_DIR})
+  endif()
+endforeach()
+
+if(NOT TARGET embree)
+  message(FATAL_ERROR "embree imported target not found")
+endif()

@@ -1,0 +1,11 @@
+# Warnings, sanitizers and common properties for every sonar3d target.
+function(sonar3d_set_target_properties target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wno-unused-parameter)
+  if(SONAR3D_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+  if(SONAR3D_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+endfunction()

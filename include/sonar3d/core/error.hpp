@@ -1,0 +1,24 @@
+#pragma once
+// Errors carry what was wrong, where (file, line, key, frame) and what to do. The CLI prints
+// what() as one line and exits non-zero.
+#include <stdexcept>
+#include <string>
+
+namespace sonar3d {
+
+class Error : public std::runtime_error {
+ public:
+  explicit Error(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Throws Error(message) when cond is false.
+inline void require(bool cond, const std::string& message) {
+  if (!cond) throw Error(message);
+}
+
+// Checks that a configuration value is finite and strictly positive; names the parameter.
+void require_positive(double value, const char* name, const char* unit = "");
+// Checks that a configuration value is finite and >= 0.
+void require_non_negative(double value, const char* name, const char* unit = "");
+
+}  // namespace sonar3d

@@ -1,0 +1,27 @@
+#pragma once
+// A point cloud in one frame (normally world) with an optional per-point intensity.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace sonar3d {
+
+struct PointCloud {
+  std::vector<Eigen::Vector3f> points;
+  std::vector<float> intensity;  // empty, or one per point
+
+  std::size_t size() const { return points.size(); }
+  bool empty() const { return points.empty(); }
+  bool has_intensity() const { return !intensity.empty(); }
+};
+
+enum class PlyFormat { Binary, Ascii };
+
+// PLY with x y z [intensity] vertex properties (float or double). Reading accepts ascii and
+// binary_little_endian; extra vertex properties are skipped. Errors name the file and the
+// header line or vertex at fault.
+PointCloud read_ply(const std::string& path);
+void write_ply(const std::string& path, const PointCloud& cloud,
+               PlyFormat format = PlyFormat::Binary);  // atomic write
+
+}  // namespace sonar3d

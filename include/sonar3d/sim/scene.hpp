@@ -1,0 +1,23 @@
+#pragma once
+// A simulation scene: objects (meshes from files or procedural), each with a pose and a
+// reflectivity μ (eq. 2.6), placed in the world frame (z up).
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/mesh.hpp"
+
+namespace sonar3d {
+
+struct SceneObject {
+  std::string name;
+  TriangleMesh mesh_world;   // already transformed into the world frame
+  double reflectivity = 0.5;  // μ in [0, 1]
+};
+
+struct Scene {
+  std::vector<SceneObject> objects;
+  bool empty() const;
+  TriangleMesh merged_world() const;  // all objects in one mesh
+};
+
+}  // namespace sonar3d

@@ -1,0 +1,56 @@
+#pragma once
+// A whole simulation run described by a scene YAML file (docs/formats.md): the sensor, the
+// objects, the trajectory, the noise model and the simulator settings; and the run itself, which
+// writes a dataset directory with its ground truth.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/sonar_spec.hpp"
+#include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/sim/noise.hpp"
+#include "sonar3d/sim/scene.hpp"
+#include "sonar3d/sim/simulator.hpp"
+
+namespace sonar3d {
+
+struct NoiseModelConfig {
+  enum class Kind { None, Stripes, Images };
+  Kind kind = Kind::None;
+  StripeNoiseConfig stripes;
+  std::string mean_path, std_path;  // Kind::Images: float TIFFs (range bins × beams)
+  double scale = 1.0;               // multiplies mean and std (an SNR knob)
+};
+
+struct SimulationSetup {
+  std::string source;  // the scene file
+  SonarSpec spec;
+  SimulatorConfig simulator;
+  Scene scene;
+  Trajectory T_world_vehicle;  // one pose per frame
+  NoiseModelConfig noise;
+  unsigned long long seed = 1;
+};
+
+// Parses and validates a scene file; errors name the file, line and key.
+SimulationSetup load_simulation_setup(const std::string& scene_yaml);
+
+struct SimulationStats {
+  std::size_t frames = 0;
+  std::size_t rays = 0;
+  double seconds = 0.0;
+};
+
+// Renders every frame and writes the dataset (frames, navigation, noise statistics when a noise
+// model is used, and truth/ with each object's world-frame mesh) atomically to `out`.
+SimulationStats simulate_dataset(const SimulationSetup& setup, const std::filesystem::path& out,
+                                 bool progress);
+
+// The noise statistics a setup applies (empty optional for Kind::None).
+std::optional<NoiseImages> noise_images(const SimulationSetup& setup);
+
+// Ground truth of a simulated dataset: the objects in truth/scene.yaml, world frame.
+std::vector<SceneObject> read_truth(const std::filesystem::path& dataset_dir);
+
+}  // namespace sonar3d

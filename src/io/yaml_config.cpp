@@ -1,0 +1,276 @@
+#include "sonar3d/io/yaml_config.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "sonar3d/core/error.hpp"
+
+namespace sonar3d::yaml {
+namespace {
+constexpr double kDeg = M_PI / 180.0;
+
+std::string full_key(const std::string& ctx, const std::string& key) {
+  return ctx.empty() ? key : ctx + "." + key;
+}
+}  // namespace
+
+YAML::Node load_file(const std::string& path) {
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw Error("cannot open '" + path + "'");
+  } catch (const YAML::ParserException& e) {
+    throw Error(path + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
+  }
+}
+
+std::string where(const std::string& file, const YAML::Node& node, const std::string& key) {
+  const int line = node.Mark().line;
+  return file + (line >= 0 ? ":" + std::to_string(line + 1) : "") + ": key '" + key + "'";
+}
+
+static YAML::Node child(const YAML::Node& parent, const std::string& key, const std::string& file,
+                        const std::string& ctx) {
+  if (!parent.IsMap()) {
+    throw Error(where(file, parent, ctx.empty() ? "<root>" : ctx) + ": expected a mapping");
+  }
+  return parent[key];
+}
+
+double get_double(const YAML::Node& parent, const std::string& key, const std::string& file,
+                  const std::string& ctx) {
+  const YAML::Node n = child(parent, key, file, ctx);
+  if (!n) throw Error(where(file, parent, full_key(ctx, key)) + ": required key is missing");
+  double v;
+  try {
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    throw Error(where(file, n, full_key(ctx, key)) + ": expected a number, got '" +
+                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+  }
+  if (!std::isfinite(v)) throw Error(where(file, n, full_key(ctx, key)) + ": must be finite");
+  return v;
+}
+
+double get_double(const YAML::Node& parent, const std::string& key, double fallback,
+                  const std::string& file, const std::string& ctx) {
+  if (!child(parent, key, file, ctx)) return fallback;
+  return get_double(parent, key, file, ctx);
+}
+
+int get_int(const YAML::Node& parent, const std::string& key, int fallback,
+            const std::string& file, const std::string& ctx) {
+  const YAML::Node n = child(parent, key, file, ctx);
+  if (!n) return fallback;
+  try {
+    return n.as<int>();
+  } catch (const YAML::Exception&) {
+    throw Error(where(file, n, full_key(ctx, key)) + ": expected an integer, got '" +
+                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+  }
+}
+
+std::string get_string(const YAML::Node& parent, const std::string& key,
+                       const std::string& fallback, const std::string& file,
+                       const std::string& ctx) {
+  const YAML::Node n = child(parent, key, file, ctx);
+  if (!n) return fallback;
+  if (!n.IsScalar()) throw Error(where(file, n, full_key(ctx, key)) + ": expected a string");
+  return n.Scalar();
+}
+
+bool get_bool(const YAML::Node& parent, const std::string& key, bool fallback,
+              const std::string& file, const std::string& ctx) {
+  const YAML::Node n = child(parent, key, file, ctx);
+  if (!n) return fallback;
+  try {
+    return n.as<bool>();
+  } catch (const YAML::Exception&) {
+    throw Error(where(file, n, full_key(ctx, key)) + ": expected true or false");
+  }
+}
+
+std::vector<double> get_vector(const YAML::Node& parent, const std::string& key,
+                               std::size_t expected_size, const std::string& file,
+                               const std::string& ctx) {
+  const YAML::Node n = child(parent, key, file, ctx);
+  if (!n) throw Error(where(file, parent, full_key(ctx, key)) + ": required key is missing");
+  if (!n.IsSequence() || (expected_size && n.size() != expected_size)) {
+    throw Error(where(file, n, full_key(ctx, key)) + ": expected a list of " +
+                (expected_size ? std::to_string(expected_size) + " " : std::string()) + "numbers");
+  }
+  std::vector<double> out;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    double v;
+    try {
+      v = n[i].as<double>();
+    } catch (const YAML::Exception&) {
+      throw Error(where(file, n[i], full_key(ctx, key)) + ": element " + std::to_string(i) +
+                  " is not a number");
+    }
+    if (!std::isfinite(v)) {
+      throw Error(where(file, n[i], full_key(ctx, key)) + ": element " + std::to_string(i) +
+                  " is not finite");
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+void check_keys(const YAML::Node& node, const std::set<std::string>& allowed,
+                const std::string& file, const std::string& ctx) {
+  if (!node.IsMap()) {
+    throw Error(where(file, node, ctx.empty() ? "<root>" : ctx) + ": expected a mapping");
+  }
+  for (const auto& kv : node) {
+    const std::string k = kv.first.as<std::string>();
+    if (!allowed.count(k)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw Error(where(file, kv.first, full_key(ctx, k)) + ": unknown key (expected one of: " +
+                  list + ")");
+    }
+  }
+}
+
+Eigen::Isometry3d pose_from_rpy(const Eigen::Vector3d& t, double roll, double pitch, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+Eigen::Isometry3d get_pose(const YAML::Node& node, const std::string& file,
+                           const std::string& ctx) {
+  check_keys(node, {"translation", "rpy_deg", "quaternion"}, file, ctx);
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  if (node["translation"]) {
+    const auto v = get_vector(node, "translation", 3, file, ctx);
+    t = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  if (node["quaternion"]) {
+    const auto q = get_vector(node, "quaternion", 4, file, ctx);
+    Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+    if (std::abs(quat.norm() - 1.0) > 1e-3) {
+      throw Error(where(file, node["quaternion"], ctx + ".quaternion") +
+                  ": [qx, qy, qz, qw] must have unit norm");
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = quat.normalized().toRotationMatrix();
+    T.translation() = t;
+    return T;
+  }
+  Eigen::Vector3d rpy = Eigen::Vector3d::Zero();
+  if (node["rpy_deg"]) {
+    const auto v = get_vector(node, "rpy_deg", 3, file, ctx);
+    rpy = Eigen::Vector3d(v[0], v[1], v[2]) * kDeg;
+  }
+  return pose_from_rpy(t, rpy[0], rpy[1], rpy[2]);
+}
+
+SonarSpec parse_sonar_spec(const YAML::Node& node, const std::string& file,
+                           const std::string& ctx) {
+  check_keys(node,
+             {"preset", "name", "bearings_deg", "fov_deg", "beams", "r_min", "r_max",
+              "range_bins", "vertical_aperture_deg", "beam_pattern", "intensity",
+              "T_vehicle_sonar"},
+             file, ctx);
+  SonarSpec s;
+  if (node["preset"]) s = sonar_preset(get_string(node, "preset", "", file, ctx));
+  s.name = get_string(node, "name", s.name, file, ctx);
+  if (node["bearings_deg"]) {
+    if (node["fov_deg"] || node["beams"]) {
+      throw Error(where(file, node["bearings_deg"], full_key(ctx, "bearings_deg")) +
+                  ": give either a bearing table or fov_deg + beams, not both");
+    }
+    const auto b = get_vector(node, "bearings_deg", 0, file, ctx);
+    s.bearings_rad.clear();
+    for (double d : b) s.bearings_rad.push_back(d * kDeg);
+  } else if (node["fov_deg"] || node["beams"]) {
+    const double fov = get_double(node, "fov_deg", s.fov_max() / kDeg - s.fov_min() / kDeg, file,
+                                  ctx);
+    const int beams = get_int(node, "beams", s.beams(), file, ctx);
+    if (!(fov > 0 && fov < 360) || beams <= 0) {
+      throw Error(where(file, node, full_key(ctx, "fov_deg")) +
+                  ": fov_deg must be in (0, 360) and beams > 0");
+    }
+    s.set_uniform_bearings(fov * kDeg, beams);
+  }
+  s.r_min = get_double(node, "r_min", s.r_min, file, ctx);
+  s.r_max = get_double(node, "r_max", s.r_max, file, ctx);
+  s.range_bins = get_int(node, "range_bins", s.range_bins, file, ctx);
+  s.vertical_aperture_rad =
+      get_double(node, "vertical_aperture_deg", s.vertical_aperture_rad / kDeg, file, ctx) * kDeg;
+  if (const YAML::Node bp = node["beam_pattern"]) {
+    const std::string c = full_key(ctx, "beam_pattern");
+    check_keys(bp, {"type", "elevation_deg", "amplitude"}, file, c);
+    try {
+      s.beam_pattern.kind = BeamPattern::parse_kind(get_string(bp, "type", "sinc", file, c));
+    } catch (const Error& e) {
+      throw Error(where(file, bp, c + ".type") + ": " + e.what());
+    }
+    if (s.beam_pattern.kind == BeamPattern::Kind::Table) {
+      const auto el = get_vector(bp, "elevation_deg", 0, file, c);
+      s.beam_pattern.table_amplitude = get_vector(bp, "amplitude", el.size(), file, c);
+      s.beam_pattern.table_elevation_rad.clear();
+      for (double e : el) s.beam_pattern.table_elevation_rad.push_back(e * kDeg);
+    }
+  }
+  if (const YAML::Node in = node["intensity"]) {
+    const std::string c = full_key(ctx, "intensity");
+    check_keys(in, {"bit_depth", "scale"}, file, c);
+    s.bit_depth = get_int(in, "bit_depth", s.bit_depth, file, c);
+    s.intensity_scale = get_double(in, "scale", 1.0 / s.max_intensity_value(), file, c);
+  }
+  if (node["T_vehicle_sonar"]) {
+    s.T_vehicle_sonar = get_pose(node["T_vehicle_sonar"], file, full_key(ctx, "T_vehicle_sonar"));
+  }
+  try {
+    s.validate();
+  } catch (const Error& e) {
+    throw Error(file + ": " + (ctx.empty() ? "" : ctx + ": ") + e.what());
+  }
+  return s;
+}
+
+void emit_sonar_spec(YAML::Emitter& out, const SonarSpec& s) {
+  out << YAML::Key << "name" << YAML::Value << s.name;
+  if (s.uniform_bearings() && s.beams() > 1) {
+    out << YAML::Key << "fov_deg" << YAML::Value << (s.fov_max() - s.fov_min()) / kDeg;
+    out << YAML::Key << "beams" << YAML::Value << s.beams();
+  } else {
+    out << YAML::Key << "bearings_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (double b : s.bearings_rad) out << b / kDeg;
+    out << YAML::EndSeq;
+  }
+  out << YAML::Key << "r_min" << YAML::Value << s.r_min;
+  out << YAML::Key << "r_max" << YAML::Value << s.r_max;
+  out << YAML::Key << "range_bins" << YAML::Value << s.range_bins;
+  out << YAML::Key << "vertical_aperture_deg" << YAML::Value << s.vertical_aperture_rad / kDeg;
+  out << YAML::Key << "beam_pattern" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "type" << YAML::Value << BeamPattern::kind_name(s.beam_pattern.kind);
+  if (s.beam_pattern.kind == BeamPattern::Kind::Table) {
+    out << YAML::Key << "elevation_deg" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (double e : s.beam_pattern.table_elevation_rad) out << e / kDeg;
+    out << YAML::EndSeq;
+    out << YAML::Key << "amplitude" << YAML::Value << YAML::Flow << s.beam_pattern.table_amplitude;
+  }
+  out << YAML::EndMap;
+  out << YAML::Key << "intensity" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "bit_depth" << YAML::Value << s.bit_depth;
+  out << YAML::Key << "scale" << YAML::Value << s.intensity_scale;
+  out << YAML::EndMap;
+  const Eigen::Quaterniond q(s.T_vehicle_sonar.linear());
+  const Eigen::Vector3d t = s.T_vehicle_sonar.translation();
+  out << YAML::Key << "T_vehicle_sonar" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "translation" << YAML::Value << YAML::Flow << YAML::BeginSeq << t.x()
+      << t.y() << t.z() << YAML::EndSeq;
+  out << YAML::Key << "quaternion" << YAML::Value << YAML::Flow << YAML::BeginSeq << q.x() << q.y()
+      << q.z() << q.w() << YAML::EndSeq;
+  out << YAML::EndMap;
+}
+
+}  // namespace sonar3d::yaml
