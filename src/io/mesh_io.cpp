@@ -1,0 +1,298 @@
+// Mesh import through Assimp 5.2 and export to PLY / OBJ.
+//
+// Up axis and unit (GUIDE.md sec. 3: world frame z up, metres; keep the file's declared frame):
+//
+//   Collada (.dae .zae)  Assimp 5.2 honours <up_axis> and <unit meter=...> itself: it scales by
+//                        the unit and rotates X_UP and Z_UP files to y-up in the root node's
+//                        transform (a file without <up_axis> is Y_UP by the Collada spec). We let
+//                        it do that and then rotate y-up to z-up, so every Collada file arrives
+//                        z-up in metres. For a Z_UP file the two rotations cancel exactly (their
+//                        entries are 0 and ±1), i.e. its coordinates are kept bit for bit. Checked
+//                        against bop_panel.dae (Z_UP, meter="1"): 0.5 x 0.8 x 0.36 m, base on
+//                        z = 0, the same as an independent parse of the file's <matrix> and
+//                        positions. (We do not set AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION: it
+//                        would keep the raw coordinates of every file, so a Y_UP file would come
+//                        out lying on its side, and Assimp 5.2 exposes no other way to learn the
+//                        declared axis.)
+//   glTF (.gltf .glb)    y up and metres by the glTF 2.0 spec; Assimp keeps the raw coordinates,
+//                        so we rotate y-up to z-up.
+//   FBX (.fbx)           Assimp keeps raw coordinates and reports the axis system and unit in the
+//                        scene metadata (UpAxis/UpAxisSign, CoordAxis/CoordAxisSign,
+//                        UnitScaleFactor in cm per unit); we apply them. Left-handed FBX axis
+//                        systems are not mirrored (rare; the rotation keeps up and right).
+//   everything else      (.stl .obj .ply .off ...) declare no up axis or unit: coordinates are kept
+//                        as they are, read as metres and z up. An .obj exported y-up from a tool
+//                        must be re-exported z-up (or rotated by the caller).
+//
+// "y-up to z-up" is the right-handed rotation of +90 deg about x, (x, y, z) -> (x, -z, y): +y
+// becomes +z, and x is kept.
+#include "sonar3d/io/mesh_io.hpp"
+
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <assimp/Importer.hpp>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace sonar3d {
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+Eigen::Matrix4d to_eigen(const aiMatrix4x4& m) {
+  // aiMatrix4x4 is row-major and acts on column vectors (a4, b4, c4 = translation).
+  Eigen::Matrix4d M;
+  M << m.a1, m.a2, m.a3, m.a4, m.b1, m.b2, m.b3, m.b4, m.c1, m.c2, m.c3, m.c4, m.d1, m.d2, m.d3,
+      m.d4;
+  return M;
+}
+
+Eigen::Matrix4d y_up_to_z_up() {
+  Eigen::Matrix4d R = Eigen::Matrix4d::Identity();
+  R.block<3, 3>(0, 0) << 1, 0, 0,  //
+      0, 0, -1,                    //
+      0, 1, 0;
+  return R;
+}
+
+// Reads a numeric metadata entry whatever type the importer stored it as.
+bool metadata_number(const aiMetadata* meta, const char* key, double* out) {
+  if (meta == nullptr) return false;
+  for (unsigned i = 0; i < meta->mNumProperties; ++i) {
+    if (std::string(meta->mKeys[i].C_Str()) != key) continue;
+    const aiMetadataEntry& e = meta->mValues[i];
+    switch (e.mType) {
+      case AI_BOOL:
+        *out = *static_cast<const bool*>(e.mData) ? 1.0 : 0.0;
+        return true;
+      case AI_INT32:
+        *out = *static_cast<const int32_t*>(e.mData);
+        return true;
+      case AI_UINT64:
+        *out = static_cast<double>(*static_cast<const uint64_t*>(e.mData));
+        return true;
+      case AI_FLOAT:
+        *out = *static_cast<const float*>(e.mData);
+        return true;
+      case AI_DOUBLE:
+        *out = *static_cast<const double*>(e.mData);
+        return true;
+      default:
+        return false;
+    }
+  }
+  return false;
+}
+
+// FBX declares its axis system and unit in the global settings, which Assimp 5.2 copies into the
+// scene metadata without applying them.
+Eigen::Matrix4d fbx_to_z_up_metres(const aiScene* scene) {
+  const aiMetadata* meta = scene->mMetaData;
+  double up = 1, up_sign = 1, coord = 0, coord_sign = 1, unit_cm = 1;
+  metadata_number(meta, "UpAxis", &up);
+  metadata_number(meta, "UpAxisSign", &up_sign);
+  metadata_number(meta, "CoordAxis", &coord);
+  metadata_number(meta, "CoordAxisSign", &coord_sign);
+  metadata_number(meta, "UnitScaleFactor", &unit_cm);
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  const int u = static_cast<int>(up), r = static_cast<int>(coord);
+  if (u >= 0 && u < 3 && r >= 0 && r < 3 && u != r) {
+    const Eigen::Vector3d up_file = (up_sign < 0 ? -1.0 : 1.0) * Eigen::Vector3d::Unit(u);
+    const Eigen::Vector3d right_file = (coord_sign < 0 ? -1.0 : 1.0) * Eigen::Vector3d::Unit(r);
+    // Rows: where our x, y, z come from. y = z cross x keeps the rotation proper (det = +1).
+    T.block<1, 3>(0, 0) = right_file.transpose();
+    T.block<1, 3>(1, 0) = up_file.cross(right_file).transpose();
+    T.block<1, 3>(2, 0) = up_file.transpose();
+  }
+  // UnitScaleFactor is centimetres per file unit (FBX default 1 = cm).
+  if (std::isfinite(unit_cm) && unit_cm > 0.0) T.block<3, 3>(0, 0) *= unit_cm * 0.01;
+  return T;
+}
+
+void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& parent,
+             TriangleMesh* out) {
+  const Eigen::Matrix4d M = parent * to_eigen(node->mTransformation);
+  const Eigen::Matrix3d A = M.block<3, 3>(0, 0);
+  const Eigen::Vector3d t = M.block<3, 1>(0, 3);
+  // A mirroring node transform turns counter-clockwise triangles clockwise; swap to stay outward.
+  const bool mirrored = A.determinant() < 0.0;
+  for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+    const aiMesh* mesh = scene->mMeshes[node->mMeshes[k]];
+    // Only vertices used by triangles are copied, so stray points and lines (kept by Assimp in
+    // separate primitive types) do not inflate the bounding box.
+    std::vector<int> remap(mesh->mNumVertices, -1);
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      Eigen::Vector3i tri;
+      bool valid = true;
+      for (int c = 0; c < 3; ++c) {
+        const unsigned vi = face.mIndices[c];
+        if (vi >= mesh->mNumVertices) {
+          valid = false;
+          break;
+        }
+        if (remap[vi] < 0) {
+          const aiVector3D& v = mesh->mVertices[vi];
+          remap[vi] = static_cast<int>(out->vertices.size());
+          out->vertices.push_back((A * Eigen::Vector3d(v.x, v.y, v.z) + t).cast<float>());
+        }
+        tri[c] = remap[vi];
+      }
+      if (!valid || tri[0] == tri[1] || tri[1] == tri[2] || tri[2] == tri[0]) continue;
+      if (mirrored) std::swap(tri[1], tri[2]);
+      out->triangles.push_back(tri);
+    }
+  }
+  for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], M, out);
+}
+
+void put_le(std::ostream& os, const void* data, size_t size) {
+  // PLY binary_little_endian regardless of the host's byte order.
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  const uint16_t probe = 1;
+  const bool host_little = *reinterpret_cast<const unsigned char*>(&probe) == 1;
+  if (host_little) {
+    os.write(reinterpret_cast<const char*>(bytes), static_cast<std::streamsize>(size));
+  } else {
+    for (size_t i = size; i-- > 0;) os.put(static_cast<char>(bytes[i]));
+  }
+}
+
+void write_ply(std::ostream& os, const TriangleMesh& mesh) {
+  os << "ply\nformat binary_little_endian 1.0\ncomment sonar3d mesh, metres, z up\n"
+     << "element vertex " << mesh.vertices.size() << "\n"
+     << "property float x\nproperty float y\nproperty float z\n"
+     << "element face " << mesh.triangles.size() << "\n"
+     << "property list uchar int vertex_indices\nend_header\n";
+  for (const auto& v : mesh.vertices) {
+    for (int c = 0; c < 3; ++c) put_le(os, &v[c], sizeof(float));
+  }
+  for (const auto& t : mesh.triangles) {
+    const unsigned char n = 3;
+    os.put(static_cast<char>(n));
+    for (int c = 0; c < 3; ++c) {
+      const int32_t i = t[c];
+      put_le(os, &i, sizeof(i));
+    }
+  }
+}
+
+void write_obj(std::ostream& os, const TriangleMesh& mesh) {
+  os << "# sonar3d mesh, metres, z up\n";
+  // 9 significant digits round-trip a float exactly.
+  os << std::setprecision(9);
+  for (const auto& v : mesh.vertices) os << "v " << v.x() << ' ' << v.y() << ' ' << v.z() << '\n';
+  for (const auto& t : mesh.triangles) {
+    os << "f " << t[0] + 1 << ' ' << t[1] + 1 << ' ' << t[2] + 1 << '\n';  // OBJ is 1-based
+  }
+}
+
+}  // namespace
+
+TriangleMesh load_mesh(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    throw Error("cannot load mesh '" + path + "': no such file");
+  }
+  if (!fs::is_regular_file(path, ec)) {
+    throw Error("cannot load mesh '" + path + "': not a regular file");
+  }
+
+  Assimp::Importer importer;
+  // Keep Collada's up-axis handling on (see the top of this file) and say so explicitly.
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
+  // We keep positions only. Dropping normals, texture coordinates and colours first lets
+  // aiProcess_JoinIdenticalVertices weld vertices by position, so faces that a CAD export split
+  // at hard edges or UV seams share their vertices again (bop_panel.dae: 12386 -> 2613 vertices).
+  importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS,
+                              aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
+                                  aiComponent_COLORS | aiComponent_TEXCOORDS |
+                                  aiComponent_BONEWEIGHTS);
+  // Node transforms are applied by walking the node tree ourselves (in double precision, with
+  // instanced meshes repeated), rather than with aiProcess_PreTransformVertices.
+  const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate |
+                         aiProcess_JoinIdenticalVertices | aiProcess_SortByPType;
+  const aiScene* scene = importer.ReadFile(path, flags);
+  if (scene == nullptr) {
+    throw Error("cannot load mesh '" + path + "': " + importer.GetErrorString() +
+                " (is it a valid mesh file in a format Assimp reads?)");
+  }
+  if (scene->mRootNode == nullptr) {
+    throw Error("cannot load mesh '" + path + "': the file has no scene graph");
+  }
+
+  const std::string ext = lower_extension(path);
+  Eigen::Matrix4d T_root = Eigen::Matrix4d::Identity();
+  if (ext == ".dae" || ext == ".zae" || ext == ".gltf" || ext == ".glb") {
+    T_root = y_up_to_z_up();
+  } else if (ext == ".fbx") {
+    T_root = fbx_to_z_up_metres(scene);
+  }
+
+  TriangleMesh mesh;
+  collect(scene, scene->mRootNode, T_root, &mesh);
+  if (mesh.triangles.empty()) {
+    throw Error("cannot load mesh '" + path + "': it contains no triangles (" +
+                std::to_string(scene->mNumMeshes) + " mesh(es) of points or lines only)");
+  }
+  for (const auto& v : mesh.vertices) {
+    if (!v.allFinite()) {
+      throw Error("cannot load mesh '" + path + "': it has non-finite vertex coordinates");
+    }
+  }
+  return mesh;
+}
+
+void save_mesh(const std::string& path, const TriangleMesh& mesh) {
+  const std::string ext = lower_extension(path);
+  if (ext != ".ply" && ext != ".obj") {
+    throw Error("cannot save mesh '" + path + "': unsupported extension '" + ext +
+                "' (use .ply or .obj)");
+  }
+  const int n = static_cast<int>(mesh.vertices.size());
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const auto& t = mesh.triangles[i];
+    if (t.minCoeff() < 0 || t.maxCoeff() >= n) {
+      throw Error("cannot save mesh '" + path + "': triangle " + std::to_string(i) +
+                  " refers to a vertex outside 0.." + std::to_string(n - 1));
+    }
+  }
+
+  AtomicPath out(path);
+  {
+    std::ofstream f(out.temp(), std::ios::binary);
+    if (!f) throw Error("cannot open '" + path + "' for writing");
+    if (ext == ".ply") {
+      write_ply(f, mesh);
+    } else {
+      write_obj(f, mesh);
+    }
+    f.close();
+    if (!f) throw Error("failed writing mesh '" + path + "' (disk full?)");
+  }
+  out.commit();
+}
+
+}  // namespace sonar3d
