@@ -1,0 +1,26 @@
+#pragma once
+// Image denoising shared by every reconstruction method (thesis sec. 4.4.7): the Z-test against
+// per-pixel open-water noise statistics (eq. 4.8) and a static intensity threshold. A pixel that
+// fails is set to 0 ("no return"); a pixel that passes keeps its intensity, minus the noise mean
+// when `subtract_mean` is set.
+#include <optional>
+
+#include "sonar3d/core/sonar_image.hpp"
+#include "sonar3d/io/dataset.hpp"
+
+namespace sonar3d {
+
+struct DenoiseConfig {
+  bool z_test = true;            // apply eq. 4.8 when noise statistics are available
+  double z_threshold = 3.0;      // T: keep a pixel when (I - m)/σ > T
+  bool subtract_mean = true;     // kept pixels become I - m (the return above the noise floor)
+  double static_threshold = 0.0; // keep a pixel only when its (denoised) intensity > this
+  void validate() const;         // throws Error naming the field
+};
+
+// Denoises `image` in place. `noise` may be empty: then only the static threshold applies.
+// Throws Error when noise images and the image differ in size.
+void denoise(SonarImage& image, const std::optional<NoiseImages>& noise,
+             const DenoiseConfig& config);
+
+}  // namespace sonar3d
