@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
       "sonar3d: simulate 2D imaging sonars, reconstruct 3D scenes and measure them against CAD.\n"
       "Units: metres, seconds, degrees where an option name ends in _deg."};
   app.require_subcommand(1);
+  app.fallthrough();  // global flags (--quiet) may follow the subcommand
   GlobalOptions g;
   app.add_flag("-q,--quiet", g.quiet, "no progress bars");
   Runner run;

@@ -55,7 +55,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
                         double t0, double period, const fs::path& base) {
   const std::string type = yaml::get_string(n, "type", "", file, ctx);
   if (type == "straight") {
-    yaml::check_keys(n, {"type", "start", "end", "spacing", "rpy_deg"}, file, ctx);
+    yaml::check_keys(n, {"type", "start", "end", "spacing", "rpy_deg", "period"}, file, ctx);
     const auto a = yaml::get_vector(n, "start", 3, file, ctx);
     const auto b = yaml::get_vector(n, "end", 3, file, ctx);
     const double spacing = yaml::get_double(n, "spacing", file, ctx);
@@ -72,7 +72,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     }
   }
   if (type == "orbit") {
-    yaml::check_keys(n, {"type", "center", "radius", "count", "start_deg", "sweep_deg"}, file, ctx);
+    yaml::check_keys(n, {"type", "center", "radius", "count", "start_deg", "sweep_deg", "period"}, file, ctx);
     const auto c = yaml::get_vector(n, "center", 3, file, ctx);
     try {
       return orbit(Eigen::Vector3d(c[0], c[1], c[2]), yaml::get_double(n, "radius", file, ctx),
@@ -84,7 +84,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     }
   }
   if (type == "lawnmower") {
-    yaml::check_keys(n, {"type", "x", "y", "z", "line_spacing", "spacing"}, file, ctx);
+    yaml::check_keys(n, {"type", "x", "y", "z", "line_spacing", "spacing", "period"}, file, ctx);
     const auto x = yaml::get_vector(n, "x", 2, file, ctx);
     const auto y = yaml::get_vector(n, "y", 2, file, ctx);
     try {
@@ -96,7 +96,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     }
   }
   if (type == "tum") {
-    yaml::check_keys(n, {"type", "file"}, file, ctx);
+    yaml::check_keys(n, {"type", "file", "period"}, file, ctx);
     fs::path p = yaml::get_string(n, "file", "", file, ctx);
     if (p.is_relative()) p = base / p;
     Trajectory tum = read_tum(p.string());
@@ -206,12 +206,16 @@ SimulationSetup load_simulation_setup(const std::string& path) {
                   ": expected a non-empty list");
     }
     for (std::size_t i = 0; i < tr["segments"].size(); ++i) {
-      segs.emplace_back(tr["segments"][i], "trajectory.segments[" + std::to_string(i) + "]");
+      const YAML::Node seg = tr["segments"][i];
+      const std::string ctx = "trajectory.segments[" + std::to_string(i) + "]";
+      if (seg.IsMap() && seg["period"]) {
+        throw Error(yaml::where(path, seg["period"], ctx + ".period") +
+                    ": the frame period is set once, as trajectory.period");
+      }
+      segs.emplace_back(seg, ctx);
     }
   } else {
-    YAML::Node single = YAML::Clone(tr);
-    single.remove("period");
-    segs.emplace_back(single, "trajectory");
+    segs.emplace_back(tr, "trajectory");  // a single segment; its 'period' is read above
   }
   double t0 = 0.0;
   for (const auto& [node, ctx] : segs) {

@@ -1,0 +1,158 @@
+// End to end through the command-line tool: simulate → info → preview → noise → evaluate, and the
+// bad inputs a user meets (one clear error line, a non-zero exit, nothing half-written).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/sim/simulation.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kTmp = fs::temp_directory_path() / "sonar3d_test_cli";
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun run(const std::string& args) {
+  const fs::path out = kTmp / "stdout.txt", err = kTmp / "stderr.txt";
+  const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " +
+                          err.string();
+  const int status = std::system(cmd.c_str());
+  auto slurp = [](const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  };
+  return {WEXITSTATUS(status), slurp(out), slurp(err)};
+}
+
+void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::trunc) << text; }
+
+const char* kScene = R"(
+seed: 2
+sensor: {preset: sim-10deg, beams: 80, fov_deg: 40}
+simulation: {elevation_step_deg: 0.05}
+objects:
+  - {name: ball, primitive: {type: sphere, radius: 0.4}, pose: {translation: [2.5, 0, 0]}, reflectivity: 0.9}
+trajectory: {period: 0.1, type: straight, start: [0, 0, -0.3], end: [0, 0, 0.3], spacing: 0.1}
+)";
+
+class Cli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    fs::remove_all(kTmp);
+    fs::create_directories(kTmp);
+  }
+};
+
+void expect_one_line_error(const CliRun& r, const std::string& needle) {
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("error"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+  EXPECT_LE(std::count(r.err.begin(), r.err.end(), '\n'), 2) << r.err;
+}
+
+}  // namespace
+
+TEST_F(Cli, SimulateInfoPreviewNoiseEvaluate) {
+  write(kTmp / "scene.yaml", kScene);
+  const fs::path ds = kTmp / "ds";
+  CliRun r = run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("wrote 7 frames"), std::string::npos) << r.out;
+  r = run("info " + ds.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("frames       7"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ground truth truth/scene.yaml"), std::string::npos) << r.out;
+  r = run("preview " + ds.string() + " --frame 3 -o " + (kTmp / "f.png").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_GT(fs::file_size(kTmp / "f.png"), 1000u);
+  r = run("noise estimate " + ds.string() + " -o " + (kTmp / "noise").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(kTmp / "noise/mean.tiff"));
+  EXPECT_TRUE(fs::exists(kTmp / "noise/std.tiff"));
+
+  // A cloud sampled on the truth surface, pushed 1 cm outward: median 1 cm, full coverage.
+  const auto truth = sonar3d::read_truth(ds);
+  sonar3d::PointCloud cloud;
+  const Eigen::Vector3f c(2.5f, 0, 0);
+  for (const auto& p : sonar3d::sample_surface(truth[0].mesh_world, 20000, 5)) {
+    cloud.points.push_back(c + (p - c) * (1.0f + 0.01f / (p - c).norm()));
+  }
+  sonar3d::write_ply((kTmp / "cloud.ply").string(), cloud);
+  r = run("evaluate " + (kTmp / "cloud.ply").string() + " --truth " + ds.string() + " --json " +
+          (kTmp / "m.json").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream j(kTmp / "m.json");
+  std::stringstream js;
+  js << j.rdbuf();
+  EXPECT_NE(js.str().find("\"object\": \"ball\""), std::string::npos) << js.str();
+  EXPECT_NE(r.out.find("ball"), std::string::npos);
+}
+
+TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
+  const fs::path out = kTmp / "never";
+  // Missing scene file.
+  CliRun r = run("simulate " + (kTmp / "missing.yaml").string() + " -o " + out.string());
+  EXPECT_NE(r.code, 0);
+  // Malformed YAML: file and line named.
+  write(kTmp / "bad.yaml", "sensor: {preset: sim-10deg\nobjects: [\n");
+  r = run("simulate " + (kTmp / "bad.yaml").string() + " -o " + out.string());
+  expect_one_line_error(r, "bad.yaml:");
+  // A missing mesh: named, and no dataset appears.
+  std::string scene = kScene;
+  scene.replace(scene.find("primitive: {type: sphere, radius: 0.4}"),
+                std::string("primitive: {type: sphere, radius: 0.4}").size(), "mesh: nowhere.dae");
+  write(kTmp / "nomesh.yaml", scene);
+  r = run("simulate " + (kTmp / "nomesh.yaml").string() + " -o " + out.string());
+  expect_one_line_error(r, "nowhere.dae");
+  // Aperture of 0 and 180 degrees, NaN, negative spacing, empty scene.
+  for (const std::string& bad :
+       {std::string("vertical_aperture_deg: 0"), std::string("vertical_aperture_deg: 180"),
+        std::string("r_max: .nan")}) {
+    std::string s = kScene;
+    s.replace(s.find("beams: 80"), 9, "beams: 80, " + bad);
+    write(kTmp / "param.yaml", s);
+    r = run("simulate " + (kTmp / "param.yaml").string() + " -o " + out.string());
+    expect_one_line_error(r, bad.substr(0, bad.find(':')));
+  }
+  scene = kScene;
+  scene.replace(scene.find("spacing: 0.1"), 12, "spacing: -0.1");
+  write(kTmp / "neg.yaml", scene);
+  r = run("simulate " + (kTmp / "neg.yaml").string() + " -o " + out.string());
+  expect_one_line_error(r, "spacing");
+  write(kTmp / "empty.yaml",
+        "sensor: {preset: sim-10deg}\nobjects: []\ntrajectory: {type: straight, start: [0,0,0], "
+        "end: [0,0,1], spacing: 0.1}\n");
+  r = run("simulate " + (kTmp / "empty.yaml").string() + " -o " + out.string());
+  expect_one_line_error(r, "empty");
+  EXPECT_FALSE(fs::exists(out));
+  for (const auto& e : fs::directory_iterator(kTmp)) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+  }
+  // Not a dataset; a corrupt cloud.
+  r = run("info " + kTmp.string());
+  expect_one_line_error(r, "sonar.yaml is missing");
+  write(kTmp / "corrupt.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+                              "property float y\nproperty float z\nend_header\nabc");
+  write(kTmp / "m.yaml", "");
+  r = run("evaluate " + (kTmp / "corrupt.ply").string() + " --truth " + (kTmp / "ds").string());
+  expect_one_line_error(r, "corrupt.ply");
+  // Unknown subcommand and --help.
+  EXPECT_NE(run("frobnicate").code, 0);
+  r = run("simulate --help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("scene YAML file"), std::string::npos);
+}
