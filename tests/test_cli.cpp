@@ -17,7 +17,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path kTmp = fs::temp_directory_path() / "sonar3d_test_cli";
+// Each test runs in its own process under ctest, possibly in parallel: one directory per test.
+fs::path kTmp;
 
 struct CliRun {
   int code;
@@ -51,7 +52,10 @@ trajectory: {period: 0.1, type: straight, start: [0, 0, -0.3], end: [0, 0, 0.3],
 
 class Cli : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
+  void SetUp() override {
+    kTmp = fs::temp_directory_path() /
+           ("sonar3d_test_cli_" + std::string(
+                ::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(kTmp);
     fs::create_directories(kTmp);
   }
@@ -148,6 +152,8 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
   write(kTmp / "corrupt.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
                               "property float y\nproperty float z\nend_header\nabc");
   write(kTmp / "m.yaml", "");
+  write(kTmp / "scene.yaml", kScene);
+  ASSERT_EQ(run("simulate " + (kTmp / "scene.yaml").string() + " -o " + (kTmp / "ds").string()).code, 0);
   r = run("evaluate " + (kTmp / "corrupt.ply").string() + " --truth " + (kTmp / "ds").string());
   expect_one_line_error(r, "corrupt.ply");
   // Unknown subcommand and --help.
