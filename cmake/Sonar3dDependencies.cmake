@@ -9,6 +9,15 @@ find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(fmt REQUIRED)
 
+# OpenVDB (the carving map, .vdb export): Debian ships only a find module, not a config package.
+# Its headers need Boost (libboost-iostreams-dev). The module forces BUILD_SHARED_LIBS ON as a side
+# effect: keep the caller's value.
+list(APPEND CMAKE_MODULE_PATH /usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB
+  /usr/lib/cmake/OpenVDB)
+set(_sonar3d_shared_libs ${BUILD_SHARED_LIBS})
+find_package(OpenVDB REQUIRED COMPONENTS openvdb)
+set(BUILD_SHARED_LIBS ${_sonar3d_shared_libs})
+
 # Debian splits OpenCV into per-module -dev packages; only the full libopencv-dev ships the CMake
 # config, so we import the three modules we use ourselves rather than install all of OpenCV.
 find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
@@ -24,4 +33,11 @@ endforeach()
 
 if(NOT TARGET embree)
   message(FATAL_ERROR "embree imported target not found")
+endif()
+
+# MPI (OpenMPI from Debian) spreads planner sweeps over ranks; optional: without it the planner
+# runs on one machine.
+find_package(MPI COMPONENTS CXX QUIET)
+if(NOT MPI_CXX_FOUND)
+  message(WARNING "MPI not found: `sonar3d plan` will run on one machine only")
 endif()

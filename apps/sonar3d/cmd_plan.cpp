@@ -1,0 +1,63 @@
+#include <fmt/core.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "commands.hpp"
+#include "sonar3d/plan/mpi.hpp"
+#include "sonar3d/plan/sweep.hpp"
+
+namespace sonar3d::cli {
+
+void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "plan",
+      "Pre-dive planner (thesis sec. 5.7.3): run every configuration of a sweep file "
+      "(simulate → reconstruct → evaluate), in parallel, resumably, and rank them by a metric "
+      "under hard constraints. Writes DIR/results.csv and DIR/results.json (docs/planner.md). "
+      "Under `mpirun -np N` the points are spread over the ranks and rank 0 merges the results.");
+  struct Opts {
+    std::string sweep, out;
+  };
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("sweep", o->sweep, "sweep YAML file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", o->out, "output directory (created; finished points are kept)")
+      ->required();
+  cmd->callback([&g, &run, o] {
+    run = [&g, o] {
+      const Sweep sweep = load_sweep(o->sweep);
+      MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
+      PlanOptions opt;
+      opt.out_dir = o->out;
+      opt.worker_executable = std::filesystem::read_symlink("/proc/self/exe").string();
+      opt.progress = !g.quiet && mpi.rank() == 0;
+      opt.mpi_rank = mpi.rank();
+      opt.mpi_size = mpi.size();
+      const PlanSummary s = run_sweep(sweep, opt);
+      mpi.gather_points(sweep, opt.out_dir);
+      if (mpi.rank() == 0) {
+        write_sweep_results(sweep, opt.out_dir);
+        fmt::print("plan: {} points ({} run here, {} already done, {} excluded by constraints, "
+                   "{} failed) in {:.1f} s{}; results in {}/results.csv\n",
+                   s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
+                   mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
+      }
+      return 0;
+    };
+  });
+
+  // Internal: one point, run by the planner in a subprocess.
+  auto* point = app.add_subcommand("plan-point", "(internal) run one sweep point")->group("");
+  auto dir = std::make_shared<std::string>();
+  auto index = std::make_shared<std::size_t>(0);
+  point->add_option("dir", *dir)->required();
+  point->add_option("index", *index)->required();
+  point->callback([&run, dir, index] {
+    run = [dir, index] {
+      run_sweep_point(*dir, *index);
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

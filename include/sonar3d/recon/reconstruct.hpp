@@ -1,0 +1,33 @@
+#pragma once
+// One entry point for every reconstruction method, used by the planner and the bindings:
+// dataset in, world-frame point cloud out.
+#include <string>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/carve.hpp"
+
+namespace sonar3d {
+
+struct ReconstructOptions {
+  // "carve" (ch. 4), "deconv" (ch. 5, thesis formulation), "deconv-l1" (L1 with
+  // λ = 0.5·λ_max, Table 5.1), "deconv-exact" (exact slant-range geometry).
+  std::string method = "carve";
+  CarveConfig carve;
+  bool progress = false;
+  int num_threads = 0;  // 0 = all cores; overrides the method configs' thread counts
+};
+
+struct ReconstructResult {
+  PointCloud cloud;
+  double seconds = 0;
+  std::string notes;  // warnings the method reported (e.g. a pass that is not straight)
+};
+
+// Throws Error on an unknown method or when the method cannot run on the dataset.
+ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options);
+
+// The method names reconstruct_dataset() accepts.
+const std::vector<std::string>& reconstruction_methods();
+
+}  // namespace sonar3d

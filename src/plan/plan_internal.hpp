@@ -1,0 +1,26 @@
+#pragma once
+// Internal helpers shared by the planner's translation units.
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include "sonar3d/plan/sweep.hpp"
+#include "sonar3d/sim/simulation.hpp"
+
+namespace sonar3d {
+
+TriangleMesh plan_object_mesh(const std::string& object, const std::filesystem::path& sweep_dir);
+// The simulated inspection of one point (sensor, object at the origin, path, noise).
+SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, SweepValue>& params,
+                           const std::filesystem::path& sweep_dir);
+// Scale of the stripe noise model that gives `snr_db` on this setup.
+double plan_noise_scale(const SimulationSetup& setup, double snr_db);
+// A stable text key of a point's parameters: a finished point is reused only if it matches.
+std::string plan_params_key(const std::map<std::string, SweepValue>& params);
+nlohmann::json plan_params_json(const std::map<std::string, SweepValue>& params);
+// Threads one point may use (set by the runner for its subprocesses; 0 = all cores).
+int plan_threads_per_point();
+
+}  // namespace sonar3d

@@ -1,0 +1,200 @@
+// One sweep point: build the inspection from its parameters, simulate, reconstruct, evaluate.
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/eval/per_object.hpp"
+#include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/plan/sweep.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/sim/simulation.hpp"
+#include "sonar3d/sim/trajectory_gen.hpp"
+#include "plan_internal.hpp"
+
+namespace fs = std::filesystem;
+
+namespace sonar3d {
+namespace {
+constexpr double kDeg = M_PI / 180.0;
+
+double num(const std::map<std::string, SweepValue>& p, const std::string& k) {
+  return std::get<double>(p.at(k));
+}
+std::string str(const std::map<std::string, SweepValue>& p, const std::string& k) {
+  return std::get<std::string>(p.at(k));
+}
+
+std::uint64_t directory_bytes(const fs::path& dir) {
+  std::uint64_t n = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file()) n += e.file_size();
+  }
+  return n;
+}
+
+}  // namespace
+
+TriangleMesh plan_object_mesh(const std::string& object, const fs::path& sweep_dir) {
+  const auto names = reference_object_names();
+  if (std::find(names.begin(), names.end(), object) != names.end()) {
+    return make_reference_object(object);
+  }
+  fs::path p = object;
+  if (p.is_relative()) p = sweep_dir / p;
+  return load_mesh(p.string());
+}
+
+SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, SweepValue>& p,
+                           const fs::path& sweep_dir) {
+  SimulationSetup setup;
+  setup.source = sweep.source;
+  setup.seed = sweep.seed;
+  SceneObject obj;
+  obj.name = fs::path(str(p, "object")).stem().string();
+  obj.mesh_world = plan_object_mesh(str(p, "object"), sweep_dir);
+  obj.reflectivity = 0.8;
+  const Eigen::AlignedBox3f box = obj.mesh_world.bounding_box();
+  // The object stands at the origin; its horizontal half-extent sets the range window.
+  const double half = 0.5 * std::max(box.sizes().x(), box.sizes().y());
+  setup.scene.objects.push_back(obj);
+
+  const double standoff = num(p, "standoff_m");
+  const double aperture = num(p, "aperture_deg") * kDeg;
+  SonarSpec& s = setup.spec;
+  s.name = "plan";
+  const double fov = num(p, "fov_deg") * kDeg;
+  s.set_uniform_bearings(fov, std::max(1, static_cast<int>(std::lround(num(p, "fov_deg") /
+                                                                       num(p, "bearing_res_deg")))));
+  s.vertical_aperture_rad = aperture;
+  s.r_min = std::max(0.1, standoff - half - 0.5);
+  s.r_max = standoff + half + 1.0;
+  s.range_bins = std::max(1, static_cast<int>(std::ceil((s.r_max - s.r_min) / num(p, "range_res_m"))));
+  s.r_max = s.r_min + s.range_bins * num(p, "range_res_m");
+  setup.simulator.elevation_step_rad = std::min(sweep.elevation_step_deg * kDeg, aperture);
+  setup.simulator.num_threads = 1;
+
+  const double spacing = num(p, "spacing_m");
+  const std::string path = str(p, "path");
+  if (standoff <= half) {
+    throw Error("stand-off " + std::to_string(standoff) + " m puts the sonar inside the object");
+  }
+  if (path == "vertical") {
+    // The thesis' vertical inspection: the sonar looks horizontally at the object and moves
+    // along its own z axis (the direction of uncertainty) past the object's whole height.
+    const double reach = std::min(1.0, standoff * std::tan(0.5 * aperture));
+    setup.T_world_vehicle = straight_pass(
+        Eigen::Vector3d(-standoff, 0, box.min().z() - reach),
+        Eigen::Vector3d(-standoff, 0, box.max().z() + reach), spacing,
+        Eigen::Matrix3d::Identity(), 0.0, 0.1);
+  } else {
+    const double circumference = 2 * M_PI * standoff;
+    const int count = std::max(8, static_cast<int>(std::ceil(circumference / spacing)));
+    setup.T_world_vehicle =
+        orbit(Eigen::Vector3d(0, 0, box.center().z()), standoff, count, M_PI, 2 * M_PI, 0.0, 0.1);
+  }
+  if (std::holds_alternative<double>(p.at("snr_db"))) {
+    setup.noise.kind = NoiseModelConfig::Kind::Stripes;
+    setup.noise.scale = plan_noise_scale(setup, num(p, "snr_db"));
+  }
+  return setup;
+}
+
+double plan_noise_scale(const SimulationSetup& setup, double snr_db) {
+  // SNR_dB = 20·log10(S / σ̄): S is the mean intensity of the pixels that hold a return in a
+  // noise-free frame from the middle of the trajectory, σ̄ the mean noise standard deviation of
+  // the stripe model over the image. The stripe model is scaled to reach the requested SNR.
+  const Simulator sim(setup.scene, setup.spec, setup.simulator);
+  const std::size_t mid = setup.T_world_vehicle.size() / 2;
+  const SonarImage img =
+      sim.render(setup.T_world_vehicle.poses[mid] * setup.spec.T_vehicle_sonar, setup.seed);
+  double sum = 0;
+  std::size_t n = 0;
+  for (float v : img.data) {
+    if (v > 0) {
+      sum += v;
+      ++n;
+    }
+  }
+  if (n == 0) throw Error("SNR calibration: the middle frame sees nothing of the object");
+  const NoiseImages model = stripe_noise_images(setup.spec, setup.noise.stripes);
+  double sigma = 0;
+  for (float v : model.std.data) sigma += v;
+  sigma /= static_cast<double>(model.std.data.size());
+  return (sum / n) / std::pow(10.0, snr_db / 20.0) / sigma;
+}
+
+void run_sweep_point(const fs::path& out_dir, std::size_t index) {
+  const Sweep sweep = load_sweep((out_dir / "sweep.yaml").string());
+  const auto params = sweep.point(index);
+  const std::string id = point_id(index);
+  const fs::path dir = out_dir / "points" / id;
+  fs::create_directories(dir);
+  nlohmann::json status;
+  status["id"] = id;
+  status["index"] = index;
+  status["params_key"] = plan_params_key(params);
+  status["params"] = plan_params_json(params);
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const SimulationSetup setup = plan_setup(sweep, params, sweep.source.empty()
+                                                                ? out_dir
+                                                                : fs::path(sweep.source).parent_path());
+    const fs::path ds_dir = dir / "dataset";
+    const SimulationStats sim = simulate_dataset(setup, ds_dir, false);
+    const Dataset ds = read_dataset(ds_dir);
+    ReconstructOptions ro;
+    ro.method = std::get<std::string>(params.at("method"));
+    ro.carve.voxel_size = std::get<double>(params.at("voxel_m"));
+    // The object and a margin: keeps the map (and memory) to the inspected volume.
+    Eigen::AlignedBox3d roi = setup.scene.objects[0].mesh_world.bounding_box().cast<double>();
+    roi.extend(roi.min() - Eigen::Vector3d::Constant(0.3));
+    roi.extend(roi.max() + Eigen::Vector3d::Constant(0.3));
+    ro.carve.region = roi;
+    ro.num_threads = plan_threads_per_point();
+    const ReconstructResult rec = reconstruct_dataset(ds, ro);
+    write_ply((dir / "cloud.ply").string(), rec.cloud);
+    const auto results = evaluate_objects(rec.cloud, setup.scene.objects, EvalConfig{});
+    nlohmann::json metrics = nlohmann::json::array();
+    for (const auto& r : results) {
+      nlohmann::json item = nlohmann::json::parse(to_json(r.result));
+      item["object"] = r.name;
+      metrics.push_back(item);
+    }
+    write_text_file((dir / "metrics.json").string(), metrics.dump(2) + "\n");
+    const nlohmann::json& all = metrics.back();
+    status["metrics"] = {{"median_error_m", all["median_error_m"]},
+                         {"mean_error_m", all["mean_error_m"]},
+                         {"coverage", all["coverage"]},
+                         {"outliers", all["outliers"]},
+                         {"median_to_coverage", all["median_to_coverage_cm_per_pct"]},
+                         {"num_points", all["num_points"]}};
+    status["data_bytes"] = directory_bytes(ds_dir);
+    status["frames"] = sim.frames;
+    status["simulate_s"] = sim.seconds;
+    status["reconstruct_s"] = rec.seconds;
+    status["cloud"] = "points/" + id + "/cloud.ply";
+    status["objects"] = {setup.scene.objects[0].name};
+    status["status"] = "ok";
+    status["message"] = rec.notes;
+    // Truth meshes are shared by every point that uses the object.
+    const fs::path truth = out_dir / "truth" / (setup.scene.objects[0].name + ".ply");
+    if (!fs::exists(truth)) {
+      fs::create_directories(truth.parent_path());
+      save_mesh(truth.string(), setup.scene.objects[0].mesh_world);
+    }
+    if (!sweep.keep_datasets) fs::remove_all(ds_dir);
+  } catch (const std::exception& e) {
+    status["status"] = "failed";
+    status["message"] = e.what();
+  }
+  status["runtime_s"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  write_text_file((dir / "status.json").string(), status.dump(2) + "\n");
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,297 @@
+// Runs a sweep: subprocess per point (failure isolation and per-point peak memory), resumable,
+// parallel on this machine, spread over MPI ranks when launched under mpirun.
+#include <nlohmann/json.hpp>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <optional>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "plan_internal.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+
+extern char** environ;
+namespace fs = std::filesystem;
+
+namespace sonar3d {
+
+std::string plan_params_key(const std::map<std::string, SweepValue>& params) {
+  std::string key;
+  for (const auto& kv : params) key += kv.first + "=" + to_string(kv.second) + ";";
+  return key;
+}
+
+nlohmann::json plan_params_json(const std::map<std::string, SweepValue>& params) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& kv : params) {
+    if (std::holds_alternative<std::monostate>(kv.second)) {
+      j[kv.first] = nullptr;
+    } else if (const auto* d = std::get_if<double>(&kv.second)) {
+      j[kv.first] = *d;
+    } else {
+      j[kv.first] = std::get<std::string>(kv.second);
+    }
+  }
+  return j;
+}
+
+int plan_threads_per_point() {
+  const char* v = std::getenv("SONAR3D_PLAN_THREADS");
+  return v ? std::max(0, std::atoi(v)) : 0;
+}
+
+namespace {
+
+std::optional<nlohmann::json> read_status(const fs::path& file) {
+  if (!fs::exists(file)) return std::nullopt;
+  try {
+    return nlohmann::json::parse(read_text_file(file.string()));
+  } catch (const std::exception&) {
+    return std::nullopt;  // a damaged status is treated as unfinished
+  }
+}
+
+// Spawns `exe plan-point DIR INDEX`; returns the pid.
+pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index, int threads) {
+  const std::string s_dir = dir.string(), s_idx = std::to_string(index);
+  std::vector<std::string> args = {exe, "plan-point", s_dir, s_idx};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::vector<std::string> env_store;
+  for (char** e = environ; *e; ++e) {
+    if (std::string(*e).rfind("SONAR3D_PLAN_THREADS=", 0) != 0) env_store.emplace_back(*e);
+  }
+  env_store.push_back("SONAR3D_PLAN_THREADS=" + std::to_string(threads));
+  std::vector<char*> envp;
+  for (auto& e : env_store) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), envp.data());
+  if (rc != 0) {
+    throw Error("cannot start the worker '" + exe + "': " + std::strerror(rc));
+  }
+  return pid;
+}
+
+// Records what the parent saw of a finished child: peak memory, and a failure if the child died
+// without writing its status (crash, kill).
+void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rusage& ru,
+                  const std::string& key) {
+  const fs::path file = dir / "points" / point_id(index) / "status.json";
+  auto st = read_status(file);
+  if (!st || (*st).value("params_key", "") != key) {
+    nlohmann::json j;
+    j["id"] = point_id(index);
+    j["index"] = index;
+    j["params_key"] = key;
+    j["status"] = "failed";
+    std::ostringstream msg;
+    if (WIFSIGNALED(wstatus)) {
+      msg << "worker killed by signal " << WTERMSIG(wstatus);
+    } else {
+      msg << "worker exited with status " << WEXITSTATUS(wstatus) << " without a result";
+    }
+    j["message"] = msg.str();
+    st = j;
+    fs::create_directories(file.parent_path());
+  }
+  (*st)["peak_rss_mb"] = ru.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
+  write_text_file(file.string(), st->dump(2) + "\n");
+}
+
+}  // namespace
+
+PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (opt.worker_executable.empty() || !fs::exists(opt.worker_executable)) {
+    throw Error("planner: worker executable '" + opt.worker_executable + "' not found");
+  }
+  fs::create_directories(opt.out_dir / "points");
+  if (opt.mpi_rank == 0) {
+    // The copy every worker reads: the sweep's own directory anchors relative mesh paths.
+    std::string text = read_text_file(sweep.source);
+    write_text_file((opt.out_dir / "sweep.yaml").string(), text);
+  }
+  PlanSummary sum;
+  sum.points = sweep.size();
+  std::vector<std::size_t> todo;
+  for (std::size_t i = 0; i < sweep.size(); ++i) {
+    if (static_cast<int>(i % opt.mpi_size) != opt.mpi_rank) continue;  // MPI: round-robin
+    const auto params = sweep.point(i);
+    const std::string key = plan_params_key(params);
+    const fs::path status = opt.out_dir / "points" / point_id(i) / "status.json";
+    bool violates = false;
+    for (const auto& c : sweep.constraints) violates |= !c.satisfied_by(params);
+    if (violates) {
+      nlohmann::json j = {{"id", point_id(i)}, {"index", i}, {"params_key", key},
+                          {"params", plan_params_json(params)}, {"status", "skipped_constraint"},
+                          {"message", "violates a hard constraint"}};
+      fs::create_directories(status.parent_path());
+      write_text_file(status.string(), j.dump(2) + "\n");
+      ++sum.skipped_constraint;
+      continue;
+    }
+    const auto st = read_status(status);
+    if (st && (*st).value("params_key", "") == key && (*st).value("status", "") == "ok") {
+      ++sum.skipped_done;  // resumable: finished points are kept
+      continue;
+    }
+    todo.push_back(i);
+  }
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int workers = std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
+                                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
+  const int threads = std::max(1, cores / workers);
+  Progress bar("plan", todo.size(), opt.progress);
+  std::map<pid_t, std::size_t> running;
+  std::size_t next = 0;
+  auto launch = [&] {
+    while (static_cast<int>(running.size()) < workers && next < todo.size()) {
+      const std::size_t i = todo[next++];
+      running[spawn_point(opt.worker_executable, opt.out_dir, i, threads)] = i;
+    }
+  };
+  launch();
+  while (!running.empty()) {
+    int wstatus = 0;
+    rusage ru{};
+    const pid_t pid = wait4(-1, &wstatus, 0, &ru);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw Error(std::string("planner: waiting for workers failed: ") + std::strerror(errno));
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    const std::size_t i = it->second;
+    running.erase(it);
+    finish_point(opt.out_dir, i, wstatus, ru, plan_params_key(sweep.point(i)));
+    const auto st = read_status(opt.out_dir / "points" / point_id(i) / "status.json");
+    if (!st || (*st).value("status", "") != "ok") ++sum.failed;
+    ++sum.ran;
+    bar.add();
+    launch();
+  }
+  bar.finish();
+  sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return sum;
+}
+
+void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
+  nlohmann::json results;
+  results["version"] = 1;
+  results["rank_by"] = sweep.rank_by;
+  const bool higher = metric_higher_is_better(sweep.rank_by);
+  results["rank_order"] = higher ? "descending" : "ascending";
+  results["constraints"] = nlohmann::json::array();
+  for (const auto& c : sweep.constraints) results["constraints"].push_back(c.text);
+  results["axes"] = nlohmann::json::object();
+  for (const auto& [name, values] : sweep.axes) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& v : values) {
+      if (std::holds_alternative<std::monostate>(v)) {
+        list.push_back(nullptr);
+      } else if (const auto* d = std::get_if<double>(&v)) {
+        list.push_back(*d);
+      } else {
+        list.push_back(std::get<std::string>(v));
+      }
+    }
+    results["axes"][name] = list;
+  }
+  std::vector<nlohmann::json> points;
+  for (std::size_t i = 0; i < sweep.size(); ++i) {
+    const auto params = sweep.point(i);
+    auto st = read_status(dir / "points" / point_id(i) / "status.json");
+    nlohmann::json p;
+    p["id"] = point_id(i);
+    p["params"] = plan_params_json(params);
+    if (!st || (*st).value("params_key", "") != plan_params_key(params)) {
+      p["status"] = "missing";
+      p["message"] = "not run yet";
+    } else {
+      for (const char* k : {"status", "message", "metrics", "runtime_s", "peak_rss_mb",
+                            "data_bytes", "cloud", "objects", "frames"}) {
+        if (st->contains(k)) p[k] = (*st)[k];
+      }
+    }
+    if (!p.contains("cloud")) p["cloud"] = nullptr;
+    p["rank"] = nullptr;
+    points.push_back(p);
+  }
+  // Rank the points that ran, satisfy the constraints and have the metric.
+  auto metric_of = [&](const nlohmann::json& p) -> std::optional<double> {
+    const std::string& m = sweep.rank_by;
+    const nlohmann::json* v = nullptr;
+    if (p.contains("metrics") && p["metrics"].contains(m)) v = &p["metrics"][m];
+    if (p.contains(m)) v = &p[m];
+    if (!v || !v->is_number()) return std::nullopt;
+    const double x = v->get<double>();
+    return std::isfinite(x) ? std::optional<double>(x) : std::nullopt;
+  };
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (points[i].value("status", "") == "ok" && metric_of(points[i])) order.push_back(i);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return higher ? *metric_of(points[a]) > *metric_of(points[b])
+                  : *metric_of(points[a]) < *metric_of(points[b]);
+  });
+  for (std::size_t r = 0; r < order.size(); ++r) points[order[r]]["rank"] = r + 1;
+  results["points"] = points;
+  write_text_file((dir / "results.json").string(), results.dump(2) + "\n");
+
+  // results.csv: one row per point.
+  std::ostringstream csv;
+  csv << "id,status,rank";
+  for (const auto& name : sweep_parameter_names()) csv << ',' << name;
+  const std::vector<std::string> mcols = {"median_error_m", "mean_error_m", "coverage", "outliers",
+                                          "median_to_coverage", "num_points"};
+  for (const auto& m : mcols) csv << ',' << m;
+  csv << ",runtime_s,peak_rss_mb,data_bytes,message\n";
+  auto cell = [](const nlohmann::json& v) -> std::string {
+    if (v.is_null()) return "";
+    if (v.is_string()) return v.get<std::string>();
+    std::ostringstream os;
+    os.precision(8);
+    if (v.is_number_integer()) {
+      os << v.get<long long>();
+    } else if (v.is_number()) {
+      os << v.get<double>();
+    } else {
+      os << v.dump();
+    }
+    return os.str();
+  };
+  auto quoted = [](std::string s) {
+    std::string out = "\"";
+    for (char c : s) out += (c == '"') ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+    return out + "\"";
+  };
+  for (const auto& p : points) {
+    csv << p["id"].get<std::string>() << ',' << p.value("status", "") << ',' << cell(p["rank"]);
+    for (const auto& name : sweep_parameter_names()) csv << ',' << cell(p["params"][name]);
+    for (const auto& m : mcols) {
+      csv << ',' << (p.contains("metrics") && p["metrics"].contains(m) ? cell(p["metrics"][m]) : "");
+    }
+    for (const char* k : {"runtime_s", "peak_rss_mb", "data_bytes"}) {
+      csv << ',' << (p.contains(k) ? cell(p[k]) : "");
+    }
+    csv << ',' << quoted(p.value("message", "")) << '\n';
+  }
+  write_text_file((dir / "results.csv").string(), csv.str());
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,33 @@
+#include "sonar3d/recon/reconstruct.hpp"
+
+#include <chrono>
+
+#include "sonar3d/core/error.hpp"
+
+namespace sonar3d {
+
+const std::vector<std::string>& reconstruction_methods() {
+  static const std::vector<std::string> m = {"carve"};
+  return m;
+}
+
+ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ReconstructResult out;
+  if (options.method == "carve") {
+    CarveConfig cfg = options.carve;
+    if (options.num_threads > 0) cfg.num_threads = options.num_threads;
+    Carver carver(dataset.spec, cfg, dataset.noise);
+    integrate_dataset(carver, dataset, options.progress);
+    out.cloud = carver.finalize();
+  } else {
+    std::string list;
+    for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;
+    throw Error("unknown reconstruction method '" + options.method + "' (available: " + list +
+                ")");
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,175 @@
+// plan: sweep files, grid and constraints, and a real small sweep through the CLI (parallel
+// points, failures recorded, resume, ranking, MPI with two local ranks when mpirun exists).
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/plan/sweep.hpp"
+
+using namespace sonar3d;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("sonar3d_test_plan_" + name);
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p;
+}
+
+void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::trunc) << text; }
+
+void expect_error(const std::function<void()>& f, const std::string& needle) {
+  try {
+    f();
+    FAIL() << "expected an error mentioning '" << needle << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+// Small and fast: a 20° × 10° sensor at 4 cm range bins, 5–10 cm sampling, 4 cm voxels.
+const char* kTiny = R"(
+seed: 3
+workers: 2
+rank_by: median_to_coverage
+constraints: ["standoff_m >= 2"]
+elevation_step_deg: 0.1
+axes:
+  spacing_m: [0.05, 0.1]
+  standoff_m: [1.0, 2.0]
+  object: [sphere, nowhere.stl]
+fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, voxel_m: 0.04}
+)";
+
+nlohmann::json read_json(const fs::path& p) { return nlohmann::json::parse(read_text_file(p.string())); }
+
+}  // namespace
+
+TEST(Sweep, GridDefaultsAndConstraints) {
+  const fs::path dir = temp_dir("grid");
+  write(dir / "s.yaml", kTiny);
+  const Sweep s = load_sweep((dir / "s.yaml").string());
+  ASSERT_EQ(s.size(), 8u);
+  // Row-major, last axis fastest.
+  const auto p0 = s.point(0), p1 = s.point(1), p7 = s.point(7);
+  EXPECT_EQ(to_string(p0.at("object")), "sphere");
+  EXPECT_EQ(to_string(p1.at("object")), "nowhere.stl");
+  EXPECT_EQ(to_string(p7.at("spacing_m")), "0.1");
+  EXPECT_EQ(to_string(p7.at("standoff_m")), "2");
+  EXPECT_EQ(to_string(p0.at("aperture_deg")), "10");   // fixed
+  EXPECT_EQ(to_string(p0.at("method")), "carve");      // default
+  EXPECT_EQ(to_string(p0.at("snr_db")), "none");       // default
+  ASSERT_EQ(s.constraints.size(), 1u);
+  EXPECT_FALSE(s.constraints[0].satisfied_by(p0));    // stand-off 1 m
+  EXPECT_TRUE(s.constraints[0].satisfied_by(s.point(2)));
+  EXPECT_THROW(s.point(8), Error);
+}
+
+TEST(Sweep, BadFilesNameTheProblem) {
+  const fs::path dir = temp_dir("bad");
+  auto check = [&](const std::string& text, const std::string& needle) {
+    write(dir / "s.yaml", text);
+    expect_error([&] { load_sweep((dir / "s.yaml").string()); }, needle);
+  };
+  check("axes: {aperture_deg: []}\n", "s.yaml:1: key 'axes.aperture_deg'");
+  check("axes: {colour: [1]}\n", "colour");
+  check("axes: {aperture_deg: [10]}\nbogus: 1\n", "bogus");
+  check("axes: {aperture_deg: [10, wide]}\n", "expected a number");
+  check("axes: {aperture_deg: [180]}\n", "(0°, 180°)");
+  check("axes: {spacing_m: [0]}\n", "must be > 0");
+  check("axes: {method: [magic]}\n", "method must be");
+  check("axes: {aperture_deg: [10]}\nconstraints: [\"standoff_m >> 2\"]\n", "op one of");
+  check("axes: {aperture_deg: [10]}\nconstraints: [\"object >= 2\"]\n", "not a numeric");
+  check("axes: {aperture_deg: [10]}\nrank_by: beauty\n", "unknown metric");
+  check("fixed: {aperture_deg: 10}\n", "'axes' must map");
+}
+
+TEST(Plan, RunsRanksResumesAndRecordsFailures) {
+  const fs::path dir = temp_dir("run");
+  write(dir / "s.yaml", kTiny);
+  const fs::path out = dir / "out";
+  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() +
+                          " -o " + out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << read_text_file((dir / "log.txt").string());
+  const auto results = read_json(out / "results.json");
+  ASSERT_EQ(results["points"].size(), 8u);
+  int ok = 0, failed = 0, skipped = 0;
+  for (const auto& p : results["points"]) {
+    const std::string st = p["status"];
+    const bool constrained = p["params"]["standoff_m"].get<double>() < 2;
+    if (constrained) {
+      EXPECT_EQ(st, "skipped_constraint") << p.dump();
+      ++skipped;
+    } else if (p["params"]["object"] == "nowhere.stl") {
+      EXPECT_EQ(st, "failed");
+      EXPECT_NE(p["message"].get<std::string>().find("nowhere.stl"), std::string::npos);
+      ++failed;
+    } else {
+      ASSERT_EQ(st, "ok") << p.dump();
+      ++ok;
+      EXPECT_TRUE(fs::exists(out / p["cloud"].get<std::string>()));
+      EXPECT_GT(p["metrics"]["num_points"].get<double>(), 100);
+      EXPECT_LT(p["metrics"]["median_error_m"].get<double>(), 0.06);
+      EXPECT_GT(p["metrics"]["coverage"].get<double>(), 0.05);
+      EXPECT_GT(p["peak_rss_mb"].get<double>(), 1.0);
+      EXPECT_GT(p["data_bytes"].get<double>(), 1000);
+      EXPECT_TRUE(p["rank"].is_number());
+    }
+  }
+  EXPECT_EQ(ok, 2);
+  EXPECT_EQ(failed, 2);
+  EXPECT_EQ(skipped, 4);
+  EXPECT_TRUE(fs::exists(out / "truth/sphere.ply"));
+  // Ranking: rank 1 has the smallest ratio.
+  double best = 1e9, rank1 = -1;
+  for (const auto& p : results["points"]) {
+    if (p["status"] != "ok") continue;
+    best = std::min(best, p["metrics"]["median_to_coverage"].get<double>());
+    if (p["rank"] == 1) rank1 = p["metrics"]["median_to_coverage"].get<double>();
+  }
+  EXPECT_EQ(best, rank1);
+  const std::string csv = read_text_file((out / "results.csv").string());
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 9);
+  EXPECT_NE(csv.find("median_to_coverage"), std::string::npos);
+
+  // Resume: finished points are not run again (their status files keep their timestamps).
+  const auto before = fs::last_write_time(out / "points/p0002/status.json");
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_EQ(fs::last_write_time(out / "points/p0002/status.json"), before);
+  EXPECT_NE(read_text_file((dir / "log.txt").string()).find("2 already done"), std::string::npos)
+      << read_text_file((dir / "log.txt").string());
+}
+
+TEST(Plan, TwoMpiRanksMergeOnRankZero) {
+  if (std::system("command -v mpirun > /dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "mpirun not installed";
+  }
+  const fs::path dir = temp_dir("mpi");
+  write(dir / "s.yaml", R"(
+seed: 3
+workers: 1
+elevation_step_deg: 0.1
+axes: {spacing_m: [0.05, 0.1]}
+fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, voxel_m: 0.04, standoff_m: 2}
+)");
+  const fs::path out = dir / "out";
+  const std::string cmd =
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "OMPI_MCA_btl_vader_single_copy_mechanism=none mpirun --oversubscribe --bind-to none -np 2 " +
+      std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " + out.string() +
+      " -q > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << read_text_file((dir / "log.txt").string());
+  const std::string log = read_text_file((dir / "log.txt").string());
+  EXPECT_NE(log.find("on 2 ranks"), std::string::npos) << log;
+  const auto results = read_json(out / "results.json");
+  ASSERT_EQ(results["points"].size(), 2u);
+  for (const auto& p : results["points"]) EXPECT_EQ(p["status"], "ok") << p.dump();
+}
