@@ -15,6 +15,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-pytest pybind11-dev  # the Python module and its tests
   libopenmpi-dev openmpi-bin  # planner sweeps over MPI ranks
+  chromium                    # headless browser test of `sonar3d report`
 )
 
 missing=()
@@ -24,14 +25,29 @@ for p in "${PACKAGES[@]}"; do
   fi
 done
 
-if [ ${#missing[@]} -eq 0 ]; then
-  echo "install-deps: all ${#PACKAGES[@]} packages present"
-  exit 0
-fi
-
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-echo "install-deps: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} Debian packages present"
+else
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# Node.js for the report's web assets. The machine image ships Node 20 + npm; Debian's npm is the
+# fallback (installing it over another Node would downgrade it).
+if ! command -v npm >/dev/null 2>&1; then
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
+fi
+
+# Web assets of `sonar3d report` (Plotly, three.js bundled into web/dist) and its browser test,
+# from the npm registry, pinned by web/package-lock.json.
+WEB_DIR="$(cd "$(dirname "$0")/.." && pwd)/web"
+if [ ! -f "$WEB_DIR/dist/three-bundle.js" ] || [ ! -d "$WEB_DIR/node_modules" ] || \
+   [ "$WEB_DIR/package-lock.json" -nt "$WEB_DIR/node_modules/.package-lock.json" ]; then
+  echo "install-deps: npm ci in web/"
+  (cd "$WEB_DIR" && npm ci --no-audit --no-fund)
+fi

@@ -19,5 +19,9 @@ void add_evaluate(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_info(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_bench(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_import(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_report(CLI::App& app, const GlobalOptions& g, Runner& run);
 
 }  // namespace sonar3d::cli

@@ -21,6 +21,10 @@ int main(int argc, char** argv) {
   add_info(app, g, run);
   add_bench(app, g, run);
   add_preview(app, g, run);
+  add_reconstruct(app, g, run);
+  add_plan(app, g, run);
+  add_import(app, g, run);
+  add_report(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

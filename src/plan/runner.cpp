@@ -190,16 +190,17 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
 }
 
 void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
-  nlohmann::json results;
+  // ordered_json keeps the axes in the sweep file's order (the report's plots follow it).
+  nlohmann::ordered_json results;
   results["version"] = 1;
   results["rank_by"] = sweep.rank_by;
   const bool higher = metric_higher_is_better(sweep.rank_by);
   results["rank_order"] = higher ? "descending" : "ascending";
-  results["constraints"] = nlohmann::json::array();
+  results["constraints"] = nlohmann::ordered_json::array();
   for (const auto& c : sweep.constraints) results["constraints"].push_back(c.text);
-  results["axes"] = nlohmann::json::object();
+  results["axes"] = nlohmann::ordered_json::object();
   for (const auto& [name, values] : sweep.axes) {
-    nlohmann::json list = nlohmann::json::array();
+    nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const auto& v : values) {
       if (std::holds_alternative<std::monostate>(v)) {
         list.push_back(nullptr);
@@ -250,7 +251,7 @@ void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
                   : *metric_of(points[a]) < *metric_of(points[b]);
   });
   for (std::size_t r = 0; r < order.size(); ++r) points[order[r]]["rank"] = r + 1;
-  results["points"] = points;
+  results["points"] = nlohmann::ordered_json::parse(nlohmann::json(points).dump());
   write_text_file((dir / "results.json").string(), results.dump(2) + "\n");
 
   // results.csv: one row per point.

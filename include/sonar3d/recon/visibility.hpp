@@ -4,6 +4,7 @@
 // which map points are front surfaces it observed rather than shadowed (occlusion resolution,
 // Fig. 4.7–4.8).
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -13,16 +14,35 @@
 
 namespace sonar3d {
 
+class Progress;
+
 // A compact summary of a denoised frame: its pose and, per beam, the returns (non-zero pixels).
-// Small enough to keep for thousands of frames (the online carver keeps one per frame).
+// Small enough to keep for thousands of frames (the online carver keeps one per frame): the
+// returns are a bitset, about range_bins × beams / 8 bytes (30 kB for a 768-beam, 260-bin P900
+// frame) instead of one byte per pixel.
 struct FrameReturns {
   Eigen::Isometry3d T_world_sonar = Eigen::Isometry3d::Identity();
+  int range_bins = 0;
+  int beams = 0;
   // Per beam: the first range bin holding a return, or range_bins when the beam saw nothing.
   std::vector<int> first_return_bin;
-  // Row-major range bins × beams, 1 where the denoised pixel is > 0.
-  std::vector<std::uint8_t> has_return;
+  // Per beam: the last range bin holding a return, or -1 when the beam saw nothing.
+  std::vector<int> last_return_bin;
+  // Beam-major bitset: bit `bin` of beam j lives in words [j·words_per_beam, (j+1)·words_per_beam).
+  int words_per_beam = 0;
+  std::vector<std::uint64_t> return_bits;
+
+  // True where the denoised pixel (range bin, beam) is > 0.
+  bool has_return(int bin, int beam) const {
+    const std::uint64_t w =
+        return_bits[static_cast<std::size_t>(beam) * words_per_beam + (bin >> 6)];
+    return (w >> (bin & 63)) & 1u;
+  }
+  std::size_t memory_bytes() const;  // heap + object, for memory accounting
 };
 
+// Throws Error when the image size differs from the spec or the pose is not a finite rigid
+// transform.
 FrameReturns summarize_frame(const SonarImage& denoised, const Eigen::Isometry3d& T_world_sonar,
                              const SonarSpec& spec);
 
@@ -34,17 +54,25 @@ bool seen_free(const FrameReturns& frame, const SonarSpec& spec, const Eigen::Ve
 struct OcclusionConfig {
   double elevation_resolution_rad = 0.1 * M_PI / 180.0;  // interval size along the aperture
   double voxel_size = 0.01;      // m: the final map keeps one point per voxel (sec. 4.4.5)
-  double min_intensity = 0.0;    // threshold on the carved bound before resolution
+  double min_intensity = 0.0;    // keep candidates whose bound (intensity) is > this
+  // A candidate shadows the directions within footprint_radius · voxel_size of its centre (its
+  // angular footprint, seen from the sonar): map points are voxel samples, so a point alone
+  // would leave gaps between neighbouring front voxels through which the back shows.
+  double footprint_radius = 0.5;
+  // A candidate is observed when no other candidate in a return pixel lies more than this many
+  // range bins nearer along the same (beam, elevation interval); 0 = the pixel-exact rule.
+  int range_tolerance_bins = 0;
   int num_threads = 0;           // 0 = all cores
-  void validate() const;
+  void validate() const;         // throws Error naming the field
 };
 
 // Occlusion resolution (sec. 4.4.5): for every frame, walks each beam from short to long range,
 // labels map points (candidates, world frame, intensity = carved bound) as observed or shadowed
 // by a nearer scatterer along the same elevation interval, and keeps the points observed in at
-// least one frame, one per voxel with the lowest bound (carving rule).
+// least one frame, one per voxel with the lowest bound (carving rule). Only candidates lying in a
+// pixel with a return take part in a frame. `progress`, when given, advances once per frame.
 PointCloud resolve_occlusions(const PointCloud& candidates_world,
                               const std::vector<FrameReturns>& frames, const SonarSpec& spec,
-                              const OcclusionConfig& config);
+                              const OcclusionConfig& config, Progress* progress = nullptr);
 
 }  // namespace sonar3d

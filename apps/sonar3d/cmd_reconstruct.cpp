@@ -1,0 +1,140 @@
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <memory>
+#include <vector>
+
+#include "commands.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/carve.hpp"
+
+namespace sonar3d::cli {
+
+namespace {
+
+struct ReconstructCliOptions {
+  std::string dataset, output, vdb, json, method = "carve";
+  CarveConfig carve;
+  std::vector<double> roi;
+  bool no_occlusion = false, no_z_test = false, ascii = false;
+};
+
+int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
+  CarveConfig cfg = o.carve;
+  cfg.resolve_occlusions = !o.no_occlusion;
+  cfg.denoise.z_test = !o.no_z_test;
+  if (!o.roi.empty()) {
+    cfg.region = Eigen::AlignedBox3d(Eigen::Vector3d(o.roi[0], o.roi[1], o.roi[2]),
+                                     Eigen::Vector3d(o.roi[3], o.roi[4], o.roi[5]));
+  }
+  cfg.validate();
+  const Dataset ds = read_dataset(o.dataset);
+  Carver carver(ds.spec, cfg, ds.noise);
+  integrate_dataset(carver, ds, !g.quiet);
+  PointCloud cloud;
+  {
+    Progress bar("occlusions", ds.size(),
+                 cfg.resolve_occlusions && !g.quiet);
+    cloud = carver.finalize(&bar);
+  }
+  write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
+  if (!o.vdb.empty()) carver.write_vdb(o.vdb, &cloud);
+
+  const CarveStats& st = carver.stats();
+  const double n = static_cast<double>(st.frames);
+  fmt::print(
+      "carved {} frames into {} candidates, {} points after occlusion resolution -> {}\n"
+      "  integrate {:.1f} ms/frame, occlusion resolution {:.1f} ms/frame, map {:.1f} MB, "
+      "frame summaries {:.1f} MB, peak RSS {:.0f} MB\n",
+      st.frames, st.candidates, st.points, o.output, 1e3 * st.integrate_seconds / n,
+      1e3 * st.occlusion_seconds / n, st.map_bytes / 1e6, st.frame_bytes / 1e6,
+      peak_rss_bytes() / 1e6);
+  if (!o.json.empty()) {
+    nlohmann::json j;
+    j["frames"] = st.frames;
+    j["candidates"] = st.candidates;
+    j["points"] = st.points;
+    j["integrate_ms_per_frame"] = 1e3 * st.integrate_seconds / n;
+    j["occlusion_ms_per_frame"] = 1e3 * st.occlusion_seconds / n;
+    j["map_bytes"] = st.map_bytes;
+    j["frame_bytes"] = st.frame_bytes;
+    j["peak_rss_bytes"] = peak_rss_bytes();
+    j["voxel_size"] = cfg.voxel_size;
+    write_text_file(o.json, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace
+
+void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "reconstruct",
+      "3D reconstruction of a sonar dataset. carve: space carving (thesis ch. 4): min-filter of "
+      "the per-elevation bounds I/B(θ)² over frames, conservative free-space carving, occlusion "
+      "resolution. Writes a PLY point cloud (world frame, intensity = reflectivity bound).");
+  auto o = std::make_shared<ReconstructCliOptions>();
+  cmd->add_option("dataset", o->dataset, "dataset directory")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--method", o->method, "reconstruction method")
+      ->check(CLI::IsMember({"carve", "deconv"}))
+      ->capture_default_str();
+  cmd->add_option("-o,--output", o->output, "point cloud to write (.ply)")->required();
+  cmd->add_option("--vdb", o->vdb,
+                  "also write an OpenVDB file: grids carve_map (0 = free, > 0 = bound, inactive "
+                  "= unknown) and surface (the output points)");
+  cmd->add_option("--voxel-size", o->carve.voxel_size, "map voxel edge in metres")
+      ->capture_default_str();
+  cmd->add_option("--roi", o->roi,
+                  "region of interest, world frame: xmin ymin zmin xmax ymax zmax (metres)")
+      ->expected(6);
+  cmd->add_option("--z-threshold", o->carve.denoise.z_threshold,
+                  "Z-test threshold T (eq. 4.8), used when the dataset has noise statistics")
+      ->capture_default_str();
+  cmd->add_flag("--no-z-test", o->no_z_test, "skip the Z-test even with noise statistics");
+  cmd->add_option("--image-threshold", o->carve.denoise.static_threshold,
+                  "static threshold on denoised image intensities (sec. 4.4.7)")
+      ->capture_default_str();
+  cmd->add_option("--static-threshold", o->carve.static_threshold,
+                  "static threshold on the carved bound: keep map points whose bound is > I "
+                  "(sec. 4.4.7)")
+      ->capture_default_str();
+  cmd->add_option("--carve-margin", o->carve.carve_margin,
+                  "carve a voxel only when this fraction of its half-diagonal around its centre "
+                  "is free (0 = centre only, 1 = whole voxel)")
+      ->capture_default_str();
+  cmd->add_option("--min-elevation-span", o->carve.min_elevation_span,
+                  "keep candidates observed over at least this fraction of the vertical aperture "
+                  "(drops the unbracketed arcs at the ends of a pass; 0 = off)")
+      ->capture_default_str();
+  cmd->add_flag("--no-occlusion", o->no_occlusion,
+                "skip occlusion resolution (output every carved candidate)");
+  cmd->add_option("--footprint-radius", o->carve.occlusion.footprint_radius,
+                  "occlusion: angular footprint of a candidate, in voxels")
+      ->capture_default_str();
+  cmd->add_option("--range-tolerance", o->carve.occlusion.range_tolerance_bins,
+                  "occlusion: a candidate is shadowed only by one more than this many range bins "
+                  "nearer")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->carve.num_threads, "worker threads (0 = all cores)")
+      ->capture_default_str();
+  cmd->add_flag("--ascii", o->ascii, "write an ASCII PLY");
+  cmd->add_option("--json", o->json, "also write run statistics (timings, memory) as JSON");
+  cmd->callback([&g, &run, o] {
+    run = [&g, o]() -> int {
+      if (o->method == "deconv") {
+        // Hook for the deconvolution method (thesis ch. 5), wired by its owner.
+        throw Error("method deconv is not available in this build");
+      }
+      return run_carve(*o, g);
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

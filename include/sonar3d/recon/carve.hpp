@@ -1,0 +1,120 @@
+#pragma once
+// Space carving (thesis ch. 4): every frame bounds the reflectivity of each map voxel in its
+// footprint by I/B(θ)² (eq. 4.7) and the map keeps the minimum over frames (eq. 4.6, min-filter);
+// an empty pixel with no return nearer on its beam carves its voxels to 0 (conservative
+// reprojection, Fig. 4.5). A final occlusion resolution keeps the front surfaces (sec. 4.4.5).
+//
+// Unlike the thesis' pixel-to-points expansion (sec. 4.4.2, 4.4.6), each frame projects the centre
+// of every map voxel in its footprint into the image (voxel-centric), so the map has neither holes
+// nor aliasing whatever the range, bearing and voxel resolutions. The map is an OpenVDB float grid:
+//   inactive voxel      = never observed (unknown)
+//   active, value 0     = seen free (carved); stays free (min with 0 is 0)
+//   active, value v > 0 = candidate scatterer whose reflectivity is at most v
+// Wholly free 8³ (and 128³) cubes are stored as single tiles, so memory follows the mapped
+// volume and its surfaces, not the number of frames. See docs/carving.md.
+//
+//   Carver carver(spec, config, dataset.noise);
+//   for (...) carver.integrate(image, T_world_sonar);   // online; snapshot() at any time
+//   PointCloud cloud = carver.finalize();                  // occlusion resolution
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/sonar_image.hpp"
+#include "sonar3d/core/sonar_spec.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/denoise.hpp"
+#include "sonar3d/recon/visibility.hpp"
+
+namespace sonar3d {
+
+struct CarveConfig {
+  double voxel_size = 0.01;  // m, edge of a map voxel
+  // World-frame region of interest: only voxels whose centre lies inside are mapped. Empty = all
+  // that the sonar sees (memory then grows with the swept volume).
+  std::optional<Eigen::AlignedBox3d> region;
+  DenoiseConfig denoise;      // applied to every frame before carving (sec. 4.4.7)
+  bool resolve_occlusions = true;
+  // occlusion.voxel_size and occlusion.num_threads are overridden by this config's voxel_size and
+  // num_threads; occlusion.min_intensity by static_threshold when the latter is larger.
+  OcclusionConfig occlusion;
+  // Static threshold on the map (sec. 4.4.7): keep candidates whose bound is > this.
+  double static_threshold = 0.0;
+  // A voxel is carved only when the ball of radius carve_margin × (half its diagonal) around its
+  // centre lies in free space; 0 = the point rule (the voxel centre alone), 1 = the whole voxel.
+  // A margin keeps the surface voxel whose centre falls just in front of the return's range bin.
+  double carve_margin = 1.0;
+  // Keep only candidates whose observations (return pixels) spread over at least this fraction
+  // of the vertical aperture (in sin θ). The min-filter bounds a scatterer along the elevation
+  // arc only where frames saw free space on both sides of it; at the edges of a pass (below the
+  // lowest frame, above the highest) a return's arc is never carved and stays as outliers. 0 =
+  // off (the thesis' rule, and the right choice for trajectories that do not sweep the
+  // elevation, e.g. level approaches).
+  double min_elevation_span = 0.0;
+  int num_threads = 0;  // 0 = all cores (TBB)
+  void validate() const;  // throws Error naming the field
+};
+
+struct CarveStats {
+  std::size_t frames = 0;
+  double integrate_seconds = 0;   // total wall time in integrate() (denoise included)
+  double occlusion_seconds = 0;   // wall time of finalize()'s occlusion resolution
+  std::size_t candidates = 0;     // points before occlusion resolution (last finalize/snapshot)
+  std::size_t points = 0;         // points after finalize()
+  std::size_t map_bytes = 0;      // OpenVDB grid memory
+  std::size_t frame_bytes = 0;    // kept per-frame return summaries
+  std::size_t leaf_voxels_visited = 0;  // voxels projected one by one (work counter)
+};
+
+class Carver {
+ public:
+  // `noise`: per-pixel noise statistics for the Z-test (eq. 4.8); without them only the static
+  // image threshold of config.denoise applies. Throws Error on an invalid spec or config.
+  Carver(const SonarSpec& spec, const CarveConfig& config,
+         std::optional<NoiseImages> noise = std::nullopt);
+  ~Carver();
+  Carver(const Carver&) = delete;
+  Carver& operator=(const Carver&) = delete;
+
+  // Denoises `image` (raw, linear intensities) and carves it into the map. Throws Error naming
+  // the frame (its integration index, or `frame_label` when given) on a wrong image size or a
+  // non-finite / non-rigid pose.
+  void integrate(const SonarImage& image, const Eigen::Isometry3d& T_world_sonar,
+                 const std::string& frame_label = "");
+
+  // Current candidates (world frame, voxel centres, intensity = carved bound) above the static
+  // threshold. Cheap enough to call while frames arrive.
+  PointCloud snapshot() const;
+
+  // Occlusion resolution over every frame integrated so far (or the snapshot when
+  // config.resolve_occlusions is false). The carver stays usable afterwards. Throws Error when no
+  // frame was integrated.
+  PointCloud finalize(Progress* progress = nullptr);
+
+  // Writes an OpenVDB file (atomically) with the grid "carve_map" (the map: active 0 = free,
+  // active v > 0 = bound, inactive = unknown) and, when `surface` is given, a grid "surface" with
+  // one active voxel per point holding its intensity.
+  void write_vdb(const std::string& path, const PointCloud* surface = nullptr) const;
+
+  std::size_t frames() const;
+  const std::vector<FrameReturns>& frame_returns() const;
+  const CarveStats& stats() const;  // map_bytes/frame_bytes refreshed on each call
+  const SonarSpec& spec() const;
+  const CarveConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Integrates every frame of a dataset in order (frames are read and denoised ahead, in parallel),
+// with a progress bar when `progress` is set. Throws Error on an empty dataset or a frame without
+// pose (naming the frame).
+void integrate_dataset(Carver& carver, const Dataset& dataset, bool progress);
+
+// Peak resident memory of this process in bytes (Linux: VmHWM), 0 when unknown.
+std::size_t peak_rss_bytes();
+
+}  // namespace sonar3d

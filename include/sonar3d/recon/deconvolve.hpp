@@ -1,0 +1,233 @@
+#pragma once
+// 3D reconstruction as a deconvolution (thesis ch. 5). Images taken while the sonar moves along
+// its own z axis (the direction of the vertical aperture) at spacing Δz see, at every pixel
+// (range r, bearing φ), the surface indicator along a vertical line at distance r blurred by the
+// beam pattern over the footprint 2·r·tan(A_v/2) (eq. 5.2). Per (r, φ) column the unknowns are P
+// layers of height Δz (eq. 5.26: P = N + K − 1, K from eq. 5.25) and the images are I = A*·b with
+// A*_ij the mean of B(θ)² over layer j seen from frame i (eq. 5.27); b solves eq. 5.28,
+//
+//   min_{b ≥ 0} ‖A*·b − I‖² + λ‖b‖₁,   λ = lambda_fraction·λ_max,  λ_max = 2·max(A*ᵀI)
+//
+// exactly (Lawson–Hanson, recon/nnls.hpp). Around it: Z-test denoising before (sec. 5.5.4),
+// de-ringing after (zero every layer seen as free space in an unoccluded view, sec. 5.5.4),
+// optional occlusion resolution of the cloud (sec. 5.6.7.3) and optional second-pass kernels
+// scaled by Lambertian normals or occlusions of the first reconstruction (sec. 5.6.7.1–5.6.7.2).
+//
+// Beyond the thesis:
+//   - the pass is measured (line fit: axis angle, lateral deviation, spacing non-uniformity,
+//     orientation changes) and refused beyond tolerances; the kernel uses each frame's measured
+//     height, so a non-uniform spacing is modelled rather than assumed away;
+//   - eq. 5.21 (rectilinear approximation) is checked and the arc-vs-chord mismatch reported;
+//   - an exact-geometry mode (`exact`) models each measurement's true slant range and elevation on
+//     a (horizontal distance ρ × height h) grid per bearing plane, so that wide apertures (20–30°)
+//     reconstruct vertical surfaces without the gaps of Fig. 5.14.
+//
+// Frames of a dataset may hold several passes (e.g. the reference-object scene): they are split
+// into passes where the motion jumps, and each pass is deconvolved on its own.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/sonar_image.hpp"
+#include "sonar3d/core/sonar_spec.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/denoise.hpp"
+#include "sonar3d/recon/nnls.hpp"
+#include "sonar3d/recon/visibility.hpp"
+
+namespace sonar3d {
+
+struct DeconvConfig {
+  // Beam pattern of the kernel A*: sinc (eq. 2.8), flat (sec. 5.6.6: β = C inside the aperture)
+  // or the sensor's own pattern (sonar.yaml beam_pattern, e.g. a measured table).
+  enum class Beam { Sinc, Flat, Sensor };
+  Beam beam = Beam::Sinc;
+  // λ / λ_max in [0, 1] (eq. 5.28); 0 = plain NNLS, the thesis' default; 0.5 = Table 5.1.
+  double lambda_fraction = 0.0;
+  // Exact-geometry mode: per bearing plane, unknowns on a (ρ, h) grid, each measurement modelled
+  // with its true slant range sqrt(ρ² + (h − z_k)²) and elevation atan2(h − z_k, ρ).
+  bool exact = false;
+
+  // --- The pass (sec. 5.6.3.1: real passes are ±2 cm off) ---
+  // Refuse when the motion direction is farther than this from the sonar's z axis.
+  double max_axis_angle_deg = 5.0;
+  // Refuse when a frame's orientation differs from the pass mean by more than this.
+  double max_rotation_deg = 2.0;
+  // Refuse when a frame lies farther than this from the line along the sonar z axis (m);
+  // warn above half a range bin (the deviation then moves returns by a bin).
+  double max_lateral_deviation = 0.05;
+  // Refuse when a frame's height deviates from the uniform grid z_0 + k·Δz by more than this
+  // fraction of Δz; warn above a quarter. (The kernel uses the measured heights either way.)
+  double max_spacing_deviation = 1.0;
+  // Layer height Δz of the reconstruction (m); 0 = the fitted frame spacing.
+  double layer_spacing = 0.0;
+  // true: kernel rows use each frame's measured height; false: the thesis' uniform z_0 + k·Δz.
+  bool use_measured_heights = true;
+  // Split the frames into passes where the motion jumps (several passes in one dataset).
+  bool split_passes = true;
+  // A jump between consecutive frames (lateral, or along z beyond this many spacings) ends a pass.
+  double split_jump_factor = 5.0;
+  // Passes with fewer frames are skipped with a warning.
+  int min_pass_frames = 3;
+  // Reconstruct only ranges ≤ max_range (m; 0 = the sensor's r_max): a short pass cannot resolve
+  // far ranges whose footprint K exceeds its frame count.
+  double max_range = 0.0;
+  // Warn when eq. 5.21 is violated, i.e. when the arc-vs-chord mismatch r·(1/cos θ_3dB − 1) at
+  // the far range exceeds this fraction of a range bin (0.5 = eq. 5.21 exactly).
+  double rectilinear_warn_bins = 0.5;
+
+  // A zero pixel behind the first return of its beam may be a shadow, not empty water (the
+  // conservative rule of Fig. 4.5). true: such pixels are left out of the fit (their rows of A*
+  // are dropped per column; the exact mode drops them from its data term), so the solver does
+  // not explain occlusions with ghost layers; false: every pixel is data (the thesis). Measured
+  // in docs/deconvolution.md.
+  bool ignore_shadowed_zeros = true;
+
+  // --- Processing steps ---
+  DenoiseConfig denoise;           // before (sec. 5.5.4), with the dataset's noise statistics
+  bool dering = true;              // after: zero layers seen as free space (sec. 5.5.4)
+  bool resolve_occlusions = true;  // post-reconstruction occlusion resolution (sec. 5.6.7.3)
+  OcclusionConfig occlusion;
+  // Multipass kernels (sec. 5.6.7): a second deconvolution whose kernel is scaled by the
+  // Lambertian cosine between the view and normals of the first cloud (Normal), zeroed where the
+  // first cloud occludes the view (Occlusion), or both. Approximate mode only.
+  enum class Kernel { Plain, Normal, Occlusion, NormalOcclusion };
+  Kernel kernel = Kernel::Plain;
+  double normal_radius = 0.05;                 // m: SVD neighbourhood for normals (thesis: 5 cm)
+  double occlusion_elevation_step_deg = 0.25;  // elevation resolution of the occlusion test
+
+  // --- Numerics ---
+  int subsamples = 8;          // integration points per layer for the mean of B(θ)² (eq. 5.22)
+  double min_intensity = 0.0;  // drop reconstructed layers with b ≤ this
+  // Drop a layer whose largest predicted return max_k A*_kp·b_p is below this fraction of the
+  // column's largest measurement: the NNLS fits the model mismatch (Lambertian ρ ignored by
+  // eq. 5.27, arc vs line) with faint layers, mostly at the pass ends and in shadows where
+  // de-ringing cannot reach. 0 = keep every non-zero layer (the thesis).
+  double min_relative_intensity = 0.0;
+  // Keep only layers within this distance (m) beyond the lowest and highest frame heights; < 0
+  // keeps all P = N + K − 1 layers (eq. 5.26). Layers beyond the pass ends are seen by part of
+  // their footprint only, from one side, and there the solver turns viewpoint-dependent returns
+  // (grazing Lambertian surfaces, which A* ignores, eq. 5.27) into ghost layers.
+  double max_extrapolation = 0.1;
+  NnlsOptions nnls;
+  int exact_max_sweeps = 40;       // exact mode: block Gauss–Seidel sweeps over ρ
+  double exact_tolerance = 1e-3;   // exact mode: stop when the KKT violation ≤ this·max|Aᵀy|
+  int exact_range_subsamples = 2;  // exact mode: ρ integration points per cell
+  int num_threads = 0;             // 0 = all cores (TBB)
+
+  void validate() const;                         // throws Error naming the field
+  static Beam parse_beam(const std::string& s);  // sinc | flat | sensor
+  static const char* beam_name(Beam b);
+  static Kernel parse_kernel(
+      const std::string& s);  // plain | normal | occlusion | normal+occlusion
+  static const char* kernel_name(Kernel k);
+};
+
+// The straight pass a set of frames is approximated by (sec. 5.4, 5.6.3.1).
+struct PassGeometry {
+  std::vector<std::size_t> frames;  // frame indices (into the caller's list), by increasing height
+  std::vector<double> heights;      // measured height of each along the pass axis, m
+  // Pass frame: origin at the centroid of the positions, rotation = mean sonar orientation; its
+  // +z is the pass axis (the sonar's z). Heights are z coordinates in this frame.
+  Eigen::Isometry3d T_world_pass = Eigen::Isometry3d::Identity();
+  double spacing = 0.0;           // fitted Δz between consecutive frames, m
+  double axis_angle_rad = 0.0;    // motion direction (line fit) vs the sonar z axis
+  double max_rotation_rad = 0.0;  // largest orientation difference from the mean
+  double max_lateral = 0.0;       // m, distance of positions from the pass axis line
+  double rms_lateral = 0.0;
+  double max_spacing_error = 0.0;  // m, |height − (z_0 + k·Δz)|
+  double rms_spacing_error = 0.0;
+  bool descending = false;  // frames were recorded moving toward −z
+  std::vector<std::string> warnings;
+};
+
+// Fits the pass to the poses (T_world_sonar per frame) and checks it against the tolerances of
+// `config`. Throws Error with the measured figures when the motion is not along the sonar z axis,
+// the orientation changes, the lateral or spacing deviation is too large, or the frames are too
+// few. `where` prefixes messages (e.g. "pass 2 (frames 261–521)").
+PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                          const DeconvConfig& config, const std::string& where = "pass");
+
+// Splits frames (in recording order) into passes: [first, last) ranges, at jumps of the motion.
+std::vector<std::pair<std::size_t, std::size_t>> split_passes(
+    const std::vector<Eigen::Isometry3d>& T_world_sonar, const DeconvConfig& config);
+
+// eq. 5.25: K = ⌊2·r·tan(A_v/2)/Δz⌋, at least 1 (a footprint thinner than a layer still sees it).
+int footprint_layers(double range, double vertical_aperture_rad, double dz);
+// Arc-vs-chord mismatch of the rectilinear approximation at range r (m): a scatterer on the
+// vertical line at distance r seen at the aperture edge is at slant range r/cos θ_3dB, not r.
+// eq. 5.21 holds when it is ≤ Δr/2.
+double rectilinear_mismatch(double range, double theta_3db_rad);
+// Largest aperture (full width, rad) satisfying eq. 5.21 at range r with range resolution dr.
+double rectilinear_max_aperture(double range, double range_resolution);
+
+// The kernel A* of one column (eq. 5.27) at range r for frames at `heights` (sorted, m) and
+// layers u_p = heights[0] + (p − (K − 1)/2)·Δz, p = 0..P−1. Row k has the K layers nearest its
+// footprint; A*_kp is the mean of B(atan((u − z_k)/r))² over the layer (|θ| ≤ θ_3dB).
+struct ColumnKernel {
+  int K = 1;
+  int layers = 0;            // P
+  double first_layer = 0.0;  // u_0, m (pass frame)
+  double dz = 0.0;
+  SparseColumns A;  // frames × layers
+  BandMatrix gram;  // A*ᵀA*
+  double layer_height(int p) const { return first_layer + p * dz; }
+};
+ColumnKernel build_column_kernel(double range, const std::vector<double>& heights, double dz,
+                                 const BeamPattern& pattern, double theta_3db, int subsamples);
+
+struct PassReport {
+  std::size_t first_frame = 0;  // in the caller's frame list
+  std::size_t frames = 0;
+  double spacing = 0.0;  // m
+  double axis_angle_deg = 0.0;
+  double max_rotation_deg = 0.0;
+  double max_lateral = 0.0;                   // m
+  double rms_lateral = 0.0;                   // m
+  double max_spacing_error = 0.0;             // m
+  double rms_spacing_error = 0.0;             // m
+  int K_min = 0, K_max = 0;                   // eq. 5.25 over the reconstructed range window
+  double rectilinear_mismatch_bins = 0.0;     // at the far range, in range bins
+  double rectilinear_max_aperture_deg = 0.0;  // eq. 5.21 at the far range
+  std::size_t columns = 0;          // (range, bearing) columns, or beams × ρ blocks in exact mode
+  std::size_t columns_solved = 0;   // non-empty ones
+  std::size_t unconverged = 0;      // NNLS (or exact-mode sweeps) that hit their iteration cap
+  int max_iterations = 0;           // largest NNLS outer iteration count
+  int exact_sweeps = 0;             // exact mode: largest sweep count over beams
+  double exact_kkt = 0.0;           // exact mode: worst relative KKT violation at exit
+  std::size_t points_solved = 0;    // non-zero layers
+  std::size_t points_deringed = 0;  // removed by de-ringing
+  std::vector<std::string> warnings;
+};
+
+struct DeconvReport {
+  std::vector<PassReport> passes;
+  std::size_t frames = 0;
+  std::size_t points = 0;  // in the output cloud
+  std::size_t points_before_occlusion = 0;
+  double seconds_load = 0.0;   // reading + denoising (deconvolve_dataset only)
+  double seconds_solve = 0.0;  // kernels + NNLS
+  double seconds_dering = 0.0;
+  double seconds_multipass = 0.0;
+  double seconds_occlusion = 0.0;
+  double seconds_total = 0.0;
+  std::vector<std::string> warnings;  // all passes' warnings, prefixed by the pass
+  std::string to_text() const;        // one line per pass + totals
+  std::string to_json(int indent = 2) const;
+};
+
+// Deconvolves denoised frames with their poses: splits passes, solves every column, de-rings,
+// optional second pass and occlusion resolution. Frames must match spec. Output: world frame,
+// intensity = b (layers with b > min_intensity). Throws Error naming the pass on bad motion.
+PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config,
+                             DeconvReport* report = nullptr, bool progress = false);
+
+// Reads every frame of the dataset, denoises it (config.denoise with the dataset's noise
+// statistics) and calls deconvolve_frames.
+PointCloud deconvolve_dataset(const Dataset& dataset, const DeconvConfig& config, bool progress,
+                              DeconvReport* report = nullptr);
+
+}  // namespace sonar3d

@@ -1,0 +1,285 @@
+// Datasets (read, write), HoloOcean and frames + navigation imports, navigation logs.
+#include "common.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/holoocean.hpp"
+#include "sonar3d/io/navigation.hpp"
+#include "sonar3d/sim/simulation.hpp"
+
+namespace sonar3d::python {
+
+using namespace pybind11::literals;
+namespace fs = std::filesystem;
+
+namespace {
+
+py::dict object_dict(const SceneObject& o) {
+  py::dict d;
+  d["name"] = o.name;
+  d["mesh"] = o.mesh_world;
+  d["reflectivity"] = o.reflectivity;
+  return d;
+}
+
+std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& std) {
+  if (mean.is_none() && std.is_none()) return std::nullopt;
+  if (mean.is_none() || std.is_none())
+    throw Error("give both noise_mean and noise_std, or neither");
+  NoiseImages n{array_to_image(mean.cast<carray<float>>(), "noise_mean"),
+                array_to_image(std.cast<carray<float>>(), "noise_std")};
+  return n;
+}
+
+}  // namespace
+
+void bind_io(py::module_& m) {
+  py::class_<Dataset>(m, "Dataset",
+                      "A dataset directory v1 (docs/formats.md), opened by read_dataset(). Frames "
+                      "load on demand.")
+      .def_property_readonly("root", [](const Dataset& d) { return d.root.string(); })
+      .def_readonly("spec", &Dataset::spec, "The sensor (a copy on each access).")
+      .def("__len__", &Dataset::size)
+      .def_property_readonly(
+          "timestamps",
+          [](const Dataset& d) {
+            std::vector<double> t;
+            for (const auto& f : d.frames) t.push_back(f.timestamp);
+            const py::ssize_t n = static_cast<py::ssize_t>(t.size());
+            return adopt(std::move(t), {n});
+          },
+          "Frame times, s (navigation clock).")
+      .def_property_readonly(
+          "files",
+          [](const Dataset& d) {
+            std::vector<std::string> f;
+            for (const auto& r : d.frames) f.push_back(r.file);
+            return f;
+          },
+          "Frame files relative to root.")
+      .def(
+          "frame",
+          [](const Dataset& d, long i) {
+            if (i < 0) i += static_cast<long>(d.size());
+            if (i < 0) throw py::index_error("frame index out of range");
+            SonarImage img = d.load_frame(static_cast<std::size_t>(i));
+            return image_to_array(std::move(img));
+          },
+          "i"_a, "Frame i as a float32 array (range bins × beams) of linear intensities.")
+      .def(
+          "frames",
+          [](const Dataset& d, const py::object& indices) {
+            std::vector<std::size_t> idx;
+            if (indices.is_none()) {
+              for (std::size_t i = 0; i < d.size(); ++i) idx.push_back(i);
+            } else {
+              for (auto v : indices) idx.push_back(v.cast<std::size_t>());
+            }
+            const std::size_t per = static_cast<std::size_t>(d.spec.range_bins) * d.spec.beams();
+            std::vector<float> all(per * idx.size());
+            {
+              py::gil_scoped_release release;
+              for (std::size_t k = 0; k < idx.size(); ++k) {
+                const SonarImage img = d.load_frame(idx[k]);
+                std::copy(img.data.begin(), img.data.end(), all.begin() + k * per);
+              }
+            }
+            return adopt(std::move(all),
+                         {static_cast<py::ssize_t>(idx.size()), d.spec.range_bins, d.spec.beams()});
+          },
+          "indices"_a = py::none(),
+          "Frames stacked into one (N, range bins, beams) float32 array (all, or the indices).")
+      .def(
+          "pose", [](const Dataset& d, std::size_t i) { return pose_to_array(d.T_world_sonar(i)); },
+          "i"_a, "T_world_sonar of frame i: navigation interpolated at its time × T_vehicle_sonar.")
+      .def(
+          "poses",
+          [](const Dataset& d) {
+            std::vector<Eigen::Isometry3d> p;
+            for (std::size_t i = 0; i < d.size(); ++i) p.push_back(d.T_world_sonar(i));
+            return poses_to_array(p);
+          },
+          "T_world_sonar of every frame, (N, 4, 4).")
+      .def_property_readonly(
+          "navigation",
+          [](const Dataset& d) {
+            std::vector<double> t = d.navigation.times;
+            const py::ssize_t n = static_cast<py::ssize_t>(t.size());
+            return py::make_tuple(adopt(std::move(t), {n}), poses_to_array(d.navigation.poses));
+          },
+          "(times, T_world_vehicle poses) of navigation.tum.")
+      .def_property_readonly(
+          "noise_mean",
+          [](py::object self) -> py::object {
+            const auto& d = self.cast<const Dataset&>();
+            if (!d.noise) return py::none();
+            return view(d.noise->mean.data.data(), {d.noise->mean.rows, d.noise->mean.cols}, self);
+          },
+          "Per-pixel open-water noise mean (read-only view), or None.")
+      .def_property_readonly(
+          "noise_std",
+          [](py::object self) -> py::object {
+            const auto& d = self.cast<const Dataset&>();
+            if (!d.noise) return py::none();
+            return view(d.noise->std.data.data(), {d.noise->std.rows, d.noise->std.cols}, self);
+          },
+          "Per-pixel open-water noise standard deviation (read-only view), or None.")
+      .def_property_readonly("has_truth", &Dataset::has_truth)
+      .def(
+          "truth",
+          [](const Dataset& d) {
+            py::list out;
+            for (const auto& o : read_truth(d.root)) out.append(object_dict(o));
+            return out;
+          },
+          "Ground-truth objects of a simulated dataset: [{name, mesh, reflectivity}], world frame.")
+      .def("__repr__", [](const Dataset& d) {
+        return "Dataset('" + d.root.string() + "', " + std::to_string(d.size()) + " frames)";
+      });
+
+  m.def("read_dataset", &read_dataset, "path"_a,
+        "Opens a dataset directory (sonar.yaml, frames.csv, navigation.tum, noise/).");
+
+  m.def(
+      "write_dataset",
+      [](const std::string& path, const SonarSpec& spec, const py::object& images,
+         const py::object& poses, const py::object& timestamps, const py::object& navigation,
+         const std::string& format, const py::object& noise_mean, const py::object& noise_std) {
+        std::vector<SonarImage> imgs;
+        for (auto im : images) imgs.push_back(array_to_image(im.cast<carray<float>>()));
+        std::vector<double> t(imgs.size());
+        if (timestamps.is_none()) {
+          for (std::size_t k = 0; k < t.size(); ++k) t[k] = static_cast<double>(k);
+        } else {
+          const auto ts = timestamps.cast<carray<double>>();
+          if (static_cast<std::size_t>(ts.size()) != imgs.size()) {
+            throw Error("timestamps must hold one time per image");
+          }
+          t.assign(ts.data(), ts.data() + ts.size());
+        }
+        Trajectory nav;
+        if (!poses.is_none()) {
+          if (!navigation.is_none()) throw Error("give poses or navigation, not both");
+          const auto P = array_to_poses(poses.cast<carray<double>>(), "poses");
+          if (P.size() != imgs.size()) throw Error("poses must hold one pose per image");
+          // navigation holds T_world_vehicle = T_world_sonar · T_vehicle_sonar⁻¹.
+          for (std::size_t k = 0; k < P.size(); ++k) {
+            nav.push_back(t[k], P[k] * spec.T_vehicle_sonar.inverse());
+          }
+        } else if (!navigation.is_none()) {
+          const auto tup = navigation.cast<py::tuple>();
+          const auto nt = tup[0].cast<carray<double>>();
+          nav.times.assign(nt.data(), nt.data() + nt.size());
+          nav.poses = array_to_poses(tup[1].cast<carray<double>>(), "navigation poses");
+        } else {
+          throw Error(
+              "give poses (T_world_sonar per image) or navigation (times, T_world_vehicle)");
+        }
+        const auto noise = noise_from(noise_mean, noise_std);
+        py::gil_scoped_release release;
+        DatasetWriter w(path, spec,
+                        format == "tiff" ? DatasetWriter::ImageFormat::Tiff
+                        : format == "png"
+                            ? DatasetWriter::ImageFormat::Png
+                            : throw Error("format must be 'png' or 'tiff', got '" + format + "'"));
+        for (std::size_t k = 0; k < imgs.size(); ++k) {
+          imgs[k].timestamp = t[k];
+          w.add_frame(imgs[k]);
+        }
+        w.set_navigation(nav);
+        if (noise) w.set_noise(*noise);
+        w.commit();
+      },
+      "path"_a, "spec"_a, "images"_a, "poses"_a = py::none(), "timestamps"_a = py::none(),
+      "navigation"_a = py::none(), "format"_a = "png", "noise_mean"_a = py::none(),
+      "noise_std"_a = py::none(),
+      "Writes a dataset atomically. images: (N, rows, cols) array or a list of 2-D arrays of "
+      "linear intensities; poses: (N, 4, 4) T_world_sonar (stored as navigation T_world_vehicle = "
+      "T_world_sonar · T_vehicle_sonar⁻¹ at the timestamps, default 0, 1, 2 ... s), or navigation "
+      "= (times, T_world_vehicle poses); format 'png' (quantised to spec.bit_depth) or 'tiff' "
+      "(float32, lossless); optional noise statistics.");
+
+  m.def(
+      "import_holoocean",
+      [](const std::string& dir, const std::string& output, const std::string& bins,
+         const std::string& sensor, double rate, const std::string& python,
+         const std::string& image_key, const std::string& pose_key) {
+        HoloOceanImportConfig cfg;
+        cfg.bins = parse_holoocean_bins(bins);
+        cfg.sensor = sensor;
+        cfg.frame_rate_hz = rate;
+        cfg.python = python;
+        cfg.image_key = image_key;
+        cfg.pose_key = pose_key;
+        HoloOceanImportResult r;
+        {
+          py::gil_scoped_release release;
+          r = import_holoocean(dir, output, cfg, false);
+        }
+        py::dict d;
+        d["frames"] = r.frames;
+        d["dtype"] = r.dtype;
+        d["frame_rate_hz"] = r.frame_rate_hz;
+        d["spec"] = r.spec;
+        d["warnings"] = r.warnings;
+        return d;
+      },
+      "dir"_a, "output"_a, "bins"_a = "sample", "sensor"_a = "", "rate"_a = 0.0, "python"_a = "",
+      "image_key"_a = "", "pose_key"_a = "PoseSensor",
+      "Imports a HoloOcean/neusis recording (Config.json + Data/N.pkl) into a dataset; see "
+      "docs/import.md. bins: 'sample' (neusis: row i at RangeMin + i·Δr) or 'cell' (HoloOcean's "
+      "renderer cells). Returns {frames, dtype, frame_rate_hz, spec, warnings}.");
+
+  m.def(
+      "read_navigation",
+      [](const std::string& path, const std::string& convention, bool degrees,
+         const std::string& format) {
+        NavCsvConfig c;
+        c.convention = parse_nav_convention(convention);
+        c.degrees = degrees;
+        const Trajectory t = read_navigation(path, c, format);
+        std::vector<double> times = t.times;
+        const py::ssize_t n = static_cast<py::ssize_t>(times.size());
+        return py::make_tuple(adopt(std::move(times), {n}), poses_to_array(t.poses));
+      },
+      "path"_a, "convention"_a = "enu", "degrees"_a = true, "format"_a = "",
+      "Reads navigation (TUM, or CSV time,x,y,z,roll,pitch,yaw in the 'enu' or 'ned' convention) "
+      "as (times, T_world_vehicle poses) in our world frame (z up).");
+
+  m.def(
+      "import_frames",
+      [](const std::string& images, const std::string& times, const std::string& navigation,
+         const py::object& sonar, const std::string& output, const std::string& convention,
+         bool degrees, const std::string& nav_format, double time_offset, bool drop_outside) {
+        FrameImportConfig cfg;
+        cfg.images_dir = images;
+        cfg.times_csv = times;
+        cfg.navigation = navigation;
+        cfg.navigation_format = nav_format;
+        cfg.navigation_csv.convention = parse_nav_convention(convention);
+        cfg.navigation_csv.degrees = degrees;
+        cfg.spec = py::isinstance<SonarSpec>(sonar)
+                       ? sonar.cast<SonarSpec>()
+                       : read_sonar_description(py::str(sonar).cast<std::string>());
+        cfg.time_offset = time_offset;
+        cfg.drop_outside = drop_outside;
+        FrameImportResult r;
+        {
+          py::gil_scoped_release release;
+          r = import_frames(cfg, output, false);
+        }
+        py::dict d;
+        d["frames"] = r.frames;
+        d["dropped"] = r.dropped;
+        d["navigation_samples"] = r.navigation_samples;
+        d["first_time"] = r.first_time;
+        d["last_time"] = r.last_time;
+        return d;
+      },
+      "images"_a, "times"_a, "navigation"_a, "sonar"_a, "output"_a, "convention"_a = "enu",
+      "degrees"_a = true, "nav_format"_a = "", "time_offset"_a = 0.0, "drop_outside"_a = false,
+      "Imports frame images + a 'timestamp,file' CSV + navigation (TUM or CSV) with the sensor "
+      "(a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a dataset. "
+      "Frames outside the navigation span raise sonar3d.Error, or are dropped and counted with "
+      "drop_outside=True.");
+}
+
+}  // namespace sonar3d::python

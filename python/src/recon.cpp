@@ -1,0 +1,286 @@
+// Reconstruction: denoising (thesis sec. 4.4.7), space carving (ch. 4), deconvolution (ch. 5)
+// and the single reconstruct() entry point. Carving and deconvolution are bound when their
+// headers are part of the build (python/CMakeLists.txt defines SONAR3D_HAVE_RECON_*).
+#include "common.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recon/denoise.hpp"
+#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
+#include "sonar3d/recon/carve.hpp"
+#endif
+#if defined(SONAR3D_HAVE_RECON_DECONVOLVE_HPP)
+#include "sonar3d/recon/deconvolve.hpp"
+#endif
+#if defined(SONAR3D_HAVE_RECON_RECONSTRUCT_HPP)
+#include "sonar3d/recon/reconstruct.hpp"
+#endif
+
+namespace sonar3d::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+template <class C>
+C from_kwargs(const py::kwargs& kw) {
+  C c;
+  py::object o = py::cast(&c, py::return_value_policy::reference);
+  for (auto item : kw) py::setattr(o, item.first, item.second);
+  return c;
+}
+
+std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& std) {
+  if (mean.is_none() && std.is_none()) return std::nullopt;
+  if (mean.is_none() || std.is_none())
+    throw Error("give both noise_mean and noise_std, or neither");
+  return NoiseImages{array_to_image(mean.cast<carray<float>>(), "noise_mean"),
+                     array_to_image(std.cast<carray<float>>(), "noise_std")};
+}
+
+// (points (N, 3) float32, intensity (N,) float32 or None), both moved out of the cloud.
+[[maybe_unused]] py::tuple cloud_tuple(PointCloud&& c) {
+  py::object intensity = py::none();
+  if (c.has_intensity()) {
+    const py::ssize_t n = static_cast<py::ssize_t>(c.intensity.size());
+    intensity = adopt(std::move(c.intensity), {n});
+  }
+  return py::make_tuple(points_to_array(std::move(c.points)), intensity);
+}
+
+}  // namespace
+
+void bind_recon(py::module_& m) {
+  py::class_<DenoiseConfig>(m, "DenoiseConfig",
+                            "Denoising (sec. 4.4.7): z_test (eq. 4.8, with noise statistics), "
+                            "z_threshold T, subtract_mean, static_threshold.")
+      .def(py::init(&from_kwargs<DenoiseConfig>))
+      .def_readwrite("z_test", &DenoiseConfig::z_test)
+      .def_readwrite("z_threshold", &DenoiseConfig::z_threshold)
+      .def_readwrite("subtract_mean", &DenoiseConfig::subtract_mean)
+      .def_readwrite("static_threshold", &DenoiseConfig::static_threshold)
+      .def("validate", &DenoiseConfig::validate);
+
+  m.def(
+      "denoise",
+      [](const carray<float>& image, const py::object& noise_mean, const py::object& noise_std,
+         const DenoiseConfig& config) {
+        SonarImage img = array_to_image(image);
+        const std::optional<NoiseImages> noise = noise_from(noise_mean, noise_std);
+        config.validate();
+        denoise(img, noise, config);
+        return image_to_array(std::move(img));
+      },
+      "image"_a, "noise_mean"_a = py::none(), "noise_std"_a = py::none(),
+      "config"_a = DenoiseConfig(),
+      "A denoised copy of the image: pixels failing the Z-test (I − m)/σ > T (eq. 4.8, when noise "
+      "statistics are given) or the static threshold become 0; kept pixels lose the noise mean "
+      "when config.subtract_mean.");
+
+#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
+  py::class_<CarveConfig>(m, "CarveConfig",
+                          "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or "
+                          "None), denoise (DenoiseConfig), resolve_occlusions, static_threshold, "
+                          "carve_margin, num_threads (0 = all cores).")
+      .def(py::init(&from_kwargs<CarveConfig>))
+      .def_readwrite("voxel_size", &CarveConfig::voxel_size)
+      .def_property(
+          "region",
+          [](const CarveConfig& c) -> py::object {
+            if (!c.region) return py::none();
+            return py::make_tuple(Eigen::Vector3d(c.region->min()),
+                                  Eigen::Vector3d(c.region->max()));
+          },
+          [](CarveConfig& c, const py::object& r) {
+            if (r.is_none()) {
+              c.region.reset();
+              return;
+            }
+            const auto t = r.cast<py::sequence>();
+            if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
+            c.region =
+                Eigen::AlignedBox3d(t[0].cast<Eigen::Vector3d>(), t[1].cast<Eigen::Vector3d>());
+          })
+      .def_readwrite("denoise", &CarveConfig::denoise)
+      .def_readwrite("resolve_occlusions", &CarveConfig::resolve_occlusions)
+      .def_readwrite("static_threshold", &CarveConfig::static_threshold)
+      .def_readwrite("carve_margin", &CarveConfig::carve_margin)
+      .def_readwrite("num_threads", &CarveConfig::num_threads)
+      .def("validate", &CarveConfig::validate);
+
+  py::class_<Carver>(m, "Carver",
+                     "Online space carving: integrate(image, T_world_sonar) frame by frame, "
+                     "snapshot() at any time, finalize() for the occlusion-resolved cloud.")
+      .def(py::init([](const SonarSpec& spec, const CarveConfig& config,
+                       const py::object& noise_mean, const py::object& noise_std) {
+             return std::make_unique<Carver>(spec, config, noise_from(noise_mean, noise_std));
+           }),
+           "spec"_a, "config"_a = CarveConfig(), "noise_mean"_a = py::none(),
+           "noise_std"_a = py::none())
+      .def(
+          "integrate",
+          [](Carver& c, const carray<float>& image, const carray<double>& T,
+             const std::string& label) {
+            const SonarImage img = array_to_image(image);
+            const Eigen::Isometry3d pose = array_to_pose(T, "T_world_sonar");
+            py::gil_scoped_release release;
+            c.integrate(img, pose, label);
+          },
+          "image"_a, "T_world_sonar"_a, "label"_a = "",
+          "Denoises a raw linear image and carves it into the map.")
+      .def(
+          "snapshot", [](const Carver& c) { return cloud_tuple(c.snapshot()); },
+          "Current candidates (points, bounds) above the static threshold.")
+      .def(
+          "finalize",
+          [](Carver& c) {
+            PointCloud cloud;
+            {
+              py::gil_scoped_release release;
+              cloud = c.finalize();
+            }
+            return cloud_tuple(std::move(cloud));
+          },
+          "Occlusion resolution over every integrated frame: (points, reflectivity bounds).")
+      .def(
+          "write_vdb", [](const Carver& c, const std::string& path) { c.write_vdb(path); },
+          "path"_a, "Writes the map as an OpenVDB file (grid carve_map).")
+      .def_property_readonly("frames", &Carver::frames)
+      .def_property_readonly("stats", [](const Carver& c) {
+        const CarveStats& s = c.stats();
+        py::dict d;
+        d["frames"] = s.frames;
+        d["integrate_seconds"] = s.integrate_seconds;
+        d["occlusion_seconds"] = s.occlusion_seconds;
+        d["candidates"] = s.candidates;
+        d["points"] = s.points;
+        d["map_bytes"] = s.map_bytes;
+        d["frame_bytes"] = s.frame_bytes;
+        return d;
+      });
+
+  m.def(
+      "carve",
+      [](const Dataset& dataset, const CarveConfig& config, bool progress) {
+        PointCloud cloud;
+        {
+          py::gil_scoped_release release;
+          Carver carver(dataset.spec, config, dataset.noise);
+          integrate_dataset(carver, dataset, progress);
+          cloud = carver.finalize();
+        }
+        return cloud_tuple(std::move(cloud));
+      },
+      "dataset"_a, "config"_a = CarveConfig(), "progress"_a = false,
+      "Space-carves every frame of a dataset (with its noise statistics) and resolves occlusions: "
+      "(points (N, 3) world frame, reflectivity bounds (N,)).");
+#endif
+
+#if defined(SONAR3D_HAVE_RECON_DECONVOLVE_HPP)
+  py::class_<DeconvConfig>(m, "DeconvConfig",
+                           "Deconvolution (ch. 5): beam ('sinc', 'flat', 'sensor'), "
+                           "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
+                           "resolve_occlusions, kernel ('plain', 'normal', 'occlusion', "
+                           "'normal+occlusion'), max_range, num_threads ...")
+      .def(py::init(&from_kwargs<DeconvConfig>))
+      .def_property(
+          "beam",
+          [](const DeconvConfig& c) { return std::string(DeconvConfig::beam_name(c.beam)); },
+          [](DeconvConfig& c, const std::string& s) { c.beam = DeconvConfig::parse_beam(s); })
+      .def_property(
+          "kernel",
+          [](const DeconvConfig& c) { return std::string(DeconvConfig::kernel_name(c.kernel)); },
+          [](DeconvConfig& c, const std::string& s) { c.kernel = DeconvConfig::parse_kernel(s); })
+      .def_readwrite("lambda_fraction", &DeconvConfig::lambda_fraction)
+      .def_readwrite("exact", &DeconvConfig::exact)
+      .def_readwrite("max_axis_angle_deg", &DeconvConfig::max_axis_angle_deg)
+      .def_readwrite("max_rotation_deg", &DeconvConfig::max_rotation_deg)
+      .def_readwrite("max_lateral_deviation", &DeconvConfig::max_lateral_deviation)
+      .def_readwrite("max_spacing_deviation", &DeconvConfig::max_spacing_deviation)
+      .def_readwrite("layer_spacing", &DeconvConfig::layer_spacing)
+      .def_readwrite("use_measured_heights", &DeconvConfig::use_measured_heights)
+      .def_readwrite("split_passes", &DeconvConfig::split_passes)
+      .def_readwrite("min_pass_frames", &DeconvConfig::min_pass_frames)
+      .def_readwrite("max_range", &DeconvConfig::max_range)
+      .def_readwrite("denoise", &DeconvConfig::denoise)
+      .def_readwrite("dering", &DeconvConfig::dering)
+      .def_readwrite("resolve_occlusions", &DeconvConfig::resolve_occlusions)
+      .def_readwrite("subsamples", &DeconvConfig::subsamples)
+      .def_readwrite("min_intensity", &DeconvConfig::min_intensity)
+      .def_readwrite("min_relative_intensity", &DeconvConfig::min_relative_intensity)
+      .def_readwrite("num_threads", &DeconvConfig::num_threads)
+      .def("validate", &DeconvConfig::validate);
+
+  m.def(
+      "deconvolve",
+      [](const Dataset& dataset, const DeconvConfig& config, bool progress) {
+        PointCloud cloud;
+        DeconvReport report;
+        {
+          py::gil_scoped_release release;
+          cloud = deconvolve_dataset(dataset, config, progress, &report);
+        }
+        py::tuple t = cloud_tuple(std::move(cloud));
+        return py::make_tuple(t[0], t[1],
+                              py::module_::import("json").attr("loads")(report.to_json()));
+      },
+      "dataset"_a, "config"_a = DeconvConfig(), "progress"_a = false,
+      "Deconvolves the vertical passes of a dataset (eq. 5.28): (points, layer intensities b, "
+      "report dict with per-pass geometry, timings and warnings).");
+
+  m.def(
+      "deconvolve_frames",
+      [](const carray<float>& images, const carray<double>& poses, const SonarSpec& spec,
+         const DeconvConfig& config) {
+        if (images.ndim() != 3) throw Error("images must be (N, range bins, beams), denoised");
+        std::vector<SonarImage> imgs;
+        for (py::ssize_t k = 0; k < images.shape(0); ++k) {
+          SonarImage img(static_cast<int>(images.shape(1)), static_cast<int>(images.shape(2)));
+          std::copy(images.data(k, 0, 0), images.data(k, 0, 0) + img.data.size(), img.data.begin());
+          imgs.push_back(std::move(img));
+        }
+        const auto P = array_to_poses(poses, "poses");
+        PointCloud cloud;
+        DeconvReport report;
+        {
+          py::gil_scoped_release release;
+          cloud = deconvolve_frames(imgs, P, spec, config, &report, false);
+        }
+        py::tuple t = cloud_tuple(std::move(cloud));
+        return py::make_tuple(t[0], t[1],
+                              py::module_::import("json").attr("loads")(report.to_json()));
+      },
+      "images"_a, "poses"_a, "spec"_a, "config"_a = DeconvConfig(),
+      "Deconvolves already denoised frames (N, rows, cols) taken at poses (N, 4, 4).");
+#endif
+
+#if defined(SONAR3D_HAVE_RECON_RECONSTRUCT_HPP)
+  m.def("reconstruction_methods", &reconstruction_methods, "Names reconstruct() accepts.");
+  m.def(
+      "reconstruct",
+      [](const Dataset& dataset, const std::string& method, const py::object& carve,
+         int num_threads, bool progress) {
+        ReconstructOptions o;
+        o.method = method;
+#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
+        if (!carve.is_none()) o.carve = carve.cast<CarveConfig>();
+#endif
+        o.num_threads = num_threads;
+        o.progress = progress;
+        ReconstructResult r;
+        {
+          py::gil_scoped_release release;
+          r = reconstruct_dataset(dataset, o);
+        }
+        py::tuple t = cloud_tuple(std::move(r.cloud));
+        py::dict info;
+        info["seconds"] = r.seconds;
+        info["notes"] = r.notes;
+        return py::make_tuple(t[0], t[1], info);
+      },
+      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "num_threads"_a = 0,
+      "progress"_a = false,
+      "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...): "
+      "(points, intensity, {seconds, notes}).");
+#endif
+}
+
+}  // namespace sonar3d::python

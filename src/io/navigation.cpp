@@ -1,0 +1,299 @@
+#include "sonar3d/io/navigation.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/yaml_config.hpp"
+
+namespace fs = std::filesystem;
+
+namespace sonar3d {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+std::string trim(const std::string& s) {
+  const auto a = s.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  const auto b = s.find_last_not_of(" \t\r");
+  return s.substr(a, b - a + 1);
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+std::vector<std::string> split_csv(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cell;
+  std::istringstream is(line);
+  while (std::getline(is, cell, ',')) out.push_back(trim(cell));
+  if (!line.empty() && line.back() == ',') out.push_back("");
+  return out;
+}
+
+bool skip_line(const std::string& line) {
+  const std::string t = trim(line);
+  return t.empty() || t[0] == '#';
+}
+
+double parse_number(const std::string& cell, const std::string& where, const std::string& what) {
+  double v = 0;
+  std::size_t used = 0;
+  try {
+    v = std::stod(cell, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (cell.empty() || used != cell.size()) {
+    throw Error(where + ": " + what + " '" + cell + "' is not a number");
+  }
+  if (!std::isfinite(v)) throw Error(where + ": " + what + " is not finite");
+  return v;
+}
+
+// Column index of the first header name in `names`, or -1.
+int column(const std::vector<std::string>& header, std::initializer_list<const char*> names) {
+  for (std::size_t i = 0; i < header.size(); ++i) {
+    for (const char* n : names) {
+      if (lower(header[i]) == n) return static_cast<int>(i);
+    }
+  }
+  return -1;
+}
+
+std::string fmt_time(double t) {
+  std::ostringstream os;
+  os << std::setprecision(10) << t;
+  return os.str();
+}
+
+}  // namespace
+
+NavConvention parse_nav_convention(const std::string& s) {
+  const std::string l = lower(s);
+  if (l == "enu") return NavConvention::Enu;
+  if (l == "ned") return NavConvention::Ned;
+  throw Error("unknown navigation convention '" + s + "' (expected 'enu' or 'ned')");
+}
+
+const char* nav_convention_name(NavConvention c) { return c == NavConvention::Enu ? "enu" : "ned"; }
+
+Eigen::Isometry3d vehicle_pose_from_nav(const Eigen::Vector3d& xyz, double roll, double pitch,
+                                        double yaw, NavConvention convention) {
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (convention == NavConvention::Enu) {
+    T.linear() = R;
+    T.translation() = xyz;
+    return T;
+  }
+  // p_world = C·p_ned (north, east, down → east, north, up) and p_frd = D·p_flu, so
+  // R_world_vehicle = C·R_ned_frd·D and t_world = C·t_ned. Both C and D are proper rotations.
+  Eigen::Matrix3d C;
+  C << 0, 1, 0, 1, 0, 0, 0, 0, -1;
+  const Eigen::Matrix3d D = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  T.linear() = C * R * D;
+  T.translation() = C * xyz;
+  return T;
+}
+
+Trajectory read_navigation_csv(const std::string& path, const NavCsvConfig& config) {
+  std::ifstream f(path);
+  if (!f) throw Error("cannot open navigation file '" + path + "'");
+  Trajectory traj;
+  std::string line;
+  int lineno = 0;
+  std::vector<int> col;  // time x y z roll pitch yaw
+  while (std::getline(f, line)) {
+    ++lineno;
+    if (skip_line(line)) continue;
+    const std::string where = path + ":" + std::to_string(lineno);
+    const std::vector<std::string> cells = split_csv(line);
+    if (col.empty()) {
+      col = {column(cells, {"time", "t", "timestamp"}),
+             column(cells, {"x"}),
+             column(cells, {"y"}),
+             column(cells, {"z"}),
+             column(cells, {"roll"}),
+             column(cells, {"pitch"}),
+             column(cells, {"yaw"})};
+      if (std::count(col.begin(), col.end(), -1)) {
+        throw Error(where +
+                    ": expected a header naming the columns time, x, y, z, roll, pitch, "
+                    "yaw (any order), got '" +
+                    trim(line) + "'");
+      }
+      continue;
+    }
+    const int needed = *std::max_element(col.begin(), col.end()) + 1;
+    if (static_cast<int>(cells.size()) < needed) {
+      throw Error(where + ": expected at least " + std::to_string(needed) + " fields, got " +
+                  std::to_string(cells.size()));
+    }
+    static const char* kNames[] = {"time", "x", "y", "z", "roll", "pitch", "yaw"};
+    double v[7];
+    for (int k = 0; k < 7; ++k) v[k] = parse_number(cells[col[k]], where, kNames[k]);
+    if (!traj.empty() && !(v[0] > traj.times.back())) {
+      throw Error(where + ": time " + fmt_time(v[0]) + " s is not after the previous sample (" +
+                  fmt_time(traj.times.back()) + " s): navigation timestamps must increase");
+    }
+    const double s = config.degrees ? kDeg : 1.0;
+    traj.push_back(v[0], vehicle_pose_from_nav(Eigen::Vector3d(v[1], v[2], v[3]), v[4] * s,
+                                               v[5] * s, v[6] * s, config.convention));
+  }
+  if (col.empty()) throw Error(path + ": empty navigation file (no header)");
+  if (traj.empty()) throw Error(path + ": the navigation file holds no sample");
+  return traj;
+}
+
+Trajectory read_navigation(const std::string& path, const NavCsvConfig& csv,
+                           const std::string& format) {
+  std::string fmt = lower(format);
+  if (fmt.empty()) {
+    const std::string ext = lower(fs::path(path).extension().string());
+    if (ext == ".csv") {
+      fmt = "csv";
+    } else if (ext == ".tum" || ext == ".txt") {
+      fmt = "tum";
+    } else {
+      throw Error("navigation file '" + path + "': cannot tell the format from the extension '" +
+                  ext + "'; name it .tum or .csv or give the format (tum, csv)");
+    }
+  }
+  Trajectory traj;
+  if (fmt == "csv") {
+    traj = read_navigation_csv(path, csv);
+  } else if (fmt == "tum") {
+    traj = read_tum(path);
+    if (traj.empty()) throw Error(path + ": the navigation file holds no pose");
+  } else {
+    throw Error("unknown navigation format '" + format + "' (expected 'tum' or 'csv')");
+  }
+  traj.validate(path);
+  return traj;
+}
+
+SonarSpec read_sonar_description(const std::string& path) {
+  const YAML::Node root = yaml::load_file(path);
+  if (!root.IsMap()) throw Error(path + ": expected a mapping of sensor fields");
+  if (root["sensor"]) return yaml::parse_sonar_spec(root["sensor"], path, "sensor");
+  return yaml::parse_sonar_spec(root, path);
+}
+
+std::vector<FrameTime> read_frame_times(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw Error("cannot open frame list '" + path + "'");
+  std::vector<FrameTime> out;
+  std::string line;
+  int lineno = 0, c_time = -1, c_file = -1;
+  bool header = true;
+  while (std::getline(f, line)) {
+    ++lineno;
+    if (skip_line(line)) continue;
+    const std::string where = path + ":" + std::to_string(lineno);
+    const std::vector<std::string> cells = split_csv(line);
+    if (header) {
+      header = false;
+      c_time = column(cells, {"timestamp", "time", "t"});
+      c_file = column(cells, {"file"});
+      if (c_time < 0 || c_file < 0) {
+        throw Error(where + ": expected the header 'timestamp,file', got '" + trim(line) + "'");
+      }
+      continue;
+    }
+    if (static_cast<int>(cells.size()) <= std::max(c_time, c_file)) {
+      throw Error(where + ": expected 'timestamp,file'");
+    }
+    FrameTime ft;
+    ft.timestamp = parse_number(cells[c_time], where, "timestamp");
+    ft.file = cells[c_file];
+    ft.line = lineno;
+    if (ft.file.empty()) throw Error(where + ": the file name is empty");
+    if (!out.empty() && ft.timestamp < out.back().timestamp) {
+      throw Error(where + ": timestamp " + fmt_time(ft.timestamp) + " s goes backwards (previous " +
+                  "frame at " + fmt_time(out.back().timestamp) + " s)");
+    }
+    out.push_back(ft);
+  }
+  if (header) throw Error(path + ": empty frame list (no header)");
+  if (out.empty()) throw Error(path + ": the frame list holds no frame");
+  return out;
+}
+
+void FrameImportConfig::validate() const {
+  if (images_dir.empty()) throw Error("frames import: 'images_dir' is not set");
+  if (times_csv.empty()) throw Error("frames import: 'times_csv' is not set");
+  if (navigation.empty()) throw Error("frames import: 'navigation' is not set");
+  if (!std::isfinite(time_offset)) throw Error("frames import: 'time_offset' must be finite");
+  spec.validate();
+}
+
+FrameImportResult import_frames(const FrameImportConfig& config, const fs::path& out,
+                                bool progress) {
+  config.validate();
+  if (!fs::is_directory(config.images_dir)) {
+    throw Error("images directory '" + config.images_dir.string() + "' does not exist");
+  }
+  const Trajectory nav =
+      read_navigation(config.navigation.string(), config.navigation_csv, config.navigation_format);
+  const std::vector<FrameTime> times = read_frame_times(config.times_csv.string());
+  bool tiff = false;
+  for (const auto& ft : times) {
+    const std::string ext = lower(fs::path(ft.file).extension().string());
+    tiff = tiff || ext == ".tif" || ext == ".tiff";
+  }
+  FrameImportResult res;
+  res.navigation_samples = nav.size();
+  DatasetWriter writer(out, config.spec,
+                       tiff ? DatasetWriter::ImageFormat::Tiff : DatasetWriter::ImageFormat::Png);
+  constexpr double kTol = 1e-6;  // s, as Trajectory::interpolate
+  Progress bar("import", times.size(), progress);
+  for (const FrameTime& ft : times) {
+    const double t = ft.timestamp + config.time_offset;
+    if (t < nav.times.front() - kTol || t > nav.times.back() + kTol) {
+      if (config.drop_outside) {
+        ++res.dropped;
+        bar.add();
+        continue;
+      }
+      throw Error(config.times_csv.string() + ":" + std::to_string(ft.line) + ": frame '" +
+                  ft.file + "' at t = " + fmt_time(t) + " s (navigation clock) is outside the " +
+                  "navigation span [" + fmt_time(nav.times.front()) + ", " +
+                  fmt_time(nav.times.back()) +
+                  "] s; poses are not extrapolated (drop such frames "
+                  "with --drop-outside, or shift the clock with --time-offset)");
+    }
+    SonarImage img = read_sonar_image((config.images_dir / ft.file).string(), config.spec);
+    img.timestamp = t;
+    writer.add_frame(img);
+    if (res.frames == 0) res.first_time = t;
+    res.last_time = t;
+    ++res.frames;
+    bar.add();
+  }
+  bar.finish();
+  if (res.frames == 0) {
+    throw Error("no frame of '" + config.times_csv.string() +
+                "' lies inside the navigation span [" + fmt_time(nav.times.front()) + ", " +
+                fmt_time(nav.times.back()) + "] s: check the clocks (--time-offset)");
+  }
+  writer.set_navigation(nav);
+  writer.commit();
+  return res;
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,709 @@
+#include "sonar3d/recon/carve.hpp"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/ChangeBackground.h>
+#include <openvdb/tree/LeafManager.h>
+#include <openvdb/tree/ValueAccessor.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <sstream>
+
+#include "carve_footprint.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/trajectory.hpp"
+
+namespace sonar3d {
+
+namespace {
+
+using TreeT = openvdb::FloatTree;
+using GridT = openvdb::FloatGrid;
+using LeafT = TreeT::LeafNodeType;
+// Elevation span of the observations of each candidate: sin θ / sin θ_3dB quantised to int16,
+// minimum in the low half, maximum in the high half.
+using SpanTreeT = openvdb::Int32Tree;
+using SpanLeafT = SpanTreeT::LeafNodeType;
+using SpanAccessor = openvdb::tree::ValueAccessor<SpanTreeT, false>;
+using openvdb::Coord;
+using openvdb::CoordBBox;
+// Unregistered accessor: one per task, created after and destroyed before any topology change.
+using Accessor = openvdb::tree::ValueAccessor<TreeT, false>;
+
+constexpr float kUnknown = std::numeric_limits<float>::infinity();  // background: no bound yet
+constexpr int kLeafDim = 8;    // LeafT::DIM
+constexpr int kTopDim = 128;   // voxels spanned by a lowest internal node (16 leaves)
+constexpr double kSqrt3 = 1.7320508075688772;
+
+// Tile extent (voxels) by tree depth (0 = root tile .. 3 = leaf voxel) of a 5-4-3 tree.
+constexpr int kExtentByDepth[4] = {4096, 128, 8, 1};
+
+void init_openvdb() {
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+}
+
+std::int64_t floor_div(std::int64_t a, std::int64_t b) {
+  return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+// What one top cube's task produced, applied serially once every task is done (OpenVDB trees
+// are not safe for concurrent topology changes; values of existing leaves are changed in place).
+struct TaskOut {
+  std::vector<LeafT*> new_leaves;
+  std::vector<SpanLeafT*> new_span_leaves;
+  std::vector<std::pair<Coord, int>> free_cubes;  // origin, edge (voxels), edge >= 8
+  std::size_t voxels = 0;
+};
+
+// Carves one frame into the map. Owns nothing; lives for one integrate() call.
+class FrameCarver {
+ public:
+  FrameCarver(const detail::SonarGeometry& g, const detail::FrameFootprint& fp,
+              const SonarImage& image, double voxel_size, double margin, const CoordBBox& clip,
+              bool track_span)
+      : g_(g), fp_(fp), fr_(fp.frame()), image_(image), vs_(voxel_size),
+        clip_(clip), track_span_(track_span) {
+    delta_ = margin * 0.5 * kSqrt3 * vs_;
+    // Steps of the sonar-frame position per voxel index along world x, y, z.
+    step_[0] = fp.R_sonar_world.col(0) * vs_;
+    step_[1] = fp.R_sonar_world.col(1) * vs_;
+    step_[2] = fp.R_sonar_world.col(2) * vs_;
+    r_min2_ = g.r_min * g.r_min;
+    r_max2_ = g.r_max * g.r_max;
+  }
+
+  // Processes an aligned cube of edge s >= 8 voxels.
+  void process_cube(Accessor& acc, SpanAccessor& sacc, const Coord& o, int s, TaskOut& out) const {
+    const CoordBBox cube(o, o.offsetBy(s - 1));
+    if (!clip_.hasOverlap(cube)) return;
+    if (uniform_free(acc, o, s)) return;  // free stays free: nothing can change here
+    const detail::CubeClass cls = classify(o, s);
+    const detail::Region region = cls.region;
+    if (region == detail::Region::Outside || region == detail::Region::NoUpdate) return;
+    if (region == detail::Region::Free && clip_.isInside(cube)) {
+      out.free_cubes.emplace_back(o, s);
+      return;
+    }
+    if (s == kLeafDim) {
+      process_leaf(acc, sacc, o, cls, out);
+      return;
+    }
+    const int h = s / 2;
+    for (int dx = 0; dx < 2; ++dx)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dz = 0; dz < 2; ++dz)
+          process_cube(acc, sacc, o.offsetBy(dx * h, dy * h, dz * h), h, out);
+  }
+
+ private:
+  bool uniform_free(const Accessor& acc, const Coord& o, int s) const {
+    const int depth = acc.getValueDepth(o);
+    if (depth < 0 || depth > 2 || kExtentByDepth[depth] < s) return false;
+    return acc.isValueOn(o) && acc.getValue(o) == 0.0f;
+  }
+
+  Eigen::Vector3d centre_sonar(const Coord& o, int s) const {
+    const double half = 0.5 * (s - 1);
+    const Eigen::Vector3d c_world((o.x() + half) * vs_, (o.y() + half) * vs_, (o.z() + half) * vs_);
+    return fp_.to_sonar(c_world);
+  }
+
+  detail::CubeClass classify(const Coord& o, int s) const {
+    const double r_centres = 0.5 * kSqrt3 * (s - 1) * vs_;
+    return fp_.classify(centre_sonar(o, s), r_centres, r_centres + delta_);
+  }
+
+  // The leaf being updated and, lazily, its elevation-span companion.
+  struct LeafCtx {
+    LeafT* leaf = nullptr;
+    float* v = nullptr;
+    SpanAccessor* sacc = nullptr;
+    Coord origin;
+    SpanLeafT* span = nullptr;
+    bool span_new = false, span_changed = false;
+  };
+
+  void process_leaf(Accessor& acc, SpanAccessor& sacc, const Coord& o,
+                    const detail::CubeClass& cls, TaskOut& out) const {
+    LeafCtx c;
+    c.leaf = acc.probeLeaf(o);
+    c.sacc = &sacc;
+    c.origin = o;
+    bool is_new = false;
+    if (!c.leaf) {
+      // A tile or the background: a new leaf starts from its value and state.
+      c.leaf = new LeafT(o, acc.getValue(o), acc.isValueOn(o));
+      is_new = true;
+    }
+    c.v = c.leaf->buffer().data();
+    const bool changed = process_sub(c, o, kLeafDim, cls, out);
+    bool keep_span = c.span_changed;
+    if (changed && c.leaf->getValueMask().isOn()) {
+      // A leaf that became wholly free collapses to a tile (its span leaf goes too).
+      bool all_zero = true;
+      for (openvdb::Index n = 0; n < LeafT::SIZE && all_zero; ++n) all_zero = c.v[n] == 0.0f;
+      if (all_zero) {
+        out.free_cubes.emplace_back(o, kLeafDim);
+        if (is_new) delete c.leaf;
+        if (c.span_new) delete c.span;
+        return;
+      }
+    }
+    if (is_new) {
+      if (changed) {
+        out.new_leaves.push_back(c.leaf);
+      } else {
+        delete c.leaf;
+      }
+    }
+    if (c.span_new) {
+      if (keep_span) {
+        out.new_span_leaves.push_back(c.span);
+      } else {
+        delete c.span;
+      }
+    }
+  }
+
+  // Cube of edge s <= 8 inside the leaf; `region` is its classification. Returns true when a
+  // value or state changed.
+  bool process_sub(LeafCtx& c, const Coord& o, int s, const detail::CubeClass& cls,
+                   TaskOut& out) const {
+    using detail::Region;
+    const Region region = cls.region;
+    if (region == Region::Outside || region == Region::NoUpdate) return false;
+    const CoordBBox cube(o, o.offsetBy(s - 1));
+    if (!clip_.hasOverlap(cube)) return false;
+    if (region == Region::Free && clip_.isInside(cube)) {
+      bool changed = false;
+      for (int x = 0; x < s; ++x)
+        for (int y = 0; y < s; ++y)
+          for (int z = 0; z < s; ++z) {
+            const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
+            if (c.v[n] != 0.0f || !c.leaf->isValueOn(n)) {
+              c.v[n] = 0.0f;
+              c.leaf->setActiveState(n, true);
+              changed = true;
+            }
+          }
+      return changed;
+    }
+    if (s < kLeafDim && cube_free(c, o, s)) return false;  // free stays free
+    if (cls.window && cls.no_carve) {
+      // Nothing here can be carved (all behind the first returns): only return pixels matter.
+      float min_i = 0;
+      if (!fp_.window_returns(cls, &min_i)) return false;  // gaps between returns: shadow
+      // eq. 4.7 with B <= 1: no bound below min_i · min 1/B² can come from this window, so a
+      // cube whose voxels all hold a lower (or zero) bound cannot change (except for the span).
+      if (!track_span_ && cube_max(c, o, s) <= min_i * g_.min_inv_b2) return false;
+    }
+    if (s > kVoxelLevel) {
+      const int h = s / 2;
+      bool changed = false;
+      for (int dx = 0; dx < 2; ++dx)
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dz = 0; dz < 2; ++dz) {
+            const Coord q = o.offsetBy(dx * h, dy * h, dz * h);
+            changed |= process_sub(c, q, h, classify(q, h), out);
+          }
+      return changed;
+    }
+    return process_voxels(c, o, s, out);
+  }
+
+  bool process_voxels(LeafCtx& c, const Coord& o, int s, TaskOut& out) const {
+    const Coord lo = Coord::maxComponent(o, clip_.min());
+    const Coord hi = Coord::minComponent(o.offsetBy(s - 1), clip_.max());
+    const Eigen::Vector3d p0 =
+        fp_.to_sonar(Eigen::Vector3d(lo.x() * vs_, lo.y() * vs_, lo.z() * vs_));
+    bool changed = false;
+    for (int x = lo.x(); x <= hi.x(); ++x) {
+      for (int y = lo.y(); y <= hi.y(); ++y) {
+        Eigen::Vector3d p = p0 + (x - lo.x()) * step_[0] + (y - lo.y()) * step_[1];
+        for (int z = lo.z(); z <= hi.z(); ++z, p += step_[2]) {
+          const openvdb::Index n = LeafT::coordToOffset(Coord(x, y, z));
+          if (c.v[n] == 0.0f && c.leaf->isValueOn(n)) continue;  // free stays free (min with 0)
+          ++out.voxels;
+          changed |= update_voxel(c, n, p);
+        }
+      }
+    }
+    return changed;
+  }
+
+  // True when every voxel of the cube is already known free.
+  static bool cube_free(const LeafCtx& c, const Coord& o, int s) {
+    for (int x = 0; x < s; ++x)
+      for (int y = 0; y < s; ++y)
+        for (int z = 0; z < s; ++z) {
+          const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
+          if (c.v[n] != 0.0f || !c.leaf->isValueOn(n)) return false;
+        }
+    return true;
+  }
+
+  // Largest value in the cube; +inf when a voxel is unknown.
+  static float cube_max(const LeafCtx& c, const Coord& o, int s) {
+    float m = 0.0f;
+    if (s == kLeafDim) {
+      if (!c.leaf->getValueMask().isOn()) return std::numeric_limits<float>::infinity();
+      for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) m = std::max(m, c.v[n]);
+      return m;
+    }
+    for (int x = 0; x < s; ++x)
+      for (int y = 0; y < s; ++y)
+        for (int z = 0; z < s; ++z) {
+          const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
+          if (!c.leaf->isValueOn(n)) return std::numeric_limits<float>::infinity();
+          m = std::max(m, c.v[n]);
+        }
+    return m;
+  }
+
+  // Widens the elevation span of voxel n's observations to sin θ = s.
+  void note_span(LeafCtx& c, openvdb::Index n, double s, bool first) const {
+    if (!c.span) {
+      c.span = c.sacc->probeLeaf(c.origin);
+      if (!c.span) {
+        c.span = new SpanLeafT(c.origin, 0, false);
+        c.span_new = true;
+      }
+    }
+    const auto q = static_cast<std::int32_t>(
+        std::lround(std::clamp(s / g_.sin_theta3, -1.0, 1.0) * 32767.0));
+    std::int32_t lo = q, hi = q;
+    if (!first && c.span->isValueOn(n)) {
+      const std::int32_t packed = c.span->getValue(n);
+      lo = std::min<std::int32_t>(q, static_cast<std::int16_t>(packed & 0xFFFF));
+      hi = std::max<std::int32_t>(q, static_cast<std::int16_t>((packed >> 16) & 0xFFFF));
+    }
+    c.span->setValueOn(n, static_cast<std::int32_t>((static_cast<std::uint32_t>(hi & 0xFFFF) << 16) |
+                                                    static_cast<std::uint32_t>(lo & 0xFFFF)));
+    c.span_changed = true;
+  }
+
+  // The voxel-centric carving rule for one voxel centre p (sonar frame).
+  bool update_voxel(LeafCtx& c, openvdb::Index n, const Eigen::Vector3d& p) const {
+    const double r2 = p.squaredNorm();
+    if (r2 < r_min2_ || r2 >= r_max2_) return false;
+    const double r = std::sqrt(r2);
+    const double s = p.z() / r;
+    if (std::abs(s) > g_.sin_theta3) return false;  // outside the vertical aperture
+    const double phi = detail::fast_atan2(p.y(), p.x());
+    if (!(phi >= g_.fov_min) || !(phi < g_.fov_max)) return false;
+    const int j = g_.beam(phi);
+    const int i = std::min(static_cast<int>((r - g_.r_min) * g_.inv_dr), g_.bins - 1);
+    float* v = c.v;
+    const bool on = c.leaf->isValueOn(n);
+    if (fr_.has_return(i, j)) {
+      // eq. 4.7: the pixel bounds the reflectivity at elevation θ by I/B(θ)²; eq. 4.6: keep the
+      // minimum over frames (an unknown voxel takes the bound).
+      const float bound = image_.at(i, j) * g_.inv_power(s);
+      if (!std::isfinite(bound)) return false;
+      if (track_span_) note_span(c, n, s, !on);
+      if (on && !(bound < v[n])) return false;
+      v[n] = bound;
+      c.leaf->setActiveState(n, true);
+      return true;
+    }
+    if (i >= fr_.first_return_bin[j]) return false;  // empty pixel behind a return: maybe shadow
+    // Fig. 4.5: an empty pixel with no return nearer on its beam carves (the whole voxel must be
+    // in free space when a margin is set).
+    if (delta_ > 0) {
+      const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
+      if (!fp_.ball_free(r, s, rho, phi, delta_)) return false;
+    }
+    if (on && v[n] == 0.0f) return false;
+    v[n] = 0.0f;
+    c.leaf->setActiveState(n, true);
+    return true;
+  }
+
+  static constexpr int kVoxelLevel = 2;  // cubes of this edge are projected voxel by voxel
+
+  const detail::SonarGeometry& g_;
+  const detail::FrameFootprint& fp_;
+  const FrameReturns& fr_;
+  const SonarImage& image_;
+  double vs_, delta_ = 0;
+  CoordBBox clip_;
+  bool track_span_ = false;
+  Eigen::Vector3d step_[3];
+  double r_min2_, r_max2_;
+};
+
+}  // namespace
+
+void CarveConfig::validate() const {
+  require_positive(voxel_size, "carve.voxel_size", "m");
+  if (region) {
+    require(region->min().allFinite() && region->max().allFinite(),
+            "parameter 'carve.region' must have finite corners");
+    require((region->max().array() > region->min().array()).all(),
+            "parameter 'carve.region': every max corner coordinate must exceed the min one");
+  }
+  denoise.validate();
+  occlusion.validate();
+  require(std::isfinite(static_threshold), "parameter 'carve.static_threshold' must be finite");
+  require(std::isfinite(carve_margin) && carve_margin >= 0 && carve_margin <= 1,
+          "parameter 'carve.carve_margin' must lie in [0, 1], got " + std::to_string(carve_margin));
+  require(std::isfinite(min_elevation_span) && min_elevation_span >= 0 && min_elevation_span <= 1,
+          "parameter 'carve.min_elevation_span' must lie in [0, 1], got " +
+              std::to_string(min_elevation_span));
+  require(num_threads >= 0, "parameter 'carve.num_threads' must be >= 0 (0 = all cores), got " +
+                                std::to_string(num_threads));
+  // Index space of the map: 32-bit voxel coordinates.
+  if (region) {
+    const double m = region->min().cwiseAbs().cwiseMax(region->max().cwiseAbs()).maxCoeff();
+    require(m / voxel_size < 1e9, "parameter 'carve.region' is too large for carve.voxel_size");
+  }
+}
+
+struct Carver::Impl {
+  // Drops the span leaves of a cube that became free (nothing there is a candidate any more).
+  void clear_span(const Coord& o, int s) {
+    using Node1 = SpanTreeT::RootNodeType::ChildNodeType::ChildNodeType;  // 16³ leaves
+    if (!span->probeConstNode<Node1>(o)) return;
+    for (int x = 0; x < s; x += kLeafDim)
+      for (int y = 0; y < s; y += kLeafDim)
+        for (int z = 0; z < s; z += kLeafDim) {
+          const Coord c = o.offsetBy(x, y, z);
+          if (span->probeConstLeaf(c)) span->addTile(1, c, 0, false);
+        }
+  }
+
+  SonarSpec spec;
+  CarveConfig cfg;
+  std::optional<NoiseImages> noise;
+  std::unique_ptr<detail::SonarGeometry> geom;
+  GridT::Ptr grid;
+  SpanTreeT::Ptr span;  // only when cfg.min_elevation_span > 0
+  std::vector<FrameReturns> frames;
+  mutable tbb::task_arena arena;
+  mutable CarveStats stats;
+  CoordBBox roi;  // voxel index box of the region of interest (or everything)
+
+  Impl(const SonarSpec& s, const CarveConfig& c, std::optional<NoiseImages> n)
+      : spec(s), cfg(c), noise(std::move(n)),
+        arena(c.num_threads > 0 ? c.num_threads : static_cast<int>(tbb::task_arena::automatic)) {}
+
+  void carve(const SonarImage& denoised, const FrameReturns& fr) {
+    const detail::FrameFootprint fp(*geom, fr, &denoised);
+    const double vs = cfg.voxel_size;
+    const Eigen::AlignedBox3d wb = detail::footprint_bounds_world(*geom, fr.T_world_sonar);
+    const double lim = 2e9;
+    auto lo_idx = [&](double x) { return static_cast<int>(std::clamp(std::floor(x / vs), -lim, lim)); };
+    auto hi_idx = [&](double x) { return static_cast<int>(std::clamp(std::ceil(x / vs), -lim, lim)); };
+    CoordBBox box(Coord(lo_idx(wb.min().x()), lo_idx(wb.min().y()), lo_idx(wb.min().z())),
+                  Coord(hi_idx(wb.max().x()), hi_idx(wb.max().y()), hi_idx(wb.max().z())));
+    box.intersect(roi);
+    if (box.empty()) return;
+    std::vector<Coord> tops;
+    for (auto x = floor_div(box.min().x(), kTopDim) * kTopDim; x <= box.max().x(); x += kTopDim)
+      for (auto y = floor_div(box.min().y(), kTopDim) * kTopDim; y <= box.max().y(); y += kTopDim)
+        for (auto z = floor_div(box.min().z(), kTopDim) * kTopDim; z <= box.max().z(); z += kTopDim)
+          tops.emplace_back(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z));
+    const FrameCarver carver(*geom, fp, denoised, vs, cfg.carve_margin, roi, span != nullptr);
+    std::vector<TaskOut> outs(tops.size());
+    TreeT& tree = grid->tree();
+    SpanTreeT scratch_span(0);
+    SpanTreeT& span_tree = span ? *span : scratch_span;
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tops.size(), 1),
+                        [&](const tbb::blocked_range<std::size_t>& rg) {
+                          Accessor acc(tree);
+                          SpanAccessor sacc(span_tree);
+                          for (std::size_t t = rg.begin(); t < rg.end(); ++t)
+                            carver.process_cube(acc, sacc, tops[t], kTopDim, outs[t]);
+                        });
+    });
+    // Topology changes, serially.
+    for (TaskOut& out : outs) {
+      for (LeafT* leaf : out.new_leaves) tree.addLeaf(leaf);
+      for (SpanLeafT* leaf : out.new_span_leaves) span_tree.addLeaf(leaf);
+      for (const auto& [o, s] : out.free_cubes) {
+        if (s == kTopDim) {
+          tree.addTile(2, o, 0.0f, true);
+        } else if (s == kLeafDim) {
+          tree.addTile(1, o, 0.0f, true);
+        } else {
+          for (int x = 0; x < s; x += kLeafDim)
+            for (int y = 0; y < s; y += kLeafDim)
+              for (int z = 0; z < s; z += kLeafDim) tree.addTile(1, o.offsetBy(x, y, z), 0.0f, true);
+        }
+        if (span) clear_span(o, s);
+      }
+      stats.leaf_voxels_visited += out.voxels;
+    }
+  }
+};
+
+Carver::Carver(const SonarSpec& spec, const CarveConfig& config, std::optional<NoiseImages> noise)
+    : impl_(std::make_unique<Impl>(spec, config, std::move(noise))) {
+  spec.validate();
+  config.validate();
+  if (impl_->noise) {
+    const auto& n = *impl_->noise;
+    if (n.mean.rows != spec.range_bins || n.mean.cols != spec.beams() ||
+        n.std.rows != spec.range_bins || n.std.cols != spec.beams()) {
+      throw Error("carve: the noise statistics are " + std::to_string(n.mean.rows) + " × " +
+                  std::to_string(n.mean.cols) + " but sonar '" + spec.name + "' images are " +
+                  std::to_string(spec.range_bins) + " × " + std::to_string(spec.beams()));
+    }
+  }
+  require(spec.range_bins < 65535, "carve: sonar '" + spec.name +
+                                       "' has too many range bins (max 65534)");
+  init_openvdb();
+  impl_->geom = std::make_unique<detail::SonarGeometry>(impl_->spec);
+  impl_->grid = GridT::create(kUnknown);
+  impl_->grid->setName("carve_map");
+  impl_->grid->setTransform(openvdb::math::Transform::createLinearTransform(config.voxel_size));
+  impl_->grid->setGridClass(openvdb::GRID_UNKNOWN);
+  if (config.min_elevation_span > 0) impl_->span = std::make_shared<SpanTreeT>(0);
+  if (config.region) {
+    const double vs = config.voxel_size;
+    const auto& r = *config.region;
+    impl_->roi = CoordBBox(Coord(static_cast<int>(std::ceil(r.min().x() / vs)),
+                                 static_cast<int>(std::ceil(r.min().y() / vs)),
+                                 static_cast<int>(std::ceil(r.min().z() / vs))),
+                           Coord(static_cast<int>(std::floor(r.max().x() / vs)),
+                                 static_cast<int>(std::floor(r.max().y() / vs)),
+                                 static_cast<int>(std::floor(r.max().z() / vs))));
+  } else {
+    impl_->roi = CoordBBox(Coord(-(1 << 30)), Coord((1 << 30) - 1));
+  }
+}
+
+Carver::~Carver() = default;
+
+void Carver::integrate(const SonarImage& image, const Eigen::Isometry3d& T_world_sonar,
+                       const std::string& frame_label) {
+  Impl& m = *impl_;
+  const std::string who =
+      frame_label.empty() ? "frame " + std::to_string(m.frames.size()) : frame_label;
+  if (image.rows != m.spec.range_bins || image.cols != m.spec.beams()) {
+    throw Error("carve: " + who + ": the image is " + std::to_string(image.rows) +
+                " range bins × " + std::to_string(image.cols) + " beams but sonar '" +
+                m.spec.name + "' has " + std::to_string(m.spec.range_bins) + " × " +
+                std::to_string(m.spec.beams()));
+  }
+  if (!T_world_sonar.matrix().allFinite()) {
+    throw Error("carve: " + who +
+                ": the pose T_world_sonar is not finite (NaN or infinite); check the navigation");
+  }
+  if (!is_rigid(T_world_sonar)) {
+    throw Error("carve: " + who + ": the pose T_world_sonar is not a rigid transform");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  SonarImage denoised = image;
+  denoise(denoised, m.noise, m.cfg.denoise);
+  FrameReturns fr = summarize_frame(denoised, T_world_sonar, m.spec);
+  m.carve(denoised, fr);
+  m.frames.push_back(std::move(fr));
+  m.stats.frames = m.frames.size();
+  m.stats.integrate_seconds +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+PointCloud Carver::snapshot() const {
+  const Impl& m = *impl_;
+  const TreeT& tree = m.grid->tree();
+  openvdb::tree::LeafManager<const TreeT> leaves(tree);
+  const float thr = static_cast<float>(m.cfg.static_threshold);
+  // A candidate observed over less than min_elevation_span of the aperture was never bracketed
+  // by free space on both sides along the elevation arc (the edges of a pass): dropped.
+  const int min_span = static_cast<int>(std::ceil(m.cfg.min_elevation_span * 2 * 32767.0));
+  auto keep_value = [thr](float v) { return v > 0.0f && v > thr && std::isfinite(v); };
+  auto visit = [&](std::size_t l, auto&& emit) {
+    const LeafT& leaf = leaves.leaf(l);
+    const SpanLeafT* sl = m.span ? m.span->probeConstLeaf(leaf.origin()) : nullptr;
+    for (auto it = leaf.cbeginValueOn(); it; ++it) {
+      if (!keep_value(*it)) continue;
+      if (m.span) {
+        if (!sl || !sl->isValueOn(it.pos())) continue;
+        const std::int32_t packed = sl->getValue(it.pos());
+        const int lo = static_cast<std::int16_t>(packed & 0xFFFF);
+        const int hi = static_cast<std::int16_t>((packed >> 16) & 0xFFFF);
+        if (hi - lo < min_span) continue;
+      }
+      emit(it.getCoord(), *it);
+    }
+  };
+  std::vector<std::size_t> counts(leaves.leafCount() + 1, 0);
+  m.arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount()),
+                      [&](const tbb::blocked_range<std::size_t>& rg) {
+                        for (std::size_t l = rg.begin(); l < rg.end(); ++l) {
+                          std::size_t c = 0;
+                          visit(l, [&](const Coord&, float) { ++c; });
+                          counts[l + 1] = c;
+                        }
+                      });
+  });
+  for (std::size_t l = 1; l < counts.size(); ++l) counts[l] += counts[l - 1];
+  PointCloud cloud;
+  cloud.points.resize(counts.back());
+  cloud.intensity.resize(counts.back());
+  const double vs = m.cfg.voxel_size;
+  m.arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount()),
+                      [&](const tbb::blocked_range<std::size_t>& rg) {
+                        for (std::size_t l = rg.begin(); l < rg.end(); ++l) {
+                          std::size_t k = counts[l];
+                          visit(l, [&](const Coord& c, float v) {
+                            cloud.points[k] = Eigen::Vector3f(static_cast<float>(c.x() * vs),
+                                                              static_cast<float>(c.y() * vs),
+                                                              static_cast<float>(c.z() * vs));
+                            cloud.intensity[k] = v;
+                            ++k;
+                          });
+                        }
+                      });
+  });
+  m.stats.candidates = cloud.size();
+  return cloud;
+}
+
+PointCloud Carver::finalize(Progress* progress) {
+  Impl& m = *impl_;
+  if (m.frames.empty()) throw Error("carve: nothing to finalize: no frame was integrated");
+  PointCloud candidates = snapshot();
+  if (!m.cfg.resolve_occlusions) {
+    m.stats.points = candidates.size();
+    return candidates;
+  }
+  OcclusionConfig occ = m.cfg.occlusion;
+  occ.voxel_size = m.cfg.voxel_size;
+  occ.num_threads = m.cfg.num_threads;
+  occ.min_intensity = std::max(occ.min_intensity, m.cfg.static_threshold);
+  const auto t0 = std::chrono::steady_clock::now();
+  PointCloud out = resolve_occlusions(candidates, m.frames, m.spec, occ, progress);
+  m.stats.occlusion_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  m.stats.points = out.size();
+  return out;
+}
+
+void Carver::write_vdb(const std::string& path, const PointCloud* surface) const {
+  const Impl& m = *impl_;
+  init_openvdb();
+  openvdb::GridPtrVec grids;
+  GridT::Ptr map = m.grid->deepCopy();
+  // Unknown voxels are the inactive ones; a background of 0 reads better in viewers than +inf.
+  openvdb::tools::changeBackground(map->tree(), 0.0f);
+  map->setName("carve_map");
+  map->insertMeta("description",
+                  openvdb::StringMetadata("sonar3d space carving map: active 0 = free, active v > 0 "
+                                          "= reflectivity bound (eq. 4.6), inactive = unknown"));
+  grids.push_back(map);
+  if (surface) {
+    GridT::Ptr s = GridT::create(0.0f);
+    s->setName("surface");
+    s->setTransform(openvdb::math::Transform::createLinearTransform(m.cfg.voxel_size));
+    auto acc = s->getAccessor();
+    const double inv = 1.0 / m.cfg.voxel_size;
+    for (std::size_t n = 0; n < surface->size(); ++n) {
+      const Eigen::Vector3f& p = surface->points[n];
+      const Coord c(static_cast<int>(std::floor(p.x() * inv + 0.5)),
+                    static_cast<int>(std::floor(p.y() * inv + 0.5)),
+                    static_cast<int>(std::floor(p.z() * inv + 0.5)));
+      acc.setValueOn(c, surface->has_intensity() ? surface->intensity[n] : 1.0f);
+    }
+    grids.push_back(s);
+  }
+  AtomicPath out(path);
+  try {
+    openvdb::io::File file(out.temp().string());
+    file.write(grids);
+    file.close();
+  } catch (const openvdb::Exception& e) {
+    throw Error("cannot write '" + path + "': " + e.what());
+  }
+  out.commit();
+}
+
+std::size_t Carver::frames() const { return impl_->frames.size(); }
+const std::vector<FrameReturns>& Carver::frame_returns() const { return impl_->frames; }
+const SonarSpec& Carver::spec() const { return impl_->spec; }
+const CarveConfig& Carver::config() const { return impl_->cfg; }
+
+const CarveStats& Carver::stats() const {
+  const Impl& m = *impl_;
+  m.stats.map_bytes = static_cast<std::size_t>(m.grid->memUsage()) +
+                     (m.span ? static_cast<std::size_t>(m.span->memUsage()) : 0);
+  std::size_t fb = m.frames.capacity() * sizeof(FrameReturns);
+  for (const auto& f : m.frames) fb += f.memory_bytes() - sizeof(FrameReturns);
+  m.stats.frame_bytes = fb;
+  return m.stats;
+}
+
+void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
+  if (ds.size() == 0) {
+    throw Error("dataset '" + ds.root.string() + "' has no frames: nothing to reconstruct");
+  }
+  Progress bar("carve", ds.size(), progress);
+  struct Item {
+    std::size_t i = 0;
+    SonarImage image;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  };
+  std::size_t next = 0;
+  const int threads = carver.config().num_threads;
+  tbb::task_arena arena(threads > 0 ? threads : static_cast<int>(tbb::task_arena::automatic));
+  arena.execute([&] {
+    tbb::parallel_pipeline(
+        static_cast<std::size_t>(2 * arena.max_concurrency() + 2),
+        tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                            [&](tbb::flow_control& fc) -> std::size_t {
+                                              if (next >= ds.size()) {
+                                                fc.stop();
+                                                return 0;
+                                              }
+                                              return next++;
+                                            }) &
+            tbb::make_filter<std::size_t, std::shared_ptr<Item>>(
+                tbb::filter_mode::parallel,
+                [&](std::size_t i) {
+                  auto item = std::make_shared<Item>();
+                  item->i = i;
+                  item->image = ds.load_frame(i);   // errors name the file
+                  item->T = ds.T_world_sonar(i);    // errors name the frame
+                  return item;
+                }) &
+            tbb::make_filter<std::shared_ptr<Item>, void>(
+                tbb::filter_mode::serial_in_order, [&](const std::shared_ptr<Item>& item) {
+                  carver.integrate(item->image, item->T,
+                                   "frame " + std::to_string(ds.frames[item->i].index) + " (" +
+                                       ds.frames[item->i].file + ")");
+                  bar.add();
+                }));
+  });
+  bar.finish();
+}
+
+std::size_t peak_rss_bytes() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) {
+      std::istringstream is(line.substr(6));
+      std::size_t kb = 0;
+      is >> kb;
+      return kb * 1024;
+    }
+  }
+  return 0;
+}
+
+}  // namespace sonar3d

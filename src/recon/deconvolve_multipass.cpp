@@ -1,0 +1,194 @@
+// Multipass deconvolution (thesis sec. 5.6.7): the first reconstruction gives the geometry that
+// the kernel A* = β̃ (eq. 5.27) ignores, and a second deconvolution uses it:
+//   - normal-based kernel (5.6.7.1): A⊥_kp = A*_kp·cos α_kp, the Lambertian cosine between the
+//     view from frame k and the normal at layer p, estimated by SVD over a 5 cm neighbourhood of
+//     the first cloud (Fig. 5.26);
+//   - occlusion-based kernel (5.6.7.2): A*_kp·δ_kp with δ_kp = 0 when a first-cloud point lies
+//     nearer on the same ray from frame k (Fig. 5.27).
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+
+#include "deconvolve_internal.hpp"
+#include "sonar3d/core/projector.hpp"
+
+namespace sonar3d::deconv_detail {
+
+namespace {
+
+struct CellKey {
+  std::int64_t x, y, z;
+  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct CellHash {
+  std::size_t operator()(const CellKey& k) const {
+    return static_cast<std::size_t>(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
+  }
+};
+
+// Points hashed in cubes of the search radius: a radius query visits 27 cells.
+class PointGrid {
+ public:
+  PointGrid(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), inv_(1.0 / cell) {
+    for (std::size_t i = 0; i < pts.size(); ++i) grid_[key(pts[i])].push_back(i);
+  }
+  template <class F>
+  void for_each_within(const Eigen::Vector3d& q, double radius, F&& f) const {
+    const CellKey c = key(q);
+    const double r2 = radius * radius;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = grid_.find({c.x + dx, c.y + dy, c.z + dz});
+          if (it == grid_.end()) continue;
+          for (std::size_t i : it->second) {
+            const double d2 = (pts_[i] - q).squaredNorm();
+            if (d2 <= r2) f(i, d2);
+          }
+        }
+  }
+
+ private:
+  CellKey key(const Eigen::Vector3d& p) const {
+    return {static_cast<std::int64_t>(std::floor(p.x() * inv_)),
+            static_cast<std::int64_t>(std::floor(p.y() * inv_)),
+            static_cast<std::int64_t>(std::floor(p.z() * inv_))};
+  }
+  const std::vector<Eigen::Vector3d>& pts_;
+  double inv_;
+  std::unordered_map<CellKey, std::vector<std::size_t>, CellHash> grid_;
+};
+
+// Normals of the lowest-variance direction in a neighbourhood (SVD of the covariance, sec.
+// 5.6.7.1); zero vector where fewer than 5 neighbours exist.
+std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>& pts,
+                                              const PointGrid& grid, double radius) {
+  std::vector<Eigen::Vector3d> normals(pts.size(), Eigen::Vector3d::Zero());
+  tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+    int count = 0;
+    grid.for_each_within(pts[i], radius, [&](std::size_t j, double) {
+      mean += pts[j];
+      S += pts[j] * pts[j].transpose();
+      ++count;
+    });
+    if (count < 5) return;
+    mean /= count;
+    const Eigen::Matrix3d C = S / count - mean * mean.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C);
+    normals[i] = eig.eigenvectors().col(0);
+  });
+  return normals;
+}
+
+class MultipassScaler : public KernelScaler {
+ public:
+  MultipassScaler(const PassData& pd, const DeconvConfig& cfg, const std::vector<LayerPoint>& first)
+      : pd_(pd), spec_(*pd.spec) {
+    use_normals_ = cfg.kernel == DeconvConfig::Kernel::Normal ||
+                   cfg.kernel == DeconvConfig::Kernel::NormalOcclusion;
+    use_occlusion_ = cfg.kernel == DeconvConfig::Kernel::Occlusion ||
+                     cfg.kernel == DeconvConfig::Kernel::NormalOcclusion;
+    radius_ = cfg.normal_radius;
+    pts_.reserve(first.size());
+    for (const LayerPoint& lp : first) pts_.push_back(lp.p_world.cast<double>());
+    if (use_normals_) {
+      grid_ = std::make_unique<PointGrid>(pts_, radius_);
+      normals_ = estimate_normals(pts_, *grid_, radius_);
+    }
+    if (use_occlusion_) build_occlusion_maps(cfg);
+  }
+
+  void scale(int beam, const Eigen::Vector3d& p_world, const int* frames, int count,
+             float* values) const override {
+    (void)beam;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    if (use_normals_) {
+      // The normal of the nearest first-pass point within the radius.
+      double best = radius_ * radius_ * 1.0001;
+      grid_->for_each_within(p_world, radius_, [&](std::size_t j, double d2) {
+        if (d2 < best && normals_[j].squaredNorm() > 0) {
+          best = d2;
+          normal = normals_[j];
+        }
+      });
+    }
+    for (int e = 0; e < count; ++e) {
+      const int k = frames[e];
+      const Eigen::Isometry3d& T = pd_.T_world_sonar[k];
+      double f = 1.0;
+      if (use_normals_ && normal.squaredNorm() > 0) {
+        // Lambert (eq. 2.6): the return scales with the cosine of the incidence angle. Floored so
+        // that grazing layers keep a usable column (an all-zero column cannot be estimated).
+        const Eigen::Vector3d v = (p_world - T.translation()).normalized();
+        f *= std::max(kMinCosine, std::abs(v.dot(normal)));
+      }
+      if (use_occlusion_ && f > 0) {
+        const Polar q = sonar_to_polar(T.inverse() * p_world);
+        const int j = spec_.beam_of_bearing(q.bearing);
+        const int el = elevation_bin(q.elevation);
+        if (j >= 0 && el >= 0) {
+          const float nearest =
+              occl_[(static_cast<std::size_t>(k) * spec_.beams() + j) * n_el_ + el];
+          // δ_kp = 0: a first-pass surface lies nearer on this ray (Fig. 5.27).
+          if (nearest < q.range - margin_) f = 0.0;
+        }
+      }
+      values[e] = static_cast<float>(values[e] * f);
+    }
+  }
+
+ private:
+  static constexpr double kMinCosine = 0.1;
+
+  int elevation_bin(double theta) const {
+    if (std::abs(theta) > pd_.theta_3db) return -1;
+    return std::min(n_el_ - 1, static_cast<int>((theta + pd_.theta_3db) / el_step_));
+  }
+
+  void build_occlusion_maps(const DeconvConfig& cfg) {
+    el_step_ = cfg.occlusion_elevation_step_deg * M_PI / 180.0;
+    n_el_ = std::max(1, static_cast<int>(std::ceil(2 * pd_.theta_3db / el_step_)));
+    margin_ = 2.0 * spec_.range_resolution();  // a surface is a few range bins thick
+    occl_.assign(static_cast<std::size_t>(pd_.n) * spec_.beams() * n_el_,
+                 std::numeric_limits<float>::infinity());
+    tbb::parallel_for(0, pd_.n, [&](int k) {
+      const Eigen::Isometry3d T_sonar_world = pd_.T_world_sonar[k].inverse();
+      float* map = &occl_[static_cast<std::size_t>(k) * spec_.beams() * n_el_];
+      for (const Eigen::Vector3d& p : pts_) {
+        const Polar q = sonar_to_polar(T_sonar_world * p);
+        if (q.range < spec_.r_min || q.range >= spec_.r_max) continue;
+        const int el = elevation_bin(q.elevation);
+        const int j = spec_.beam_of_bearing(q.bearing);
+        if (el < 0 || j < 0) continue;
+        float& m = map[static_cast<std::size_t>(j) * n_el_ + el];
+        m = std::min(m, static_cast<float>(q.range));
+      }
+    });
+  }
+
+  const PassData& pd_;
+  const SonarSpec& spec_;
+  bool use_normals_ = false, use_occlusion_ = false;
+  double radius_ = 0.05;
+  std::vector<Eigen::Vector3d> pts_;
+  std::unique_ptr<PointGrid> grid_;
+  std::vector<Eigen::Vector3d> normals_;
+  double el_step_ = 0.0, margin_ = 0.0;
+  int n_el_ = 1;
+  std::vector<float> occl_;  // per frame, beam, elevation interval: nearest first-pass range
+};
+
+}  // namespace
+
+std::unique_ptr<KernelScaler> make_multipass_scaler(const PassData& pd, const DeconvConfig& cfg,
+                                                    const std::vector<LayerPoint>& first) {
+  return std::make_unique<MultipassScaler>(pd, cfg, first);
+}
+
+}  // namespace sonar3d::deconv_detail

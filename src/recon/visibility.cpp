@@ -1,0 +1,277 @@
+#include "sonar3d/recon/visibility.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cstring>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include "carve_footprint.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/projector.hpp"
+#include "sonar3d/core/trajectory.hpp"
+
+namespace sonar3d {
+
+std::size_t FrameReturns::memory_bytes() const {
+  return sizeof(*this) + first_return_bin.capacity() * sizeof(int) +
+         last_return_bin.capacity() * sizeof(int) +
+         return_bits.capacity() * sizeof(std::uint64_t);
+}
+
+FrameReturns summarize_frame(const SonarImage& denoised, const Eigen::Isometry3d& T_world_sonar,
+                             const SonarSpec& spec) {
+  if (denoised.rows != spec.range_bins || denoised.cols != spec.beams()) {
+    throw Error("summarize_frame: the image is " + std::to_string(denoised.rows) + " range bins × " +
+                std::to_string(denoised.cols) + " beams but sonar '" + spec.name + "' has " +
+                std::to_string(spec.range_bins) + " × " + std::to_string(spec.beams()));
+  }
+  if (!T_world_sonar.matrix().allFinite()) {
+    throw Error("summarize_frame: the pose T_world_sonar is not finite (NaN or infinite)");
+  }
+  if (!is_rigid(T_world_sonar)) {
+    throw Error("summarize_frame: the pose T_world_sonar is not a rigid transform");
+  }
+  FrameReturns f;
+  f.T_world_sonar = T_world_sonar;
+  f.range_bins = spec.range_bins;
+  f.beams = spec.beams();
+  f.words_per_beam = (f.range_bins + 63) / 64;
+  f.first_return_bin.assign(f.beams, f.range_bins);
+  f.last_return_bin.assign(f.beams, -1);
+  f.return_bits.assign(static_cast<std::size_t>(f.beams) * f.words_per_beam, 0);
+  for (int i = 0; i < denoised.rows; ++i) {
+    const float* row = denoised.row_ptr(i);
+    for (int j = 0; j < denoised.cols; ++j) {
+      if (!(row[j] > 0.0f)) continue;  // zero (or NaN): no return
+      f.return_bits[static_cast<std::size_t>(j) * f.words_per_beam + (i >> 6)] |=
+          std::uint64_t{1} << (i & 63);
+      if (f.first_return_bin[j] == f.range_bins) f.first_return_bin[j] = i;
+      f.last_return_bin[j] = i;
+    }
+  }
+  return f;
+}
+
+bool seen_free(const FrameReturns& frame, const SonarSpec& spec, const Eigen::Vector3d& p_world) {
+  const Eigen::Vector3d p_sonar = frame.T_world_sonar.inverse() * p_world;
+  const Polar q = sonar_to_polar(p_sonar);
+  if (std::abs(q.elevation) > spec.theta_3db()) return false;  // outside the aperture
+  const int i = spec.bin_of_range(q.range);
+  const int j = spec.beam_of_bearing(q.bearing);
+  if (i < 0 || j < 0) return false;
+  // Fig. 4.5: free only in front of the beam's first return (an empty pixel behind a return may
+  // be a shadow).
+  return i < frame.first_return_bin[j];
+}
+
+void OcclusionConfig::validate() const {
+  require_positive(elevation_resolution_rad, "occlusion.elevation_resolution", "rad");
+  require_positive(voxel_size, "occlusion.voxel_size", "m");
+  require(std::isfinite(min_intensity), "parameter 'occlusion.min_intensity' must be finite");
+  require_non_negative(footprint_radius, "occlusion.footprint_radius", "voxels");
+  require(range_tolerance_bins >= 0, "parameter 'occlusion.range_tolerance_bins' must be >= 0, got " +
+                                         std::to_string(range_tolerance_bins));
+  require(num_threads >= 0,
+          "parameter 'occlusion.num_threads' must be >= 0 (0 = all cores), got " +
+              std::to_string(num_threads));
+}
+
+namespace {
+
+struct VoxelKey {
+  std::int64_t x, y, z;
+  bool operator==(const VoxelKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct VoxelKeyHash {
+  std::size_t operator()(const VoxelKey& k) const {
+    return static_cast<std::size_t>(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
+  }
+};
+VoxelKey key_of(const Eigen::Vector3f& p, double inv_size) {
+  return {static_cast<std::int64_t>(std::floor(p.x() * inv_size + 0.5)),
+          static_cast<std::int64_t>(std::floor(p.y() * inv_size + 0.5)),
+          static_cast<std::int64_t>(std::floor(p.z() * inv_size + 0.5))};
+}
+
+// Candidates grouped in cubes so that a frame skips, in one test, those that cannot lie in one
+// of its return pixels.
+struct Block {
+  Eigen::Vector3d centre_world;
+  double radius = 0;
+  std::size_t begin = 0, end = 0;  // into the sorted candidate index list
+};
+
+struct Hit {
+  std::uint32_t candidate;  // index into the deduplicated candidates
+  std::uint32_t cell;       // beam · K + elevation interval of the candidate's centre
+  std::int32_t bin;         // range bin
+};
+
+}  // namespace
+
+PointCloud resolve_occlusions(const PointCloud& candidates_world,
+                              const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                              const OcclusionConfig& config, Progress* progress) {
+  config.validate();
+  spec.validate();
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const auto& fr = frames[f];
+    if (fr.range_bins != spec.range_bins || fr.beams != spec.beams() ||
+        static_cast<int>(fr.first_return_bin.size()) != spec.beams()) {
+      throw Error("resolve_occlusions: frame " + std::to_string(f) +
+                  " was summarized for another sonar (size differs from '" + spec.name + "')");
+    }
+  }
+  const bool has_i = candidates_world.has_intensity();
+  if (has_i && candidates_world.intensity.size() != candidates_world.size()) {
+    throw Error("resolve_occlusions: the candidate cloud has " +
+                std::to_string(candidates_world.intensity.size()) + " intensities for " +
+                std::to_string(candidates_world.size()) + " points");
+  }
+
+  // One candidate per voxel, the lowest bound (carving rule, eq. 4.6), above the threshold.
+  const double inv_vs = 1.0 / config.voxel_size;
+  std::vector<std::uint32_t> cand;
+  {
+    std::unordered_map<VoxelKey, std::uint32_t, VoxelKeyHash> best;
+    best.reserve(candidates_world.size());
+    for (std::size_t n = 0; n < candidates_world.size(); ++n) {
+      const Eigen::Vector3f& p = candidates_world.points[n];
+      if (!p.allFinite()) continue;
+      const float v = has_i ? candidates_world.intensity[n] : 0.0f;
+      if (has_i && !(v > config.min_intensity)) continue;
+      auto [it, inserted] = best.emplace(key_of(p, inv_vs), static_cast<std::uint32_t>(n));
+      if (!inserted && has_i && v < candidates_world.intensity[it->second]) it->second = n;
+    }
+    cand.reserve(best.size());
+    for (const auto& kv : best) cand.push_back(kv.second);
+    std::sort(cand.begin(), cand.end());  // input order: deterministic output
+  }
+
+  // Blocks of 8³ voxels.
+  constexpr int kBlock = 8;
+  std::vector<std::uint32_t> order(cand.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::vector<VoxelKey> bkey(cand.size());
+  for (std::size_t n = 0; n < cand.size(); ++n) {
+    const VoxelKey k = key_of(candidates_world.points[cand[n]], inv_vs);
+    bkey[n] = {k.x >> 3, k.y >> 3, k.z >> 3};  // floor division by kBlock
+  }
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const auto& ka = bkey[a];
+    const auto& kb = bkey[b];
+    return std::tie(ka.x, ka.y, ka.z, a) < std::tie(kb.x, kb.y, kb.z, b);
+  });
+  std::vector<Block> blocks;
+  for (std::size_t s = 0; s < order.size();) {
+    std::size_t e = s + 1;
+    while (e < order.size() && bkey[order[e]] == bkey[order[s]]) ++e;
+    Eigen::AlignedBox3d box;
+    for (std::size_t m = s; m < e; ++m)
+      box.extend(candidates_world.points[cand[order[m]]].cast<double>());
+    Block b;
+    b.centre_world = box.center();
+    b.radius = 0.5 * box.diagonal().norm() + 1e-6;
+    b.begin = s;
+    b.end = e;
+    blocks.push_back(b);
+    s = e;
+  }
+  (void)kBlock;
+
+  const detail::SonarGeometry g(spec);
+  const double dtheta = config.elevation_resolution_rad;
+  const int K = std::max(1, static_cast<int>(std::ceil(2 * g.theta3 / dtheta - 1e-9)));
+  const std::size_t cells = static_cast<std::size_t>(g.beams) * K;
+  const double h = config.footprint_radius * config.voxel_size;
+  const int tol = config.range_tolerance_bins;
+
+  struct Scratch {
+    std::vector<std::uint16_t> depth;  // nearest return-pixel candidate bin per (beam, interval)
+    std::vector<Hit> hits;
+    std::vector<std::uint8_t> observed;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
+
+  auto process_frame = [&](const FrameReturns& fr) {
+    Scratch& sc = scratch.local();
+    if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
+    if (sc.observed.size() != cand.size()) sc.observed.assign(cand.size(), 0);
+    std::fill(sc.depth.begin(), sc.depth.end(), std::uint16_t{0xFFFF});
+    sc.hits.clear();
+    const detail::FrameFootprint fp(g, fr);
+    const double r_min2 = g.r_min * g.r_min, r_max2 = g.r_max * g.r_max;
+    for (const Block& b : blocks) {
+      if (fp.no_return_possible(fp.to_sonar(b.centre_world), b.radius)) continue;
+      for (std::size_t m = b.begin; m < b.end; ++m) {
+        const std::uint32_t c = order[m];
+        const Eigen::Vector3d p = fp.to_sonar(candidates_world.points[cand[c]].cast<double>());
+        const double r2 = p.squaredNorm();
+        if (r2 < r_min2 || r2 >= r_max2) continue;
+        const double r = std::sqrt(r2);
+        const double s = p.z() / r;
+        if (std::abs(s) > g.sin_theta3) continue;
+        const double phi = detail::fast_atan2(p.y(), p.x());
+        if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
+        const int j = g.beam(phi);
+        const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
+        if (!fr.has_return(i, j)) continue;  // the frame saw nothing here: no label
+        const double theta = std::asin(s);
+        const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
+        auto interval = [&](double t) {
+          return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
+        };
+        const int k = interval(theta);
+        // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular footprint
+        // covers, for everything at a longer range.
+        const double a = h / r, bw = h / rho;
+        const int k0 = interval(theta - a), k1 = interval(theta + a);
+        const int j0 = g.beam(std::max(phi - bw, g.fov_min));
+        const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
+        const auto bin16 = static_cast<std::uint16_t>(i);
+        for (int jj = j0; jj <= j1; ++jj) {
+          std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
+          for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
+        }
+        sc.hits.push_back({c, static_cast<std::uint32_t>(j * K + k), i});
+      }
+    }
+    // Fig. 4.8: keep the front scatterers, those no nearer candidate shadows.
+    for (const Hit& hit : sc.hits) {
+      if (hit.bin <= sc.depth[hit.cell] + tol) sc.observed[hit.candidate] = 1;
+    }
+    if (progress) progress->add();
+  };
+
+  std::unique_ptr<tbb::task_arena> arena =
+      std::make_unique<tbb::task_arena>(config.num_threads > 0 ? config.num_threads
+                                                               : static_cast<int>(tbb::task_arena::automatic));
+  arena->execute([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frames.size(), 1),
+                      [&](const tbb::blocked_range<std::size_t>& rg) {
+                        for (std::size_t f = rg.begin(); f < rg.end(); ++f) process_frame(frames[f]);
+                      });
+  });
+
+  std::vector<std::uint8_t> observed(cand.size(), 0);
+  for (const Scratch& sc : scratch) {
+    for (std::size_t n = 0; n < sc.observed.size(); ++n) observed[n] |= sc.observed[n];
+  }
+  PointCloud out;
+  for (std::size_t n = 0; n < cand.size(); ++n) {
+    if (!observed[n]) continue;
+    out.points.push_back(candidates_world.points[cand[n]]);
+    if (has_i) out.intensity.push_back(candidates_world.intensity[cand[n]]);
+  }
+  return out;
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,214 @@
+// Headless-Chromium test of a page written by `sonar3d report`:
+//   node web/test_report.mjs REPORT.html [--screenshot PAGE.png] [--chromium /usr/bin/chromium]
+// Opens the page from file://, blocks and records every request that is not file:, data: or
+// blob:, and checks: no console error, no page error, no network request; the six metric plots
+// drew traces; the 3D canvas is not blank and changes with the colour mode; the selector shows
+// another configuration; clicking a table header sorts the rows (and again reverses them).
+// Exits 0 when every check passed, 1 otherwise (each failure on its own line).
+// Run by tests/test_report.cpp (BrowserTest) after it writes a fixture report.
+import { chromium } from 'playwright-core';
+import { PNG } from 'pngjs';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { pathToFileURL } from 'node:url';
+
+const args = process.argv.slice(2);
+const opt = (name, dflt) => {
+  const i = args.indexOf(name);
+  if (i < 0) return dflt;
+  const v = args[i + 1];
+  args.splice(i, 2);
+  return v;
+};
+const screenshotPath = opt('--screenshot', null);
+const chromiumPath = opt('--chromium', process.env.SONAR3D_CHROMIUM || '/usr/bin/chromium');
+const reportPath = args[0];
+if (!reportPath || !fs.existsSync(reportPath)) {
+  console.error(`usage: node test_report.mjs REPORT.html [--screenshot OUT.png]` +
+    (reportPath ? ` (no such file: ${reportPath})` : ''));
+  process.exit(2);
+}
+if (!fs.existsSync(chromiumPath)) {
+  console.error(`test_report.mjs: Chromium not found at ${chromiumPath}: install Debian's ` +
+    'chromium (scripts/install-deps.sh) or set SONAR3D_CHROMIUM');
+  process.exit(2);
+}
+
+const failures = [];
+let passed = 0;
+function check(cond, what) {
+  if (cond) { passed++; console.log(`  ok    ${what}`); } else {
+    failures.push(what); console.log(`  FAIL  ${what}`);
+  }
+}
+
+// Mean and variance of the luminance, and the number of distinct colours, of a PNG buffer.
+function pixelStats(buf) {
+  const png = PNG.sync.read(buf);
+  const n = png.width * png.height;
+  let sum = 0, sum2 = 0;
+  const colours = new Set();
+  for (let i = 0; i < n; i++) {
+    const r = png.data[4 * i], g = png.data[4 * i + 1], b = png.data[4 * i + 2];
+    const y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+    sum += y; sum2 += y * y;
+    if (colours.size < 5000) colours.add((r << 16) | (g << 8) | b);
+  }
+  const mean = sum / n;
+  return { mean, variance: sum2 / n - mean * mean, colours: colours.size, png };
+}
+function differingPixels(a, b) {
+  if (a.width !== b.width || a.height !== b.height) return Infinity;
+  let d = 0;
+  for (let i = 0; i < a.data.length; i += 4) {
+    if (Math.abs(a.data[i] - b.data[i]) + Math.abs(a.data[i + 1] - b.data[i + 1]) +
+        Math.abs(a.data[i + 2] - b.data[i + 2]) > 30) d++;
+  }
+  return d;
+}
+
+const userDataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'sonar3d-chromium-'));
+let context;
+try {
+  // The launch flags known to work on this workplace's machines (no GPU, closed network).
+  context = await chromium.launchPersistentContext(userDataDir, {
+    executablePath: chromiumPath,
+    headless: true,
+    viewport: { width: 1440, height: 1000 },
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync',
+      // WebGL on the CPU (SwiftShader), since there is no GPU.
+      '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  });
+  const external = [];
+  await context.route('**/*', (route) => {
+    const url = route.request().url();
+    if (/^(file|data|blob):/.test(url)) return route.continue();
+    external.push(url);
+    return route.abort();
+  });
+  const page = context.pages()[0] || await context.newPage();
+  const consoleErrors = [];
+  const pageErrors = [];
+  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+  page.on('pageerror', (e) => pageErrors.push(String(e)));
+
+  const url = pathToFileURL(path.resolve(reportPath)).href;
+  const t0 = Date.now();
+  await page.goto(url, { waitUntil: 'load', timeout: 60000 });
+  await page.waitForFunction(() => window.sonar3dReport && window.sonar3dReport.ready,
+    null, { timeout: 60000 }).catch(() => {});
+  const loadMs = Date.now() - t0;
+  check(await page.evaluate(() => !!(window.sonar3dReport && window.sonar3dReport.ready)),
+    `page reports ready (${loadMs} ms)`);
+
+  // Plots: six Plotly graphs, each with an SVG and at least one line trace.
+  const plots = await page.evaluate(() => Array.from(document.querySelectorAll('#plots .plot'))
+    .map((d) => ({ id: d.id, svg: d.querySelectorAll('.main-svg').length,
+      traces: d.querySelectorAll('.scatterlayer .trace').length,
+      points: d.querySelectorAll('.scatterlayer .point').length })));
+  check(plots.length === 6, `6 metric plots (found ${plots.length})`);
+  check(plots.length > 0 && plots.every((p) => p.svg > 0 && p.traces > 0 && p.points > 0),
+    'every plot rendered traces with markers: ' +
+    plots.map((p) => `${p.id.replace('plot-', '')}=${p.traces}`).join(' '));
+  const axisTitles = await page.evaluate(() => Array.from(
+    document.querySelectorAll('#plot-median_error_m .g-xtitle, #plot-median_error_m .g-ytitle'))
+    .map((e) => e.textContent));
+  check(axisTitles.length === 2 && axisTitles.every((t) => /\[.+\]/.test(t)),
+    `axis titles carry units: ${JSON.stringify(axisTitles)}`);
+
+  // Changing the x axis and the series redraws without errors.
+  const xOptions = await page.$$eval('#plot-x option', (os) => os.map((o) => o.value));
+  const seriesBefore = await page.evaluate(() => window.sonar3dReport.lastTraces);
+  if (xOptions.length > 1) {
+    const cur = await page.$eval('#plot-x', (s) => s.value);
+    await page.selectOption('#plot-x', xOptions.find((v) => v !== cur));
+    await page.waitForTimeout(300);
+    const traces = await page.$$eval('#plot-coverage .scatterlayer .trace', (t) => t.length);
+    check(traces > 0, `plots redraw after choosing another x axis (${traces} traces)`);
+    await page.selectOption('#plot-x', cur);
+  }
+  await page.selectOption('#plot-series', '');
+  await page.waitForTimeout(200);
+  const oneLine = await page.evaluate(() => window.sonar3dReport.lastTraces);
+  check(oneLine === 1 && seriesBefore >= 1,
+    `"one line" shows a single trace (${oneLine}; ${seriesBefore} by series before)`);
+  const seriesOptions = await page.$$eval('#plot-series option', (os) => os.map((o) => o.value));
+  if (seriesOptions.length > 1) await page.selectOption('#plot-series', seriesOptions[1]);
+
+  // 3D viewer: a canvas whose pixels vary (cloud + model drawn on the background).
+  await page.waitForTimeout(300);
+  const canvas = await page.$('#viewer canvas');
+  check(!!canvas, '3D viewer has a canvas');
+  let errorShot = null;
+  if (canvas) {
+    await canvas.scrollIntoViewIfNeeded();
+    const box = await canvas.boundingBox();
+    check(box && box.width > 300 && box.height > 300,
+      `canvas is large (${box && Math.round(box.width)}x${box && Math.round(box.height)})`);
+    errorShot = pixelStats(await page.screenshot({ clip: box }));
+    check(errorShot.variance > 50 && errorShot.colours > 50,
+      `canvas is not blank (luminance variance ${errorShot.variance.toFixed(0)}, ` +
+      `${errorShot.colours} colours)`);
+    const mode = await page.evaluate(() => window.sonar3dReport.colorMode);
+    check(mode === 'error', `cloud coloured by error by default (${mode})`);
+    await page.selectOption('#viewer-color', 'height');
+    await page.waitForTimeout(200);
+    const heightShot = pixelStats(await page.screenshot({ clip: box }));
+    const diff = differingPixels(errorShot.png, heightShot.png);
+    check(diff > 500, `colour by height repaints the cloud (${diff} pixels changed)`);
+    await page.selectOption('#viewer-color', 'error');
+    const ids = await page.$$eval('#viewer-point option', (os) => os.map((o) => o.value));
+    if (ids.length > 1) {
+      await page.selectOption('#viewer-point', ids[ids.length - 1]);
+      await page.waitForTimeout(200);
+      const shown = await page.evaluate(() => window.sonar3dReport.shownPoint);
+      check(shown === ids[ids.length - 1], `viewer shows the chosen configuration (${shown})`);
+      await page.selectOption('#viewer-point', ids[0]);
+    }
+  }
+
+  // Table: one row per configuration, failed rows with their message, sortable headers.
+  const rows = await page.$$eval('#results-table tbody tr', (r) => r.length);
+  const expected = await page.evaluate(() => JSON.parse(
+    document.getElementById('sonar3d-data').textContent).results.points.length);
+  check(rows === expected, `table has one row per configuration (${rows}/${expected})`);
+  const failedMsgs = await page.$$eval('#results-table tr.row-failed td[data-col="message-span"]',
+    (t) => t.map((e) => e.textContent));
+  const expectedFailed = await page.evaluate(() => JSON.parse(
+    document.getElementById('sonar3d-data').textContent).results.points
+    .filter((p) => p.status === 'failed').length);
+  check(failedMsgs.length === expectedFailed && failedMsgs.every((m) => m.length > 0),
+    `failed configurations shown with their message (${failedMsgs.length})`);
+  const colValues = () => page.$$eval('#results-table tbody td[data-col="median_error_m"]',
+    (tds) => tds.map((td) => td.textContent).filter((s) => s !== '–').map(Number));
+  await page.click('#results-table th[data-col="median_error_m"]');
+  const asc = await colValues();
+  check(asc.length > 1 && asc.every((v, i) => i === 0 || asc[i - 1] <= v),
+    `clicking "Median error" sorts ascending (${asc.slice(0, 4).join(', ')}, …)`);
+  await page.click('#results-table th[data-col="median_error_m"]');
+  const desc = await colValues();
+  check(desc.length > 1 && desc.every((v, i) => i === 0 || desc[i - 1] >= v),
+    `clicking it again sorts descending (${desc.slice(0, 4).join(', ')}, …)`);
+  await page.click('#results-table th[data-col="rank"]');
+
+  check(external.length === 0, `no network request (${external.slice(0, 3).join(', ')})`);
+  check(pageErrors.length === 0, `no page error ${pageErrors.slice(0, 3).join(' | ')}`);
+  check(consoleErrors.length === 0, `no console error ${consoleErrors.slice(0, 3).join(' | ')}`);
+
+  if (screenshotPath) {
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.waitForTimeout(200);
+    await page.screenshot({ path: screenshotPath, fullPage: true });
+    console.log(`  screenshot: ${screenshotPath}`);
+  }
+} catch (e) {
+  failures.push(`exception: ${e && e.stack ? e.stack : e}`);
+  console.log(`  FAIL  exception: ${e && e.stack ? e.stack : e}`);
+} finally {
+  if (context) await context.close().catch(() => {});
+  fs.rmSync(userDataDir, { recursive: true, force: true });
+}
+console.log(`test_report.mjs: ${passed} checks passed, ${failures.length} failed`);
+process.exit(failures.length ? 1 : 0);
