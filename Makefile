@@ -24,7 +24,13 @@ demo: build
 	$(SONAR3D) simulate data/scenes/reference_objects.yaml -o $(DEMO_OUT)/dataset
 	$(SONAR3D) info $(DEMO_OUT)/dataset
 	$(SONAR3D) preview $(DEMO_OUT)/dataset --frame 130 -o $(DEMO_OUT)/sphere_frame.png
-	@echo "demo: dataset in $(DEMO_OUT)/dataset, a preview image in $(DEMO_OUT)/sphere_frame.png"
+	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method carve -o $(DEMO_OUT)/carve.ply
+	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method deconv -o $(DEMO_OUT)/deconv.ply
+	@echo "== space carving (thesis ch. 4) =="
+	$(SONAR3D) evaluate $(DEMO_OUT)/carve.ply --truth $(DEMO_OUT)/dataset --json $(DEMO_OUT)/carve_metrics.json
+	@echo "== deconvolution (thesis ch. 5) =="
+	$(SONAR3D) evaluate $(DEMO_OUT)/deconv.ply --truth $(DEMO_OUT)/dataset --json $(DEMO_OUT)/deconv_metrics.json
+	@echo "demo: outputs in $(DEMO_OUT): dataset/, carve.ply, deconv.ply, *_metrics.json, sphere_frame.png"
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)

@@ -121,7 +121,9 @@ void BM_DeconvArisDataset(benchmark::State& state) {
     DatasetWriter w(dir, p.spec);
     Trajectory nav;
     for (std::size_t k = 0; k < p.raw.size(); ++k) {
-      w.add_frame(p.raw[k]);
+      SonarImage im = p.raw[k];
+      im.timestamp = 0.1 * k;  // on the navigation clock
+      w.add_frame(im);
       nav.push_back(0.1 * k, p.poses[k]);
     }
     w.set_navigation(nav);

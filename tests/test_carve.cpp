@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <algorithm>
+#include <random>
 #include <tuple>
 #include <filesystem>
 #include <fstream>
@@ -102,6 +103,7 @@ TEST(Carve, SingleScattererIsBoundedToItsElevation) {
   CarveConfig cfg;
   cfg.region = box_around(target, 0.5);
   cfg.resolve_occlusions = false;
+  cfg.min_observations = 1;  // a single frame's candidates are all seen once
 
   Carver single(spec, cfg);
   single.integrate(sim.render(sonar_at(-2.5, 0, 1.0), 7), sonar_at(-2.5, 0, 1.0));
@@ -160,6 +162,7 @@ TEST(Carve, FreePixelCarvesOccludedPixelDoesNot) {
   CarveConfig cfg;
   cfg.region = Eigen::AlignedBox3d(Eigen::Vector3d(1.5, -1, -1), Eigen::Vector3d(3.5, 1, 1));
   cfg.resolve_occlusions = false;
+  cfg.min_observations = 1;
   const int j = 30;
   SonarImage arc(spec.range_bins, spec.beams(), 0.0f);
   arc.at(75, j) = 0.5f;  // r = 2.51 m: candidates along the arc z ∈ [-0.22, 0.22]
@@ -309,6 +312,51 @@ TEST(Carve, OnlineSnapshotsOrderAndThreadIndependence) {
   EXPECT_EQ(forward.finalize().size(), backward.finalize().size());
 }
 
+// Isolated noise returns (pixels that pass the Z-test by chance) bound their arc in one frame
+// only: min_observations drops them, while the surface, seen by every frame, stays.
+TEST(Carve, MinObservationsDropsIsolatedNoiseReturns) {
+  const SphereRun& run = SphereRun::get();
+  std::mt19937_64 rng(42);
+  std::uniform_int_distribution<int> bin(0, run.spec.range_bins - 1), beam(0, run.spec.beams() - 1);
+  std::vector<SonarImage> noisy = run.pass.images;
+  for (auto& img : noisy)
+    for (int k = 0; k < 45; ++k) img.at(bin(rng), beam(rng)) = 0.05f;  // 0.5 % of the pixels
+  TriangleMesh mesh = make_sphere(run.radius, 96);
+  mesh.transform(Eigen::Isometry3d(Eigen::Translation3d(run.centre)));
+  auto outliers = [&](int min_obs) {
+    CarveConfig cfg = run.cfg;
+    cfg.min_observations = min_obs;
+    Carver carver(run.spec, cfg);
+    for (std::size_t k = 0; k < noisy.size(); ++k) carver.integrate(noisy[k], run.pass.poses[k]);
+    return evaluate(carver.finalize(), mesh, EvalConfig()).outliers;
+  };
+  const double with_noise = outliers(1), filtered = outliers(2);
+  std::printf("outliers: %.1f %% (min_observations 1) -> %.1f %% (2)\n", 100 * with_noise,
+              100 * filtered);
+  EXPECT_GT(with_noise, 0.015);
+  EXPECT_LT(filtered, 0.35 * with_noise);
+}
+
+// min_elevation_span keeps a scatterer only when frames saw it over enough of the aperture:
+// a pass that stops at the scatterer's height sees it in the upper half of the aperture only.
+TEST(Carve, MinElevationSpanNeedsBracketingViews) {
+  const SonarSpec spec = small_spec();
+  const Eigen::Vector3d target(0, 0, 1.0);
+  const Simulator sim(sphere_scene(0.03, target), spec, sim_config());
+  CarveConfig cfg;
+  cfg.region = box_around(target, 0.5);
+  cfg.min_elevation_span = 0.75;
+  auto points = [&](double z0, double z1) {
+    const Pass pass = render_pass(sim, 2.5, z0, z1, 0.01);
+    Carver carver(spec, cfg);
+    for (std::size_t k = 0; k < pass.images.size(); ++k)
+      carver.integrate(pass.images[k], pass.poses[k]);
+    return carver.finalize().size();
+  };
+  EXPECT_GT(points(0.7, 1.3), 0u);   // seen from below and above: θ over the whole aperture
+  EXPECT_EQ(points(0.7, 0.99), 0u);  // only from below: θ in (0, θ_3dB]
+}
+
 // Frames are kept as bitsets: a few kB each, whatever the number of returns.
 TEST(Carve, FrameSummariesAreCompact) {
   const SonarSpec spec = sonar_preset("p900-130");
@@ -375,6 +423,8 @@ TEST(Carve, ClearErrors) {
   };
   bad([](CarveConfig& c) { c.voxel_size = 0; }, "voxel_size");
   bad([](CarveConfig& c) { c.carve_margin = 2; }, "carve_margin");
+  bad([](CarveConfig& c) { c.min_observations = 0; }, "min_observations");
+  bad([](CarveConfig& c) { c.min_elevation_span = 1.5; }, "min_elevation_span");
   bad([](CarveConfig& c) { c.num_threads = -1; }, "num_threads");
   bad([](CarveConfig& c) {
         c.region = Eigen::AlignedBox3d(Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(0, 2, 2));

@@ -12,6 +12,7 @@
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/carve.hpp"
+#include "sonar3d/recon/deconvolve.hpp"
 
 namespace sonar3d::cli {
 
@@ -20,9 +21,39 @@ namespace {
 struct ReconstructCliOptions {
   std::string dataset, output, vdb, json, method = "carve";
   CarveConfig carve;
+  DeconvConfig deconv;
+  std::string beam = "sinc";
   std::vector<double> roi;
-  bool no_occlusion = false, no_z_test = false, ascii = false;
+  bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
 };
+
+// Deconvolution (thesis ch. 5): the library splits the dataset into straight passes, checks them
+// (sec. 5.6.3.1) and reconstructs each; its warnings are printed, its errors stop the run.
+int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
+  DeconvConfig cfg = o.deconv;
+  cfg.beam = DeconvConfig::parse_beam(o.beam);
+  cfg.dering = !o.no_dering;
+  cfg.resolve_occlusions = !o.no_occlusion;
+  cfg.denoise = o.carve.denoise;
+  cfg.denoise.z_test = !o.no_z_test;
+  cfg.num_threads = o.carve.num_threads;
+  cfg.validate();
+  const Dataset ds = read_dataset(o.dataset);
+  DeconvReport report;
+  const PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
+  write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
+  fmt::print("{}", report.to_text());  // per-pass figures, then the warnings
+  fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
+  if (!o.json.empty()) {
+    nlohmann::json j;
+    j["method"] = "deconv";
+    j["points"] = cloud.size();
+    j["report"] = report.to_text();
+    j["warnings"] = report.warnings;
+    write_text_file(o.json, j.dump(2) + "\n");
+  }
+  return 0;
+}
 
 int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   CarveConfig cfg = o.carve;
@@ -77,7 +108,9 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "reconstruct",
       "3D reconstruction of a sonar dataset. carve: space carving (thesis ch. 4): min-filter of "
       "the per-elevation bounds I/B(θ)² over frames, conservative free-space carving, occlusion "
-      "resolution. Writes a PLY point cloud (world frame, intensity = reflectivity bound).");
+      "resolution. deconv: deconvolution along straight passes (thesis ch. 5): per (range, "
+      "bearing) column non-negative least squares with optional L1, de-ringing, occlusion "
+      "resolution. Writes a PLY point cloud (world frame, intensity = reflectivity).");
   auto o = std::make_shared<ReconstructCliOptions>();
   cmd->add_option("dataset", o->dataset, "dataset directory")
       ->required()
@@ -113,6 +146,10 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "keep candidates observed over at least this fraction of the vertical aperture "
                   "(drops the unbracketed arcs at the ends of a pass; 0 = off)")
       ->capture_default_str();
+  cmd->add_option("--min-observations", o->carve.min_observations,
+                  "keep candidates bounded by at least this many frames (removes isolated noise "
+                  "returns; 1 = off)")
+      ->capture_default_str();
   cmd->add_flag("--no-occlusion", o->no_occlusion,
                 "skip occlusion resolution (output every carved candidate)");
   cmd->add_option("--footprint-radius", o->carve.occlusion.footprint_radius,
@@ -122,16 +159,35 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "occlusion: a candidate is shadowed only by one more than this many range bins "
                   "nearer")
       ->capture_default_str();
+  cmd->add_option("--lambda", o->deconv.lambda_fraction,
+                  "deconv: L1 weight λ as a fraction of λ_max, in [0, 1] (eq. 5.28; 0.5 = "
+                  "Table 5.1)")
+      ->capture_default_str();
+  cmd->add_option("--beam", o->beam,
+                  "deconv: kernel beam pattern: sinc (eq. 2.8), flat (sec. 5.6.6) or sensor "
+                  "(sonar.yaml's pattern)")
+      ->check(CLI::IsMember({"sinc", "flat", "sensor"}))
+      ->capture_default_str();
+  cmd->add_flag("--exact", o->deconv.exact,
+                "deconv: exact slant-range geometry on a (horizontal distance × height) grid per "
+                "bearing plane, for wide apertures (beyond the thesis' rectilinear model)");
+  cmd->add_flag("--no-dering", o->no_dering,
+                "deconv: keep layers seen as free space (skip de-ringing, sec. 5.5.4)");
+  cmd->add_option("--max-axis-angle-deg", o->deconv.max_axis_angle_deg,
+                  "deconv: refuse passes whose motion is farther than this from the sonar z axis, "
+                  "degrees")
+      ->capture_default_str();
+  cmd->add_option("--max-lateral", o->deconv.max_lateral_deviation,
+                  "deconv: refuse passes whose frames lie farther than this from a straight line, "
+                  "metres")
+      ->capture_default_str();
   cmd->add_option("--threads", o->carve.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
   cmd->add_flag("--ascii", o->ascii, "write an ASCII PLY");
   cmd->add_option("--json", o->json, "also write run statistics (timings, memory) as JSON");
   cmd->callback([&g, &run, o] {
     run = [&g, o]() -> int {
-      if (o->method == "deconv") {
-        // Hook for the deconvolution method (thesis ch. 5), wired by its owner.
-        throw Error("method deconv is not available in this build");
-      }
+      if (o->method == "deconv") return run_deconv(*o, g);
       return run_carve(*o, g);
     };
   });

@@ -36,7 +36,8 @@ void bind_io(py::module_& m) {
                       "A dataset directory v1 (docs/formats.md), opened by read_dataset(). Frames "
                       "load on demand.")
       .def_property_readonly("root", [](const Dataset& d) { return d.root.string(); })
-      .def_readonly("spec", &Dataset::spec, "The sensor (a copy on each access).")
+      .def_property_readonly(
+          "spec", [](const Dataset& d) { return d.spec; }, "The sensor (a copy on each access).")
       .def("__len__", &Dataset::size)
       .def_property_readonly(
           "timestamps",

@@ -79,7 +79,8 @@ void bind_recon(py::module_& m) {
   py::class_<CarveConfig>(m, "CarveConfig",
                           "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or "
                           "None), denoise (DenoiseConfig), resolve_occlusions, static_threshold, "
-                          "carve_margin, num_threads (0 = all cores).")
+                          "carve_margin, min_elevation_span, min_observations, num_threads (0 = "
+                          "all cores).")
       .def(py::init(&from_kwargs<CarveConfig>))
       .def_readwrite("voxel_size", &CarveConfig::voxel_size)
       .def_property(
@@ -103,6 +104,8 @@ void bind_recon(py::module_& m) {
       .def_readwrite("resolve_occlusions", &CarveConfig::resolve_occlusions)
       .def_readwrite("static_threshold", &CarveConfig::static_threshold)
       .def_readwrite("carve_margin", &CarveConfig::carve_margin)
+      .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
+      .def_readwrite("min_observations", &CarveConfig::min_observations)
       .def_readwrite("num_threads", &CarveConfig::num_threads)
       .def("validate", &CarveConfig::validate);
 

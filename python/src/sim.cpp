@@ -124,7 +124,8 @@ void bind_sim(py::module_& m) {
           },
           "poses"_a, "seed"_a = 1,
           "Images for (N, 4, 4) poses stacked as (N, range bins, beams); frame k uses seed + k.")
-      .def_property_readonly("spec", &Simulator::spec)
+      .def_property_readonly(
+          "spec", [](const Simulator& s) { return s.spec(); }, "The sensor (a copy).")
       .def_property_readonly("rays_per_image", &Simulator::rays_per_image);
 
   m.def(

@@ -46,6 +46,9 @@ def test_write_read_dataset_round_trip(tmp_path, small_spec):
     times, nav = ds.navigation
     np.testing.assert_allclose(nav[0] @ mount, poses[0], atol=1e-9)
     assert not ds.has_truth
+    spec = ds.spec
+    spec.r_min = 0.0  # a copy: the dataset keeps its sensor
+    assert ds.spec.r_min == small_spec.r_min
 
 
 def test_png_quantises_to_bit_depth(tmp_path, small_spec):

@@ -238,7 +238,11 @@ SonarSpec parse_sonar_spec(const YAML::Node& node, const std::string& file,
 
 void emit_sonar_spec(YAML::Emitter& out, const SonarSpec& s) {
   out << YAML::Key << "name" << YAML::Value << s.name;
-  if (s.uniform_bearings() && s.beams() > 1) {
+  // fov_deg + beams re-reads as a table centred on the boresight: only for such tables (an
+  // imported table may be uniform but off-centre, e.g. HoloOcean's −A/2 … A/2 − Δa).
+  const bool centred =
+      s.beams() > 1 && std::abs(s.bearings_rad.front() + s.bearings_rad.back()) < 1e-9;
+  if (s.uniform_bearings() && centred) {
     out << YAML::Key << "fov_deg" << YAML::Value << (s.fov_max() - s.fov_min()) / kDeg;
     out << YAML::Key << "beams" << YAML::Value << s.beams();
   } else {

@@ -30,8 +30,8 @@ namespace {
 using TreeT = openvdb::FloatTree;
 using GridT = openvdb::FloatGrid;
 using LeafT = TreeT::LeafNodeType;
-// Elevation span of the observations of each candidate: sin θ / sin θ_3dB quantised to int16,
-// minimum in the low half, maximum in the high half.
+// Observations of each candidate, packed in an int32: how many return pixels bounded it (8 bits,
+// saturating) and the range of sin θ / sin θ_3dB over them (two 12-bit fields).
 using SpanTreeT = openvdb::Int32Tree;
 using SpanLeafT = SpanTreeT::LeafNodeType;
 using SpanAccessor = openvdb::tree::ValueAccessor<SpanTreeT, false>;
@@ -42,7 +42,22 @@ using Accessor = openvdb::tree::ValueAccessor<TreeT, false>;
 
 constexpr float kUnknown = std::numeric_limits<float>::infinity();  // background: no bound yet
 constexpr int kLeafDim = 8;    // LeafT::DIM
-constexpr int kTopDim = 128;   // voxels spanned by a lowest internal node (16 leaves)
+constexpr int kTopDim = 128;
+constexpr int kObsScale = 2047;  // sin θ / sin θ_3dB in [-1, 1] -> [-2047, 2047]
+
+struct Observations {
+  int count = 0, lo = 0, hi = 0;
+};
+std::int32_t pack_obs(const Observations& o) {
+  return static_cast<std::int32_t>((static_cast<std::uint32_t>(o.count) << 24) |
+                                   (static_cast<std::uint32_t>(o.hi + 2048) << 12) |
+                                   static_cast<std::uint32_t>(o.lo + 2048));
+}
+Observations unpack_obs(std::int32_t v) {
+  const auto u = static_cast<std::uint32_t>(v);
+  return {static_cast<int>(u >> 24), static_cast<int>(u & 0xFFF) - 2048,
+          static_cast<int>((u >> 12) & 0xFFF) - 2048};
+}   // voxels spanned by a lowest internal node (16 leaves)
 constexpr double kSqrt3 = 1.7320508075688772;
 
 // Tile extent (voxels) by tree depth (0 = root tile .. 3 = leaf voxel) of a 5-4-3 tree.
@@ -60,6 +75,11 @@ std::int64_t floor_div(std::int64_t a, std::int64_t b) {
 // What one top cube's task produced, applied serially once every task is done (OpenVDB trees
 // are not safe for concurrent topology changes; values of existing leaves are changed in place).
 struct TaskOut {
+  TaskOut() = default;
+  TaskOut(const TaskOut&) = delete;
+  TaskOut& operator=(const TaskOut&) = delete;
+  ~TaskOut() { delete spare; }
+  LeafT* spare = nullptr;  // a recycled scratch leaf
   std::vector<LeafT*> new_leaves;
   std::vector<SpanLeafT*> new_span_leaves;
   std::vector<std::pair<Coord, int>> free_cubes;  // origin, edge (voxels), edge >= 8
@@ -71,9 +91,10 @@ class FrameCarver {
  public:
   FrameCarver(const detail::SonarGeometry& g, const detail::FrameFootprint& fp,
               const SonarImage& image, double voxel_size, double margin, const CoordBBox& clip,
-              bool track_span)
+              bool track_span, int min_observations, bool span_filter)
       : g_(g), fp_(fp), fr_(fp.frame()), image_(image), vs_(voxel_size),
-        clip_(clip), track_span_(track_span) {
+        clip_(clip), track_span_(track_span), min_span_needed_(span_filter),
+        min_obs_(min_observations) {
     delta_ = margin * 0.5 * kSqrt3 * vs_;
     // Steps of the sonar-frame position per voxel index along world x, y, z.
     step_[0] = fp.R_sonar_world.col(0) * vs_;
@@ -142,8 +163,15 @@ class FrameCarver {
     c.origin = o;
     bool is_new = false;
     if (!c.leaf) {
-      // A tile or the background: a new leaf starts from its value and state.
-      c.leaf = new LeafT(o, acc.getValue(o), acc.isValueOn(o));
+      // A tile or the background: a new leaf starts from its value and state. Most such leaves
+      // end up unchanged, so a spare one is recycled rather than allocated each time.
+      if (!out.spare) {
+        out.spare = new LeafT(o, acc.getValue(o), acc.isValueOn(o));
+      } else {
+        out.spare->setOrigin(o);
+        out.spare->fill(acc.getValue(o), acc.isValueOn(o));
+      }
+      c.leaf = out.spare;
       is_new = true;
     }
     c.v = c.leaf->buffer().data();
@@ -155,17 +183,13 @@ class FrameCarver {
       for (openvdb::Index n = 0; n < LeafT::SIZE && all_zero; ++n) all_zero = c.v[n] == 0.0f;
       if (all_zero) {
         out.free_cubes.emplace_back(o, kLeafDim);
-        if (is_new) delete c.leaf;
         if (c.span_new) delete c.span;
-        return;
+        return;  // a new leaf stays the spare
       }
     }
-    if (is_new) {
-      if (changed) {
-        out.new_leaves.push_back(c.leaf);
-      } else {
-        delete c.leaf;
-      }
+    if (is_new && changed) {
+      out.new_leaves.push_back(c.leaf);
+      out.spare = nullptr;
     }
     if (c.span_new) {
       if (keep_span) {
@@ -187,16 +211,14 @@ class FrameCarver {
     if (!clip_.hasOverlap(cube)) return false;
     if (region == Region::Free && clip_.isInside(cube)) {
       bool changed = false;
-      for (int x = 0; x < s; ++x)
-        for (int y = 0; y < s; ++y)
-          for (int z = 0; z < s; ++z) {
-            const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
-            if (c.v[n] != 0.0f || !c.leaf->isValueOn(n)) {
-              c.v[n] = 0.0f;
-              c.leaf->setActiveState(n, true);
-              changed = true;
-            }
-          }
+      all_of_cube(o, s, [&](openvdb::Index n) {
+        if (c.v[n] != 0.0f || !c.leaf->isValueOn(n)) {
+          c.v[n] = 0.0f;
+          c.leaf->setActiveState(n, true);
+          changed = true;
+        }
+        return true;
+      });
       return changed;
     }
     if (s < kLeafDim && cube_free(c, o, s)) return false;  // free stays free
@@ -206,7 +228,8 @@ class FrameCarver {
       if (!fp_.window_returns(cls, &min_i)) return false;  // gaps between returns: shadow
       // eq. 4.7 with B <= 1: no bound below min_i · min 1/B² can come from this window, so a
       // cube whose voxels all hold a lower (or zero) bound cannot change (except for the span).
-      if (!track_span_ && cube_max(c, o, s) <= min_i * g_.min_inv_b2) return false;
+      if (cube_max(c, o, s) <= min_i * g_.min_inv_b2 && observations_saturated(c, o, s))
+        return false;
     }
     if (s > kVoxelLevel) {
       const int h = s / 2;
@@ -242,15 +265,36 @@ class FrameCarver {
     return changed;
   }
 
+  // True when further observations of the cube's candidates change no filter decision: no
+  // tracking, or only a count is needed and every candidate has reached it.
+  bool observations_saturated(LeafCtx& c, const Coord& o, int s) const {
+    if (!track_span_) return true;
+    if (min_span_needed_) return false;  // the span may still widen
+    if (!c.span) c.span = c.sacc->probeLeaf(c.origin);
+    if (!c.span) return false;
+    return all_of_cube(o, s, [&](openvdb::Index n) {
+      return c.v[n] == 0.0f ||  // free
+             (c.span->isValueOn(n) && unpack_obs(c.span->getValue(n)).count >= min_obs_);
+    });
+  }
+
+  // Calls f(offset) for every voxel of the sub-cube (origin o, edge s) of a leaf until f returns
+  // false; returns whether it never did.
+  template <typename F>
+  static bool all_of_cube(const Coord& o, int s, F&& f) {
+    const openvdb::Index base = LeafT::coordToOffset(o);  // (x << 6) | (y << 3) | z inside the leaf
+    for (int x = 0; x < s; ++x)
+      for (int y = 0; y < s; ++y) {
+        const openvdb::Index row = base + (x << 6) + (y << 3);
+        for (int z = 0; z < s; ++z)
+          if (!f(row + z)) return false;
+      }
+    return true;
+  }
+
   // True when every voxel of the cube is already known free.
   static bool cube_free(const LeafCtx& c, const Coord& o, int s) {
-    for (int x = 0; x < s; ++x)
-      for (int y = 0; y < s; ++y)
-        for (int z = 0; z < s; ++z) {
-          const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
-          if (c.v[n] != 0.0f || !c.leaf->isValueOn(n)) return false;
-        }
-    return true;
+    return all_of_cube(o, s, [&](openvdb::Index n) { return c.v[n] == 0.0f && c.leaf->isValueOn(n); });
   }
 
   // Largest value in the cube; +inf when a voxel is unknown.
@@ -261,17 +305,14 @@ class FrameCarver {
       for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) m = std::max(m, c.v[n]);
       return m;
     }
-    for (int x = 0; x < s; ++x)
-      for (int y = 0; y < s; ++y)
-        for (int z = 0; z < s; ++z) {
-          const openvdb::Index n = LeafT::coordToOffset(o.offsetBy(x, y, z));
-          if (!c.leaf->isValueOn(n)) return std::numeric_limits<float>::infinity();
-          m = std::max(m, c.v[n]);
-        }
-    return m;
+    const bool known = all_of_cube(o, s, [&](openvdb::Index n) {
+      m = std::max(m, c.v[n]);
+      return c.leaf->isValueOn(n);
+    });
+    return known ? m : std::numeric_limits<float>::infinity();
   }
 
-  // Widens the elevation span of voxel n's observations to sin θ = s.
+  // Records one more return observation of voxel n, at sin θ = s.
   void note_span(LeafCtx& c, openvdb::Index n, double s, bool first) const {
     if (!c.span) {
       c.span = c.sacc->probeLeaf(c.origin);
@@ -280,16 +321,15 @@ class FrameCarver {
         c.span_new = true;
       }
     }
-    const auto q = static_cast<std::int32_t>(
-        std::lround(std::clamp(s / g_.sin_theta3, -1.0, 1.0) * 32767.0));
-    std::int32_t lo = q, hi = q;
+    const int q = static_cast<int>(std::lround(std::clamp(s / g_.sin_theta3, -1.0, 1.0) * kObsScale));
+    Observations o{1, q, q};
     if (!first && c.span->isValueOn(n)) {
-      const std::int32_t packed = c.span->getValue(n);
-      lo = std::min<std::int32_t>(q, static_cast<std::int16_t>(packed & 0xFFFF));
-      hi = std::max<std::int32_t>(q, static_cast<std::int16_t>((packed >> 16) & 0xFFFF));
+      const Observations old = unpack_obs(c.span->getValue(n));
+      o.count = std::min(old.count + 1, 255);
+      o.lo = std::min(old.lo, q);
+      o.hi = std::max(old.hi, q);
     }
-    c.span->setValueOn(n, static_cast<std::int32_t>((static_cast<std::uint32_t>(hi & 0xFFFF) << 16) |
-                                                    static_cast<std::uint32_t>(lo & 0xFFFF)));
+    c.span->setValueOn(n, pack_obs(o));
     c.span_changed = true;
   }
 
@@ -330,7 +370,7 @@ class FrameCarver {
     return true;
   }
 
-  static constexpr int kVoxelLevel = 2;  // cubes of this edge are projected voxel by voxel
+  static constexpr int kVoxelLevel = 4;  // cubes of this edge are projected voxel by voxel
 
   const detail::SonarGeometry& g_;
   const detail::FrameFootprint& fp_;
@@ -338,7 +378,8 @@ class FrameCarver {
   const SonarImage& image_;
   double vs_, delta_ = 0;
   CoordBBox clip_;
-  bool track_span_ = false;
+  bool track_span_ = false, min_span_needed_ = false;
+  int min_obs_ = 1;
   Eigen::Vector3d step_[3];
   double r_min2_, r_max2_;
 };
@@ -361,6 +402,9 @@ void CarveConfig::validate() const {
   require(std::isfinite(min_elevation_span) && min_elevation_span >= 0 && min_elevation_span <= 1,
           "parameter 'carve.min_elevation_span' must lie in [0, 1], got " +
               std::to_string(min_elevation_span));
+  require(min_observations >= 1 && min_observations <= 255,
+          "parameter 'carve.min_observations' must lie in [1, 255], got " +
+              std::to_string(min_observations));
   require(num_threads >= 0, "parameter 'carve.num_threads' must be >= 0 (0 = all cores), got " +
                                 std::to_string(num_threads));
   // Index space of the map: 32-bit voxel coordinates.
@@ -388,7 +432,7 @@ struct Carver::Impl {
   std::optional<NoiseImages> noise;
   std::unique_ptr<detail::SonarGeometry> geom;
   GridT::Ptr grid;
-  SpanTreeT::Ptr span;  // only when cfg.min_elevation_span > 0
+  SpanTreeT::Ptr span;  // observation records, when a filter on them is enabled
   std::vector<FrameReturns> frames;
   mutable tbb::task_arena arena;
   mutable CarveStats stats;
@@ -414,7 +458,8 @@ struct Carver::Impl {
       for (auto y = floor_div(box.min().y(), kTopDim) * kTopDim; y <= box.max().y(); y += kTopDim)
         for (auto z = floor_div(box.min().z(), kTopDim) * kTopDim; z <= box.max().z(); z += kTopDim)
           tops.emplace_back(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z));
-    const FrameCarver carver(*geom, fp, denoised, vs, cfg.carve_margin, roi, span != nullptr);
+    const FrameCarver carver(*geom, fp, denoised, vs, cfg.carve_margin, roi, span != nullptr,
+                             cfg.min_observations, cfg.min_elevation_span > 0);
     std::vector<TaskOut> outs(tops.size());
     TreeT& tree = grid->tree();
     SpanTreeT scratch_span(0);
@@ -470,7 +515,9 @@ Carver::Carver(const SonarSpec& spec, const CarveConfig& config, std::optional<N
   impl_->grid->setName("carve_map");
   impl_->grid->setTransform(openvdb::math::Transform::createLinearTransform(config.voxel_size));
   impl_->grid->setGridClass(openvdb::GRID_UNKNOWN);
-  if (config.min_elevation_span > 0) impl_->span = std::make_shared<SpanTreeT>(0);
+  if (config.min_elevation_span > 0 || config.min_observations > 1) {
+    impl_->span = std::make_shared<SpanTreeT>(0);
+  }
   if (config.region) {
     const double vs = config.voxel_size;
     const auto& r = *config.region;
@@ -521,9 +568,12 @@ PointCloud Carver::snapshot() const {
   const TreeT& tree = m.grid->tree();
   openvdb::tree::LeafManager<const TreeT> leaves(tree);
   const float thr = static_cast<float>(m.cfg.static_threshold);
-  // A candidate observed over less than min_elevation_span of the aperture was never bracketed
-  // by free space on both sides along the elevation arc (the edges of a pass): dropped.
-  const int min_span = static_cast<int>(std::ceil(m.cfg.min_elevation_span * 2 * 32767.0));
+  // A candidate bounded by fewer than min_observations return pixels (an isolated noise pixel
+  // that passed the Z-test) or observed over less than min_elevation_span of the aperture (never
+  // bracketed by free space on both sides along its elevation arc: the ends of a pass) is
+  // dropped.
+  const int min_span = static_cast<int>(std::ceil(m.cfg.min_elevation_span * 2 * kObsScale));
+  const int min_obs = m.cfg.min_observations;
   auto keep_value = [thr](float v) { return v > 0.0f && v > thr && std::isfinite(v); };
   auto visit = [&](std::size_t l, auto&& emit) {
     const LeafT& leaf = leaves.leaf(l);
@@ -532,10 +582,8 @@ PointCloud Carver::snapshot() const {
       if (!keep_value(*it)) continue;
       if (m.span) {
         if (!sl || !sl->isValueOn(it.pos())) continue;
-        const std::int32_t packed = sl->getValue(it.pos());
-        const int lo = static_cast<std::int16_t>(packed & 0xFFFF);
-        const int hi = static_cast<std::int16_t>((packed >> 16) & 0xFFFF);
-        if (hi - lo < min_span) continue;
+        const Observations o = unpack_obs(sl->getValue(it.pos()));
+        if (o.count < min_obs || o.hi - o.lo < min_span) continue;
       }
       emit(it.getCoord(), *it);
     }

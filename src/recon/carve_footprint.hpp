@@ -85,6 +85,9 @@ class SonarGeometry {
     inv_beam_width = 1.0 / beam_width;
     // eq. 4.7 divides by B(θ)²; tabulated on sin θ (the voxel loop has z/r, not θ).
     inv_b2.resize(kTable + 1);
+    asin_table.resize(kTable + 2);
+    for (int k = 0; k <= kTable + 1; ++k)
+      asin_table[k] = std::asin(std::clamp(-sin_theta3 + 2.0 * sin_theta3 * k / kTable, -1.0, 1.0));
     for (int k = 0; k <= kTable; ++k) {
       const double s = -sin_theta3 + 2.0 * sin_theta3 * k / kTable;
       const double b2 = spec.beam_pattern.power(std::asin(std::clamp(s, -1.0, 1.0)), theta3);
@@ -105,6 +108,12 @@ class SonarGeometry {
                                    edges.begin()) - 1;
     return std::clamp(j, 0, beams - 1);
   }
+  // θ for sin θ = s, |s| <= sin θ_3dB (linear interpolation in a fine table).
+  double elevation(double s) const {
+    const double u = std::clamp((s + sin_theta3) * table_scale, 0.0, static_cast<double>(kTable));
+    const int k = static_cast<int>(u);
+    return asin_table[k] + (u - k) * (asin_table[k + 1] - asin_table[k]);
+  }
   // 1/B(θ)² for sin θ = s, |s| <= sin θ_3dB.
   float inv_power(double s) const {
     const int k = static_cast<int>((s + sin_theta3) * table_scale + 0.5);
@@ -120,6 +129,7 @@ class SonarGeometry {
   static constexpr int kTable = 8192;
   std::vector<double> edges;
   std::vector<float> inv_b2;
+  std::vector<double> asin_table;
   double table_scale;
 };
 
@@ -214,6 +224,7 @@ class FrameFootprint {
     bool any = false;
     float m = std::numeric_limits<float>::infinity();
     for (int j = w.j0; j <= w.j1; ++j) {
+      if (!f_.any_return(j, w.i0, w.i1)) continue;
       for (int i = w.i0; i <= w.i1; ++i) {
         if (!f_.has_return(i, j)) continue;
         any = true;
@@ -242,7 +253,13 @@ class FrameFootprint {
     const int j0 = g_.beam(std::max(lo, g_.fov_min));
     const int j1 = g_.beam(std::min(hi, std::nextafter(g_.fov_max, g_.fov_min)));
     if (d - radius >= max_last_.query(j0, j1)) return true;
-    return d + radius < min_free_.query(j0, j1);
+    if (d + radius < min_free_.query(j0, j1)) return true;
+    // Gaps between returns: no return pixel in the ball's range × bearing window.
+    const int i0 = static_cast<int>(std::floor((d - radius - g_.r_min) * g_.inv_dr));
+    const int i1 = static_cast<int>((d + radius - g_.r_min) * g_.inv_dr);
+    for (int j = j0; j <= j1; ++j)
+      if (f_.any_return(j, i0, i1)) return false;
+    return true;
   }
 
   // Point rule with a margin: the ball (range r, sin θ = s, distance rho from the z axis,

@@ -163,30 +163,49 @@ std::vector<std::pair<std::size_t, std::size_t>> split_passes(
   std::vector<double> sorted = steps;
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   const double median = sorted[sorted.size() / 2];
-  const double jump = config.split_jump_factor * std::max(median, 1e-6);
+  // A jump (the vehicle moving to the next object) or a reversal (a yo-yo profile; the kernel
+  // needs monotone heights) ends a pass. Both thresholds exceed what pose noise does: several
+  // median steps and twice the lateral tolerance, so ±2 cm jitter on 1 cm steps splits nothing.
+  const double jump = std::max(config.split_jump_factor * std::max(median, 1e-6),
+                               2.0 * config.max_lateral_deviation);
   const double max_rot = config.max_rotation_deg * kDeg;
   std::size_t first = 0;
-  int direction = 0;  // sign of the motion along the sonar z of the current pass
-  for (std::size_t k = 0; k + 1 < n; ++k) {
-    const Eigen::Vector3d step =
-        T_world_sonar[k + 1].translation() - T_world_sonar[k].translation();
-    const Eigen::Vector3d ez = T_world_sonar[k].linear().col(2);
-    const double along = step.dot(ez);
-    const Eigen::AngleAxisd rot(T_world_sonar[k].linear().transpose() *
-                                T_world_sonar[k + 1].linear());
-    bool cut = steps[k] > jump || std::abs(rot.angle()) > max_rot;
-    // A reversal (a yo-yo profile) also ends a pass: the kernel needs monotone heights.
-    int dir = std::abs(along) > 0.5 * median ? (along > 0 ? 1 : -1) : 0;
-    if (!cut && dir != 0 && direction != 0 && dir != direction) cut = true;
-    if (cut) {
-      out.emplace_back(first, k + 1);
-      first = k + 1;
-      direction = 0;
-    } else if (dir != 0) {
-      direction = dir;
+  while (first < n) {
+    // Height along the sonar z relative to the pass' first frame; the running extremum in the
+    // pass direction; a reversal is a retreat from it by more than `jump`.
+    const Eigen::Vector3d ez = T_world_sonar[first].linear().col(2);
+    const Eigen::Vector3d origin = T_world_sonar[first].translation();
+    int direction = 0;
+    double extreme = 0.0;
+    std::size_t extreme_at = first;
+    std::size_t end = n;
+    for (std::size_t k = first; k + 1 < n; ++k) {
+      const Eigen::AngleAxisd rot(T_world_sonar[k].linear().transpose() *
+                                  T_world_sonar[k + 1].linear());
+      if (steps[k] > jump || std::abs(rot.angle()) > max_rot) {
+        end = k + 1;
+        break;
+      }
+      const double h = (T_world_sonar[k + 1].translation() - origin).dot(ez);
+      if (direction == 0) {
+        if (std::abs(h) > jump) direction = h > 0 ? 1 : -1;
+        if (direction * h >= direction * extreme) {
+          extreme = h;
+          extreme_at = k + 1;
+        }
+        continue;
+      }
+      if (direction * h >= direction * extreme) {
+        extreme = h;
+        extreme_at = k + 1;
+      } else if (direction * (extreme - h) > jump) {
+        end = extreme_at + 1;  // the turning frame closes this pass
+        break;
+      }
     }
+    out.emplace_back(first, end);
+    first = end;
   }
-  out.emplace_back(first, n);
   return out;
 }
 
@@ -323,10 +342,11 @@ PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
 namespace deconv_detail {
 
 double layer_power(const BeamPattern& pattern, double theta_3db, double r, double offset, double dz,
-                   int subsamples) {
+                   int subsamples, double half_width) {
   double sum = 0.0;
   for (int s = 0; s < subsamples; ++s) {
     const double h = offset + ((s + 0.5) / subsamples - 0.5) * dz;
+    if (std::abs(h) > half_width) continue;     // outside the modelled footprint
     const double theta = std::atan2(h, r);      // rectilinear geometry (eq. 5.21): height h at r
     if (std::abs(theta) > theta_3db) continue;  // the sensor integrates over its aperture only
     sum += pattern.power(theta, theta_3db);
@@ -347,73 +367,81 @@ ColumnKernel build_column_kernel(double range, const std::vector<double>& height
   ker.K = footprint_layers(range, 2.0 * theta_3db, dz);
   const int K = ker.K;
   const double z0 = heights.front();
-  ker.layers = static_cast<int>(std::lround((heights.back() - z0) / dz)) + K;  // eq. 5.26
   // Layer p is centred at u_p = z_0 + (p − (K − 1)/2)·Δz: frame k at z_0 + k·Δz sees layers
-  // k..k+K−1, centred on its own height (Fig. 5.3).
+  // k..k+K−1, centred on its own height (Fig. 5.3), i.e. the footprint is modelled as K whole
+  // layers, |u − z_k| ≤ K·Δz/2 (eq. 5.25 rounds the aperture's 2·r·tan θ_3dB down to K·Δz).
   ker.first_layer = z0 - 0.5 * (K - 1) * dz;
-  const int P = ker.layers;
+  const double half_width = 0.5 * K * dz;
 
-  // Row k: the K layers starting at p0 = round((z_k − z_0)/Δz); its fractional offset f_k shifts
-  // the weights. A uniform pass has f_k = 0 and shares one weight vector.
+  // Row k starts at layer p0 = ⌊t_k⌋, t_k = (z_k − z_0)/Δz, with fraction f_k = t_k − p0 ∈ [0, 1):
+  // a frame between two layer positions (non-uniform pass) overlaps K + 1 layers, the two end
+  // ones in part. A uniform pass has f_k = 0, K layers per row, and shares one weight vector.
   std::vector<int> p0(n);
   std::vector<double> frac(n);
   bool uniform = true;
   for (int k = 0; k < n; ++k) {
     const double t = (heights[k] - z0) / dz;
-    p0[k] = static_cast<int>(std::lround(t));
-    frac[k] = t - p0[k];
-    uniform = uniform && std::abs(frac[k]) < 1e-9;
+    p0[k] = static_cast<int>(std::floor(t + 1e-9));
+    frac[k] = std::max(0.0, t - p0[k]);
+    uniform = uniform && frac[k] < 1e-9;
   }
   auto weight = [&](int d, double f) {
-    // Offset of layer p0 + d above the frame: (d − (K − 1)/2 − f)·Δz.
+    // Layer p0 + d is centred (d − (K − 1)/2 − f)·Δz above the frame.
     return deconv_detail::layer_power(pattern, theta_3db, range, (d - 0.5 * (K - 1) - f) * dz, dz,
-                                      subsamples);
+                                      subsamples, half_width);
   };
-  // Weights per (fraction sample, d): exact for a uniform pass, linearly interpolated in the
-  // fraction otherwise (B² is smooth on the scale of 1/16 layer).
-  constexpr int kFracSamples = 17;  // f ∈ [−½, ½] in steps of 1/16
+  // Weights per (fraction sample, d), d = 0..K: exact for a uniform pass, linearly interpolated in
+  // the fraction otherwise (1/16-layer samples).
+  constexpr int kFracSamples = 17;  // f ∈ [0, 1] in steps of 1/16
+  const int W = K + 1;
   std::vector<double> table;
   if (uniform) {
-    table.resize(K);
-    for (int d = 0; d < K; ++d) table[d] = weight(d, 0.0);
+    table.resize(W);
+    for (int d = 0; d < W; ++d) table[d] = weight(d, 0.0);
   } else {
-    table.resize(static_cast<std::size_t>(kFracSamples) * K);
+    table.resize(static_cast<std::size_t>(kFracSamples) * W);
     for (int s = 0; s < kFracSamples; ++s) {
-      const double f = -0.5 + s / double(kFracSamples - 1);
-      for (int d = 0; d < K; ++d) table[static_cast<std::size_t>(s) * K + d] = weight(d, f);
+      const double f = s / double(kFracSamples - 1);
+      for (int d = 0; d < W; ++d) table[static_cast<std::size_t>(s) * W + d] = weight(d, f);
     }
   }
   auto w_of = [&](int k, int d) {
     if (uniform) return table[d];
-    const double x = (frac[k] + 0.5) * (kFracSamples - 1);
+    const double x = frac[k] * (kFracSamples - 1);
     const int s = std::min(kFracSamples - 2, std::max(0, static_cast<int>(x)));
     const double t = x - s;
-    return (1 - t) * table[static_cast<std::size_t>(s) * K + d] +
-           t * table[static_cast<std::size_t>(s + 1) * K + d];
+    return (1 - t) * table[static_cast<std::size_t>(s) * W + d] +
+           t * table[static_cast<std::size_t>(s + 1) * W + d];
   };
 
-  // CSC: frames seeing layer p are contiguous (heights sorted).
+  // Entries row by row (only non-zero weights), then CSC: the frames seeing a layer are
+  // contiguous (heights sorted) and stay sorted.
+  std::vector<std::vector<std::pair<int, float>>> rows(n);
+  int P = 0;
+  for (int k = 0; k < n; ++k) {
+    for (int d = 0; d < W; ++d) {
+      const double w = w_of(k, d);
+      if (!(w > 0.0)) continue;
+      rows[k].emplace_back(p0[k] + d, static_cast<float>(w));
+      P = std::max(P, p0[k] + d + 1);
+    }
+  }
+  ker.layers = P;  // eq. 5.26: N + K − 1 for a uniform pass
   SparseColumns& A = ker.A;
   A.rows = n;
   A.cols = P;
   A.start.assign(P + 1, 0);
-  for (int k = 0; k < n; ++k) {
-    for (int d = 0; d < K; ++d) {
-      const int p = p0[k] + d;
-      if (p >= 0 && p < P) ++A.start[p + 1];
-    }
-  }
+  for (const auto& r : rows)
+    for (const auto& e : r) ++A.start[e.first + 1];
   for (int p = 0; p < P; ++p) A.start[p + 1] += A.start[p];
   A.row.assign(A.start[P], 0);
   A.value.assign(A.start[P], 0.0f);
   std::vector<int> fill(A.start.begin(), A.start.end() - 1);
-  for (int k = 0; k < n; ++k) {  // increasing k: row indices stay sorted per column
-    for (int d = 0; d < K; ++d) {
-      const int p = p0[k] + d;
-      if (p < 0 || p >= P) continue;
+  for (int k = 0; k < n; ++k) {
+    for (const auto& [p, w] : rows[k]) {
       const int at = fill[p]++;
       A.row[at] = k;
-      A.value[at] = static_cast<float>(w_of(k, d));
+      A.value[at] = w;
     }
   }
   ker.gram = BandMatrix::gram(A);
@@ -455,7 +483,8 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
           c.resize(P);
           b.resize(P);
           if (cfg.ignore_shadowed_zeros) {
-            // Row view of A*: row k holds layers row_first[k] .. + row_count[k] − 1.
+            // Row view of A*: row k holds layers row_first[k] .. + row_count[k] − 1 (at most K +
+            // 1).
             row_first.assign(n, P);
             row_count.assign(n, 0);
             layer_rows.assign(P, 0);
@@ -469,11 +498,12 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
                 ++row_count[k];
               }
             }
-            row_val.assign(static_cast<std::size_t>(n) * ker.K, 0.0);
+            row_val.assign(static_cast<std::size_t>(n) * (ker.K + 1), 0.0);
             for (int p = 0; p < P; ++p) {
               for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
                 const int k = ker.A.row[e];
-                row_val[static_cast<std::size_t>(k) * ker.K + (p - row_first[k])] = ker.A.value[e];
+                row_val[static_cast<std::size_t>(k) * (ker.K + 1) + (p - row_first[k])] =
+                    ker.A.value[e];
               }
             }
           }
@@ -523,7 +553,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
               std::copy(layer_rows.begin(), layer_rows.end(), rows_left.begin());
               for (int k = 0; k < n; ++k) {
                 if (!drop[k]) continue;
-                const double* a = &row_val[static_cast<std::size_t>(k) * ker.K];
+                const double* a = &row_val[static_cast<std::size_t>(k) * (ker.K + 1)];
                 const int p0 = row_first[k], m = row_count[k];
                 for (int u = 0; u < m; ++u) {
                   --rows_left[p0 + u];
@@ -813,7 +843,7 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
             " m: at r = " + fmt(r_far, 2) + " m the " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
             "° aperture bends the footprint by " + fmt(pr.rectilinear_mismatch_bins, 2) +
             " range bins at its edge (eq. 5.21 allows " + fmt(pr.rectilinear_max_aperture_deg, 1) +
-            "° here); vertical surfaces will show gaps (Fig. 5.14) — use the exact mode");
+            "° here); vertical surfaces may show gaps (Fig. 5.14) — the exact mode avoids them");
       }
       if (pr.K_max < 2) {
         pr.warnings.push_back(plan.label +
@@ -889,11 +919,10 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
       if (config.max_extrapolation >= 0) {
         const double lo = pd.heights.front() - config.max_extrapolation;
         const double hi = pd.heights.back() + config.max_extrapolation;
-        points.erase(std::remove_if(points.begin(), points.end(),
-                                    [&](const LayerPoint& lp) {
-                                      return lp.height < lo || lp.height > hi;
-                                    }),
-                     points.end());
+        points.erase(
+            std::remove_if(points.begin(), points.end(),
+                           [&](const LayerPoint& lp) { return lp.height < lo || lp.height > hi; }),
+            points.end());
       }
       pr.points_solved = points.size();
       t0 = std::chrono::steady_clock::now();
@@ -930,6 +959,10 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
       const auto t0 = std::chrono::steady_clock::now();
       OcclusionConfig oc = config.occlusion;
       if (oc.num_threads == 0) oc.num_threads = config.num_threads;
+      if (config.occlusion_auto_voxel) {
+        oc.voxel_size = dr;
+        for (const PassPlan& p : plans) oc.voxel_size = std::min(oc.voxel_size, p.dz);
+      }
       cloud = resolve_occlusions(cloud, returns, spec, oc);
       report.seconds_occlusion = seconds_since(t0);
     }

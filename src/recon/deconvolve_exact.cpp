@@ -213,7 +213,6 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
         std::vector<double> R(static_cast<std::size_t>(pd.bins) * n);
         std::vector<std::vector<double>> bv(blocks.size());
         std::vector<double> g, c, b_old, half_lambda;
-    std::vector<char> trusted;
         std::vector<char> beam_bin(pd.bins);
         std::vector<std::size_t> active;
         for (int beam = rg.begin(); beam < rg.end(); ++beam) {
@@ -230,25 +229,6 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             continue;
           }
           for (std::size_t q = 0; q < R.size(); ++q) R[q] = y[q];
-          // ignore_shadowed_zeros: a zero pixel behind its frame's first return on this beam
-          // (row (bin, k) = bin·n + k) may be a shadow; it leaves the data term. The block
-          // Grams, shared by all beams, keep those rows: each block update then minimises a
-          // majorant of the block objective (Q_m ⪰ A_mᵀWA_m), which still decreases the
-          // objective monotonically and has the same fixed points (block majorise–minimise).
-          if (cfg.ignore_shadowed_zeros) {
-            trusted.assign(R.size(), 1);
-            for (int k = 0; k < n; ++k) {
-              bool seen = false;
-              for (int i = 0; i < pd.bins; ++i) {
-                const std::size_t q = static_cast<std::size_t>(i) * n + k;
-                if (y[q] > 0.0f) {
-                  seen = true;
-                } else if (seen) {
-                  trusted[q] = 0;
-                }
-              }
-            }
-          }
           // Blocks reaching a bin with data in this beam; the others stay at 0 (their gradient
           // Aᵀ(residual) ≤ 0 since the residual is ≤ 0 wherever the data is 0).
           active.clear();
@@ -263,10 +243,9 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             out_g.assign(B.P, 0.0);
             const int row0 = (B.bin_first - pd.bin_lo) * n;
             const int nrows = static_cast<int>(B.row_start.size()) - 1;
-            const bool masked = cfg.ignore_shadowed_zeros;
             for (int r = 0; r < nrows; ++r) {
               const double v = R[row0 + r];
-              if (v == 0.0 || (masked && !trusted[row0 + r])) continue;
+              if (v == 0.0) continue;
               for (int e = B.row_start[r]; e < B.row_start[r + 1]; ++e) {
                 out_g[B.row_col[e]] += B.row_val[e] * v;
               }

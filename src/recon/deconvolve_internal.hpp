@@ -61,9 +61,10 @@ class KernelScaler {
 };
 
 // Mean of B(θ)² over a layer [offset − dz/2, offset + dz/2] above the frame at horizontal
-// distance r (θ = atan(h/r), rectilinear geometry), zero outside the aperture |θ| ≤ θ_3dB.
+// distance r (θ = atan(h/r), rectilinear geometry), counting only heights inside the modelled
+// footprint |h| ≤ half_width and the aperture |θ| ≤ θ_3dB.
 double layer_power(const BeamPattern& pattern, double theta_3db, double r, double offset, double dz,
-                   int subsamples);
+                   int subsamples, double half_width);
 
 void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern& pattern,
                   const KernelScaler* scaler, PassReport& report, std::vector<LayerPoint>& out,

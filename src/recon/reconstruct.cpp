@@ -7,7 +7,7 @@
 namespace sonar3d {
 
 const std::vector<std::string>& reconstruction_methods() {
-  static const std::vector<std::string> m = {"carve"};
+  static const std::vector<std::string> m = {"carve", "deconv", "deconv-l1", "deconv-exact"};
   return m;
 }
 
@@ -20,6 +20,16 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     Carver carver(dataset.spec, cfg, dataset.noise);
     integrate_dataset(carver, dataset, options.progress);
     out.cloud = carver.finalize();
+  } else if (options.method.rfind("deconv", 0) == 0 &&
+             (options.method == "deconv" || options.method == "deconv-l1" ||
+              options.method == "deconv-exact")) {
+    DeconvConfig cfg = options.deconv;
+    if (options.num_threads > 0) cfg.num_threads = options.num_threads;
+    if (options.method == "deconv-l1") cfg.lambda_fraction = 0.5;  // Table 5.1
+    if (options.method == "deconv-exact") cfg.exact = true;
+    DeconvReport report;
+    out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
+    for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
   } else {
     std::string list;
     for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;

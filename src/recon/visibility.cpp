@@ -2,15 +2,14 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cstring>
 #include <numeric>
 #include <string>
-#include <unordered_map>
 
 #include "carve_footprint.hpp"
 #include "sonar3d/core/error.hpp"
@@ -24,6 +23,21 @@ std::size_t FrameReturns::memory_bytes() const {
   return sizeof(*this) + first_return_bin.capacity() * sizeof(int) +
          last_return_bin.capacity() * sizeof(int) +
          return_bits.capacity() * sizeof(std::uint64_t);
+}
+
+bool FrameReturns::any_return(int beam, int bin0, int bin1) const {
+  bin0 = std::max(bin0, 0);
+  bin1 = std::min(bin1, range_bins - 1);
+  if (bin0 > bin1 || beam < 0 || beam >= beams) return false;
+  const std::uint64_t* w = &return_bits[static_cast<std::size_t>(beam) * words_per_beam];
+  for (int word = bin0 >> 6; word <= (bin1 >> 6); ++word) {
+    const int lo = std::max(bin0 - word * 64, 0), hi = std::min(bin1 - word * 64, 63);
+    const std::uint64_t mask =
+        (hi == 63 ? ~std::uint64_t{0} : ((std::uint64_t{1} << (hi + 1)) - 1)) &
+        ~((std::uint64_t{1} << lo) - 1);
+    if (w[word] & mask) return true;
+  }
+  return false;
 }
 
 FrameReturns summarize_frame(const SonarImage& denoised, const Eigen::Isometry3d& T_world_sonar,
@@ -90,11 +104,6 @@ struct VoxelKey {
   std::int64_t x, y, z;
   bool operator==(const VoxelKey& o) const { return x == o.x && y == o.y && z == o.z; }
 };
-struct VoxelKeyHash {
-  std::size_t operator()(const VoxelKey& k) const {
-    return static_cast<std::size_t>(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
-  }
-};
 VoxelKey key_of(const Eigen::Vector3f& p, double inv_size) {
   return {static_cast<std::int64_t>(std::floor(p.x() * inv_size + 0.5)),
           static_cast<std::int64_t>(std::floor(p.y() * inv_size + 0.5)),
@@ -137,55 +146,55 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
                 std::to_string(candidates_world.size()) + " points");
   }
 
-  // One candidate per voxel, the lowest bound (carving rule, eq. 4.6), above the threshold.
+  // One candidate per voxel, the lowest bound (carving rule, eq. 4.6), above the threshold; sorted
+  // block-major (blocks of 8³ voxels) so that a frame skips, in one test, the blocks that cannot
+  // lie in one of its return pixels.
   const double inv_vs = 1.0 / config.voxel_size;
-  std::vector<std::uint32_t> cand;
-  {
-    std::unordered_map<VoxelKey, std::uint32_t, VoxelKeyHash> best;
-    best.reserve(candidates_world.size());
-    for (std::size_t n = 0; n < candidates_world.size(); ++n) {
-      const Eigen::Vector3f& p = candidates_world.points[n];
-      if (!p.allFinite()) continue;
-      const float v = has_i ? candidates_world.intensity[n] : 0.0f;
-      if (has_i && !(v > config.min_intensity)) continue;
-      auto [it, inserted] = best.emplace(key_of(p, inv_vs), static_cast<std::uint32_t>(n));
-      if (!inserted && has_i && v < candidates_world.intensity[it->second]) it->second = n;
-    }
-    cand.reserve(best.size());
-    for (const auto& kv : best) cand.push_back(kv.second);
-    std::sort(cand.begin(), cand.end());  // input order: deterministic output
+  struct Entry {
+    std::int64_t bx, by, bz;  // block
+    int in;                   // voxel inside the block
+    float v;
+    std::uint32_t idx;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(candidates_world.size());
+  for (std::size_t n = 0; n < candidates_world.size(); ++n) {
+    const Eigen::Vector3f& p = candidates_world.points[n];
+    if (!p.allFinite()) continue;
+    const float v = has_i ? candidates_world.intensity[n] : 0.0f;
+    if (has_i && !(v > config.min_intensity)) continue;
+    const VoxelKey k = key_of(p, inv_vs);
+    entries.push_back({k.x >> 3, k.y >> 3, k.z >> 3,
+                       static_cast<int>(((k.x & 7) << 6) | ((k.y & 7) << 3) | (k.z & 7)), v,
+                       static_cast<std::uint32_t>(n)});
   }
-
-  // Blocks of 8³ voxels.
-  constexpr int kBlock = 8;
-  std::vector<std::uint32_t> order(cand.size());
-  std::iota(order.begin(), order.end(), 0u);
-  std::vector<VoxelKey> bkey(cand.size());
-  for (std::size_t n = 0; n < cand.size(); ++n) {
-    const VoxelKey k = key_of(candidates_world.points[cand[n]], inv_vs);
-    bkey[n] = {k.x >> 3, k.y >> 3, k.z >> 3};  // floor division by kBlock
-  }
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    const auto& ka = bkey[a];
-    const auto& kb = bkey[b];
-    return std::tie(ka.x, ka.y, ka.z, a) < std::tie(kb.x, kb.y, kb.z, b);
+  tbb::parallel_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return std::tie(a.bx, a.by, a.bz, a.in, a.v, a.idx) < std::tie(b.bx, b.by, b.bz, b.in, b.v, b.idx);
   });
+  std::vector<std::uint32_t> cand;  // candidate point indices, block-major, one per voxel
   std::vector<Block> blocks;
-  for (std::size_t s = 0; s < order.size();) {
-    std::size_t e = s + 1;
-    while (e < order.size() && bkey[order[e]] == bkey[order[s]]) ++e;
-    Eigen::AlignedBox3d box;
-    for (std::size_t m = s; m < e; ++m)
-      box.extend(candidates_world.points[cand[order[m]]].cast<double>());
+  cand.reserve(entries.size());
+  for (std::size_t e = 0; e < entries.size();) {
     Block b;
+    b.begin = cand.size();
+    Eigen::AlignedBox3d box;
+    std::size_t f = e;
+    for (; f < entries.size() && entries[f].bx == entries[e].bx && entries[f].by == entries[e].by &&
+           entries[f].bz == entries[e].bz;
+         ++f) {
+      if (f > e && entries[f].in == entries[f - 1].in) continue;  // same voxel: higher bound
+      cand.push_back(entries[f].idx);
+      box.extend(candidates_world.points[entries[f].idx].cast<double>());
+    }
+    b.end = cand.size();
     b.centre_world = box.center();
     b.radius = 0.5 * box.diagonal().norm() + 1e-6;
-    b.begin = s;
-    b.end = e;
     blocks.push_back(b);
-    s = e;
+    e = f;
   }
-  (void)kBlock;
+  entries = {};
+  std::vector<std::uint32_t> order(cand.size());
+  std::iota(order.begin(), order.end(), 0u);
 
   const detail::SonarGeometry g(spec);
   const double dtheta = config.elevation_resolution_rad;
@@ -224,7 +233,7 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
         const int j = g.beam(phi);
         const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
         if (!fr.has_return(i, j)) continue;  // the frame saw nothing here: no label
-        const double theta = std::asin(s);
+        const double theta = g.elevation(s);
         const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
         auto interval = [&](double t) {
           return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
@@ -265,11 +274,15 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
   for (const Scratch& sc : scratch) {
     for (std::size_t n = 0; n < sc.observed.size(); ++n) observed[n] |= sc.observed[n];
   }
+  std::vector<std::uint32_t> kept;
+  for (std::size_t n = 0; n < cand.size(); ++n)
+    if (observed[n]) kept.push_back(cand[n]);
+  std::sort(kept.begin(), kept.end());  // input order: deterministic output
   PointCloud out;
-  for (std::size_t n = 0; n < cand.size(); ++n) {
-    if (!observed[n]) continue;
-    out.points.push_back(candidates_world.points[cand[n]]);
-    if (has_i) out.intensity.push_back(candidates_world.intensity[cand[n]]);
+  out.points.reserve(kept.size());
+  for (std::uint32_t n : kept) {
+    out.points.push_back(candidates_world.points[n]);
+    if (has_i) out.intensity.push_back(candidates_world.intensity[n]);
   }
   return out;
 }

@@ -43,9 +43,10 @@ struct CarveConfig {
   // Static threshold on the map (sec. 4.4.7): keep candidates whose bound is > this.
   double static_threshold = 0.0;
   // A voxel is carved only when the ball of radius carve_margin × (half its diagonal) around its
-  // centre lies in free space; 0 = the point rule (the voxel centre alone), 1 = the whole voxel.
-  // A margin keeps the surface voxel whose centre falls just in front of the return's range bin.
-  double carve_margin = 1.0;
+  // centre lies in free space; 0 = the point rule (the voxel centre alone: thinner surfaces,
+  // measured best, docs/carving.md), 1 = the whole voxel (keeps the voxel whose centre falls just
+  // in front of the return's range bin: surfaces one voxel thicker).
+  double carve_margin = 0.0;
   // Keep only candidates whose observations (return pixels) spread over at least this fraction
   // of the vertical aperture (in sin θ). The min-filter bounds a scatterer along the elevation
   // arc only where frames saw free space on both sides of it; at the edges of a pass (below the
@@ -53,6 +54,11 @@ struct CarveConfig {
   // off (the thesis' rule, and the right choice for trajectories that do not sweep the
   // elevation, e.g. level approaches).
   double min_elevation_span = 0.0;
+  // Keep only candidates bounded by at least this many return pixels (frames). A noise pixel that
+  // passes the Z-test (0.13 % of them at T = 3) bounds its arc in one frame only, while a surface
+  // is seen by every frame whose aperture covers it. 1 = off (the thesis' rule; a snapshot then
+  // also shows what a single frame bounded).
+  int min_observations = 2;
   int num_threads = 0;  // 0 = all cores (TBB)
   void validate() const;  // throws Error naming the field
 };

@@ -58,7 +58,7 @@ struct DeconvConfig {
   // warn above half a range bin (the deviation then moves returns by a bin).
   double max_lateral_deviation = 0.05;
   // Refuse when a frame's height deviates from the uniform grid z_0 + k·Δz by more than this
-  // fraction of Δz; warn above a quarter. (The kernel uses the measured heights either way.)
+  // fraction of Δz; warn above a quarter (use_measured_heights models the deviation).
   double max_spacing_deviation = 1.0;
   // Layer height Δz of the reconstruction (m); 0 = the fitted frame spacing.
   double layer_spacing = 0.0;
@@ -66,22 +66,24 @@ struct DeconvConfig {
   bool use_measured_heights = true;
   // Split the frames into passes where the motion jumps (several passes in one dataset).
   bool split_passes = true;
-  // A jump between consecutive frames (lateral, or along z beyond this many spacings) ends a pass.
+  // A jump between consecutive frames, or a retreat from the pass' extreme height (a reversal),
+  // larger than max(split_jump_factor × median step, 2 × max_lateral_deviation) ends a pass.
   double split_jump_factor = 5.0;
   // Passes with fewer frames are skipped with a warning.
   int min_pass_frames = 3;
   // Reconstruct only ranges ≤ max_range (m; 0 = the sensor's r_max): a short pass cannot resolve
   // far ranges whose footprint K exceeds its frame count.
   double max_range = 0.0;
-  // Warn when eq. 5.21 is violated, i.e. when the arc-vs-chord mismatch r·(1/cos θ_3dB − 1) at
-  // the far range exceeds this fraction of a range bin (0.5 = eq. 5.21 exactly).
+  // Warn when eq. 5.21 is violated, i.e. when the arc-vs-line mismatch r·(1 − cos θ_3dB) at the
+  // farthest return exceeds this fraction of a range bin (0.5 = eq. 5.21 exactly).
   double rectilinear_warn_bins = 0.5;
 
   // A zero pixel behind the first return of its beam may be a shadow, not empty water (the
   // conservative rule of Fig. 4.5). true: such pixels are left out of the fit (their rows of A*
-  // are dropped per column; the exact mode drops them from its data term), so the solver does
-  // not explain occlusions with ghost layers; false: every pixel is data (the thesis). Measured
-  // in docs/deconvolution.md.
+  // are dropped per column), so the solver does not explain occlusions with ghost layers;
+  // false: every pixel is data (the thesis). Approximate mode only: the exact mode shares its
+  // block matrices between beams and uses every pixel (a majorise–minimise variant was measured
+  // slower and no better, docs/deconvolution.md).
   bool ignore_shadowed_zeros = true;
 
   // --- Processing steps ---
@@ -89,6 +91,9 @@ struct DeconvConfig {
   bool dering = true;              // after: zero layers seen as free space (sec. 5.5.4)
   bool resolve_occlusions = true;  // post-reconstruction occlusion resolution (sec. 5.6.7.3)
   OcclusionConfig occlusion;
+  // true: the occlusion voxel (one point kept per voxel) is min(Δr, Δz) so that resolution does
+  // not coarsen the reconstruction (e.g. 3 mm ARIS bins); false: occlusion.voxel_size.
+  bool occlusion_auto_voxel = true;
   // Multipass kernels (sec. 5.6.7): a second deconvolution whose kernel is scaled by the
   // Lambertian cosine between the view and normals of the first cloud (Normal), zeroed where the
   // first cloud occludes the view (Occlusion), or both. Approximate mode only.
@@ -103,7 +108,8 @@ struct DeconvConfig {
   // Drop a layer whose largest predicted return max_k A*_kp·b_p is below this fraction of the
   // column's largest measurement: the NNLS fits the model mismatch (Lambertian ρ ignored by
   // eq. 5.27, arc vs line) with faint layers, mostly at the pass ends and in shadows where
-  // de-ringing cannot reach. 0 = keep every non-zero layer (the thesis).
+  // de-ringing cannot reach. 0 = keep every non-zero layer (the thesis). Measured: it does not
+  // separate those ghosts (they lie in columns of weak data), hence off.
   double min_relative_intensity = 0.0;
   // Keep only layers within this distance (m) beyond the lowest and highest frame heights; < 0
   // keeps all P = N + K − 1 layers (eq. 5.26). Layers beyond the pass ends are seen by part of
@@ -119,8 +125,8 @@ struct DeconvConfig {
   void validate() const;                         // throws Error naming the field
   static Beam parse_beam(const std::string& s);  // sinc | flat | sensor
   static const char* beam_name(Beam b);
-  static Kernel parse_kernel(
-      const std::string& s);  // plain | normal | occlusion | normal+occlusion
+  // plain | normal | occlusion | normal+occlusion
+  static Kernel parse_kernel(const std::string& s);
   static const char* kernel_name(Kernel k);
 };
 
@@ -163,8 +169,10 @@ double rectilinear_mismatch(double range, double theta_3db_rad);
 double rectilinear_max_aperture(double range, double range_resolution);
 
 // The kernel A* of one column (eq. 5.27) at range r for frames at `heights` (sorted, m) and
-// layers u_p = heights[0] + (p − (K − 1)/2)·Δz, p = 0..P−1. Row k has the K layers nearest its
-// footprint; A*_kp is the mean of B(atan((u − z_k)/r))² over the layer (|θ| ≤ θ_3dB).
+// layers u_p = heights[0] + (p − (K − 1)/2)·Δz. The footprint of frame k is modelled as K whole
+// layers, |u − z_k| ≤ K·Δz/2 (eq. 5.25); A*_kp is the mean of B(atan((u − z_k)/r))² over the
+// part of layer p inside it (and inside |θ| ≤ θ_3dB). A uniform pass gives rows of K layers
+// k..k+K−1 and P = N + K − 1 (eq. 5.26); a frame between layer positions overlaps K + 1 layers.
 struct ColumnKernel {
   int K = 1;
   int layers = 0;            // P

@@ -6,14 +6,17 @@
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/carve.hpp"
+#include "sonar3d/recon/deconvolve.hpp"
 
 namespace sonar3d {
 
 struct ReconstructOptions {
-  // "carve" (ch. 4), "deconv" (ch. 5, thesis formulation), "deconv-l1" (L1 with
+  // "carve" (ch. 4), "deconv" (ch. 5 with the DeconvConfig defaults, see docs/deconvolution.md),
+  // "deconv-l1" (L1 with
   // λ = 0.5·λ_max, Table 5.1), "deconv-exact" (exact slant-range geometry).
   std::string method = "carve";
   CarveConfig carve;
+  DeconvConfig deconv;  // "deconv-l1" and "deconv-exact" set lambda_fraction / exact on a copy
   bool progress = false;
   int num_threads = 0;  // 0 = all cores; overrides the method configs' thread counts
 };

@@ -38,6 +38,8 @@ struct FrameReturns {
         return_bits[static_cast<std::size_t>(beam) * words_per_beam + (bin >> 6)];
     return (w >> (bin & 63)) & 1u;
   }
+  // True when beam j has a return in range bins [bin0, bin1] (inclusive, clamped).
+  bool any_return(int beam, int bin0, int bin1) const;
   std::size_t memory_bytes() const;  // heap + object, for memory accounting
 };
 
