@@ -92,8 +92,9 @@ void BM_IntegrateColdP900(benchmark::State& state) {
     carver.reset();
     state.ResumeTiming();
   }
-  state.counters["ms/frame"] = benchmark::Counter(
-      static_cast<double>(state.iterations()), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["ms/frame"] =
+      benchmark::Counter(static_cast<double>(state.iterations()),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
 // Frames of a pass one after the other (the online case): the map already holds the free space
@@ -129,9 +130,9 @@ void BM_OcclusionPerFrameP900(benchmark::State& state) {
   state.counters["frames"] = static_cast<double>(d.images.size());
   state.counters["candidates"] = static_cast<double>(carver.stats().candidates);
   state.counters["points"] = static_cast<double>(points);
-  state.counters["ms/frame"] = benchmark::Counter(
-      static_cast<double>(state.iterations() * d.images.size()),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["ms/frame"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * d.images.size()),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
 BENCHMARK(BM_IntegrateColdP900)
@@ -181,10 +182,11 @@ int run_memory(int frames, bool use_roi) {
   const auto t0 = std::chrono::steady_clock::now();
   const PointCloud cloud = carver.finalize();
   const double occ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("baseline RSS before carving %.0f MB (scene, simulator); after finalize: peak RSS "
-              "%.0f MB, %zu candidates -> %zu points, occlusion %.1f ms/frame\n",
-              rss0 / 1e6, peak_rss_bytes() / 1e6, carver.stats().candidates, cloud.size(),
-              1e3 * occ / frames);
+  std::printf(
+      "baseline RSS before carving %.0f MB (scene, simulator); after finalize: peak RSS "
+      "%.0f MB, %zu candidates -> %zu points, occlusion %.1f ms/frame\n",
+      rss0 / 1e6, peak_rss_bytes() / 1e6, carver.stats().candidates, cloud.size(),
+      1e3 * occ / frames);
   return 0;
 }
 

@@ -34,7 +34,13 @@ void BM_SimulateP900(benchmark::State& state) {
   state.counters["Hz"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
   state.counters["rays"] = static_cast<double>(sim.rays_per_image());
 }
-BENCHMARK(BM_SimulateP900)->Args({1, 0})->Args({2, 0})->Args({1, 15})->Args({2, 15})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SimulateP900)
+    ->Args({1, 0})
+    ->Args({2, 0})
+    ->Args({1, 15})
+    ->Args({2, 15})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 

@@ -2,15 +2,15 @@
 // occlusion resolution, an end-to-end sphere, the online API and the error paths.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
-#include <random>
-#include <tuple>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
+#include <tuple>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/eval/metrics.hpp"
@@ -114,7 +114,8 @@ TEST(Carve, SingleScattererIsBoundedToItsElevation) {
 
   const Pass pass = render_pass(sim, 2.5, 0.7, 1.3, 0.01);
   Carver carver(spec, cfg);
-  for (std::size_t k = 0; k < pass.images.size(); ++k) carver.integrate(pass.images[k], pass.poses[k]);
+  for (std::size_t k = 0; k < pass.images.size(); ++k)
+    carver.integrate(pass.images[k], pass.poses[k]);
   const PointCloud many = carver.snapshot();
   ASSERT_FALSE(many.empty());
   for (const auto& p : many.points) {
@@ -141,14 +142,14 @@ TEST(Carve, SeenFreeIsConservative) {
     return Eigen::Vector3d(r * std::cos(elev) * std::cos(bearing),
                            r * std::cos(elev) * std::sin(bearing), r * std::sin(elev));
   };
-  EXPECT_TRUE(seen_free(fr, spec, at(2.0, phi, 0.0)));            // in front of the return
-  EXPECT_TRUE(seen_free(fr, spec, at(2.0, phi, 4.5 * kDeg)));     // anywhere in the aperture
-  EXPECT_FALSE(seen_free(fr, spec, at(2.51, phi, 0.0)));          // the return itself
-  EXPECT_FALSE(seen_free(fr, spec, at(3.0, phi, 0.0)));           // behind it: maybe a shadow
+  EXPECT_TRUE(seen_free(fr, spec, at(2.0, phi, 0.0)));         // in front of the return
+  EXPECT_TRUE(seen_free(fr, spec, at(2.0, phi, 4.5 * kDeg)));  // anywhere in the aperture
+  EXPECT_FALSE(seen_free(fr, spec, at(2.51, phi, 0.0)));       // the return itself
+  EXPECT_FALSE(seen_free(fr, spec, at(3.0, phi, 0.0)));        // behind it: maybe a shadow
   EXPECT_TRUE(seen_free(fr, spec, at(3.0, spec.bearings_rad[10], 0.0)));  // empty beam
-  EXPECT_FALSE(seen_free(fr, spec, at(2.0, phi, 6 * kDeg)));      // outside the aperture
-  EXPECT_FALSE(seen_free(fr, spec, at(4.5, phi, 0.0)));           // beyond r_max
-  EXPECT_FALSE(seen_free(fr, spec, at(2.0, 20 * kDeg, 0.0)));     // outside the field of view
+  EXPECT_FALSE(seen_free(fr, spec, at(2.0, phi, 6 * kDeg)));              // outside the aperture
+  EXPECT_FALSE(seen_free(fr, spec, at(4.5, phi, 0.0)));                   // beyond r_max
+  EXPECT_FALSE(seen_free(fr, spec, at(2.0, 20 * kDeg, 0.0)));  // outside the field of view
   // Poses are honoured: the same point seen from a sonar 1 m further back is 3 m away.
   const FrameReturns moved = summarize_frame(img, sonar_at(-1, 0, 0), spec);
   EXPECT_FALSE(seen_free(moved, spec, Eigen::Vector3d(-1, 0, 0) + at(3.0, phi, 0.0)));
@@ -426,7 +427,8 @@ TEST(Carve, ClearErrors) {
   bad([](CarveConfig& c) { c.min_observations = 0; }, "min_observations");
   bad([](CarveConfig& c) { c.min_elevation_span = 1.5; }, "min_elevation_span");
   bad([](CarveConfig& c) { c.num_threads = -1; }, "num_threads");
-  bad([](CarveConfig& c) {
+  bad(
+      [](CarveConfig& c) {
         c.region = Eigen::AlignedBox3d(Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(0, 2, 2));
       },
       "region");

@@ -27,8 +27,8 @@ struct CliRun {
 
 CliRun run(const std::string& args) {
   const fs::path out = kTmp / "stdout.txt", err = kTmp / "stderr.txt";
-  const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " +
-                          err.string();
+  const std::string cmd =
+      std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " + err.string();
   const int status = std::system(cmd.c_str());
   auto slurp = [](const fs::path& p) {
     std::ifstream f(p);
@@ -39,7 +39,9 @@ CliRun run(const std::string& args) {
   return {WEXITSTATUS(status), slurp(out), slurp(err)};
 }
 
-void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::trunc) << text; }
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream(p, std::ios::trunc) << text;
+}
 
 const char* kScene = R"(
 seed: 2
@@ -54,8 +56,8 @@ class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
     kTmp = fs::temp_directory_path() /
-           ("sonar3d_test_cli_" + std::string(
-                ::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("sonar3d_test_cli_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(kTmp);
     fs::create_directories(kTmp);
   }
@@ -149,11 +151,13 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
   // Not a dataset; a corrupt cloud.
   r = run("info " + kTmp.string());
   expect_one_line_error(r, "sonar.yaml is missing");
-  write(kTmp / "corrupt.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
-                              "property float y\nproperty float z\nend_header\nabc");
+  write(kTmp / "corrupt.ply",
+        "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\nabc");
   write(kTmp / "m.yaml", "");
   write(kTmp / "scene.yaml", kScene);
-  ASSERT_EQ(run("simulate " + (kTmp / "scene.yaml").string() + " -o " + (kTmp / "ds").string()).code, 0);
+  ASSERT_EQ(
+      run("simulate " + (kTmp / "scene.yaml").string() + " -o " + (kTmp / "ds").string()).code, 0);
   r = run("evaluate " + (kTmp / "corrupt.ply").string() + " --truth " + (kTmp / "ds").string());
   expect_one_line_error(r, "corrupt.ply");
   // Unknown subcommand and --help.

@@ -11,17 +11,13 @@
 #include "sonar3d/core/projector.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
+using sonar3d::test::expect_error;
+using sonar3d::test::temp_dir;
 namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
-
-static fs::path temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("sonar3d_test_core_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
 
 TEST(Projector, RandomRoundTrips) {
   std::mt19937_64 rng(42);

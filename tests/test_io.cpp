@@ -7,18 +7,14 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
+using sonar3d::test::expect_error;
+using sonar3d::test::temp_dir;
 namespace fs = std::filesystem;
 
 namespace {
-
-fs::path temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("sonar3d_test_io_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
 
 SonarSpec small_spec() {
   SonarSpec s;
@@ -56,19 +52,11 @@ std::vector<SonarImage> write_small(const fs::path& dir, const SonarSpec& s) {
     nav.push_back(10.0 + k, T);
   }
   w.set_navigation(nav);
-  NoiseImages n{SonarImage(s.range_bins, s.beams(), 0.01f), SonarImage(s.range_bins, s.beams(), 0.02f)};
+  NoiseImages n{SonarImage(s.range_bins, s.beams(), 0.01f),
+                SonarImage(s.range_bins, s.beams(), 0.02f)};
   w.set_noise(n);
   w.commit();
   return imgs;
-}
-
-void expect_error(const std::function<void()>& f, const std::string& needle) {
-  try {
-    f();
-    FAIL() << "expected an error mentioning '" << needle << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
 }
 
 void replace_in_file(const fs::path& p, const std::string& from, const std::string& to) {
@@ -89,7 +77,8 @@ TEST(Dataset, WriteReadRoundTrip) {
   const Dataset ds = read_dataset(root / "ds");
   EXPECT_EQ(ds.spec.name, "small");
   EXPECT_EQ(ds.spec.beams(), s.beams());
-  for (int j = 0; j < s.beams(); ++j) EXPECT_NEAR(ds.spec.bearings_rad[j], s.bearings_rad[j], 1e-12);
+  for (int j = 0; j < s.beams(); ++j)
+    EXPECT_NEAR(ds.spec.bearings_rad[j], s.bearings_rad[j], 1e-12);
   EXPECT_DOUBLE_EQ(ds.spec.r_min, s.r_min);
   EXPECT_DOUBLE_EQ(ds.spec.vertical_aperture_rad, s.vertical_aperture_rad);
   EXPECT_TRUE(ds.spec.T_vehicle_sonar.isApprox(s.T_vehicle_sonar, 1e-12));
@@ -101,8 +90,7 @@ TEST(Dataset, WriteReadRoundTrip) {
       // 16-bit quantisation: half a step of error at most.
       ASSERT_NEAR(img.data[i], imgs[k].data[i], 0.51 * s.intensity_scale);
     }
-    const Eigen::Isometry3d expected =
-        Eigen::Translation3d(k, 0, 0) * s.T_vehicle_sonar;
+    const Eigen::Isometry3d expected = Eigen::Translation3d(k, 0, 0) * s.T_vehicle_sonar;
     EXPECT_TRUE(ds.T_world_sonar(k).isApprox(expected, 1e-9));
   }
   ASSERT_TRUE(ds.noise.has_value());
@@ -115,7 +103,8 @@ TEST(Dataset, NonUniformBearingTableRoundTrips) {
   for (int j = 0; j < s.beams(); ++j) s.bearings_rad[j] = 0.03 * j + 0.001 * j * j - 0.3;
   write_small(root / "ds", s);
   const Dataset ds = read_dataset(root / "ds");
-  for (int j = 0; j < s.beams(); ++j) EXPECT_NEAR(ds.spec.bearings_rad[j], s.bearings_rad[j], 1e-12);
+  for (int j = 0; j < s.beams(); ++j)
+    EXPECT_NEAR(ds.spec.bearings_rad[j], s.bearings_rad[j], 1e-12);
 }
 
 TEST(Dataset, UncommittedWriterLeavesNothing) {

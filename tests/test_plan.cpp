@@ -1,38 +1,27 @@
 // plan: sweep files, grid and constraints, and a real small sweep through the CLI (parallel
 // points, failures recorded, resume, ranking, MPI with two local ranks when mpirun exists).
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/plan/sweep.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
+using sonar3d::test::expect_error;
+using sonar3d::test::temp_dir;
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("sonar3d_test_plan_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
-
-void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::trunc) << text; }
-
-void expect_error(const std::function<void()>& f, const std::string& needle) {
-  try {
-    f();
-    FAIL() << "expected an error mentioning '" << needle << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream(p, std::ios::trunc) << text;
 }
 
 // Small and fast: a 20° × 10° sensor at 4 cm range bins, 5–10 cm sampling, 4 cm voxels.
@@ -49,7 +38,9 @@ axes:
 fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, voxel_m: 0.04}
 )";
 
-nlohmann::json read_json(const fs::path& p) { return nlohmann::json::parse(read_text_file(p.string())); }
+nlohmann::json read_json(const fs::path& p) {
+  return nlohmann::json::parse(read_text_file(p.string()));
+}
 
 }  // namespace
 
@@ -64,11 +55,11 @@ TEST(Sweep, GridDefaultsAndConstraints) {
   EXPECT_EQ(to_string(p1.at("object")), "nowhere.stl");
   EXPECT_EQ(to_string(p7.at("spacing_m")), "0.1");
   EXPECT_EQ(to_string(p7.at("standoff_m")), "2");
-  EXPECT_EQ(to_string(p0.at("aperture_deg")), "10");   // fixed
-  EXPECT_EQ(to_string(p0.at("method")), "carve");      // default
-  EXPECT_EQ(to_string(p0.at("snr_db")), "none");       // default
+  EXPECT_EQ(to_string(p0.at("aperture_deg")), "10");  // fixed
+  EXPECT_EQ(to_string(p0.at("method")), "carve");     // default
+  EXPECT_EQ(to_string(p0.at("snr_db")), "none");      // default
   ASSERT_EQ(s.constraints.size(), 1u);
-  EXPECT_FALSE(s.constraints[0].satisfied_by(p0));    // stand-off 1 m
+  EXPECT_FALSE(s.constraints[0].satisfied_by(p0));  // stand-off 1 m
   EXPECT_TRUE(s.constraints[0].satisfied_by(s.point(2)));
   EXPECT_THROW(s.point(8), Error);
 }
@@ -96,8 +87,8 @@ TEST(Plan, RunsRanksResumesAndRecordsFailures) {
   const fs::path dir = temp_dir("run");
   write(dir / "s.yaml", kTiny);
   const fs::path out = dir / "out";
-  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() +
-                          " -o " + out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
+  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " +
+                          out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << read_text_file((dir / "log.txt").string());
   const auto results = read_json(out / "results.json");
   ASSERT_EQ(results["points"].size(), 8u);

@@ -14,19 +14,15 @@
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/sim/simulator.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
+using sonar3d::test::expect_error;
+using sonar3d::test::temp_dir;
 namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
 
 namespace {
-
-fs::path temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("sonar3d_test_sim_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
 
 SonarSpec test_spec(double aperture_deg) {
   SonarSpec s;
@@ -61,15 +57,6 @@ double analytic_first_range(const SonarSpec& s, int j, const Eigen::Vector3d& c,
     }
   }
   return best;
-}
-
-void expect_error(const std::function<void()>& f, const std::string& needle) {
-  try {
-    f();
-    FAIL() << "expected an error mentioning '" << needle << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
 }
 
 }  // namespace
@@ -209,7 +196,8 @@ TEST(Noise, StripeSamplesMatchTheirModel) {
   // 7 stripes: the mean across bearing has 7 local maxima.
   int peaks = 0;
   for (int j = 1; j + 1 < s.beams(); ++j) {
-    if (model.mean.at(0, j) > model.mean.at(0, j - 1) && model.mean.at(0, j) >= model.mean.at(0, j + 1))
+    if (model.mean.at(0, j) > model.mean.at(0, j - 1) &&
+        model.mean.at(0, j) >= model.mean.at(0, j + 1))
       ++peaks;
   }
   EXPECT_EQ(peaks, 7);
@@ -228,8 +216,8 @@ TEST(Noise, StripeSamplesMatchTheirModel) {
     std_sum += model.std.data[k];
   }
   const double n = static_cast<double>(got.mean.data.size());
-  EXPECT_LT(mean_err / n, 0.002);                 // σ/√400 ≈ 0.001 per pixel
-  EXPECT_LT(std::abs(std_err) / std_sum, 0.01);   // no bias in the spread over 33k pixels
+  EXPECT_LT(mean_err / n, 0.002);                // σ/√400 ≈ 0.001 per pixel
+  EXPECT_LT(std::abs(std_err) / std_sum, 0.01);  // no bias in the spread over 33k pixels
 }
 
 TEST(Noise, EstimatorNeedsTwoFramesOfOneSize) {
@@ -240,7 +228,8 @@ TEST(Noise, EstimatorNeedsTwoFramesOfOneSize) {
 }
 
 TEST(TrajectoryGen, StraightOrbitLawnmower) {
-  const Trajectory p = straight_pass({0, 0, 0}, {0, 0, 1}, 0.01, Eigen::Matrix3d::Identity(), 0, 0.1);
+  const Trajectory p =
+      straight_pass({0, 0, 0}, {0, 0, 1}, 0.01, Eigen::Matrix3d::Identity(), 0, 0.1);
   ASSERT_EQ(p.size(), 101u);
   EXPECT_NEAR(p.poses[100].translation().z(), 1.0, 1e-12);
   EXPECT_NEAR(p.times[100], 10.0, 1e-12);

@@ -20,10 +20,15 @@ void add_bench(CLI::App& app, const GlobalOptions& g, Runner& run) {
     double pitch_deg = 0.0;
   };
   auto o = std::make_shared<Opts>();
-  cmd->add_option("--fov-deg", o->fov_deg, "horizontal field of view, degrees")->capture_default_str();
-  cmd->add_option("--aperture-deg", o->aperture_deg, "vertical aperture, degrees")->capture_default_str();
-  cmd->add_option("--bearing-step-deg", o->bearing_step_deg, "beam spacing, degrees")->capture_default_str();
-  cmd->add_option("--elevation-step-deg", o->elevation_step_deg, "ray spacing across the aperture, degrees")->capture_default_str();
+  cmd->add_option("--fov-deg", o->fov_deg, "horizontal field of view, degrees")
+      ->capture_default_str();
+  cmd->add_option("--aperture-deg", o->aperture_deg, "vertical aperture, degrees")
+      ->capture_default_str();
+  cmd->add_option("--bearing-step-deg", o->bearing_step_deg, "beam spacing, degrees")
+      ->capture_default_str();
+  cmd->add_option("--elevation-step-deg", o->elevation_step_deg,
+                  "ray spacing across the aperture, degrees")
+      ->capture_default_str();
   cmd->add_option("--range-max", o->r_max, "maximum range, metres")->capture_default_str();
   cmd->add_option("--range-res", o->range_res, "range bin size, metres")->capture_default_str();
   cmd->add_option("--pitch-down-deg", o->pitch_deg,
@@ -46,10 +51,11 @@ void add_bench(CLI::App& app, const GlobalOptions& g, Runner& run) {
       cfg.elevation_step_rad = o->elevation_step_deg * kDeg;
       cfg.num_threads = o->threads;
       const SimBenchResult r = benchmark_simulator(spec, cfg, o->frames, o->pitch_deg * kDeg);
-      fmt::print("simulate: {} beams × {} bins, {} rays/image, {} frames in {:.2f} s: {:.1f} Hz, "
-                 "{:.1f} Mrays/s\n",
-                 spec.beams(), spec.range_bins, r.rays_per_image, r.frames, r.seconds, r.hz,
-                 r.mrays_per_s);
+      fmt::print(
+          "simulate: {} beams × {} bins, {} rays/image, {} frames in {:.2f} s: {:.1f} Hz, "
+          "{:.1f} Mrays/s\n",
+          spec.beams(), spec.range_bins, r.rays_per_image, r.frames, r.seconds, r.hz,
+          r.mrays_per_s);
       return 0;
     };
   });

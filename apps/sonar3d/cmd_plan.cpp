@@ -37,10 +37,11 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       mpi.gather_points(sweep, opt.out_dir);
       if (mpi.rank() == 0) {
         write_sweep_results(sweep, opt.out_dir);
-        fmt::print("plan: {} points ({} run here, {} already done, {} excluded by constraints, "
-                   "{} failed) in {:.1f} s{}; results in {}/results.csv\n",
-                   s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
-                   mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
+        fmt::print(
+            "plan: {} points ({} run here, {} already done, {} excluded by constraints, "
+            "{} failed) in {:.1f} s{}; results in {}/results.csv\n",
+            s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
+            mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
       }
       return 0;
     };

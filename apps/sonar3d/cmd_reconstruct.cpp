@@ -1,8 +1,8 @@
 #include <fmt/core.h>
-#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <vector>
 
 #include "commands.hpp"
@@ -69,8 +69,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   integrate_dataset(carver, ds, !g.quiet);
   PointCloud cloud;
   {
-    Progress bar("occlusions", ds.size(),
-                 cfg.resolve_occlusions && !g.quiet);
+    Progress bar("occlusions", ds.size(), cfg.resolve_occlusions && !g.quiet);
     cloud = carver.finalize(&bar);
   }
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);

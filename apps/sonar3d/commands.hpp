@@ -2,7 +2,6 @@
 // Each subcommand registers itself on the CLI11 app and runs through a library call: no
 // algorithm lives here.
 #include <CLI/CLI.hpp>
-
 #include <functional>
 
 namespace sonar3d::cli {

@@ -58,8 +58,8 @@ double get_double(const YAML::Node& parent, const std::string& key, double fallb
   return get_double(parent, key, file, ctx);
 }
 
-int get_int(const YAML::Node& parent, const std::string& key, int fallback,
-            const std::string& file, const std::string& ctx) {
+int get_int(const YAML::Node& parent, const std::string& key, int fallback, const std::string& file,
+            const std::string& ctx) {
   const YAML::Node n = child(parent, key, file, ctx);
   if (!n) return fallback;
   try {
@@ -127,8 +127,8 @@ void check_keys(const YAML::Node& node, const std::set<std::string>& allowed,
     if (!allowed.count(k)) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw Error(where(file, kv.first, full_key(ctx, k)) + ": unknown key (expected one of: " +
-                  list + ")");
+      throw Error(where(file, kv.first, full_key(ctx, k)) +
+                  ": unknown key (expected one of: " + list + ")");
     }
   }
 }
@@ -174,9 +174,8 @@ Eigen::Isometry3d get_pose(const YAML::Node& node, const std::string& file,
 SonarSpec parse_sonar_spec(const YAML::Node& node, const std::string& file,
                            const std::string& ctx) {
   check_keys(node,
-             {"preset", "name", "bearings_deg", "fov_deg", "beams", "r_min", "r_max",
-              "range_bins", "vertical_aperture_deg", "beam_pattern", "intensity",
-              "T_vehicle_sonar"},
+             {"preset", "name", "bearings_deg", "fov_deg", "beams", "r_min", "r_max", "range_bins",
+              "vertical_aperture_deg", "beam_pattern", "intensity", "T_vehicle_sonar"},
              file, ctx);
   SonarSpec s;
   if (node["preset"]) s = sonar_preset(get_string(node, "preset", "", file, ctx));
@@ -190,8 +189,8 @@ SonarSpec parse_sonar_spec(const YAML::Node& node, const std::string& file,
     s.bearings_rad.clear();
     for (double d : b) s.bearings_rad.push_back(d * kDeg);
   } else if (node["fov_deg"] || node["beams"]) {
-    const double fov = get_double(node, "fov_deg", s.fov_max() / kDeg - s.fov_min() / kDeg, file,
-                                  ctx);
+    const double fov =
+        get_double(node, "fov_deg", s.fov_max() / kDeg - s.fov_min() / kDeg, file, ctx);
     const int beams = get_int(node, "beams", s.beams(), file, ctx);
     if (!(fov > 0 && fov < 360) || beams <= 0) {
       throw Error(where(file, node, full_key(ctx, "fov_deg")) +
@@ -270,8 +269,8 @@ void emit_sonar_spec(YAML::Emitter& out, const SonarSpec& s) {
   const Eigen::Quaterniond q(s.T_vehicle_sonar.linear());
   const Eigen::Vector3d t = s.T_vehicle_sonar.translation();
   out << YAML::Key << "T_vehicle_sonar" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "translation" << YAML::Value << YAML::Flow << YAML::BeginSeq << t.x()
-      << t.y() << t.z() << YAML::EndSeq;
+  out << YAML::Key << "translation" << YAML::Value << YAML::Flow << YAML::BeginSeq << t.x() << t.y()
+      << t.z() << YAML::EndSeq;
   out << YAML::Key << "quaternion" << YAML::Value << YAML::Flow << YAML::BeginSeq << q.x() << q.y()
       << q.z() << q.w() << YAML::EndSeq;
   out << YAML::EndMap;

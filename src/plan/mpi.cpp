@@ -7,6 +7,7 @@
 
 #ifdef SONAR3D_HAVE_MPI
 #include <mpi.h>
+
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
@@ -27,8 +28,7 @@ bool MpiSession::available() {
 MpiSession::MpiSession() {
 #ifdef SONAR3D_HAVE_MPI
   // Only when launched by a process manager: a plain run stays a single, MPI-free process.
-  if (std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE") ||
-      std::getenv("PMIX_RANK")) {
+  if (std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE") || std::getenv("PMIX_RANK")) {
     MPI_Init(nullptr, nullptr);
     initialised_ = true;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank_);

@@ -1,9 +1,8 @@
 #pragma once
 // Internal helpers shared by the planner's translation units.
-#include <nlohmann/json.hpp>
-
 #include <filesystem>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "sonar3d/plan/sweep.hpp"

@@ -1,10 +1,10 @@
 // One sweep point: build the inspection from its parameters, simulate, reconstruct, evaluate.
-#include <nlohmann/json.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
+#include "plan_internal.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/eval/per_object.hpp"
@@ -14,7 +14,6 @@
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
-#include "plan_internal.hpp"
 
 namespace fs = std::filesystem;
 
@@ -68,12 +67,14 @@ SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, Sweep
   SonarSpec& s = setup.spec;
   s.name = "plan";
   const double fov = num(p, "fov_deg") * kDeg;
-  s.set_uniform_bearings(fov, std::max(1, static_cast<int>(std::lround(num(p, "fov_deg") /
-                                                                       num(p, "bearing_res_deg")))));
+  s.set_uniform_bearings(
+      fov,
+      std::max(1, static_cast<int>(std::lround(num(p, "fov_deg") / num(p, "bearing_res_deg")))));
   s.vertical_aperture_rad = aperture;
   s.r_min = std::max(0.1, standoff - half - 0.5);
   s.r_max = standoff + half + 1.0;
-  s.range_bins = std::max(1, static_cast<int>(std::ceil((s.r_max - s.r_min) / num(p, "range_res_m"))));
+  s.range_bins =
+      std::max(1, static_cast<int>(std::ceil((s.r_max - s.r_min) / num(p, "range_res_m"))));
   s.r_max = s.r_min + s.range_bins * num(p, "range_res_m");
   setup.simulator.elevation_step_rad = std::min(sweep.elevation_step_deg * kDeg, aperture);
   setup.simulator.num_threads = 1;
@@ -87,10 +88,9 @@ SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, Sweep
     // The thesis' vertical inspection: the sonar looks horizontally at the object and moves
     // along its own z axis (the direction of uncertainty) past the object's whole height.
     const double reach = std::min(1.0, standoff * std::tan(0.5 * aperture));
-    setup.T_world_vehicle = straight_pass(
-        Eigen::Vector3d(-standoff, 0, box.min().z() - reach),
-        Eigen::Vector3d(-standoff, 0, box.max().z() + reach), spacing,
-        Eigen::Matrix3d::Identity(), 0.0, 0.1);
+    setup.T_world_vehicle = straight_pass(Eigen::Vector3d(-standoff, 0, box.min().z() - reach),
+                                          Eigen::Vector3d(-standoff, 0, box.max().z() + reach),
+                                          spacing, Eigen::Matrix3d::Identity(), 0.0, 0.1);
   } else {
     const double circumference = 2 * M_PI * standoff;
     const int count = std::max(8, static_cast<int>(std::ceil(circumference / spacing)));
@@ -141,9 +141,8 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
   status["params"] = plan_params_json(params);
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    const SimulationSetup setup = plan_setup(sweep, params, sweep.source.empty()
-                                                                ? out_dir
-                                                                : fs::path(sweep.source).parent_path());
+    const SimulationSetup setup = plan_setup(
+        sweep, params, sweep.source.empty() ? out_dir : fs::path(sweep.source).parent_path());
     const fs::path ds_dir = dir / "dataset";
     const SimulationStats sim = simulate_dataset(setup, ds_dir, false);
     const Dataset ds = read_dataset(ds_dir);

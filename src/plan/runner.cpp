@@ -1,19 +1,19 @@
 // Runs a sweep: subprocess per point (failure isolation and per-point peak memory), resumable,
 // parallel on this machine, spread over MPI ranks when launched under mpirun.
-#include <nlohmann/json.hpp>
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
-#include <optional>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -136,8 +136,11 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     bool violates = false;
     for (const auto& c : sweep.constraints) violates |= !c.satisfied_by(params);
     if (violates) {
-      nlohmann::json j = {{"id", point_id(i)}, {"index", i}, {"params_key", key},
-                          {"params", plan_params_json(params)}, {"status", "skipped_constraint"},
+      nlohmann::json j = {{"id", point_id(i)},
+                          {"index", i},
+                          {"params_key", key},
+                          {"params", plan_params_json(params)},
+                          {"status", "skipped_constraint"},
                           {"message", "violates a hard constraint"}};
       fs::create_directories(status.parent_path());
       write_text_file(status.string(), j.dump(2) + "\n");
@@ -152,8 +155,9 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     todo.push_back(i);
   }
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const int workers = std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
-                                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
+  const int workers =
+      std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
+                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
   const int threads = std::max(1, cores / workers);
   Progress bar("plan", todo.size(), opt.progress);
   std::map<pid_t, std::size_t> running;
@@ -258,8 +262,8 @@ void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
   std::ostringstream csv;
   csv << "id,status,rank";
   for (const auto& name : sweep_parameter_names()) csv << ',' << name;
-  const std::vector<std::string> mcols = {"median_error_m", "mean_error_m", "coverage", "outliers",
-                                          "median_to_coverage", "num_points"};
+  const std::vector<std::string> mcols = {"median_error_m", "mean_error_m",       "coverage",
+                                          "outliers",       "median_to_coverage", "num_points"};
   for (const auto& m : mcols) csv << ',' << m;
   csv << ",runtime_s,peak_rss_mb,data_bytes,message\n";
   auto cell = [](const nlohmann::json& v) -> std::string {
@@ -285,7 +289,8 @@ void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
     csv << p["id"].get<std::string>() << ',' << p.value("status", "") << ',' << cell(p["rank"]);
     for (const auto& name : sweep_parameter_names()) csv << ',' << cell(p["params"][name]);
     for (const auto& m : mcols) {
-      csv << ',' << (p.contains("metrics") && p["metrics"].contains(m) ? cell(p["metrics"][m]) : "");
+      csv << ','
+          << (p.contains("metrics") && p["metrics"].contains(m) ? cell(p["metrics"][m]) : "");
     }
     for (const char* k : {"runtime_s", "peak_rss_mb", "data_bytes"}) {
       csv << ',' << (p.contains(k) ? cell(p[k]) : "");

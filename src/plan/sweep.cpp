@@ -11,11 +11,17 @@ namespace sonar3d {
 namespace {
 
 const std::map<std::string, SweepValue>& defaults() {
-  static const std::map<std::string, SweepValue> d = {
-      {"object", std::string("sphere")}, {"aperture_deg", 10.0}, {"range_res_m", 0.02},
-      {"bearing_res_deg", 0.2},          {"fov_deg", 60.0},      {"snr_db", std::monostate{}},
-      {"spacing_m", 0.01},               {"standoff_m", 3.0},    {"path", std::string("vertical")},
-      {"method", std::string("carve")},  {"voxel_m", 0.01}};
+  static const std::map<std::string, SweepValue> d = {{"object", std::string("sphere")},
+                                                      {"aperture_deg", 10.0},
+                                                      {"range_res_m", 0.02},
+                                                      {"bearing_res_deg", 0.2},
+                                                      {"fov_deg", 60.0},
+                                                      {"snr_db", std::monostate{}},
+                                                      {"spacing_m", 0.01},
+                                                      {"standoff_m", 3.0},
+                                                      {"path", std::string("vertical")},
+                                                      {"method", std::string("carve")},
+                                                      {"voxel_m", 0.01}};
   return d;
 }
 
@@ -156,9 +162,8 @@ Sweep load_sweep(const std::string& path) {
       SweepConstraint k;
       k.text = text;
       std::string value;
-      if (!(is >> k.parameter >> k.op >> value) ||
-          !(k.op == ">=" || k.op == "<=" || k.op == ">" || k.op == "<" || k.op == "==" ||
-            k.op == "!=")) {
+      if (!(is >> k.parameter >> k.op >> value) || !(k.op == ">=" || k.op == "<=" || k.op == ">" ||
+                                                     k.op == "<" || k.op == "==" || k.op == "!=")) {
         throw Error(yaml::where(path, c[i], ctx) +
                     ": expected 'parameter op number' with op one of >= <= > < == !=");
       }
@@ -175,9 +180,9 @@ Sweep load_sweep(const std::string& path) {
     }
   }
   s.rank_by = yaml::get_string(root, "rank_by", s.rank_by, path);
-  static const std::set<std::string> metrics = {"median_error_m", "mean_error_m", "coverage",
-                                                "outliers", "median_to_coverage", "runtime_s",
-                                                "peak_rss_mb", "data_bytes"};
+  static const std::set<std::string> metrics = {"median_error_m", "mean_error_m",       "coverage",
+                                                "outliers",       "median_to_coverage", "runtime_s",
+                                                "peak_rss_mb",    "data_bytes"};
   if (!metrics.count(s.rank_by)) {
     std::string list;
     for (const auto& m : metrics) list += (list.empty() ? "" : ", ") + m;

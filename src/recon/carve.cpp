@@ -41,8 +41,11 @@ using openvdb::CoordBBox;
 using Accessor = openvdb::tree::ValueAccessor<TreeT, false>;
 
 constexpr float kUnknown = std::numeric_limits<float>::infinity();  // background: no bound yet
-constexpr int kLeafDim = 8;    // LeafT::DIM
-constexpr int kTopDim = 128;
+constexpr int kLeafDim = 8;                                         // LeafT::DIM
+constexpr int kNodeDim = 128;  // voxels spanned by a lowest internal node (16 leaves)
+// Edge of the cubes handed to TBB tasks: small enough for an even load on a few cores (the work
+// gathers around the surfaces), large enough that a task costs little more than its work.
+constexpr int kTopDim = 32;
 constexpr int kObsScale = 2047;  // sin θ / sin θ_3dB in [-1, 1] -> [-2047, 2047]
 
 struct Observations {
@@ -57,7 +60,7 @@ Observations unpack_obs(std::int32_t v) {
   const auto u = static_cast<std::uint32_t>(v);
   return {static_cast<int>(u >> 24), static_cast<int>(u & 0xFFF) - 2048,
           static_cast<int>((u >> 12) & 0xFFF) - 2048};
-}   // voxels spanned by a lowest internal node (16 leaves)
+}  // voxels spanned by a lowest internal node (16 leaves)
 constexpr double kSqrt3 = 1.7320508075688772;
 
 // Tile extent (voxels) by tree depth (0 = root tile .. 3 = leaf voxel) of a 5-4-3 tree.
@@ -92,8 +95,14 @@ class FrameCarver {
   FrameCarver(const detail::SonarGeometry& g, const detail::FrameFootprint& fp,
               const SonarImage& image, double voxel_size, double margin, const CoordBBox& clip,
               bool track_span, int min_observations, bool span_filter)
-      : g_(g), fp_(fp), fr_(fp.frame()), image_(image), vs_(voxel_size),
-        clip_(clip), track_span_(track_span), min_span_needed_(span_filter),
+      : g_(g),
+        fp_(fp),
+        fr_(fp.frame()),
+        image_(image),
+        vs_(voxel_size),
+        clip_(clip),
+        track_span_(track_span),
+        min_span_needed_(span_filter),
         min_obs_(min_observations) {
     delta_ = margin * 0.5 * kSqrt3 * vs_;
     // Steps of the sonar-frame position per voxel index along world x, y, z.
@@ -155,8 +164,8 @@ class FrameCarver {
     bool span_new = false, span_changed = false;
   };
 
-  void process_leaf(Accessor& acc, SpanAccessor& sacc, const Coord& o,
-                    const detail::CubeClass& cls, TaskOut& out) const {
+  void process_leaf(Accessor& acc, SpanAccessor& sacc, const Coord& o, const detail::CubeClass& cls,
+                    TaskOut& out) const {
     LeafCtx c;
     c.leaf = acc.probeLeaf(o);
     c.sacc = &sacc;
@@ -294,7 +303,8 @@ class FrameCarver {
 
   // True when every voxel of the cube is already known free.
   static bool cube_free(const LeafCtx& c, const Coord& o, int s) {
-    return all_of_cube(o, s, [&](openvdb::Index n) { return c.v[n] == 0.0f && c.leaf->isValueOn(n); });
+    return all_of_cube(o, s,
+                       [&](openvdb::Index n) { return c.v[n] == 0.0f && c.leaf->isValueOn(n); });
   }
 
   // Largest value in the cube; +inf when a voxel is unknown.
@@ -321,7 +331,8 @@ class FrameCarver {
         c.span_new = true;
       }
     }
-    const int q = static_cast<int>(std::lround(std::clamp(s / g_.sin_theta3, -1.0, 1.0) * kObsScale));
+    const int q =
+        static_cast<int>(std::lround(std::clamp(s / g_.sin_theta3, -1.0, 1.0) * kObsScale));
     Observations o{1, q, q};
     if (!first && c.span->isValueOn(n)) {
       const Observations old = unpack_obs(c.span->getValue(n));
@@ -439,7 +450,9 @@ struct Carver::Impl {
   CoordBBox roi;  // voxel index box of the region of interest (or everything)
 
   Impl(const SonarSpec& s, const CarveConfig& c, std::optional<NoiseImages> n)
-      : spec(s), cfg(c), noise(std::move(n)),
+      : spec(s),
+        cfg(c),
+        noise(std::move(n)),
         arena(c.num_threads > 0 ? c.num_threads : static_cast<int>(tbb::task_arena::automatic)) {}
 
   void carve(const SonarImage& denoised, const FrameReturns& fr) {
@@ -447,8 +460,12 @@ struct Carver::Impl {
     const double vs = cfg.voxel_size;
     const Eigen::AlignedBox3d wb = detail::footprint_bounds_world(*geom, fr.T_world_sonar);
     const double lim = 2e9;
-    auto lo_idx = [&](double x) { return static_cast<int>(std::clamp(std::floor(x / vs), -lim, lim)); };
-    auto hi_idx = [&](double x) { return static_cast<int>(std::clamp(std::ceil(x / vs), -lim, lim)); };
+    auto lo_idx = [&](double x) {
+      return static_cast<int>(std::clamp(std::floor(x / vs), -lim, lim));
+    };
+    auto hi_idx = [&](double x) {
+      return static_cast<int>(std::clamp(std::ceil(x / vs), -lim, lim));
+    };
     CoordBBox box(Coord(lo_idx(wb.min().x()), lo_idx(wb.min().y()), lo_idx(wb.min().z())),
                   Coord(hi_idx(wb.max().x()), hi_idx(wb.max().y()), hi_idx(wb.max().z())));
     box.intersect(roi);
@@ -478,14 +495,15 @@ struct Carver::Impl {
       for (LeafT* leaf : out.new_leaves) tree.addLeaf(leaf);
       for (SpanLeafT* leaf : out.new_span_leaves) span_tree.addLeaf(leaf);
       for (const auto& [o, s] : out.free_cubes) {
-        if (s == kTopDim) {
+        if (s == kNodeDim) {
           tree.addTile(2, o, 0.0f, true);
         } else if (s == kLeafDim) {
           tree.addTile(1, o, 0.0f, true);
         } else {
           for (int x = 0; x < s; x += kLeafDim)
             for (int y = 0; y < s; y += kLeafDim)
-              for (int z = 0; z < s; z += kLeafDim) tree.addTile(1, o.offsetBy(x, y, z), 0.0f, true);
+              for (int z = 0; z < s; z += kLeafDim)
+                tree.addTile(1, o.offsetBy(x, y, z), 0.0f, true);
         }
         if (span) clear_span(o, s);
       }
@@ -507,8 +525,8 @@ Carver::Carver(const SonarSpec& spec, const CarveConfig& config, std::optional<N
                   std::to_string(spec.range_bins) + " × " + std::to_string(spec.beams()));
     }
   }
-  require(spec.range_bins < 65535, "carve: sonar '" + spec.name +
-                                       "' has too many range bins (max 65534)");
+  require(spec.range_bins < 65535,
+          "carve: sonar '" + spec.name + "' has too many range bins (max 65534)");
   init_openvdb();
   impl_->geom = std::make_unique<detail::SonarGeometry>(impl_->spec);
   impl_->grid = GridT::create(kUnknown);
@@ -541,8 +559,8 @@ void Carver::integrate(const SonarImage& image, const Eigen::Isometry3d& T_world
       frame_label.empty() ? "frame " + std::to_string(m.frames.size()) : frame_label;
   if (image.rows != m.spec.range_bins || image.cols != m.spec.beams()) {
     throw Error("carve: " + who + ": the image is " + std::to_string(image.rows) +
-                " range bins × " + std::to_string(image.cols) + " beams but sonar '" +
-                m.spec.name + "' has " + std::to_string(m.spec.range_bins) + " × " +
+                " range bins × " + std::to_string(image.cols) + " beams but sonar '" + m.spec.name +
+                "' has " + std::to_string(m.spec.range_bins) + " × " +
                 std::to_string(m.spec.beams()));
   }
   if (!T_world_sonar.matrix().allFinite()) {
@@ -651,9 +669,9 @@ void Carver::write_vdb(const std::string& path, const PointCloud* surface) const
   // Unknown voxels are the inactive ones; a background of 0 reads better in viewers than +inf.
   openvdb::tools::changeBackground(map->tree(), 0.0f);
   map->setName("carve_map");
-  map->insertMeta("description",
-                  openvdb::StringMetadata("sonar3d space carving map: active 0 = free, active v > 0 "
-                                          "= reflectivity bound (eq. 4.6), inactive = unknown"));
+  map->insertMeta("description", openvdb::StringMetadata(
+                                     "sonar3d space carving map: active 0 = free, active v > 0 "
+                                     "= reflectivity bound (eq. 4.6), inactive = unknown"));
   grids.push_back(map);
   if (surface) {
     GridT::Ptr s = GridT::create(0.0f);
@@ -689,7 +707,7 @@ const CarveConfig& Carver::config() const { return impl_->cfg; }
 const CarveStats& Carver::stats() const {
   const Impl& m = *impl_;
   m.stats.map_bytes = static_cast<std::size_t>(m.grid->memUsage()) +
-                     (m.span ? static_cast<std::size_t>(m.span->memUsage()) : 0);
+                      (m.span ? static_cast<std::size_t>(m.span->memUsage()) : 0);
   std::size_t fb = m.frames.capacity() * sizeof(FrameReturns);
   for (const auto& f : m.frames) fb += f.memory_bytes() - sizeof(FrameReturns);
   m.stats.frame_bytes = fb;
@@ -725,8 +743,8 @@ void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
                 [&](std::size_t i) {
                   auto item = std::make_shared<Item>();
                   item->i = i;
-                  item->image = ds.load_frame(i);   // errors name the file
-                  item->T = ds.T_world_sonar(i);    // errors name the frame
+                  item->image = ds.load_frame(i);  // errors name the file
+                  item->T = ds.T_world_sonar(i);   // errors name the frame
                   return item;
                 }) &
             tbb::make_filter<std::shared_ptr<Item>, void>(

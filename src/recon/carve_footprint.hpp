@@ -20,8 +20,10 @@ inline double fast_atan2(double y, double x) {
   const double mx = std::max(ax, ay), mn = std::min(ax, ay);
   if (mx == 0) return 0;
   const double a = mn / mx, s = a * a;
-  double r = (((((-0.01172120 * s + 0.05265332) * s - 0.11643287) * s + 0.19354346) * s -
-               0.33262347) * s + 0.99997726) * a;
+  double r =
+      (((((-0.01172120 * s + 0.05265332) * s - 0.11643287) * s + 0.19354346) * s - 0.33262347) * s +
+       0.99997726) *
+      a;
   if (ay > ax) r = M_PI_2 - r;
   if (x < 0) r = M_PI - r;
   return y < 0 ? -r : r;
@@ -104,8 +106,8 @@ class SonarGeometry {
       const int j = static_cast<int>((phi - fov_min) * inv_beam_width);
       return std::clamp(j, 0, beams - 1);
     }
-    const int j = static_cast<int>(std::upper_bound(edges.begin(), edges.end(), phi) -
-                                   edges.begin()) - 1;
+    const int j =
+        static_cast<int>(std::upper_bound(edges.begin(), edges.end(), phi) - edges.begin()) - 1;
     return std::clamp(j, 0, beams - 1);
   }
   // θ for sin θ = s, |s| <= sin θ_3dB (linear interpolation in a fine table).
@@ -144,8 +146,8 @@ enum class Region {
 // A cube's classification and, for Mixed cubes, the image window its voxel centres fall in.
 struct CubeClass {
   Region region = Region::Mixed;
-  bool window = false;   // i0..i1 × j0..j1 valid (the cube lies inside the range/bearing span)
-  bool no_carve = false; // every voxel centre lies at or behind its beams' first return
+  bool window = false;    // i0..i1 × j0..j1 valid (the cube lies inside the range/bearing span)
+  bool no_carve = false;  // every voxel centre lies at or behind its beams' first return
   int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
 };
 
@@ -168,7 +170,7 @@ class FrameFootprint {
       // carves all the way, so it has no "last").
       free[j] = g.r_min + f.first_return_bin[j] * g.dr;
       last[j] = f.last_return_bin[j] < 0 ? std::numeric_limits<double>::infinity()
-                                          : g.r_min + (f.last_return_bin[j] + 1) * g.dr;
+                                         : g.r_min + (f.last_return_bin[j] + 1) * g.dr;
     }
     min_free_.build(free, SparseTable::Op::Min);
     max_free_.build(free, SparseTable::Op::Max);

@@ -33,8 +33,7 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
   } else {
     std::string list;
     for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;
-    throw Error("unknown reconstruction method '" + options.method + "' (available: " + list +
-                ")");
+    throw Error("unknown reconstruction method '" + options.method + "' (available: " + list + ")");
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

@@ -21,8 +21,7 @@ namespace sonar3d {
 
 std::size_t FrameReturns::memory_bytes() const {
   return sizeof(*this) + first_return_bin.capacity() * sizeof(int) +
-         last_return_bin.capacity() * sizeof(int) +
-         return_bits.capacity() * sizeof(std::uint64_t);
+         last_return_bin.capacity() * sizeof(int) + return_bits.capacity() * sizeof(std::uint64_t);
 }
 
 bool FrameReturns::any_return(int beam, int bin0, int bin1) const {
@@ -43,9 +42,10 @@ bool FrameReturns::any_return(int beam, int bin0, int bin1) const {
 FrameReturns summarize_frame(const SonarImage& denoised, const Eigen::Isometry3d& T_world_sonar,
                              const SonarSpec& spec) {
   if (denoised.rows != spec.range_bins || denoised.cols != spec.beams()) {
-    throw Error("summarize_frame: the image is " + std::to_string(denoised.rows) + " range bins × " +
-                std::to_string(denoised.cols) + " beams but sonar '" + spec.name + "' has " +
-                std::to_string(spec.range_bins) + " × " + std::to_string(spec.beams()));
+    throw Error("summarize_frame: the image is " + std::to_string(denoised.rows) +
+                " range bins × " + std::to_string(denoised.cols) + " beams but sonar '" +
+                spec.name + "' has " + std::to_string(spec.range_bins) + " × " +
+                std::to_string(spec.beams()));
   }
   if (!T_world_sonar.matrix().allFinite()) {
     throw Error("summarize_frame: the pose T_world_sonar is not finite (NaN or infinite)");
@@ -65,8 +65,8 @@ FrameReturns summarize_frame(const SonarImage& denoised, const Eigen::Isometry3d
     const float* row = denoised.row_ptr(i);
     for (int j = 0; j < denoised.cols; ++j) {
       if (!(row[j] > 0.0f)) continue;  // zero (or NaN): no return
-      f.return_bits[static_cast<std::size_t>(j) * f.words_per_beam + (i >> 6)] |=
-          std::uint64_t{1} << (i & 63);
+      f.return_bits[static_cast<std::size_t>(j) * f.words_per_beam + (i >> 6)] |= std::uint64_t{1}
+                                                                                  << (i & 63);
       if (f.first_return_bin[j] == f.range_bins) f.first_return_bin[j] = i;
       f.last_return_bin[j] = i;
     }
@@ -91,11 +91,11 @@ void OcclusionConfig::validate() const {
   require_positive(voxel_size, "occlusion.voxel_size", "m");
   require(std::isfinite(min_intensity), "parameter 'occlusion.min_intensity' must be finite");
   require_non_negative(footprint_radius, "occlusion.footprint_radius", "voxels");
-  require(range_tolerance_bins >= 0, "parameter 'occlusion.range_tolerance_bins' must be >= 0, got " +
-                                         std::to_string(range_tolerance_bins));
-  require(num_threads >= 0,
-          "parameter 'occlusion.num_threads' must be >= 0 (0 = all cores), got " +
-              std::to_string(num_threads));
+  require(range_tolerance_bins >= 0,
+          "parameter 'occlusion.range_tolerance_bins' must be >= 0, got " +
+              std::to_string(range_tolerance_bins));
+  require(num_threads >= 0, "parameter 'occlusion.num_threads' must be >= 0 (0 = all cores), got " +
+                                std::to_string(num_threads));
 }
 
 namespace {
@@ -169,7 +169,8 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
                        static_cast<std::uint32_t>(n)});
   }
   tbb::parallel_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
-    return std::tie(a.bx, a.by, a.bz, a.in, a.v, a.idx) < std::tie(b.bx, b.by, b.bz, b.in, b.v, b.idx);
+    return std::tie(a.bx, a.by, a.bz, a.in, a.v, a.idx) <
+           std::tie(b.bx, b.by, b.bz, b.in, b.v, b.idx);
   });
   std::vector<std::uint32_t> cand;  // candidate point indices, block-major, one per voxel
   std::vector<Block> blocks;
@@ -260,13 +261,13 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     if (progress) progress->add();
   };
 
-  std::unique_ptr<tbb::task_arena> arena =
-      std::make_unique<tbb::task_arena>(config.num_threads > 0 ? config.num_threads
-                                                               : static_cast<int>(tbb::task_arena::automatic));
+  std::unique_ptr<tbb::task_arena> arena = std::make_unique<tbb::task_arena>(
+      config.num_threads > 0 ? config.num_threads : static_cast<int>(tbb::task_arena::automatic));
   arena->execute([&] {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frames.size(), 1),
                       [&](const tbb::blocked_range<std::size_t>& rg) {
-                        for (std::size_t f = rg.begin(); f < rg.end(); ++f) process_frame(frames[f]);
+                        for (std::size_t f = rg.begin(); f < rg.end(); ++f)
+                          process_frame(frames[f]);
                       });
   });
 

@@ -23,11 +23,12 @@ Scene make_pipeline_scene() {
   return scene;
 }
 
-SimBenchResult benchmark_simulator(const SonarSpec& spec, const SimulatorConfig& config,
-                                   int frames, double pitch_down_rad) {
+SimBenchResult benchmark_simulator(const SonarSpec& spec, const SimulatorConfig& config, int frames,
+                                   double pitch_down_rad) {
   require(frames > 0, "benchmark: frames must be > 0");
   const Simulator sim(make_pipeline_scene(), spec, config);
-  sim.render(Eigen::Isometry3d(Eigen::AngleAxisd(pitch_down_rad, Eigen::Vector3d::UnitY())), 0);  // warm-up: first-touch allocations
+  sim.render(Eigen::Isometry3d(Eigen::AngleAxisd(pitch_down_rad, Eigen::Vector3d::UnitY())),
+             0);  // warm-up: first-touch allocations
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < frames; ++k) {
     // Move 1 cm up per frame, as in a vertical inspection.

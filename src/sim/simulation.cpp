@@ -72,7 +72,8 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     }
   }
   if (type == "orbit") {
-    yaml::check_keys(n, {"type", "center", "radius", "count", "start_deg", "sweep_deg", "period"}, file, ctx);
+    yaml::check_keys(n, {"type", "center", "radius", "count", "start_deg", "sweep_deg", "period"},
+                     file, ctx);
     const auto c = yaml::get_vector(n, "center", 3, file, ctx);
     try {
       return orbit(Eigen::Vector3d(c[0], c[1], c[2]), yaml::get_double(n, "radius", file, ctx),
@@ -193,10 +194,11 @@ SimulationSetup load_simulation_setup(const std::string& path) {
 
   const YAML::Node tr = root["trajectory"];
   if (!tr) throw Error(path + ": required key 'trajectory' is missing");
-  yaml::check_keys(tr, {"period", "segments", "type", "start", "end", "spacing", "rpy_deg",
-                        "center", "radius", "count", "start_deg", "sweep_deg", "x", "y", "z",
-                        "line_spacing", "file"},
-                   path, "trajectory");
+  yaml::check_keys(
+      tr,
+      {"period", "segments", "type", "start", "end", "spacing", "rpy_deg", "center", "radius",
+       "count", "start_deg", "sweep_deg", "x", "y", "z", "line_spacing", "file"},
+      path, "trajectory");
   const double period = yaml::get_double(tr, "period", 0.1, path, "trajectory");
   require_positive(period, "trajectory.period", "s");
   std::vector<std::pair<YAML::Node, std::string>> segs;
@@ -239,8 +241,9 @@ SimulationSetup load_simulation_setup(const std::string& path) {
       nc.kind = NoiseModelConfig::Kind::Stripes;
       if (const YAML::Node s = n["stripes"]) {
         const std::string c = "noise.stripes";
-        yaml::check_keys(s, {"count", "width_deg", "stripe_mean", "stripe_std", "floor_mean",
-                             "floor_std", "range_decay"},
+        yaml::check_keys(s,
+                         {"count", "width_deg", "stripe_mean", "stripe_std", "floor_mean",
+                          "floor_std", "range_decay"},
                          path, c);
         auto& st = nc.stripes;
         st.count = yaml::get_int(s, "count", st.count, path, c);
@@ -285,10 +288,10 @@ std::optional<NoiseImages> noise_images(const SimulationSetup& setup) {
     NoiseImages n{read_float_image(nc.mean_path), read_float_image(nc.std_path)};
     for (const auto* im : {&n.mean, &n.std}) {
       if (im->rows != setup.spec.range_bins || im->cols != setup.spec.beams()) {
-        throw Error("noise image is " + std::to_string(im->rows) + "×" +
-                    std::to_string(im->cols) + " but the sonar has " +
-                    std::to_string(setup.spec.range_bins) + " range bins × " +
-                    std::to_string(setup.spec.beams()) + " beams (" + nc.mean_path + ")");
+        throw Error("noise image is " + std::to_string(im->rows) + "×" + std::to_string(im->cols) +
+                    " but the sonar has " + std::to_string(setup.spec.range_bins) +
+                    " range bins × " + std::to_string(setup.spec.beams()) + " beams (" +
+                    nc.mean_path + ")");
       }
     }
     for (float v : n.std.data) {
@@ -303,8 +306,7 @@ std::optional<NoiseImages> noise_images(const SimulationSetup& setup) {
   return out;
 }
 
-SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& out,
-                                 bool progress) {
+SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& out, bool progress) {
   const auto t_start = std::chrono::steady_clock::now();
   const Simulator sim(setup.scene, setup.spec, setup.simulator);
   const std::optional<NoiseImages> noise = noise_images(setup);

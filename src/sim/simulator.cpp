@@ -36,8 +36,9 @@ Simulator::Simulator(const Scene& scene, const SonarSpec& spec, const SimulatorC
   config_.validate();
   if (scene.empty()) throw Error("the scene is empty: it has no object with triangles to image");
   if (config_.elevation_step_rad > spec_.vertical_aperture_rad) {
-    throw Error("simulation.elevation_step_deg exceeds the vertical aperture: at least one ray "
-                "per beam is needed across the aperture");
+    throw Error(
+        "simulation.elevation_step_deg exceeds the vertical aperture: at least one ray "
+        "per beam is needed across the aperture");
   }
   RTCDevice device = detail::embree_device();
   impl_->scene = rtcNewScene(device);
@@ -60,9 +61,9 @@ Simulator::Simulator(const Scene& scene, const SonarSpec& spec, const SimulatorC
       }
       std::memcpy(v + 3 * i, p.data(), 3 * sizeof(float));
     }
-    auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-        obj.mesh_world.triangles.size()));
+    auto* idx = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(unsigned), obj.mesh_world.triangles.size()));
     const auto nv = static_cast<int>(obj.mesh_world.vertices.size());
     for (std::size_t i = 0; i < obj.mesh_world.triangles.size(); ++i) {
       const auto& t = obj.mesh_world.triangles[i];
@@ -87,7 +88,8 @@ Simulator::Simulator(const Scene& scene, const SonarSpec& spec, const SimulatorC
 Simulator::~Simulator() = default;
 
 std::size_t Simulator::rays_per_image() const {
-  const int m = static_cast<int>(std::ceil(spec_.vertical_aperture_rad / config_.elevation_step_rad - 1e-9));
+  const int m =
+      static_cast<int>(std::ceil(spec_.vertical_aperture_rad / config_.elevation_step_rad - 1e-9));
   return static_cast<std::size_t>(spec_.beams()) * config_.rays_per_beam * m;
 }
 
@@ -218,7 +220,8 @@ SonarImage Simulator::render(const Eigen::Isometry3d& T_world_sonar,
             const float nn = ng.norm();
             if (!(nn > 0)) continue;
             const double lambert = std::abs(ng.dot(d)) / nn;
-            const double weight = (k0 + l == m - 1) ? ray_weight * last_cell / theta_res : ray_weight;
+            const double weight =
+                (k0 + l == m - 1) ? ray_weight * last_cell / theta_res : ray_weight;
             column[bin] += refl[rh.hit.geomID[l]] * lambert * b2_of[l] * weight;
           }
         }
@@ -228,8 +231,8 @@ SonarImage Simulator::render(const Eigen::Isometry3d& T_world_sonar,
       }
     }
   };
-  const int threads = config_.num_threads > 0 ? config_.num_threads
-                                              : tbb::this_task_arena::max_concurrency();
+  const int threads =
+      config_.num_threads > 0 ? config_.num_threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
   arena.execute([&] { tbb::parallel_for(tbb::blocked_range<int>(0, beams, 4), render_beams); });
   return image;

@@ -35,7 +35,7 @@ struct CarveConfig {
   // World-frame region of interest: only voxels whose centre lies inside are mapped. Empty = all
   // that the sonar sees (memory then grows with the swept volume).
   std::optional<Eigen::AlignedBox3d> region;
-  DenoiseConfig denoise;      // applied to every frame before carving (sec. 4.4.7)
+  DenoiseConfig denoise;  // applied to every frame before carving (sec. 4.4.7)
   bool resolve_occlusions = true;
   // occlusion.voxel_size and occlusion.num_threads are overridden by this config's voxel_size and
   // num_threads; occlusion.min_intensity by static_threshold when the latter is larger.
@@ -59,18 +59,18 @@ struct CarveConfig {
   // is seen by every frame whose aperture covers it. 1 = off (the thesis' rule; a snapshot then
   // also shows what a single frame bounded).
   int min_observations = 2;
-  int num_threads = 0;  // 0 = all cores (TBB)
+  int num_threads = 0;    // 0 = all cores (TBB)
   void validate() const;  // throws Error naming the field
 };
 
 struct CarveStats {
   std::size_t frames = 0;
-  double integrate_seconds = 0;   // total wall time in integrate() (denoise included)
-  double occlusion_seconds = 0;   // wall time of finalize()'s occlusion resolution
-  std::size_t candidates = 0;     // points before occlusion resolution (last finalize/snapshot)
-  std::size_t points = 0;         // points after finalize()
-  std::size_t map_bytes = 0;      // OpenVDB grid memory
-  std::size_t frame_bytes = 0;    // kept per-frame return summaries
+  double integrate_seconds = 0;  // total wall time in integrate() (denoise included)
+  double occlusion_seconds = 0;  // wall time of finalize()'s occlusion resolution
+  std::size_t candidates = 0;    // points before occlusion resolution (last finalize/snapshot)
+  std::size_t points = 0;        // points after finalize()
+  std::size_t map_bytes = 0;     // OpenVDB grid memory
+  std::size_t frame_bytes = 0;   // kept per-frame return summaries
   std::size_t leaf_voxels_visited = 0;  // voxels projected one by one (work counter)
 };
 

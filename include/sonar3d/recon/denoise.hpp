@@ -11,11 +11,11 @@
 namespace sonar3d {
 
 struct DenoiseConfig {
-  bool z_test = true;            // apply eq. 4.8 when noise statistics are available
-  double z_threshold = 3.0;      // T: keep a pixel when (I - m)/σ > T
-  bool subtract_mean = true;     // kept pixels become I - m (the return above the noise floor)
-  double static_threshold = 0.0; // keep a pixel only when its (denoised) intensity > this
-  void validate() const;         // throws Error naming the field
+  bool z_test = true;             // apply eq. 4.8 when noise statistics are available
+  double z_threshold = 3.0;       // T: keep a pixel when (I - m)/σ > T
+  bool subtract_mean = true;      // kept pixels become I - m (the return above the noise floor)
+  double static_threshold = 0.0;  // keep a pixel only when its (denoised) intensity > this
+  void validate() const;          // throws Error naming the field
 };
 
 // Denoises `image` in place. `noise` may be empty: then only the static threshold applies.

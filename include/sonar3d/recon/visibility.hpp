@@ -55,8 +55,8 @@ bool seen_free(const FrameReturns& frame, const SonarSpec& spec, const Eigen::Ve
 
 struct OcclusionConfig {
   double elevation_resolution_rad = 0.1 * M_PI / 180.0;  // interval size along the aperture
-  double voxel_size = 0.01;      // m: the final map keeps one point per voxel (sec. 4.4.5)
-  double min_intensity = 0.0;    // keep candidates whose bound (intensity) is > this
+  double voxel_size = 0.01;    // m: the final map keeps one point per voxel (sec. 4.4.5)
+  double min_intensity = 0.0;  // keep candidates whose bound (intensity) is > this
   // A candidate shadows the directions within footprint_radius · voxel_size of its centre (its
   // angular footprint, seen from the sonar): map points are voxel samples, so a point alone
   // would leave gaps between neighbouring front voxels through which the back shows.
@@ -64,8 +64,8 @@ struct OcclusionConfig {
   // A candidate is observed when no other candidate in a return pixel lies more than this many
   // range bins nearer along the same (beam, elevation interval); 0 = the pixel-exact rule.
   int range_tolerance_bins = 0;
-  int num_threads = 0;           // 0 = all cores
-  void validate() const;         // throws Error naming the field
+  int num_threads = 0;    // 0 = all cores
+  void validate() const;  // throws Error naming the field
 };
 
 // Occlusion resolution (sec. 4.4.5): for every frame, walks each beam from short to long range,

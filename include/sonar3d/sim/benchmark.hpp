@@ -14,14 +14,14 @@ Scene make_pipeline_scene();
 struct SimBenchResult {
   int frames = 0;
   double seconds = 0;
-  double hz = 0;            // images per second
+  double hz = 0;  // images per second
   double mrays_per_s = 0;
   std::size_t rays_per_image = 0;
 };
 
 // `pitch_down_rad` tilts the sonar toward the seabed: 0 is the thesis' level geometry (only the
 // pipe returns); 10–15° fills the lower half of the aperture with seabed returns (a harder case).
-SimBenchResult benchmark_simulator(const SonarSpec& spec, const SimulatorConfig& config,
-                                   int frames, double pitch_down_rad = 0.0);
+SimBenchResult benchmark_simulator(const SonarSpec& spec, const SimulatorConfig& config, int frames,
+                                   double pitch_down_rad = 0.0);
 
 }  // namespace sonar3d
