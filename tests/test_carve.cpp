@@ -16,6 +16,7 @@
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/carve.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/recon/visibility.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
@@ -511,8 +512,32 @@ TEST(Carve, DatasetAndCli) {
   const std::string deconv = cli + " -q reconstruct " + (dir / "ok").string() +
                              " --method deconv -o " + (dir / "d.ply").string() + " > " +
                              (dir / "err2.txt").string() + " 2>&1";
-  // Until the deconvolution method is wired, a clear error; afterwards, a cloud.
-  const int rc = std::system(deconv.c_str());
-  EXPECT_TRUE(rc != 0 ? !fs::exists(dir / "d.ply") : fs::exists(dir / "d.ply"));
+  EXPECT_EQ(std::system(deconv.c_str()), 0);
+  EXPECT_TRUE(fs::exists(dir / "d.ply"));
+
+  // ReconstructOptions::region applies to every method: carving maps only inside it (the same
+  // cloud as CarveConfig::region), deconvolution keeps only the points inside it.
+  ReconstructOptions ro;
+  ro.region = cfg.region;
+  EXPECT_EQ(reconstruct_dataset(ds, ro).cloud.size(), lib.size());
+  ro.method = "deconv";
+  ro.region.reset();
+  const PointCloud whole = reconstruct_dataset(ds, ro).cloud;
+  const Eigen::AlignedBox3d upper(Eigen::Vector3d(-1, -1, centre.z()), Eigen::Vector3d(1, 1, 2));
+  ro.region = upper;
+  const PointCloud cut_cloud = reconstruct_dataset(ds, ro).cloud;
+  std::size_t inside = 0;
+  for (const auto& p : whole.points) inside += upper.contains(p.cast<double>()) ? 1 : 0;
+  ASSERT_GT(inside, 10u);
+  EXPECT_LT(inside, whole.size());
+  EXPECT_EQ(cut_cloud.size(), inside);
+  EXPECT_EQ(cut_cloud.intensity.size(), inside);
+  ro.region = Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(1, 1, 1));
+  try {
+    reconstruct_dataset(ds, ro);
+    FAIL() << "a flat region must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'region'"), std::string::npos) << e.what();
+  }
   fs::remove_all(dir);
 }

@@ -198,6 +198,101 @@ fs::path make_plan_dir(const fs::path& dir, const FixtureOptions& opt = {}) {
   return dir;
 }
 
+// A small plan directory over arbitrary axes, for the page's axis kinds and edge cases: one point
+// per combination of `grid` (parameter values), sphere and/or tank truth as named by `object`
+// (default sphere), clouds of 200 points with noise growing with `snr_db` (none = noise-free)
+// and real evaluate() metrics; `failed(params)` marks points failed with a message.
+fs::path make_small_plan_dir(const fs::path& dir, const json& axes, const std::vector<json>& grid,
+                             const std::function<bool(const json&)>& failed) {
+  fs::create_directories(dir / "truth");
+  std::map<std::string, TriangleMesh> truth;
+  truth["sphere"] = make_sphere(0.5, 32);
+  truth["tank"] = make_reference_object("tank");
+  for (const auto& [name, mesh] : truth)
+    save_mesh((dir / "truth" / (name + ".ply")).string(), mesh);
+  json results = {{"version", 1},
+                  {"rank_by", "median_to_coverage"},
+                  {"rank_order", "ascending"},
+                  {"constraints", json::array()},
+                  {"axes", axes}};
+  json points = json::array();
+  EvalConfig ecfg;
+  ecfg.samples_per_cm2 = 0.1;
+  std::mt19937_64 rng(11);
+  for (std::size_t i = 0; i < grid.size(); ++i) {
+    const json& params = grid[i];
+    char id[16];
+    std::snprintf(id, sizeof id, "q%03zu", i);
+    const std::string obj = params.value("object", std::string("sphere"));
+    json p = {{"id", id},
+              {"params", params},
+              {"objects", json::array({obj})},
+              {"runtime_s", 1.0 + 0.1 * static_cast<double>(i)},
+              {"peak_rss_mb", 100.0},
+              {"data_bytes", 1000000},
+              {"rank", nullptr}};
+    if (failed(params)) {
+      p["status"] = "failed";
+      p["message"] = "simulate: no frame hit the object (standoff beyond r_max)";
+      p["metrics"] = nullptr;
+      p["cloud"] = nullptr;
+      points.push_back(p);
+      continue;
+    }
+    const double snr = params.contains("snr_db") && params["snr_db"].is_number()
+                           ? params["snr_db"].get<double>()
+                           : 40.0;
+    const auto sigma = static_cast<float>(0.004 + 0.3 * std::pow(10.0, -snr / 20.0));
+    std::normal_distribution<float> noise(0.f, sigma);
+    PointCloud cloud;
+    for (const auto& q : sample_surface(truth[obj], 200, rng())) {
+      cloud.points.push_back(q + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
+      cloud.intensity.push_back(1.f);
+    }
+    const std::string rel = std::string("points/") + id + "/cloud.ply";
+    fs::create_directories(dir / "points" / id);
+    write_ply((dir / rel).string(), cloud);
+    const EvalResult r = evaluate(cloud, truth[obj], ecfg);
+    p["status"] = "ok";
+    p["message"] = "";
+    p["metrics"] = {{"median_error_m", r.median_error},
+                    {"coverage", r.coverage},
+                    {"outliers", r.outliers},
+                    {"median_to_coverage", r.median_to_coverage},
+                    {"num_points", r.num_points}};
+    p["cloud"] = rel;
+    points.push_back(p);
+  }
+  results["points"] = points;
+  write_text_file((dir / "results.json").string(), results.dump(2));
+  return dir;
+}
+
+// Runs web/test_report.mjs on a page (extra: its options); fails the test with the log unless
+// every check passed. Skips without Node.js/Chromium only when SONAR3D_SKIP_BROWSER_TEST is set.
+void run_browser_test(const fs::path& page, const fs::path& shot, const std::string& extra) {
+  const char* chromium_env = std::getenv("SONAR3D_CHROMIUM");
+  const std::string chromium = chromium_env ? chromium_env : "/usr/bin/chromium";
+  ASSERT_EQ(std::system("command -v node > /dev/null 2>&1"), 0)
+      << "the browser test needs Node.js: run scripts/install-deps.sh "
+         "(or set SONAR3D_SKIP_BROWSER_TEST=1)";
+  ASSERT_TRUE(fs::exists(chromium))
+      << "the browser test needs Chromium at " << chromium
+      << ": run scripts/install-deps.sh (or set SONAR3D_CHROMIUM / SONAR3D_SKIP_BROWSER_TEST=1)";
+  ASSERT_TRUE(fs::exists(kWebDir / "node_modules/playwright-core"))
+      << "the browser test needs web/node_modules: run scripts/install-deps.sh (npm ci in web/)";
+  const fs::path log = fs::path(shot).replace_extension(".txt");
+  const std::string cmd = "node '" + (kWebDir / "test_report.mjs").string() + "' '" +
+                          page.string() + "' --screenshot '" + shot.string() + "' --chromium '" +
+                          chromium + "' " + extra + " > '" + log.string() + "' 2>&1";
+  const int rc = std::system(cmd.c_str());
+  const std::string out = read_text_file(log.string());
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find(" 0 failed"), std::string::npos);
+  EXPECT_TRUE(fs::exists(shot));
+}
+
 class ReportTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -456,29 +551,62 @@ TEST_F(ReportTest, RendersInHeadlessChromium) {
   if (std::getenv("SONAR3D_SKIP_BROWSER_TEST") != nullptr) {
     GTEST_SKIP() << "SONAR3D_SKIP_BROWSER_TEST is set";
   }
-  const char* chromium_env = std::getenv("SONAR3D_CHROMIUM");
-  const std::string chromium = chromium_env ? chromium_env : "/usr/bin/chromium";
-  ASSERT_EQ(std::system("command -v node > /dev/null 2>&1"), 0)
-      << "the browser test needs Node.js: run scripts/install-deps.sh "
-         "(or set SONAR3D_SKIP_BROWSER_TEST=1)";
-  ASSERT_TRUE(fs::exists(chromium))
-      << "the browser test needs Chromium at " << chromium
-      << ": run scripts/install-deps.sh (or set SONAR3D_CHROMIUM / SONAR3D_SKIP_BROWSER_TEST=1)";
-  ASSERT_TRUE(fs::exists(kWebDir / "node_modules/playwright-core"))
-      << "the browser test needs web/node_modules: run scripts/install-deps.sh (npm ci in web/)";
   const fs::path plan = copy_plan("browser");
   const ReportSummary s = write_report(plan, config());
-  const fs::path shot = root_ / "report_page.png";
-  const fs::path log = root_ / "browser_test.txt";
-  const std::string cmd = "node '" + (kWebDir / "test_report.mjs").string() + "' '" +
-                          s.output.string() + "' --screenshot '" + shot.string() +
-                          "' --chromium '" + chromium + "' > '" + log.string() + "' 2>&1";
-  const int rc = std::system(cmd.c_str());
-  const std::string out = read_text_file(log.string());
-  std::printf("%s", out.c_str());
-  EXPECT_EQ(rc, 0) << out;
-  EXPECT_NE(out.find("0 failed"), std::string::npos);
-  EXPECT_TRUE(fs::exists(shot));
+  run_browser_test(s.output, root_ / "report_page.png", "");
+}
+
+// An axis that mixes numbers and a level (snr_db: [none, 30, 20, 10], none = noise-free, as in
+// data/sweeps/snr.yaml) is offered as x axis and plotted to scale with "none" apart; strings
+// (object) and booleans (zero_mean) plot as categories; a failed point is left out.
+TEST_F(ReportTest, MixedNumberAndLevelAxisPlotsInHeadlessChromium) {
+  if (std::getenv("SONAR3D_SKIP_BROWSER_TEST") != nullptr) {
+    GTEST_SKIP() << "SONAR3D_SKIP_BROWSER_TEST is set";
+  }
+  const json axes = {{"object", {"sphere", "tank"}},
+                     {"snr_db", {nullptr, 30.0, 20.0, 10.0}},
+                     {"zero_mean", {true, false}}};
+  std::vector<json> grid;
+  for (const auto& o : axes["object"])
+    for (const auto& snr : axes["snr_db"])
+      for (const auto& z : axes["zero_mean"])
+        grid.push_back({{"object", o}, {"snr_db", snr}, {"zero_mean", z}});
+  const fs::path plan = make_small_plan_dir(root_ / "mixed", axes, grid, [](const json& p) {
+    return p["object"] == "tank" && p["snr_db"] == 10.0 && p["zero_mean"] == false;
+  });
+  const ReportSummary s = write_report(plan, config());
+  EXPECT_EQ(s.num_points, 16u);
+  EXPECT_EQ(s.num_failed, 1u);
+  // The page gets the axis as written: null first, then the numbers.
+  const json d = embedded_data(read_text_file(s.output.string()));
+  EXPECT_EQ(d["results"]["axes"]["snr_db"], json({nullptr, 30.0, 20.0, 10.0}));
+  run_browser_test(s.output, root_ / "mixed_page.png", "--mixed-axis snr_db");
+}
+
+// A sweep over a single axis plots against it with one line; a sweep where every configuration
+// failed says so instead of drawing empty plots, and lists the messages.
+TEST_F(ReportTest, SingleAxisAndAllFailedSweepsInHeadlessChromium) {
+  if (std::getenv("SONAR3D_SKIP_BROWSER_TEST") != nullptr) {
+    GTEST_SKIP() << "SONAR3D_SKIP_BROWSER_TEST is set";
+  }
+  const json single_axes = {{"spacing_m", {0.05, 0.01, 0.02}}};
+  std::vector<json> grid;
+  for (const auto& v : single_axes["spacing_m"]) grid.push_back({{"spacing_m", v}});
+  const fs::path single =
+      make_small_plan_dir(root_ / "single", single_axes, grid, [](const json&) { return false; });
+  run_browser_test(write_report(single, config()).output, root_ / "single_page.png", "");
+
+  const json failed_axes = {{"method", {"carve", "deconv"}}, {"standoff_m", {8.0, 9.0}}};
+  grid.clear();
+  for (const auto& m : failed_axes["method"])
+    for (const auto& r : failed_axes["standoff_m"])
+      grid.push_back({{"method", m}, {"standoff_m", r}});
+  const fs::path all_failed =
+      make_small_plan_dir(root_ / "allfailed", failed_axes, grid, [](const json&) { return true; });
+  const ReportSummary s = write_report(all_failed, config());
+  EXPECT_EQ(s.num_failed, 4u);
+  EXPECT_EQ(s.num_clouds, 0u);
+  run_browser_test(s.output, root_ / "allfailed_page.png", "--all-failed");
 }
 
 }  // namespace

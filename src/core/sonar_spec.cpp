@@ -76,12 +76,17 @@ double SonarSpec::beam_edge_high(int j) const {
 int SonarSpec::beam_of_bearing(double phi) const {
   const int n = beams();
   if (n == 0 || !(phi >= fov_min()) || !(phi < fov_max())) return -1;
-  if (uniform_bearings() && n > 1) {
+  if (n > 1) {
+    // O(1) guess as if the table were uniform, verified against the cell's own edges: exact for
+    // any table, with no cached uniformity flag that an in-place edit of the public bearings_rad
+    // could leave stale. (Testing uniform_bearings() here made every call O(beams).)
     const double lo = fov_min();
     const double w = (fov_max() - lo) / n;
-    return std::clamp(static_cast<int>((phi - lo) / w), 0, n - 1);
+    const int j = std::clamp(static_cast<int>((phi - lo) / w), 0, n - 1);
+    if (phi >= beam_edge_low(j) && phi < beam_edge_high(j)) return j;
   }
-  // Cell edges are midpoints, so the owning beam is the nearest bearing.
+  // Non-uniform table (or a guess off by rounding at a cell edge): cell edges are midpoints, so
+  // the owning beam is the nearest bearing.
   const auto it = std::lower_bound(bearings_rad.begin(), bearings_rad.end(), phi);
   int j = static_cast<int>(it - bearings_rad.begin());
   if (j == n) return n - 1;

@@ -397,14 +397,16 @@ class FrameCarver {
 
 }  // namespace
 
+void validate_region(const Eigen::AlignedBox3d& region, const std::string& name) {
+  require(region.min().allFinite() && region.max().allFinite(),
+          "parameter '" + name + "' must have finite corners");
+  require((region.max().array() > region.min().array()).all(),
+          "parameter '" + name + "': every max corner coordinate must exceed the min one");
+}
+
 void CarveConfig::validate() const {
   require_positive(voxel_size, "carve.voxel_size", "m");
-  if (region) {
-    require(region->min().allFinite() && region->max().allFinite(),
-            "parameter 'carve.region' must have finite corners");
-    require((region->max().array() > region->min().array()).all(),
-            "parameter 'carve.region': every max corner coordinate must exceed the min one");
-  }
+  if (region) validate_region(*region, "carve.region");
   denoise.validate();
   occlusion.validate();
   require(std::isfinite(static_threshold), "parameter 'carve.static_threshold' must be finite");

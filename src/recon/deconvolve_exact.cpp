@@ -33,7 +33,9 @@ namespace {
 struct Block {
   double rho = 0.0;
   int K = 1;
-  int P = 0;
+  int P = 0;        // layers
+  int classes = 1;  // unknowns per layer: 1, or 3 with exact_lambertian (facing ρ, up, down)
+  int unknowns = 0;  // P·classes; unknown q is layer q / classes, class q % classes
   double first_layer = 0.0;
   int bin_first = 0, bin_last = -1;  // range bins its cells reach (absolute)
   SparseColumns A;                   // rows: (bin − bin_lo)·n + k; columns: layers
@@ -49,8 +51,27 @@ struct Entry {
   float w;
 };
 
+// Lambertian factor of normal class c for a ray at elevation θ (θ > 0: the cell is above the
+// frame). Class 0: a surface facing the pass axis (normal −ρ̂: cos(incidence) = cos θ); class 1:
+// facing up (normal +ĥ), seen only from frames above it (cos(incidence) = −sin θ > 0); class 2:
+// facing down, seen only from below. A surface tilted by α toward up is cos α·class 0 + sin α·
+// class 1 up to the −sin α·sin θ of the frames below (|θ| ≤ θ_3dB keeps that small).
+double class_factor(int c, double theta) {
+  switch (c) {
+    case 0:
+      return std::cos(theta);
+    case 1:
+      return std::max(0.0, -std::sin(theta));
+    default:
+      return std::max(0.0, std::sin(theta));
+  }
+}
+
 // Builds the block of cells at horizontal distance rho. Row order: (bin − bin_lo)·n + k.
-Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, int s_h, int s_rho) {
+// classes = 1: the reflectivity model of eq. 2.13 without the Lambertian term (as A*, eq. 5.27);
+// classes = 3: each cell holds three unknowns, one per normal class (class_factor).
+Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, int s_h, int s_rho,
+                  int classes) {
   const SonarSpec& spec = *pd.spec;
   const int n = pd.n;
   const double dz = pd.dz;
@@ -63,6 +84,8 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
   const double z0 = pd.heights.front();
   B.P = static_cast<int>(std::lround((pd.heights.back() - z0) / dz)) + B.K;
   B.first_layer = z0 - 0.5 * (B.K - 1) * dz;
+  B.classes = classes;
+  B.unknowns = B.P * classes;
   const int P = B.P;
 
   bool uniform = true;
@@ -71,10 +94,12 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
   }
   // Contributions of one cell (layer offset dh above the frame) to the bins: sub-sampled over
   // the cell (s_rho × s_h points), each point binned by its true slant range.
-  std::vector<double> acc(spec.range_bins, 0.0);
+  std::vector<double> acc(static_cast<std::size_t>(spec.range_bins) * classes, 0.0);
+  std::vector<char> hit(spec.range_bins, 0);
   std::vector<int> touched;
-  auto cell = [&](double dh, std::vector<std::pair<int, float>>& outv) {
-    outv.clear();
+  // outv[c]: (bin, weight) of class c.
+  auto cell = [&](double dh, std::vector<std::vector<std::pair<int, float>>>& outv) {
+    outv.assign(classes, {});
     touched.clear();
     const double w0 = 1.0 / (s_h * s_rho);
     for (int a = 0; a < s_rho; ++a) {
@@ -86,27 +111,43 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
         if (std::abs(theta) > th3) continue;  // traced aperture only
         const int i = spec.bin_of_range(std::hypot(rr, h));
         if (i < pd.bin_lo || i > pd.bin_hi) continue;
-        if (acc[i] == 0.0) touched.push_back(i);
+        if (!hit[i]) {
+          hit[i] = 1;
+          touched.push_back(i);
+        }
         // The sensor integrates over elevation (eq. 2.13): a cell of height Δz at distance ρ'
         // spans dθ = cos²θ·Δz/ρ', so its weight is B(θ)²·cos²θ (ρ/ρ' keeps the block's scale).
         const double ct = std::cos(theta);
-        acc[i] += w0 * pattern.power(theta, th3) * ct * ct * (rho / rr);
+        const double w = w0 * pattern.power(theta, th3) * ct * ct * (rho / rr);
+        if (classes == 1) {
+          acc[i] += w;
+        } else {
+          // eq. 2.6: Lambertian backscatter ∝ cos(incidence), zero for a surface facing away.
+          for (int c = 0; c < classes; ++c) {
+            acc[static_cast<std::size_t>(i) * classes + c] += w * class_factor(c, theta);
+          }
+        }
       }
     }
     std::sort(touched.begin(), touched.end());
     for (int i : touched) {
-      if (acc[i] > 0) outv.emplace_back(i, static_cast<float>(acc[i]));
-      acc[i] = 0.0;
+      for (int c = 0; c < classes; ++c) {
+        double& a = acc[static_cast<std::size_t>(i) * classes + c];
+        if (a > 0) outv[c].emplace_back(i, static_cast<float>(a));
+        a = 0.0;
+      }
+      hit[i] = 0;
     }
   };
 
-  // Per layer p, the frames whose aperture can reach it.
-  std::vector<std::vector<Entry>> cols(P);
-  std::vector<std::pair<int, float>> tmp;
+  // Per unknown q (layer q / classes), the frames whose aperture can reach it.
+  const int U = B.unknowns;
+  std::vector<std::vector<Entry>> cols(U);
+  std::vector<std::vector<std::pair<int, float>>> tmp;
   if (uniform) {
     // Shift invariance: the contribution depends on d = p − k only.
     const int dmax = static_cast<int>(std::ceil((rho * tan3 + dz) / dz)) + B.K;
-    std::vector<std::vector<std::pair<int, float>>> stencil(2 * dmax + 1);
+    std::vector<std::vector<std::vector<std::pair<int, float>>>> stencil(2 * dmax + 1);
     for (int d = -dmax; d <= dmax; ++d) {
       // layer p = k + d is at u_p − z_k = (d − (K − 1)/2)·Δz.
       cell((d - 0.5 * (B.K - 1)) * dz, tmp);
@@ -114,8 +155,10 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
     }
     for (int p = 0; p < P; ++p) {
       for (int k = std::max(0, p - dmax); k <= std::min(n - 1, p + dmax); ++k) {
-        for (const auto& [i, w] : stencil[p - k + dmax]) {
-          cols[p].push_back({(i - pd.bin_lo) * n + k, w});
+        for (int c = 0; c < classes; ++c) {
+          for (const auto& [i, w] : stencil[p - k + dmax][c]) {
+            cols[p * classes + c].push_back({(i - pd.bin_lo) * n + k, w});
+          }
         }
       }
     }
@@ -128,7 +171,9 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
       for (auto it = lo; it != hi; ++it) {
         const int k = static_cast<int>(it - pd.heights.begin());
         cell(u - *it, tmp);
-        for (const auto& [i, w] : tmp) cols[p].push_back({(i - pd.bin_lo) * n + k, w});
+        for (int c = 0; c < classes; ++c) {
+          for (const auto& [i, w] : tmp[c]) cols[p * classes + c].push_back({(i - pd.bin_lo) * n + k, w});
+        }
       }
     }
   }
@@ -136,9 +181,9 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
   B.bin_last = -1;
   SparseColumns& A = B.A;
   A.rows = pd.bins * n;
-  A.cols = P;
-  A.start.assign(P + 1, 0);
-  for (int p = 0; p < P; ++p) {
+  A.cols = U;
+  A.start.assign(U + 1, 0);
+  for (int p = 0; p < U; ++p) {
     std::sort(cols[p].begin(), cols[p].end(),
               [](const Entry& a, const Entry& b) { return a.row < b.row; });
     A.start[p + 1] = A.start[p] + static_cast<int>(cols[p].size());
@@ -160,7 +205,7 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
   B.row_col.resize(A.nonzeros());
   B.row_val.resize(A.nonzeros());
   std::vector<int> fill(B.row_start.begin(), B.row_start.end() - 1);
-  for (int p = 0; p < P; ++p) {
+  for (int p = 0; p < U; ++p) {
     for (int e = A.start[p]; e < A.start[p + 1]; ++e) {
       const int at = fill[A.row[e] - row0]++;
       B.row_col[at] = p;
@@ -198,7 +243,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
   std::vector<Block> blocks(ms.size());
   tbb::parallel_for(std::size_t{0}, ms.size(), [&](std::size_t b) {
     blocks[b] = build_block(pd, pattern, spec.r_min + (ms[b] + 0.5) * dr, cfg.subsamples,
-                            cfg.exact_range_subsamples);
+                            cfg.exact_range_subsamples, cfg.exact_lambertian ? 3 : 1);
   });
 
   std::vector<std::vector<LayerPoint>> per_beam(pd.beams);
@@ -240,7 +285,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
           }
           // g = A_mᵀ·R over the non-zero residual rows of the block.
           auto block_gradient = [&](const Block& B, std::vector<double>& out_g) {
-            out_g.assign(B.P, 0.0);
+            out_g.assign(B.unknowns, 0.0);
             const int row0 = (B.bin_first - pd.bin_lo) * n;
             const int nrows = static_cast<int>(B.row_start.size()) - 1;
             for (int r = 0; r < nrows; ++r) {
@@ -262,7 +307,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             for (double v : g) m = std::max(m, v);
             half_lambda[bi] = cfg.lambda_fraction * m;
             cmax = std::max(cmax, m);
-            bv[bi].assign(blocks[bi].P, 0.0);
+            bv[bi].assign(blocks[bi].unknowns, 0.0);
           }
           if (!(cmax > 0.0)) {
             if (progress) progress->add();
@@ -281,7 +326,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
               block_gradient(B, g);  // A_mᵀ·R, R = y − Σ A b (this block included)
               // KKT violation of this block before its update: w = g − λ/2.
               double block_viol = 0.0;
-              for (int p = 0; p < B.P; ++p) {
+              for (int p = 0; p < B.unknowns; ++p) {
                 const double w = g[p] - hl;
                 block_viol = std::max(block_viol, b[p] > 0 ? std::abs(w) : std::max(0.0, w));
               }
@@ -290,14 +335,15 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
               // later sweeps only revisit the blocks that the others' updates disturbed.
               if (block_viol <= tol) continue;
               // Block subproblem: min ‖A_m b − (R + A_m b_m)‖² + λ·1ᵀb: c = g + Q·b_m − λ/2.
-              c.assign(B.P, 0.0);
+              c.assign(B.unknowns, 0.0);
               const int bw = B.gram.bandwidth();
-              for (int p = 0; p < B.P; ++p) {
+              const int U = B.unknowns;
+              for (int p = 0; p < U; ++p) {
                 c[p] += g[p] - hl;
                 const double bp = b[p];
                 if (bp == 0.0) continue;
                 c[p] += B.gram.upper(p, 0) * bp;
-                for (int d = 1; d <= bw && p + d < B.P; ++d) c[p + d] += B.gram.upper(p, d) * bp;
+                for (int d = 1; d <= bw && p + d < U; ++d) c[p + d] += B.gram.upper(p, d) * bp;
                 for (int d = 1; d <= bw && p - d >= 0; ++d) c[p - d] += B.gram.upper(p - d, d) * bp;
               }
               b_old = b;
@@ -307,7 +353,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
               while (st.iterations > cur && !max_iter.compare_exchange_weak(cur, st.iterations)) {
               }
               // R −= A_m·(b − b_old)
-              for (int p = 0; p < B.P; ++p) {
+              for (int p = 0; p < B.unknowns; ++p) {
                 const double delta = b[p] - b_old[p];
                 if (delta == 0.0) continue;
                 for (int e = B.A.start[p]; e < B.A.start[p + 1]; ++e) {
@@ -338,14 +384,19 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             for (std::size_t q = r0; q < r1; ++q) ymax = std::max(ymax, y[q]);
             const double min_contribution = cfg.min_relative_intensity * ymax;
             for (int p = 0; p < B.P; ++p) {
-              const double v = bv[bi][p];
+              // One point per layer: b summed over the normal classes.
+              const int q0 = p * B.classes, q1 = q0 + B.classes;
+              double v = 0.0;
+              for (int q = q0; q < q1; ++q) v += bv[bi][q];
               if (!(v > cfg.min_intensity)) continue;
               if (min_contribution > 0) {
-                double amax = 0.0;
-                for (int e = B.A.start[p]; e < B.A.start[p + 1]; ++e) {
-                  amax = std::max(amax, static_cast<double>(B.A.value[e]));
+                double predicted = 0.0;  // largest return the layer predicts
+                for (int q = q0; q < q1; ++q) {
+                  for (int e = B.A.start[q]; e < B.A.start[q + 1]; ++e) {
+                    predicted = std::max(predicted, B.A.value[e] * bv[bi][q]);
+                  }
                 }
-                if (v * amax < min_contribution) continue;
+                if (predicted < min_contribution) continue;
               }
               LayerPoint lp;
               const double u = B.first_layer + p * pd.dz;

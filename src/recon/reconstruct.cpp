@@ -5,6 +5,19 @@
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
+namespace {
+
+PointCloud crop(const PointCloud& cloud, const Eigen::AlignedBox3d& region) {
+  PointCloud out;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (!region.contains(cloud.points[i].cast<double>())) continue;
+    out.points.push_back(cloud.points[i]);
+    if (cloud.has_intensity()) out.intensity.push_back(cloud.intensity[i]);
+  }
+  return out;
+}
+
+}  // namespace
 
 const std::vector<std::string>& reconstruction_methods() {
   static const std::vector<std::string> m = {"carve", "deconv", "deconv-l1", "deconv-exact"};
@@ -14,9 +27,11 @@ const std::vector<std::string>& reconstruction_methods() {
 ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   ReconstructResult out;
+  if (options.region) validate_region(*options.region, "region");
   if (options.method == "carve") {
     CarveConfig cfg = options.carve;
     if (options.num_threads > 0) cfg.num_threads = options.num_threads;
+    if (options.region) cfg.region = options.region;
     Carver carver(dataset.spec, cfg, dataset.noise);
     integrate_dataset(carver, dataset, options.progress);
     out.cloud = carver.finalize();
@@ -29,6 +44,7 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     if (options.method == "deconv-exact") cfg.exact = true;
     DeconvReport report;
     out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
+    if (options.region) out.cloud = crop(out.cloud, *options.region);
     for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
   } else {
     std::string list;

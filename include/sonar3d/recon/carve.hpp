@@ -30,6 +30,9 @@
 
 namespace sonar3d {
 
+// Throws Error naming `name` unless the box has finite corners and max > min on every axis.
+void validate_region(const Eigen::AlignedBox3d& region, const std::string& name);
+
 struct CarveConfig {
   double voxel_size = 0.01;  // m, edge of a map voxel
   // World-frame region of interest: only voxels whose centre lies inside are mapped. Empty = all

@@ -120,6 +120,13 @@ struct DeconvConfig {
   int exact_max_sweeps = 40;       // exact mode: block Gauss–Seidel sweeps over ρ
   double exact_tolerance = 1e-3;   // exact mode: stop when the KKT violation ≤ this·max|Aᵀy|
   int exact_range_subsamples = 2;  // exact mode: ρ integration points per cell
+  // Exact mode: model the Lambertian term that A* (eq. 5.27) leaves out. Each (ρ, h) cell holds
+  // three non-negative unknowns, the reflectivity of a surface facing the pass axis (weight
+  // × cos θ), facing up (× −sin θ, seen only from frames above it) and facing down (× sin θ, seen
+  // only from below); the output point is their sum. Without it, horizontal surfaces seen at
+  // grazing incidence (brighter the steeper the view) are fitted with ghost cells above them and
+  // caps are "seen" from behind. 3× the unknowns: slower.
+  bool exact_lambertian = false;
   int num_threads = 0;             // 0 = all cores (TBB)
 
   void validate() const;                         // throws Error naming the field

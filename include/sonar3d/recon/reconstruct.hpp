@@ -1,6 +1,8 @@
 #pragma once
 // One entry point for every reconstruction method, used by the planner and the bindings:
 // dataset in, world-frame point cloud out.
+#include <Eigen/Geometry>
+#include <optional>
 #include <string>
 
 #include "sonar3d/core/point_cloud.hpp"
@@ -17,6 +19,10 @@ struct ReconstructOptions {
   std::string method = "carve";
   CarveConfig carve;
   DeconvConfig deconv;  // "deconv-l1" and "deconv-exact" set lambda_fraction / exact on a copy
+  // World-frame region of interest for every method (e.g. a seabed prior: nothing below the
+  // seabed). Carving maps only the voxels inside it (it replaces CarveConfig::region); the other
+  // methods reconstruct as usual and keep the points inside it.
+  std::optional<Eigen::AlignedBox3d> region;
   bool progress = false;
   int num_threads = 0;  // 0 = all cores; overrides the method configs' thread counts
 };
