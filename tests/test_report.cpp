@@ -221,7 +221,7 @@ fs::path make_small_plan_dir(const fs::path& dir, const json& axes, const std::v
   std::mt19937_64 rng(11);
   for (std::size_t i = 0; i < grid.size(); ++i) {
     const json& params = grid[i];
-    char id[16];
+    char id[32];
     std::snprintf(id, sizeof id, "q%03zu", i);
     const std::string obj = params.value("object", std::string("sphere"));
     json p = {{"id", id},

@@ -128,14 +128,25 @@
   // ---------------------------------------------------------------- plots
   const plotState = { x: null, series: null, stat: 'mean', filters: {}, hidden: new Set() };
 
-  function isNumericAxis(a) {
-    return (AXES[a] || []).length > 0 && AXES[a].every((v) => typeof v === 'number');
+  // How an axis is plotted. 'numeric': every value a number, to scale. 'mixed': at least two
+  // distinct numbers plus other levels (null = "none", strings, booleans), e.g.
+  // snr_db: [none, 30, 20, 10] where none is the noise-free case: the numbers to scale, the
+  // other levels as separate markers beyond one end of the axis (see xAxisLayout). 'category':
+  // anything else (strings, booleans, a single number with a level), in sweep order.
+  const isNum = (v) => typeof v === 'number' && isFinite(v);
+  function axisKind(a) {
+    const vals = axisValues(a);
+    if (!vals.length) return 'category';
+    if (vals.every(isNum)) return 'numeric';
+    return new Set(vals.filter(isNum)).size >= 2 ? 'mixed' : 'category';
   }
+  function isNumericAxis(a) { return axisKind(a) === 'numeric'; }
   function defaultX() {
-    const swept = AXIS_NAMES.filter((a) => AXES[a].length > 1);
+    const swept = AXIS_NAMES.filter((a) => axisValues(a).length > 1);
     const numeric = swept.filter(isNumericAxis);
-    const prefer = numeric.find((a) => /spacing|period|sampling|step/i.test(a));
-    return prefer || numeric[0] || swept[0] || AXIS_NAMES[0] || null;
+    const mixed = swept.filter((a) => axisKind(a) === 'mixed');
+    const prefer = numeric.concat(mixed).find((a) => /spacing|period|sampling|step/i.test(a));
+    return prefer || numeric[0] || mixed[0] || swept[0] || AXIS_NAMES[0] || null;
   }
   function defaultSeries(x) {
     const swept = AXIS_NAMES.filter((a) => a !== x && AXES[a].length > 1);
@@ -224,18 +235,90 @@
       if (!groups.has(g)) groups.set(g, []);
       groups.get(g).push(v);
     }
-    const numeric = isNumericAxis(x);
+    const ax = xAxisLayout(x);
     return ss.map((sv, si) => {
-      const tx = [], ty = [], tn = [];
-      for (const xv of xs) {
+      const tx = [], ty = [], tn = [], tt = [], sym = [];
+      let gap = false;
+      for (const xv of ax.order) {
+        if (xv === GAP) { gap = true; continue; }
         const vals = groups.get(key(sv) + '|' + key(xv)) || [];
         if (!vals.length) continue;
-        tx.push(numeric ? xv : fmtValue(x, xv));
+        // A level plotted apart from the numbers is not joined to them by the line: the
+        // distance between them means nothing.
+        if (gap && tx.length) {
+          tx.push(null); ty.push(null); tn.push(null); tt.push(''); sym.push('circle');
+        }
+        gap = false;
+        tx.push(ax.pos(xv));
         ty.push(reduce(vals, stat));
         tn.push(vals.length);
+        tt.push(fmtValue(x, xv));
+        sym.push(ax.isLevel(xv) ? 'diamond' : 'circle');
       }
-      return { sv, si, x: tx, y: ty, n: tn };
+      return { sv, si, x: tx, y: ty, n: tn, text: tt, symbols: sym };
     });
+  }
+
+  // The x axis of the metric plots for parameter a: where each value is drawn, in which order
+  // the line visits them, and the Plotly axis settings.
+  const GAP = {};
+  function xAxisLayout(a) {
+    const vals = axisValues(a);
+    const kind = axisKind(a);
+    const base = { kind, isLevel: () => false, shapes: [] };
+    if (kind === 'category') {
+      return Object.assign(base, { order: vals, pos: (v) => fmtValue(a, v),
+        xaxis: { type: 'category', categoryorder: 'array',
+          categoryarray: vals.map((v) => fmtValue(a, v)) } });
+    }
+    // Numbers to scale; the line visits them in increasing order whatever the sweep order.
+    const nums = vals.filter(isNum).sort((u, w) => u - w);
+    if (kind === 'numeric') {
+      return Object.assign(base, { order: nums, pos: (v) => v, xaxis: { type: 'linear' } });
+    }
+    // Mixed: the other levels sit beyond the end of the numbers they come next to in the sweep
+    // (snr_db: [none, 30, 20, ...] puts "none" past 30: noise-free is the limit of high SNR),
+    // one step apart, behind a dotted separator, drawn as diamonds and not joined by the line.
+    const levels = vals.filter((v) => !isNum(v));
+    const lo = nums[0], hi = nums[nums.length - 1];
+    const firstNum = vals.findIndex(isNum);
+    const firstLevel = vals.findIndex((v) => !isNum(v));
+    const swNums = vals.filter(isNum);
+    const neighbour = firstLevel < firstNum ? swNums[0] : swNums[swNums.length - 1];
+    const high = neighbour !== lo;  // at the high end unless the levels neighbour the minimum
+    const step = 0.15 * (hi - lo);
+    const levelPos = new Map(levels.map((v, i) => [key(v),
+      high ? hi + step * (i + 1) : lo - step * (levels.length - i)]));
+    const sep = high ? hi + step / 2 : lo - step / 2;
+    const edge = high ? hi + step * (levels.length + 0.5) : lo - step * (levels.length + 0.5);
+    // Ticks: the swept numbers when they are few, else Plotly-like round steps between them.
+    const tickNums = nums.length <= 12 ? nums : niceTicks(lo, hi);
+    const tickvals = tickNums.concat(levels.map((v) => levelPos.get(key(v))));
+    const ticktext = tickNums.map((v) => fmtNum(v, 6)).concat(levels.map((v) => fmtValue(a, v)));
+    return Object.assign(base, {
+      // GAP: the line breaks there (between the numbers and each level).
+      order: high ? nums.concat(levels.flatMap((v) => [GAP, v])) :
+        levels.flatMap((v) => [v, GAP]).concat(nums),
+      pos: (v) => (isNum(v) ? v : levelPos.get(key(v))),
+      isLevel: (v) => !isNum(v),
+      levels: levels.map((v) => fmtValue(a, v)),
+      xaxis: { type: 'linear', tickmode: 'array', tickvals, ticktext },
+      shapes: [
+        { type: 'rect', xref: 'x', yref: 'paper', x0: sep, x1: edge, y0: 0, y1: 1,
+          fillcolor: '#f3f5f8', line: { width: 0 }, layer: 'below' },
+        { type: 'line', xref: 'x', yref: 'paper', x0: sep, x1: sep, y0: 0, y1: 1,
+          line: { color: '#9aa3b2', width: 1, dash: 'dot' } }],
+    });
+  }
+  function niceTicks(lo, hi) {
+    const raw = (hi - lo) / 6;
+    const e = Math.pow(10, Math.floor(Math.log10(raw)));
+    const step = [1, 2, 5, 10].map((m) => m * e).find((v) => v >= raw) || 10 * e;
+    const out = [];
+    for (let v = Math.ceil(lo / step) * step; v <= hi + 1e-9 * step; v += step) {
+      out.push(Number(v.toPrecision(12)));
+    }
+    return out;
   }
 
   function drawLegend() {
@@ -272,7 +355,7 @@
         JSON.parse(plotState.filters[a]))).join(', ')}. ` : '') +
       'Failed and skipped configurations are left out. The camera icon of each plot saves it ' +
       'as PNG.';
-    const numeric = isNumericAxis(x);
+    const ax = xAxisLayout(x);
     const promises = [];
     METRICS.forEach((m, mi) => {
       let div = document.getElementById('plot-' + m.key);
@@ -282,13 +365,13 @@
       }
       const traces = seriesData(m).filter((t) => !plotState.hidden.has(key(t.sv)))
         .map((t) => ({
-          type: 'scatter', mode: 'lines+markers', x: t.x, y: t.y, customdata: t.n,
+          type: 'scatter', mode: 'lines+markers', x: t.x, y: t.y, customdata: t.n, text: t.text,
           name: series ? fmtValue(series, t.sv) : m.short,
           line: { color: PALETTE[t.si % PALETTE.length], width: 2,
             dash: DASHES[Math.floor(t.si / PALETTE.length) % DASHES.length] },
-          marker: { size: 7 },
+          marker: { size: t.symbols.map((k) => (k === 'circle' ? 7 : 10)), symbol: t.symbols },
           hovertemplate: (series ? `${seriesLabel(series, t.sv)}<br>` : '') +
-            `${axisLabel(x)}: %{x}<br>${m.label}: %{y:.4g}<br>${stat} of %{customdata} ` +
+            `${axisLabel(x)}: %{text}<br>${m.label}: %{y:.4g}<br>${stat} of %{customdata} ` +
             'configuration(s)<extra></extra>',
         }));
       const hasData = traces.some((t) => t.x.length);
@@ -297,12 +380,11 @@
         margin: { l: 64, r: 16, t: 40, b: 52 },
         font: { family: 'system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif',
           size: 12, color: '#1d2433' },
-        xaxis: { title: { text: axisLabel(x) }, type: numeric ? 'linear' : 'category',
-          categoryorder: 'array', categoryarray: numeric ? undefined :
-            axisValues(x).map((v) => fmtValue(x, v)),
-          gridcolor: '#e8ecf1', zeroline: false, automargin: true },
+        xaxis: Object.assign({ title: { text: axisLabel(x) }, gridcolor: '#e8ecf1',
+          zeroline: false, automargin: true }, ax.xaxis),
         yaxis: { title: { text: m.label }, rangemode: 'tozero', gridcolor: '#e8ecf1',
           zeroline: false, automargin: true },
+        shapes: hasData ? ax.shapes : [],
         showlegend: false, hovermode: 'closest', paper_bgcolor: '#fff', plot_bgcolor: '#fff',
         annotations: hasData ? [] : [{ text: 'no data for this selection', showarrow: false,
           xref: 'paper', yref: 'paper', x: 0.5, y: 0.5, font: { color: '#8a8f99' } }],
@@ -312,15 +394,34 @@
         toImageButtonOptions: { format: 'png', scale: 2,
           filename: `${m.key}_vs_${x}${series ? '_by_' + series : ''}` } };
       promises.push(window.Plotly.react(div, traces, layout, config));
-      if (mi === 0) api.lastTraces = traces.length;
+      if (mi === 0) {
+        api.lastTraces = traces.length;
+        api.xKind = ax.kind;
+      }
     });
     return Promise.all(promises);
   }
 
   function initPlots() {
+    const box = document.getElementById('plots');
     if (!AXIS_NAMES.length || !POINTS.length) {
-      document.getElementById('plots').append(
-        el('p', { class: 'hint', text: 'No configurations in results.json.' }));
+      box.append(el('p', { class: 'hint', id: 'plots-empty',
+        text: 'No configurations in results.json.' }));
+      return Promise.resolve();
+    }
+    // Without a single finished configuration there is nothing to plot: say so, rather than
+    // six empty frames.
+    const ok = POINTS.filter((p) => p.status === 'ok').length;
+    if (!ok) {
+      const failed = POINTS.filter((p) => p.status === 'failed').length;
+      const other = POINTS.length - failed;
+      box.classList.add('empty');
+      box.append(el('p', { class: 'warning', id: 'plots-empty',
+        text: `No configuration finished: ${failed} of ${POINTS.length} failed` +
+          (other ? `, ${other} were not run (${[...new Set(POINTS.filter((p) =>
+            p.status !== 'failed').map((p) => p.status))].join(', ')})` : '') +
+          '. Nothing to plot; the table below gives each configuration\'s message.' }));
+      api.plotsEmpty = true;
       return Promise.resolve();
     }
     plotState.x = defaultX();
@@ -340,7 +441,7 @@
     ];
     for (const a of AXIS_NAMES) {
       cols.push({ id: 'param:' + a, label: axisLabel(a), get: (p) => (p.params || {})[a],
-        num: isNumericAxis(a), fmt: (v) => (v === null || v === undefined ? 'none' :
+        num: axisKind(a) !== 'category', fmt: (v) => (v === null || v === undefined ? 'none' :
           typeof v === 'object' ? JSON.stringify(v) : String(v)) });
     }
     // The quality columns; a configuration without any (failed, skipped) shows its message

@@ -5,6 +5,9 @@
 // drew traces; the 3D canvas is not blank and changes with the colour mode; the selector shows
 // another configuration; clicking a table header sorts the rows (and again reverses them).
 // Exits 0 when every check passed, 1 otherwise (each failure on its own line).
+// Every x axis the selector offers is tried: numeric axes must plot on a linear axis at their
+// values, string/boolean axes as categories, mixed axes (numbers plus levels such as null =
+// "none") with the numbers to scale and the levels as extra ticks beyond one end.
 // Run by tests/test_report.cpp (BrowserTest) after it writes a fixture report.
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
@@ -22,6 +25,13 @@ const opt = (name, dflt) => {
   return v;
 };
 const screenshotPath = opt('--screenshot', null);
+// --mixed-axis NAME: NAME mixes numbers and other levels (e.g. snr_db: [none, 30, 20]); it must be
+// offered as x axis and plotted to scale with its levels apart. --all-failed: no configuration
+// finished; the page must say so instead of drawing plots.
+const mixedAxes = [];
+for (let m; (m = opt('--mixed-axis', null)) !== null;) mixedAxes.push(m);
+const allFailed = args.includes('--all-failed');
+if (allFailed) args.splice(args.indexOf('--all-failed'), 1);
 const chromiumPath = opt('--chromium', process.env.SONAR3D_CHROMIUM || '/usr/bin/chromium');
 const reportPath = args[0];
 if (!reportPath || !fs.existsSync(reportPath)) {
@@ -103,6 +113,58 @@ try {
   check(await page.evaluate(() => !!(window.sonar3dReport && window.sonar3dReport.ready)),
     `page reports ready (${loadMs} ms)`);
 
+  const data = await page.evaluate(() => JSON.parse(
+    document.getElementById('sonar3d-data').textContent));
+  const points = data.results.points;
+  if (allFailed) {
+    await checkAllFailed(page, points);
+  } else {
+    await checkPlots(page, data);
+    await checkViewer(page);
+  }
+  await checkTable(page, points);
+
+  check(external.length === 0, `no network request (${external.slice(0, 3).join(', ')})`);
+  check(pageErrors.length === 0, `no page error ${pageErrors.slice(0, 3).join(' | ')}`);
+  check(consoleErrors.length === 0, `no console error ${consoleErrors.slice(0, 3).join(' | ')}`);
+
+  if (screenshotPath) {
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.waitForTimeout(200);
+    await page.screenshot({ path: screenshotPath, fullPage: true });
+    console.log(`  screenshot: ${screenshotPath}`);
+  }
+} catch (e) {
+  failures.push(`exception: ${e && e.stack ? e.stack : e}`);
+  console.log(`  FAIL  exception: ${e && e.stack ? e.stack : e}`);
+} finally {
+  if (context) await context.close().catch(() => {});
+  fs.rmSync(userDataDir, { recursive: true, force: true });
+}
+console.log(`test_report.mjs: ${passed} checks passed, ${failures.length} failed`);
+process.exit(failures.length ? 1 : 0);
+
+async function checkAllFailed(page, points) {
+  check(points.length > 0 && points.every((p) => p.status !== 'ok'),
+    `fixture: no configuration is ok (${points.length} points)`);
+  const msg = await page.$eval('#plots-empty', (e) => e.textContent).catch(() => '');
+  const failed = points.filter((p) => p.status === 'failed').length;
+  check(/No configuration finished/.test(msg) && msg.includes(`${failed} of ${points.length}`),
+    `the plots section says no configuration finished: "${msg}"`);
+  const plots = await page.$$eval('#plots .plot', (d) => d.length);
+  check(plots === 0, `no empty plot frames (${plots})`);
+  const viewerMsg = await page.$eval('#viewer .message', (e) => e.textContent).catch(() => '');
+  check(/No reconstructed cloud/.test(viewerMsg), `the viewer says there is no cloud`);
+}
+
+// What the test expects of axis a, computed from the data independently of the page.
+function expectedKind(values) {
+  const isNum = (v) => typeof v === 'number' && isFinite(v);
+  if (values.every(isNum)) return 'numeric';
+  return new Set(values.filter(isNum)).size >= 2 ? 'mixed' : 'category';
+}
+
+async function checkPlots(page, data) {
   // Plots: six Plotly graphs, each with an SVG and at least one line trace.
   const plots = await page.evaluate(() => Array.from(document.querySelectorAll('#plots .plot'))
     .map((d) => ({ id: d.id, svg: d.querySelectorAll('.main-svg').length,
@@ -137,6 +199,103 @@ try {
   const seriesOptions = await page.$$eval('#plot-series option', (os) => os.map((o) => o.value));
   if (seriesOptions.length > 1) await page.selectOption('#plot-series', seriesOptions[1]);
 
+  await checkAxes(page, data);
+}
+
+// Values of axis a in sweep order, then any value seen only in the points (as the page does).
+function axisValues(axes, points, a) {
+  const vals = (axes[a] || []).slice();
+  const seen = new Set(vals.map((v) => JSON.stringify(v)));
+  for (const p of points) {
+    const v = (p.params || {})[a] === undefined ? null : p.params[a];
+    if (!seen.has(JSON.stringify(v))) { seen.add(JSON.stringify(v)); vals.push(v); }
+  }
+  return vals;
+}
+
+// Chooses each offered x axis in turn (one line) and checks the coverage plot against the data:
+// the axis type, one marker per value that has an ok configuration, at the right place.
+async function checkAxes(page, data) {
+  const axes = data.results.axes || {};
+  const points = data.results.points;
+  const offered = await page.$$eval('#plot-x option', (os) => os.map((o) => o.value));
+  for (const m of mixedAxes) {
+    check(offered.includes(m), `the x axis selector offers ${m} (${offered.join(', ')})`);
+  }
+  const xBefore = await page.$eval('#plot-x', (s) => s.value);
+  const seriesBefore = await page.$eval('#plot-series', (s) => s.value);
+  const isNum = (v) => typeof v === 'number' && isFinite(v);
+  for (const a of offered) {
+    const values = axisValues(axes, points, a);
+    const kind = expectedKind(values);
+    if (mixedAxes.includes(a)) {
+      check(kind === 'mixed', `fixture: ${a} mixes numbers and other levels`);
+    }
+    const withData = [];
+    for (const p of points) {
+      const v = (p.params || {})[a] === undefined ? null : p.params[a];
+      const cov = (p.metrics || {}).coverage;
+      if (p.status === 'ok' && isNum(cov) && !withData.some((w) => JSON.stringify(w) ===
+        JSON.stringify(v))) withData.push(v);
+    }
+    await page.selectOption('#plot-x', a);
+    await page.selectOption('#plot-series', '');
+    await page.waitForTimeout(150);
+    const got = await page.evaluate(() => {
+      const d = document.getElementById('plot-coverage');
+      const xa = d.layout.xaxis;
+      return { type: xa.type, ticktext: xa.ticktext || null, tickvals: xa.tickvals || null,
+        categoryarray: xa.categoryarray || null, kind: window.sonar3dReport.xKind,
+        traces: d.data.map((t) => ({ x: t.x, y: t.y, symbol: (t.marker || {}).symbol })),
+        markers: d.querySelectorAll('.scatterlayer .point').length };
+    });
+    const xs = got.traces.length === 1 ? got.traces[0].x : [];
+    const drawn = xs.filter((v) => v !== null && v !== undefined);
+    const what = `x = ${a} (${kind}, ${withData.length} values with data)`;
+    check(got.kind === kind && got.traces.length === 1 && drawn.length === withData.length &&
+      got.markers === withData.length,
+    `${what}: one marker per value (${drawn.length} points, ${got.markers} markers drawn)`);
+    if (kind === 'category') {
+      check(got.type === 'category' && got.categoryarray &&
+        got.categoryarray.length === values.length &&
+        drawn.every((v) => got.categoryarray.includes(v)) &&
+        values.filter((v) => typeof v === 'string').every((v) => got.categoryarray.includes(v)) &&
+        values.filter((v) => typeof v === 'boolean').every((v) =>
+          got.categoryarray.includes(String(v))),
+      `${what}: category axis in sweep order ${JSON.stringify(got.categoryarray)}`);
+      continue;
+    }
+    const nums = withData.filter(isNum).sort((u, w) => u - w);
+    const sym = (i) => (Array.isArray(got.traces[0].symbol) ? got.traces[0].symbol[i] : 'circle');
+    const drawnNums = xs.filter((v, i) => isNum(v) && sym(i) !== 'diamond')
+      .sort((u, w) => u - w);
+    check(got.type === 'linear' && JSON.stringify(drawnNums) === JSON.stringify(nums),
+      `${what}: numbers plotted to scale at ${JSON.stringify(drawnNums)}`);
+    if (kind !== 'mixed') continue;
+    // The levels: each one with data is a diamond beyond the numbers' range, at a tick that
+    // carries its label ("none" for null).
+    const allNums = values.filter(isNum);
+    const lo = Math.min(...allNums), hi = Math.max(...allNums);
+    const levels = values.filter((v) => !isNum(v));
+    const labels = levels.map((v) => (v === null ? 'none' : String(v)));
+    check(labels.every((l) => (got.ticktext || []).includes(l)),
+      `${what}: tick labels include ${JSON.stringify(labels)} (${JSON.stringify(got.ticktext)})`);
+    const diamonds = xs.map((v, i) => ({ v, s: sym(i) }))
+      .filter((q) => q.s === 'diamond' && q.v !== null);
+    const levelsWithData = withData.filter((v) => !isNum(v)).length;
+    check(diamonds.length === levelsWithData && diamonds.every((q) => q.v > hi || q.v < lo) &&
+      diamonds.every((q) => {
+        const t = got.tickvals.indexOf(q.v);
+        return t >= 0 && labels.includes(got.ticktext[t]);
+      }),
+    `${what}: ${diamonds.length} level marker(s) apart from the numbers, at their labelled tick`);
+  }
+  await page.selectOption('#plot-x', xBefore);
+  await page.selectOption('#plot-series', seriesBefore);
+  await page.waitForTimeout(150);
+}
+
+async function checkViewer(page) {
   // 3D viewer: a canvas whose pixels vary (cloud + model drawn on the background).
   await page.waitForTimeout(300);
   const canvas = await page.$('#viewer canvas');
@@ -168,7 +327,9 @@ try {
       await page.selectOption('#viewer-point', ids[0]);
     }
   }
+}
 
+async function checkTable(page, points) {
   // Table: one row per configuration, failed rows with their message, sortable headers.
   const rows = await page.$$eval('#results-table tbody tr', (r) => r.length);
   const expected = await page.evaluate(() => JSON.parse(
@@ -183,6 +344,9 @@ try {
     `failed configurations shown with their message (${failedMsgs.length})`);
   const colValues = () => page.$$eval('#results-table tbody td[data-col="median_error_m"]',
     (tds) => tds.map((td) => td.textContent).filter((s) => s !== '–').map(Number));
+  const okCount = points.filter((p) => p.status === 'ok' && p.metrics &&
+    typeof p.metrics.median_error_m === 'number').length;
+  if (okCount < 2) return;
   await page.click('#results-table th[data-col="median_error_m"]');
   const asc = await colValues();
   check(asc.length > 1 && asc.every((v, i) => i === 0 || asc[i - 1] <= v),
@@ -192,23 +356,5 @@ try {
   check(desc.length > 1 && desc.every((v, i) => i === 0 || desc[i - 1] >= v),
     `clicking it again sorts descending (${desc.slice(0, 4).join(', ')}, …)`);
   await page.click('#results-table th[data-col="rank"]');
-
-  check(external.length === 0, `no network request (${external.slice(0, 3).join(', ')})`);
-  check(pageErrors.length === 0, `no page error ${pageErrors.slice(0, 3).join(' | ')}`);
-  check(consoleErrors.length === 0, `no console error ${consoleErrors.slice(0, 3).join(' | ')}`);
-
-  if (screenshotPath) {
-    await page.evaluate(() => window.scrollTo(0, 0));
-    await page.waitForTimeout(200);
-    await page.screenshot({ path: screenshotPath, fullPage: true });
-    console.log(`  screenshot: ${screenshotPath}`);
-  }
-} catch (e) {
-  failures.push(`exception: ${e && e.stack ? e.stack : e}`);
-  console.log(`  FAIL  exception: ${e && e.stack ? e.stack : e}`);
-} finally {
-  if (context) await context.close().catch(() => {});
-  fs.rmSync(userDataDir, { recursive: true, force: true });
 }
-console.log(`test_report.mjs: ${passed} checks passed, ${failures.length} failed`);
-process.exit(failures.length ? 1 : 0);
+
