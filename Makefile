@@ -21,7 +21,7 @@ build: configure
 	cmake --build $(BUILD) -j$(JOBS)
 
 # The default scene's objects stand on a seabed at z = 0 that the scene leaves out: nothing is
-# reconstructed below it (docs/carving.md, "The pillar and riser outliers").
+# reconstructed below it by either method (docs/carving.md, "The pillar and riser outliers").
 DEMO_ROI = --roi -3 -2 0 3 14 3
 
 demo: build
@@ -29,7 +29,7 @@ demo: build
 	$(SONAR3D) info $(DEMO_OUT)/dataset
 	$(SONAR3D) preview $(DEMO_OUT)/dataset --frame 130 -o $(DEMO_OUT)/sphere_frame.png
 	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method carve -o $(DEMO_OUT)/carve.ply $(DEMO_ROI)
-	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method deconv -o $(DEMO_OUT)/deconv.ply
+	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method deconv -o $(DEMO_OUT)/deconv.ply $(DEMO_ROI)
 	@echo "== space carving (thesis ch. 4) =="
 	$(SONAR3D) evaluate $(DEMO_OUT)/carve.ply --truth $(DEMO_OUT)/dataset --json $(DEMO_OUT)/carve_metrics.json
 	@echo "== deconvolution (thesis ch. 5) =="

@@ -339,6 +339,37 @@ TEST(Carve, MinObservationsDropsIsolatedNoiseReturns) {
   EXPECT_LT(filtered, 0.35 * with_noise);
 }
 
+// A 1° sonar stepping 6 cm at 2.5 m sees each surface point in one frame only (its footprint is
+// 4.4 cm tall): the observation filter must step down to 1 instead of deleting the surface, and
+// stay at 2 for a dense pass of the same sensor.
+TEST(Carve, ObservationFilterFollowsTheSamplingDensity) {
+  const SonarSpec spec = small_spec(1.0);
+  const Eigen::Vector3d centre(0, 0, 1.0);
+  const Simulator sim(sphere_scene(0.3, centre), spec, sim_config());
+  auto run = [&](double dz, int* used) {
+    const Pass pass = render_pass(sim, 2.5, 0.6, 1.4, dz);
+    CarveConfig cfg;  // min_observations = 2 by default
+    cfg.region = box_around(centre, 0.6);
+    Carver carver(spec, cfg);
+    EXPECT_EQ(carver.min_observations_used(), 1);  // no frame yet
+    for (std::size_t k = 0; k < pass.images.size(); ++k)
+      carver.integrate(pass.images[k], pass.poses[k]);
+    const PointCloud cloud = carver.finalize();
+    *used = carver.stats().min_observations_used;
+    return cloud;
+  };
+  int sparse_used = 0, dense_used = 0;
+  const PointCloud sparse = run(0.06, &sparse_used);
+  const PointCloud dense = run(0.01, &dense_used);
+  EXPECT_EQ(sparse_used, 1);
+  EXPECT_EQ(dense_used, 2);
+  ASSERT_GT(sparse.size(), 200u);
+  EXPECT_GT(dense.size(), sparse.size());
+  TriangleMesh mesh = make_sphere(0.3, 96);
+  mesh.transform(Eigen::Isometry3d(Eigen::Translation3d(centre)));
+  EXPECT_LT(evaluate(sparse, mesh, EvalConfig()).median_error, 0.02);
+}
+
 // min_elevation_span keeps a scatterer only when frames saw it over enough of the aperture:
 // a pass that stops at the scatterer's height sees it in the upper half of the aperture only.
 TEST(Carve, MinElevationSpanNeedsBracketingViews) {

@@ -13,6 +13,7 @@
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/deconvolve.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
 
 namespace sonar3d::cli {
 
@@ -27,11 +28,20 @@ struct ReconstructCliOptions {
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
 };
 
+// --roi: xmin ymin zmin xmax ymax zmax (checked by the library: finite, max > min).
+Eigen::AlignedBox3d roi_box(const std::vector<double>& v) {
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(v[0], v[1], v[2]),
+                                Eigen::Vector3d(v[3], v[4], v[5]));
+  validate_region(box, "--roi");
+  return box;
+}
+
 // Deconvolution (thesis ch. 5): the library splits the dataset into straight passes, checks them
 // (sec. 5.6.3.1) and reconstructs each; its warnings are printed, its errors stop the run.
 int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   DeconvConfig cfg = o.deconv;
   cfg.beam = DeconvConfig::parse_beam(o.beam);
+  if (cfg.exact_lambertian) cfg.exact = true;  // --exact-lambertian implies --exact
   cfg.dering = !o.no_dering;
   cfg.resolve_occlusions = !o.no_occlusion;
   cfg.denoise = o.carve.denoise;
@@ -40,7 +50,8 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   cfg.validate();
   const Dataset ds = read_dataset(o.dataset);
   DeconvReport report;
-  const PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
+  PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
+  if (!o.roi.empty()) cloud = crop_to_region(cloud, roi_box(o.roi));
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   fmt::print("{}", report.to_text());  // per-pass figures, then the warnings
   fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
@@ -59,10 +70,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   CarveConfig cfg = o.carve;
   cfg.resolve_occlusions = !o.no_occlusion;
   cfg.denoise.z_test = !o.no_z_test;
-  if (!o.roi.empty()) {
-    cfg.region = Eigen::AlignedBox3d(Eigen::Vector3d(o.roi[0], o.roi[1], o.roi[2]),
-                                     Eigen::Vector3d(o.roi[3], o.roi[4], o.roi[5]));
-  }
+  if (!o.roi.empty()) cfg.region = roi_box(o.roi);
   cfg.validate();
   const Dataset ds = read_dataset(o.dataset);
   Carver carver(ds.spec, cfg, ds.noise);
@@ -84,6 +92,12 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
       st.frames, st.candidates, st.points, o.output, 1e3 * st.integrate_seconds / n,
       1e3 * st.occlusion_seconds / n, st.map_bytes / 1e6, st.frame_bytes / 1e6,
       peak_rss_bytes() / 1e6);
+  if (st.min_observations_used < cfg.min_observations) {
+    fmt::print(
+        "  note: a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need {} "
+        "observation(s), not --min-observations {}\n",
+        st.views_per_scatterer, st.min_observations_used, cfg.min_observations);
+  }
   if (!o.json.empty()) {
     nlohmann::json j;
     j["frames"] = st.frames;
@@ -93,6 +107,8 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     j["occlusion_ms_per_frame"] = 1e3 * st.occlusion_seconds / n;
     j["map_bytes"] = st.map_bytes;
     j["frame_bytes"] = st.frame_bytes;
+    j["min_observations_used"] = st.min_observations_used;
+    j["views_per_scatterer"] = st.views_per_scatterer;
     j["peak_rss_bytes"] = peak_rss_bytes();
     j["voxel_size"] = cfg.voxel_size;
     write_text_file(o.json, j.dump(2) + "\n");
@@ -124,7 +140,9 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--voxel-size", o->carve.voxel_size, "map voxel edge in metres")
       ->capture_default_str();
   cmd->add_option("--roi", o->roi,
-                  "region of interest, world frame: xmin ymin zmin xmax ymax zmax (metres)")
+                  "region of interest, world frame: xmin ymin zmin xmax ymax zmax (metres); "
+                  "carving maps only inside it, deconvolution keeps the points inside it (e.g. "
+                  "zmin at the seabed: nothing below it)")
       ->expected(6);
   cmd->add_option("--z-threshold", o->carve.denoise.z_threshold,
                   "Z-test threshold T (eq. 4.8), used when the dataset has noise statistics")
@@ -147,7 +165,8 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--min-observations", o->carve.min_observations,
                   "keep candidates bounded by at least this many frames (removes isolated noise "
-                  "returns; 1 = off)")
+                  "returns; 1 = off); lowered automatically to the number of frames that see a "
+                  "point when the trajectory is sparser")
       ->capture_default_str();
   cmd->add_flag("--no-occlusion", o->no_occlusion,
                 "skip occlusion resolution (output every carved candidate)");
@@ -170,6 +189,18 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--exact", o->deconv.exact,
                 "deconv: exact slant-range geometry on a (horizontal distance × height) grid per "
                 "bearing plane, for wide apertures (beyond the thesis' rectilinear model)");
+  cmd->add_flag("--exact-lambertian", o->deconv.exact_lambertian,
+                "deconv: exact mode (implies --exact) with the Lambertian term modelled: three "
+                "normal classes per cell (facing the sonar path, up, down) instead of one; fewer "
+                "ghosts above horizontal surfaces at wide apertures, about 3x slower");
+  cmd->add_flag("--exact-block-tolerance", o->deconv.exact_block_tolerance,
+                "deconv: exact mode: stop when each range block's KKT violation is small against "
+                "its own data, not the bearing plane's brightest return, so that weak (grazing) "
+                "returns are solved too (better at 10°, more ghosts at 30°)");
+  cmd->add_option("--exact-range-subsamples", o->deconv.exact_range_subsamples,
+                  "deconv: exact mode: integration points per cell across its 1-bin horizontal "
+                  "extent (1-16; more: lower median error, slower)")
+      ->capture_default_str();
   cmd->add_flag("--no-dering", o->no_dering,
                 "deconv: keep layers seen as free space (skip de-ringing, sec. 5.5.4)");
   cmd->add_option("--max-axis-angle-deg", o->deconv.max_axis_angle_deg,

@@ -46,6 +46,18 @@ std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& 
   return py::make_tuple(points_to_array(std::move(c.points)), intensity);
 }
 
+// A world-frame box as Python sees it: (min xyz, max xyz) or None.
+[[maybe_unused]] py::object region_to_py(const std::optional<Eigen::AlignedBox3d>& r) {
+  if (!r) return py::none();
+  return py::make_tuple(Eigen::Vector3d(r->min()), Eigen::Vector3d(r->max()));
+}
+[[maybe_unused]] std::optional<Eigen::AlignedBox3d> region_from_py(const py::object& r) {
+  if (r.is_none()) return std::nullopt;
+  const auto t = r.cast<py::sequence>();
+  if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
+  return Eigen::AlignedBox3d(t[0].cast<Eigen::Vector3d>(), t[1].cast<Eigen::Vector3d>());
+}
+
 }  // namespace
 
 void bind_recon(py::module_& m) {
@@ -84,22 +96,8 @@ void bind_recon(py::module_& m) {
       .def(py::init(&from_kwargs<CarveConfig>))
       .def_readwrite("voxel_size", &CarveConfig::voxel_size)
       .def_property(
-          "region",
-          [](const CarveConfig& c) -> py::object {
-            if (!c.region) return py::none();
-            return py::make_tuple(Eigen::Vector3d(c.region->min()),
-                                  Eigen::Vector3d(c.region->max()));
-          },
-          [](CarveConfig& c, const py::object& r) {
-            if (r.is_none()) {
-              c.region.reset();
-              return;
-            }
-            const auto t = r.cast<py::sequence>();
-            if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
-            c.region =
-                Eigen::AlignedBox3d(t[0].cast<Eigen::Vector3d>(), t[1].cast<Eigen::Vector3d>());
-          })
+          "region", [](const CarveConfig& c) { return region_to_py(c.region); },
+          [](CarveConfig& c, const py::object& r) { c.region = region_from_py(r); })
       .def_readwrite("denoise", &CarveConfig::denoise)
       .def_readwrite("resolve_occlusions", &CarveConfig::resolve_occlusions)
       .def_readwrite("static_threshold", &CarveConfig::static_threshold)
@@ -157,6 +155,8 @@ void bind_recon(py::module_& m) {
         d["points"] = s.points;
         d["map_bytes"] = s.map_bytes;
         d["frame_bytes"] = s.frame_bytes;
+        d["min_observations_used"] = s.min_observations_used;
+        d["views_per_scatterer"] = s.views_per_scatterer;
         return d;
       });
 
@@ -194,6 +194,9 @@ void bind_recon(py::module_& m) {
           [](DeconvConfig& c, const std::string& s) { c.kernel = DeconvConfig::parse_kernel(s); })
       .def_readwrite("lambda_fraction", &DeconvConfig::lambda_fraction)
       .def_readwrite("exact", &DeconvConfig::exact)
+      .def_readwrite("exact_lambertian", &DeconvConfig::exact_lambertian)
+      .def_readwrite("exact_block_tolerance", &DeconvConfig::exact_block_tolerance)
+      .def_readwrite("exact_range_subsamples", &DeconvConfig::exact_range_subsamples)
       .def_readwrite("max_axis_angle_deg", &DeconvConfig::max_axis_angle_deg)
       .def_readwrite("max_rotation_deg", &DeconvConfig::max_rotation_deg)
       .def_readwrite("max_lateral_deviation", &DeconvConfig::max_lateral_deviation)
@@ -260,9 +263,10 @@ void bind_recon(py::module_& m) {
   m.def(
       "reconstruct",
       [](const Dataset& dataset, const std::string& method, const py::object& carve,
-         int num_threads, bool progress) {
+         const py::object& region, int num_threads, bool progress) {
         ReconstructOptions o;
         o.method = method;
+        o.region = region_from_py(region);
 #if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
         if (!carve.is_none()) o.carve = carve.cast<CarveConfig>();
 #endif
@@ -279,10 +283,11 @@ void bind_recon(py::module_& m) {
         info["notes"] = r.notes;
         return py::make_tuple(t[0], t[1], info);
       },
-      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "num_threads"_a = 0,
-      "progress"_a = false,
+      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "region"_a = py::none(),
+      "num_threads"_a = 0, "progress"_a = false,
       "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...): "
-      "(points, intensity, {seconds, notes}).");
+      "(points, intensity, {seconds, notes}). region: (min xyz, max xyz) in the world frame (m) "
+      "or None; carving maps only inside it, the other methods keep the points inside it.");
 #endif
 }
 

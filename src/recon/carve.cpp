@@ -9,6 +9,7 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -427,6 +428,16 @@ void CarveConfig::validate() const {
   }
 }
 
+// Whether p_sonar lies in the sonar's field of view: range window, fan and vertical aperture.
+bool in_wedge(const Eigen::Vector3d& p_sonar, const SonarSpec& spec) {
+  const double r = p_sonar.norm();
+  if (!(r >= spec.r_min && r < spec.r_max)) return false;
+  const double phi = std::atan2(p_sonar.y(), p_sonar.x());
+  const double theta = std::asin(std::clamp(p_sonar.z() / r, -1.0, 1.0));
+  return phi >= spec.fov_min() && phi <= spec.fov_max() &&
+         std::abs(theta) <= 0.5 * spec.vertical_aperture_rad;
+}
+
 struct Carver::Impl {
   // Drops the span leaves of a cube that became free (nothing there is a candidate any more).
   void clear_span(const Coord& o, int s) {
@@ -593,7 +604,8 @@ PointCloud Carver::snapshot() const {
   // bracketed by free space on both sides along its elevation arc: the ends of a pass) is
   // dropped.
   const int min_span = static_cast<int>(std::ceil(m.cfg.min_elevation_span * 2 * kObsScale));
-  const int min_obs = m.cfg.min_observations;
+  const int min_obs = min_observations_used();
+  m.stats.min_observations_used = min_obs;
   auto keep_value = [thr](float v) { return v > 0.0f && v > thr && std::isfinite(v); };
   auto visit = [&](std::size_t l, auto&& emit) {
     const LeafT& leaf = leaves.leaf(l);
@@ -702,6 +714,32 @@ void Carver::write_vdb(const std::string& path, const PointCloud* surface) const
 }
 
 std::size_t Carver::frames() const { return impl_->frames.size(); }
+
+int Carver::min_observations_used() const {
+  // The number of frames that see a scatterer: for up to 256 frames spread over the sequence,
+  // the point on the boresight at mid range, counted in every frame's field of view. The median
+  // is independent of the frame order and of what the scene holds (only poses are used).
+  const Impl& m = *impl_;
+  const std::size_t n = m.frames.size();
+  m.stats.views_per_scatterer = 0;
+  if (n < 2) return 1;  // one frame: nothing can be seen twice
+  std::vector<Eigen::Isometry3d> T_sonar_world(n);
+  for (std::size_t j = 0; j < n; ++j) T_sonar_world[j] = m.frames[j].T_world_sonar.inverse();
+  const double r_mid = 0.5 * (m.spec.r_min + m.spec.r_max);
+  const std::size_t samples = std::min<std::size_t>(n, 256);
+  std::vector<int> views(samples, 0);
+  m.arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, samples, [&](std::size_t s) {
+      const std::size_t k = s * n / samples;
+      const Eigen::Vector3d p_world = m.frames[k].T_world_sonar * Eigen::Vector3d(r_mid, 0, 0);
+      for (std::size_t j = 0; j < n; ++j) views[s] += in_wedge(T_sonar_world[j] * p_world, m.spec);
+    });
+  });
+  std::nth_element(views.begin(), views.begin() + samples / 2, views.end());
+  const int median = views[samples / 2];
+  m.stats.views_per_scatterer = median;
+  return std::max(1, std::min(m.cfg.min_observations, median));
+}
 const std::vector<FrameReturns>& Carver::frame_returns() const { return impl_->frames; }
 const SonarSpec& Carver::spec() const { return impl_->spec; }
 const CarveConfig& Carver::config() const { return impl_->cfg; }

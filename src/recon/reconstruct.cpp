@@ -5,9 +5,7 @@
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
-namespace {
-
-PointCloud crop(const PointCloud& cloud, const Eigen::AlignedBox3d& region) {
+PointCloud crop_to_region(const PointCloud& cloud, const Eigen::AlignedBox3d& region) {
   PointCloud out;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (!region.contains(cloud.points[i].cast<double>())) continue;
@@ -16,8 +14,6 @@ PointCloud crop(const PointCloud& cloud, const Eigen::AlignedBox3d& region) {
   }
   return out;
 }
-
-}  // namespace
 
 const std::vector<std::string>& reconstruction_methods() {
   static const std::vector<std::string> m = {"carve", "deconv", "deconv-l1", "deconv-exact"};
@@ -44,7 +40,7 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     if (options.method == "deconv-exact") cfg.exact = true;
     DeconvReport report;
     out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
-    if (options.region) out.cloud = crop(out.cloud, *options.region);
+    if (options.region) out.cloud = crop_to_region(out.cloud, *options.region);
     for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
   } else {
     std::string list;

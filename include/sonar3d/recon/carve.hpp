@@ -60,7 +60,8 @@ struct CarveConfig {
   // Keep only candidates bounded by at least this many return pixels (frames). A noise pixel that
   // passes the Z-test (0.13 % of them at T = 3) bounds its arc in one frame only, while a surface
   // is seen by every frame whose aperture covers it. 1 = off (the thesis' rule; a snapshot then
-  // also shows what a single frame bounded).
+  // also shows what a single frame bounded). Lowered automatically when the frames are too sparse
+  // for a surface to be seen that many times: see Carver::min_observations_used().
   int min_observations = 2;
   int num_threads = 0;    // 0 = all cores (TBB)
   void validate() const;  // throws Error naming the field
@@ -75,6 +76,9 @@ struct CarveStats {
   std::size_t map_bytes = 0;     // OpenVDB grid memory
   std::size_t frame_bytes = 0;   // kept per-frame return summaries
   std::size_t leaf_voxels_visited = 0;  // voxels projected one by one (work counter)
+  double views_per_scatterer =
+      0;  // median frames seeing a mid-range boresight point (0: < 2 frames)
+  int min_observations_used = 0;  // the observation filter the last snapshot/finalize applied
 };
 
 class Carver {
@@ -109,7 +113,12 @@ class Carver {
 
   std::size_t frames() const;
   const std::vector<FrameReturns>& frame_returns() const;
-  const CarveStats& stats() const;  // map_bytes/frame_bytes refreshed on each call
+  const CarveStats& stats() const;
+  // The observation filter that applies to the frames integrated so far: config.min_observations,
+  // lowered to the number of frames a scatterer at mid range can be seen in when the trajectory
+  // is sparser than that (e.g. a 1° sonar stepping 5 cm at 3 m sees each point once, and a
+  // filter asking for two would delete the whole surface). With one frame, 1.
+  int min_observations_used() const;  // map_bytes/frame_bytes refreshed on each call
   const SonarSpec& spec() const;
   const CarveConfig& config() const;
 

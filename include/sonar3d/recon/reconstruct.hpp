@@ -36,6 +36,9 @@ struct ReconstructResult {
 // Throws Error on an unknown method or when the method cannot run on the dataset.
 ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options);
 
+// The points of `cloud` (world frame) inside `region`, with their intensities.
+PointCloud crop_to_region(const PointCloud& cloud, const Eigen::AlignedBox3d& region);
+
 // The method names reconstruct_dataset() accepts.
 const std::vector<std::string>& reconstruction_methods();
 
