@@ -10,10 +10,13 @@
 //   bench_deconv run DATASET -o cloud.ply [--lambda F] [--beam sinc|flat|sensor] [--exact]
 //       [--no-dering] [--occlusion] [--kernel plain|normal|occlusion|normal+occlusion]
 //       [--min-relative F] [--ignore-shadows|--keep-shadows] [--no-occlusion]
-//       [--max-extrapolation M] [--max-range M] [--threads N]
-//       [--report report.json]
+//       [--max-extrapolation M] [--max-range M] [--threads N] [--exact-lambertian]
+//       [--exact-block-tolerance|--exact-plane-tolerance] [--exact-tolerance F]
+//       [--exact-sweeps N] [--exact-range-subsamples N] [--subsamples N]
+//       [--min-intensity F] [--layer-spacing M] [--report report.json]
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -150,6 +153,43 @@ BENCHMARK(BM_DeconvArisDataset)
     ->MeasureProcessCPUTime();
 
 // ---------------------------------------------------------------------------------------------
+// SonarSpec::beam_of_bearing, called per point and frame by de-ringing and occlusion resolution
+// (seen_free). Arg: beams of a uniform table (128: aris3000, 768: p900-130). The reference is
+// the previous implementation, which tested uniform_bearings() (O(beams)) on every call.
+
+int beam_of_bearing_scan(const SonarSpec& s, double phi) {
+  const int n = s.beams();
+  if (n == 0 || !(phi >= s.fov_min()) || !(phi < s.fov_max())) return -1;
+  if (s.uniform_bearings() && n > 1) {
+    const double lo = s.fov_min();
+    const double w = (s.fov_max() - lo) / n;
+    return std::clamp(static_cast<int>((phi - lo) / w), 0, n - 1);
+  }
+  const auto it = std::lower_bound(s.bearings_rad.begin(), s.bearings_rad.end(), phi);
+  int j = static_cast<int>(it - s.bearings_rad.begin());
+  if (j == n) return n - 1;
+  if (j > 0 && phi - s.bearings_rad[j - 1] < s.bearings_rad[j] - phi) --j;
+  return j;
+}
+
+template <bool kScan>
+void BM_BeamOfBearing(benchmark::State& state) {
+  SonarSpec s;
+  s.set_uniform_bearings(60 * kDeg, static_cast<int>(state.range(0)));
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(s.fov_min(), s.fov_max());
+  std::vector<double> phis(4096);
+  for (double& p : phis) p = u(rng);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const double phi = phis[i++ & 4095];
+    benchmark::DoNotOptimize(kScan ? beam_of_bearing_scan(s, phi) : s.beam_of_bearing(phi));
+  }
+}
+BENCHMARK(BM_BeamOfBearing<false>)->Name("BM_BeamOfBearing")->Arg(128)->Arg(768);
+BENCHMARK(BM_BeamOfBearing<true>)->Name("BM_BeamOfBearing_PreviousScan")->Arg(128)->Arg(768);
+
+// ---------------------------------------------------------------------------------------------
 // Driver
 
 int run_driver(int argc, char** argv) {
@@ -187,6 +227,25 @@ int run_driver(int argc, char** argv) {
       cfg.max_extrapolation = std::stod(next());
     } else if (a == "--max-range") {
       cfg.max_range = std::stod(next());
+    } else if (a == "--exact-lambertian") {
+      cfg.exact = true;
+      cfg.exact_lambertian = true;
+    } else if (a == "--exact-block-tolerance") {
+      cfg.exact_block_tolerance = true;
+    } else if (a == "--exact-plane-tolerance") {
+      cfg.exact_block_tolerance = false;
+    } else if (a == "--exact-tolerance") {
+      cfg.exact_tolerance = std::stod(next());
+    } else if (a == "--exact-sweeps") {
+      cfg.exact_max_sweeps = std::stoi(next());
+    } else if (a == "--exact-range-subsamples") {
+      cfg.exact_range_subsamples = std::stoi(next());
+    } else if (a == "--subsamples") {
+      cfg.subsamples = std::stoi(next());
+    } else if (a == "--min-intensity") {
+      cfg.min_intensity = std::stod(next());
+    } else if (a == "--layer-spacing") {
+      cfg.layer_spacing = std::stod(next());
     } else if (a == "--threads") {
       cfg.num_threads = std::stoi(next());
     } else if (a == "--report") {

@@ -192,7 +192,7 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--exact-lambertian", o->deconv.exact_lambertian,
                 "deconv: exact mode (implies --exact) with the Lambertian term modelled: three "
                 "normal classes per cell (facing the sonar path, up, down) instead of one; fewer "
-                "ghosts above horizontal surfaces at wide apertures, about 3x slower");
+                "ghosts above horizontal surfaces at wide apertures, 5-30x slower");
   cmd->add_flag("--exact-block-tolerance", o->deconv.exact_block_tolerance,
                 "deconv: exact mode: stop when each range block's KKT violation is small against "
                 "its own data, not the bearing plane's brightest return, so that weak (grazing) "

@@ -90,7 +90,7 @@ int SonarSpec::beam_of_bearing(double phi) const {
   const auto it = std::lower_bound(bearings_rad.begin(), bearings_rad.end(), phi);
   int j = static_cast<int>(it - bearings_rad.begin());
   if (j == n) return n - 1;
-  if (j > 0 && phi - bearings_rad[j - 1] < bearings_rad[j] - phi) --j;
+  if (j > 0 && phi < beam_edge_low(j)) --j;  // the edge itself, not a distance test: consistent
   return j;
 }
 

@@ -201,7 +201,9 @@ EvalResult evaluate(const PointCloud& cloud, const TriangleMesh& truth, const Ev
   r.num_surface_samples = count;
 
   if (cloud.empty()) {
-    r.median_error = r.mean_error = r.median_to_coverage = kNaN;
+    // Nothing to measure: no error, and no share of outliers among zero points (reporting 0 %
+    // would rank an empty reconstruction as outlier-free).
+    r.median_error = r.mean_error = r.median_to_coverage = r.outliers = kNaN;
     return r;
   }
 

@@ -78,6 +78,9 @@ void DeconvConfig::validate() const {
           "parameter 'deconv.exact_tolerance' must lie in (0, 1)");
   require(exact_range_subsamples >= 1 && exact_range_subsamples <= 16,
           "parameter 'deconv.exact_range_subsamples' must lie in [1, 16]");
+  require(!exact_lambertian || exact,
+          "parameter 'deconv.exact_lambertian' needs the exact mode (deconv.exact = true, "
+          "--exact)");
   require(num_threads >= 0, "parameter 'deconv.num_threads' must be >= 0 (0 = all cores), got " +
                                 std::to_string(num_threads));
   require(!(exact && kernel != Kernel::Plain),

@@ -33,8 +33,8 @@ namespace {
 struct Block {
   double rho = 0.0;
   int K = 1;
-  int P = 0;        // layers
-  int classes = 1;  // unknowns per layer: 1, or 3 with exact_lambertian (facing ρ, up, down)
+  int P = 0;         // layers
+  int classes = 1;   // unknowns per layer: 1, or 3 with exact_lambertian (facing ρ, up, down)
   int unknowns = 0;  // P·classes; unknown q is layer q / classes, class q % classes
   double first_layer = 0.0;
   int bin_first = 0, bin_last = -1;  // range bins its cells reach (absolute)
@@ -172,7 +172,8 @@ Block build_block(const PassData& pd, const BeamPattern& pattern, double rho, in
         const int k = static_cast<int>(it - pd.heights.begin());
         cell(u - *it, tmp);
         for (int c = 0; c < classes; ++c) {
-          for (const auto& [i, w] : tmp[c]) cols[p * classes + c].push_back({(i - pd.bin_lo) * n + k, w});
+          for (const auto& [i, w] : tmp[c])
+            cols[p * classes + c].push_back({(i - pd.bin_lo) * n + k, w});
         }
       }
     }
@@ -257,7 +258,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
         NnlsSolver solver;
         std::vector<double> R(static_cast<std::size_t>(pd.bins) * n);
         std::vector<std::vector<double>> bv(blocks.size());
-        std::vector<double> g, c, b_old, half_lambda;
+        std::vector<double> g, c, b_old, half_lambda, scale;
         std::vector<char> beam_bin(pd.bins);
         std::vector<std::size_t> active;
         for (int beam = rg.begin(); beam < rg.end(); ++beam) {
@@ -301,11 +302,13 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
           // strongest return silence the weak ones).
           double cmax = 0.0;
           half_lambda.assign(blocks.size(), 0.0);
+          scale.assign(blocks.size(), 0.0);
           for (std::size_t bi : active) {
             block_gradient(blocks[bi], g);
             double m = 0.0;
             for (double v : g) m = std::max(m, v);
             half_lambda[bi] = cfg.lambda_fraction * m;
+            scale[bi] = m;
             cmax = std::max(cmax, m);
             bv[bi].assign(blocks[bi].unknowns, 0.0);
           }
@@ -313,7 +316,13 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             if (progress) progress->add();
             continue;
           }
-          const double tol = cfg.exact_tolerance * cmax;
+          // KKT scale per block: the beam plane's max(Aᵀy), or with exact_block_tolerance the
+          // block's own (floored at 1e-6 of the plane's, against rounding), so that a block of
+          // weak returns (grazing surfaces) is solved as accurately as a bright one.
+          for (std::size_t bi : active) {
+            scale[bi] = cfg.exact_block_tolerance ? std::max(scale[bi], 1e-6 * cmax) : cmax;
+          }
+          const double tol = cfg.exact_tolerance;  // on the violation relative to the scale
           int sweep = 0;
           double viol = 0.0;
           bool beam_unconverged = false;
@@ -330,6 +339,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
                 const double w = g[p] - hl;
                 block_viol = std::max(block_viol, b[p] > 0 ? std::abs(w) : std::max(0.0, w));
               }
+              block_viol /= scale[bi];
               viol = std::max(viol, block_viol);
               // A block already optimal (to tolerance) against the others' residual keeps its b:
               // later sweeps only revisit the blocks that the others' updates disturbed.
@@ -371,7 +381,7 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
             while (s > cur && !max_sweeps.compare_exchange_weak(cur, s)) {
             }
             std::lock_guard<std::mutex> lock(kkt_mutex);
-            worst_kkt = std::max(worst_kkt, viol / cmax);
+            worst_kkt = std::max(worst_kkt, viol);
           }
           const double phi = spec.bearings_rad[beam];
           for (std::size_t bi : active) {

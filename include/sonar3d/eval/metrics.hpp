@@ -21,7 +21,7 @@ struct EvalConfig {
 };
 
 // Units: metres for errors and radii, fractions in [0, 1] for coverage and outliers. An empty
-// cloud gives num_points 0, coverage 0, outliers 0, NaN median/mean/ratio (null in JSON).
+// cloud gives num_points 0, coverage 0, NaN outliers/median/mean/ratio (null in JSON).
 struct EvalResult {
   std::size_t num_points = 0;
   std::size_t num_surface_samples = 0;
@@ -62,7 +62,7 @@ std::vector<Eigen::Vector3f> sample_surface(const TriangleMesh& mesh, std::size_
                                             unsigned long long seed);
 
 // Evaluates `cloud` (world frame) against `truth` (world frame). Throws Error on an empty mesh.
-// An empty cloud gives coverage 0, outliers 0 and NaN errors.
+// An empty cloud gives coverage 0 and NaN errors, outliers and ratio.
 EvalResult evaluate(const PointCloud& cloud, const TriangleMesh& truth, const EvalConfig& config);
 
 std::string to_json(const EvalResult& r, int indent = 2);

@@ -117,8 +117,15 @@ struct DeconvConfig {
   // (grazing Lambertian surfaces, which A* ignores, eq. 5.27) into ghost layers.
   double max_extrapolation = 0.1;
   NnlsOptions nnls;
-  int exact_max_sweeps = 40;       // exact mode: block Gauss–Seidel sweeps over ρ
-  double exact_tolerance = 1e-3;   // exact mode: stop when the KKT violation ≤ this·max|Aᵀy|
+  int exact_max_sweeps = 40;      // exact mode: block Gauss–Seidel sweeps over ρ
+  double exact_tolerance = 1e-3;  // exact mode: stop when the KKT violation ≤ this·max|Aᵀy|
+  // Exact mode: true = the KKT violation of every ρ block is measured against the block's own
+  // largest Aᵀy, so that blocks of weak returns (grazing surfaces, 1000× below the brightest
+  // return of the plane) are solved to the same relative accuracy; false = against the beam
+  // plane's largest Aᵀy, which leaves such blocks at 0 as already "optimal". Measured
+  // (docs/deconvolution.md sec. 6): true wins at 10° (pillar, riser coverage ×2) and loses at 30°
+  // on the pillar and riser (the weak blocks it solves are mostly ghosts there); hence off.
+  bool exact_block_tolerance = false;
   int exact_range_subsamples = 2;  // exact mode: ρ integration points per cell
   // Exact mode: model the Lambertian term that A* (eq. 5.27) leaves out. Each (ρ, h) cell holds
   // three non-negative unknowns, the reflectivity of a surface facing the pass axis (weight
@@ -127,7 +134,7 @@ struct DeconvConfig {
   // grazing incidence (brighter the steeper the view) are fitted with ghost cells above them and
   // caps are "seen" from behind. 3× the unknowns: slower.
   bool exact_lambertian = false;
-  int num_threads = 0;             // 0 = all cores (TBB)
+  int num_threads = 0;  // 0 = all cores (TBB)
 
   void validate() const;                         // throws Error naming the field
   static Beam parse_beam(const std::string& s);  // sinc | flat | sensor
