@@ -83,6 +83,26 @@ struct FixtureOptions {
   int sphere_segments = 48;
 };
 
+// Writes an ok point's cloud under dir/points/<id>/ and fills its results.json entry (status,
+// metrics as the planner writes them, cloud path); returns the evaluation.
+EvalResult write_ok_point(const fs::path& dir, const std::string& id, const PointCloud& cloud,
+                          const TriangleMesh& truth, const EvalConfig& ecfg, json& p) {
+  const std::string rel = "points/" + id + "/cloud.ply";
+  fs::create_directories(dir / "points" / id);
+  write_ply((dir / rel).string(), cloud);
+  const EvalResult r = evaluate(cloud, truth, ecfg);
+  p["status"] = "ok";
+  p["message"] = "";
+  p["metrics"] = {{"median_error_m", r.median_error},
+                  {"mean_error_m", r.mean_error},
+                  {"coverage", r.coverage},
+                  {"outliers", r.outliers},
+                  {"median_to_coverage", r.median_to_coverage},
+                  {"num_points", r.num_points}};
+  p["cloud"] = rel;
+  return r;
+}
+
 fs::path make_plan_dir(const fs::path& dir, const FixtureOptions& opt = {}) {
   fs::create_directories(dir / "truth");
   std::map<std::string, TriangleMesh> truth;
@@ -156,25 +176,13 @@ fs::path make_plan_dir(const fs::path& dir, const FixtureOptions& opt = {}) {
             cloud.points.push_back(q);
             cloud.intensity.push_back(1.f);
           }
-          const std::string rel = std::string("points/") + id + "/cloud.ply";
-          fs::create_directories(dir / "points" / id);
-          write_ply((dir / rel).string(), cloud);
-          const EvalResult r = evaluate(cloud, mesh, ecfg);
+          const EvalResult r = write_ok_point(dir, id, cloud, mesh, ecfg, p);
           json m = json::parse(to_json(r));
           json all = m;
           all["object"] = "all";
           m["object"] = obj;
           write_text_file((dir / "points" / id / "metrics.json").string(),
                           json::array({m, all}).dump(2));
-          p["status"] = "ok";
-          p["message"] = "";
-          p["metrics"] = {{"median_error_m", r.median_error},
-                          {"mean_error_m", r.mean_error},
-                          {"coverage", r.coverage},
-                          {"outliers", r.outliers},
-                          {"median_to_coverage", r.median_to_coverage},
-                          {"num_points", r.num_points}};
-          p["cloud"] = rel;
           points.push_back(p);
         }
       }
@@ -249,18 +257,7 @@ fs::path make_small_plan_dir(const fs::path& dir, const json& axes, const std::v
       cloud.points.push_back(q + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
       cloud.intensity.push_back(1.f);
     }
-    const std::string rel = std::string("points/") + id + "/cloud.ply";
-    fs::create_directories(dir / "points" / id);
-    write_ply((dir / rel).string(), cloud);
-    const EvalResult r = evaluate(cloud, truth[obj], ecfg);
-    p["status"] = "ok";
-    p["message"] = "";
-    p["metrics"] = {{"median_error_m", r.median_error},
-                    {"coverage", r.coverage},
-                    {"outliers", r.outliers},
-                    {"median_to_coverage", r.median_to_coverage},
-                    {"num_points", r.num_points}};
-    p["cloud"] = rel;
+    write_ok_point(dir, id, cloud, truth[obj], ecfg, p);
     points.push_back(p);
   }
   results["points"] = points;
