@@ -5,6 +5,7 @@
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
+
 PointCloud crop_to_region(const PointCloud& cloud, const Eigen::AlignedBox3d& region) {
   PointCloud out;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
