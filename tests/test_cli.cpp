@@ -160,6 +160,16 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
       run("simulate " + (kTmp / "scene.yaml").string() + " -o " + (kTmp / "ds").string()).code, 0);
   r = run("evaluate " + (kTmp / "corrupt.ply").string() + " --truth " + (kTmp / "ds").string());
   expect_one_line_error(r, "corrupt.ply");
+  // A region of interest that is not finite or is flat, for either method: named, nothing written.
+  for (const char* method : {"carve", "deconv"}) {
+    r = run("reconstruct " + (kTmp / "ds").string() + " --method " + std::string(method) + " -o " +
+            (kTmp / "roi.ply").string() + " -q --roi 0 0 nan 1 1 1");
+    expect_one_line_error(r, "'--roi' must have finite corners");
+    r = run("reconstruct " + (kTmp / "ds").string() + " --method " + std::string(method) + " -o " +
+            (kTmp / "roi.ply").string() + " -q --roi 0 0 1 1 1 1");
+    expect_one_line_error(r, "'--roi'");
+    EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
+  }
   // Unknown subcommand and --help.
   EXPECT_NE(run("frobnicate").code, 0);
   r = run("simulate --help");

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <vector>
 
 #include "commands.hpp"
@@ -48,10 +49,12 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   cfg.denoise.z_test = !o.no_z_test;
   cfg.num_threads = o.carve.num_threads;
   cfg.validate();
+  std::optional<Eigen::AlignedBox3d> roi;  // checked before the work starts
+  if (!o.roi.empty()) roi = roi_box(o.roi);
   const Dataset ds = read_dataset(o.dataset);
   DeconvReport report;
   PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
-  if (!o.roi.empty()) cloud = crop_to_region(cloud, roi_box(o.roi));
+  if (roi) cloud = crop_to_region(cloud, *roi);
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   fmt::print("{}", report.to_text());  // per-pass figures, then the warnings
   fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
