@@ -42,7 +42,7 @@ struct Sweep {
   std::string rank_by = "median_to_coverage";  // a metric name
   int workers = 0;                   // parallel points on this machine; 0 = number of cores
   bool keep_datasets = false;        // keep each point's simulated dataset
-  double elevation_step_deg = 0.02;  // simulator ray spacing (θ_res)
+  double elevation_step_deg = 0.01;  // simulator ray spacing (θ_res), the thesis' 0.01°
   unsigned long long seed = 1;
 
   std::size_t size() const;  // number of grid points
