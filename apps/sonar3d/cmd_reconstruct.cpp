@@ -180,6 +180,10 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "occlusion: a candidate is shadowed only by one more than this many range bins "
                   "nearer")
       ->capture_default_str();
+  cmd->add_flag("--no-refute-free{false}", o->carve.occlusion.refute_free,
+                "carving: keep the thesis' occlusion rule only (by default, beyond the thesis, "
+                "candidates that a frame saw in an empty pixel with nothing mapped nearer on their "
+                "own line of sight are dropped as free space, not shadow)");
   cmd->add_option("--lambda", o->deconv.lambda_fraction,
                   "deconv: L1 weight λ as a fraction of λ_max, in [0, 1] (eq. 5.28; 0.5 = "
                   "Table 5.1)")

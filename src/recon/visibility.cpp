@@ -207,7 +207,9 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
   struct Scratch {
     std::vector<std::uint16_t> depth;  // nearest return-pixel candidate bin per (beam, interval)
     std::vector<Hit> hits;
+    std::vector<Hit> empty_hits;  // candidates in empty pixels (refute_free)
     std::vector<std::uint8_t> observed;
+    std::vector<std::uint8_t> refuted;
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
 
@@ -215,12 +217,19 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     Scratch& sc = scratch.local();
     if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
     if (sc.observed.size() != cand.size()) sc.observed.assign(cand.size(), 0);
+    if (config.refute_free && sc.refuted.size() != cand.size()) sc.refuted.assign(cand.size(), 0);
     std::fill(sc.depth.begin(), sc.depth.end(), std::uint16_t{0xFFFF});
     sc.hits.clear();
+    sc.empty_hits.clear();
     const detail::FrameFootprint fp(g, fr);
     const double r_min2 = g.r_min * g.r_min, r_max2 = g.r_max * g.r_max;
     for (const Block& b : blocks) {
-      if (fp.no_return_possible(fp.to_sonar(b.centre_world), b.radius)) continue;
+      const Eigen::Vector3d c_sonar = fp.to_sonar(b.centre_world);
+      if (config.refute_free
+              ? fp.classify(c_sonar, b.radius, b.radius).region == detail::Region::Outside
+              : fp.no_return_possible(c_sonar, b.radius)) {
+        continue;
+      }
       for (std::size_t m = b.begin; m < b.end; ++m) {
         const std::uint32_t c = order[m];
         const Eigen::Vector3d p = fp.to_sonar(candidates_world.points[cand[c]].cast<double>());
@@ -233,13 +242,17 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
         if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
         const int j = g.beam(phi);
         const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
-        if (!fr.has_return(i, j)) continue;  // the frame saw nothing here: no label
         const double theta = g.elevation(s);
-        const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
         auto interval = [&](double t) {
           return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
         };
         const int k = interval(theta);
+        if (!fr.has_return(i, j)) {  // the frame saw nothing here
+          if (config.refute_free)
+            sc.empty_hits.push_back({c, static_cast<std::uint32_t>(j * K + k), i});
+          continue;
+        }
+        const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
         // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular footprint
         // covers, for everything at a longer range.
         const double a = h / r, bw = h / rho;
@@ -258,6 +271,11 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     for (const Hit& hit : sc.hits) {
       if (hit.bin <= sc.depth[hit.cell] + tol) sc.observed[hit.candidate] = 1;
     }
+    // refute_free: nothing the frame returned lies nearer on this candidate's own line of sight,
+    // yet its pixel is empty: free space, not a shadow.
+    for (const Hit& hit : sc.empty_hits) {
+      if (hit.bin < sc.depth[hit.cell]) sc.refuted[hit.candidate] = 1;
+    }
     if (progress) progress->add();
   };
 
@@ -274,6 +292,10 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
   std::vector<std::uint8_t> observed(cand.size(), 0);
   for (const Scratch& sc : scratch) {
     for (std::size_t n = 0; n < sc.observed.size(); ++n) observed[n] |= sc.observed[n];
+  }
+  for (const Scratch& sc : scratch) {
+    for (std::size_t n = 0; n < sc.refuted.size(); ++n)
+      if (sc.refuted[n]) observed[n] = 0;
   }
   std::vector<std::uint32_t> kept;
   for (std::size_t n = 0; n < cand.size(); ++n)

@@ -42,7 +42,13 @@ struct CarveConfig {
   bool resolve_occlusions = true;
   // occlusion.voxel_size and occlusion.num_threads are overridden by this config's voxel_size and
   // num_threads; occlusion.min_intensity by static_threshold when the latter is larger.
-  OcclusionConfig occlusion;
+  // refute_free is on for carving (measured: docs/carving.md, "Free space behind another
+  // elevation's return").
+  OcclusionConfig occlusion = [] {
+    OcclusionConfig c;
+    c.refute_free = true;
+    return c;
+  }();
   // Static threshold on the map (sec. 4.4.7): keep candidates whose bound is > this.
   double static_threshold = 0.0;
   // A voxel is carved only when the ball of radius carve_margin × (half its diagonal) around its
