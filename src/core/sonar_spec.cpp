@@ -38,10 +38,13 @@ double BeamPattern::amplitude(double theta, double theta_3db) const {
 
 const char* BeamPattern::kind_name(Kind k) {
   switch (k) {
-    case Kind::Flat: return "flat";
-    case Kind::Table: return "table";
+    case Kind::Flat:
+      return "flat";
+    case Kind::Table:
+      return "table";
     case Kind::Sinc:
-    default: return "sinc";
+    default:
+      return "sinc";
   }
 }
 
@@ -116,7 +119,8 @@ void SonarSpec::validate() const {
   if (bearings_rad.empty()) throw Error(where + "no beams (bearings is empty)");
   for (std::size_t j = 0; j < bearings_rad.size(); ++j) {
     if (!std::isfinite(bearings_rad[j]) || std::abs(bearings_rad[j]) >= M_PI) {
-      throw Error(where + "bearing " + std::to_string(j) + " is not a finite angle in (-180°, 180°)");
+      throw Error(where + "bearing " + std::to_string(j) +
+                  " is not a finite angle in (-180°, 180°)");
     }
     if (j > 0 && !(bearings_rad[j] > bearings_rad[j - 1])) {
       throw Error(where + "bearings must be strictly increasing (beam " + std::to_string(j) + ")");
@@ -151,7 +155,8 @@ void SonarSpec::validate() const {
     const auto& x = beam_pattern.table_elevation_rad;
     const auto& y = beam_pattern.table_amplitude;
     if (x.size() < 2 || x.size() != y.size()) {
-      throw Error(where + "beam_pattern table needs >= 2 elevation/amplitude pairs of equal length");
+      throw Error(where +
+                  "beam_pattern table needs >= 2 elevation/amplitude pairs of equal length");
     }
     for (std::size_t i = 0; i < x.size(); ++i) {
       if (!std::isfinite(x[i]) || !std::isfinite(y[i]) || y[i] < 0 ||
@@ -197,9 +202,8 @@ SonarSpec sonar_preset(const std::string& name) {
     s.r_max = 1.66;
     s.range_bins = 341;
     s.vertical_aperture_rad = 14 * kDeg;
-  } else if (name.rfind("sim-", 0) == 0 &&
-             (name == "sim-1deg" || name == "sim-10deg" || name == "sim-20deg" ||
-              name == "sim-30deg")) {
+  } else if (name.rfind("sim-", 0) == 0 && (name == "sim-1deg" || name == "sim-10deg" ||
+                                            name == "sim-20deg" || name == "sim-30deg")) {
     // sec. 4.5.2: simulated sensors with 2 cm range and 0.2° bearing resolution. The thesis does
     // not give their field of view or range window; we use 60° and 1–5 m (documented).
     const double ap = std::stod(name.substr(4));

@@ -11,13 +11,14 @@
 namespace sonar3d {
 
 struct EvalConfig {
-  double coverage_radius = 0.03;    // r_c, m
-  double outlier_radius = 0.10;     // r_o, m
-  double samples_per_cm2 = 1.0;     // uniform surface samples for coverage (> 0; never fewer than 1000)
-  double histogram_max = 0.20;      // m, last histogram edge (larger errors go in the last bin)
+  double coverage_radius = 0.03;  // r_c, m
+  double outlier_radius = 0.10;   // r_o, m
+  double samples_per_cm2 =
+      1.0;                      // uniform surface samples for coverage (> 0; never fewer than 1000)
+  double histogram_max = 0.20;  // m, last histogram edge (larger errors go in the last bin)
   int histogram_bins = 40;
-  unsigned long long seed = 1;      // surface sampling seed
-  void validate() const;            // throws Error naming the field
+  unsigned long long seed = 1;  // surface sampling seed
+  void validate() const;        // throws Error naming the field
 };
 
 // Units: metres for errors and radii, fractions in [0, 1] for coverage and outliers. An empty
@@ -25,17 +26,18 @@ struct EvalConfig {
 struct EvalResult {
   std::size_t num_points = 0;
   std::size_t num_surface_samples = 0;
-  double median_error = 0;     // m, unsigned
-  double mean_error = 0;       // m
-  double coverage = 0;         // fraction in [0, 1] of surface samples with a point within r_c
-  double outliers = 0;         // fraction in [0, 1] of points farther than r_o
+  double median_error = 0;  // m, unsigned
+  double mean_error = 0;    // m
+  double coverage = 0;      // fraction in [0, 1] of surface samples with a point within r_c
+  double outliers = 0;      // fraction in [0, 1] of points farther than r_o
   // median_error in cm divided by coverage in %, i.e. cm per %, as the thesis plots it (Fig. 4.18);
   // lower is better; +inf when no surface sample is covered (null in JSON).
   double median_to_coverage = 0;
-  double coverage_radius = 0;  // m, r_c used (copied from the config so results are self-describing)
-  double outlier_radius = 0;   // m, r_o used
-  std::vector<double> histogram_edges;   // m, bins+1 edges
-  std::vector<std::size_t> histogram;    // counts per bin
+  double coverage_radius =
+      0;                      // m, r_c used (copied from the config so results are self-describing)
+  double outlier_radius = 0;  // m, r_o used
+  std::vector<double> histogram_edges;  // m, bins+1 edges
+  std::vector<std::size_t> histogram;   // counts per bin
 };
 
 // Exact unsigned distance from points to a triangle mesh (closest point on the triangles, via an
