@@ -22,6 +22,7 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/projector.hpp"
 #include "sonar3d/core/trajectory.hpp"
 
 namespace sonar3d {
@@ -430,12 +431,9 @@ void CarveConfig::validate() const {
 
 // Whether p_sonar lies in the sonar's field of view: range window, fan and vertical aperture.
 bool in_wedge(const Eigen::Vector3d& p_sonar, const SonarSpec& spec) {
-  const double r = p_sonar.norm();
-  if (!(r >= spec.r_min && r < spec.r_max)) return false;
-  const double phi = std::atan2(p_sonar.y(), p_sonar.x());
-  const double theta = std::asin(std::clamp(p_sonar.z() / r, -1.0, 1.0));
-  return phi >= spec.fov_min() && phi <= spec.fov_max() &&
-         std::abs(theta) <= 0.5 * spec.vertical_aperture_rad;
+  const Polar q = sonar_to_polar(p_sonar);
+  return q.range >= spec.r_min && q.range < spec.r_max && q.bearing >= spec.fov_min() &&
+         q.bearing <= spec.fov_max() && std::abs(q.elevation) <= spec.theta_3db();
 }
 
 struct Carver::Impl {
