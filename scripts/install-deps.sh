@@ -8,7 +8,7 @@ PACKAGES=(
   libeigen3-dev        # linear algebra, poses
   libtbb-dev           # the one threading backend
   libembree-dev        # ray tracing, closest-point queries
-  libopenvdb-dev       # sparse volumes (carving map)
+  libopenvdb-dev libboost-iostreams-dev  # sparse volumes (carving map); OpenVDB's CMake config needs Boost.Iostreams
   libassimp-dev        # CAD meshes, every format
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev  # PNG/TIFF IO, filters
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev

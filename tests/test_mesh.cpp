@@ -27,7 +27,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-const std::string kMeshDir = std::string(SONAR3D_SHARED_DIR) + "/data/meshes/";
+const std::string kMeshDir = std::string(SONAR3D_SOURCE_DIR) + "/data/meshes/";
 
 // Divergence theorem: V = 1/6 sum a . (b x c). Positive iff the closed surface faces outward.
 double signed_volume(const TriangleMesh& m) {
