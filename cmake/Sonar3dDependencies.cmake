@@ -8,6 +8,10 @@ find_package(yaml-cpp REQUIRED)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(fmt REQUIRED)
+# Elevation maps as GeoTIFF (libgdal-dev; CMake's FindGDAL gives GDAL::GDAL) and the swath
+# adjustment's robust least squares (libceres-dev, a config package).
+find_package(GDAL REQUIRED)
+find_package(Ceres REQUIRED)
 
 # OpenVDB (the carving map, .vdb export): Debian ships only a find module, not a config package.
 # Its headers need Boost (libboost-iostreams-dev). The module forces BUILD_SHARED_LIBS ON as a side

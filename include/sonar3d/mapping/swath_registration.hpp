@@ -1,0 +1,87 @@
+#pragma once
+// Registration of swath elevation maps (thesis sec. 6.2.2.1) and, beyond the thesis, one robust
+// least-squares adjustment of all swath offsets from every overlapping pair.
+//
+// Frames: local ENU world (x East, y North, z up). The thesis searches a North/East shift and
+// aligns depths; here the shift is (dx, dy) = (East, North) and the vertical offset dz is a height.
+// A registration of a moving map B against a reference map A returns the translation
+// t = (dx, dy, dz) that moves B onto A: A(x, y) ≈ B(x − dx, y − dy) + dz.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "sonar3d/mapping/elevation_map.hpp"
+
+namespace sonar3d {
+
+struct SwathRegistrationConfig {
+  double search_m = 0.5;        // ±ΔN = ±ΔE: half-width of the exhaustive search window, m
+  int min_overlap_cells = 200;  // fewer overlapping defined cells than this: no tie
+  // Sub-cell refinement: a parabola through the score at the best shift and its neighbours
+  // along each axis (beyond the thesis' cell-resolution search).
+  bool subcell = true;
+  // A tie's confidence is scaled down when the overlap has fewer cells than this (it reaches its
+  // full value at overlap_full_cells).
+  int overlap_full_cells = 5000;
+  int num_threads = 0;  // 0 = all cores
+
+  void validate() const;  // throws Error naming the parameter
+};
+
+struct SwathTie {
+  int reference = -1, moving = -1;           // swath indices (A, B)
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();  // (dx, dy, dz) moving B onto A, m
+  double score_m = 0;      // eq. 6.2 at the best shift: median |A − B − ζ| over the overlap, m
+  std::size_t overlap_cells = 0;  // defined in both maps at the best shift
+  // 0…1. The score surface of a featureless (flat) overlap is flat: the best shift is barely
+  // better than a typical one, and confidence is near 0. Computed as
+  //   (1 − best / median over all searched shifts) · min(1, overlap / overlap_full_cells).
+  double confidence = 0;
+  double seconds = 0;
+};
+
+// Sec. 6.2.2.1: every integer cell shift (i, j) in [−S, S]² (S = search_m / cell size) is scored
+// over the cells defined in both maps: ζ = the signed median of A − B (eq. 6.1: the depth
+// distributions aligned), score = median |A − B − ζ| (eq. 6.2); undefined cells are discarded.
+// The lowest score wins; dz = ζ there. Both maps must share the cell size and have their origins
+// on a common cell grid. Parallel over shifts (TBB). Throws Error when no shift overlaps by
+// min_overlap_cells.
+SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationMap& moving,
+                                 const SwathRegistrationConfig& config);
+
+// Whether two maps overlap at all (their extents, grown by the search window, intersect).
+bool maps_may_overlap(const ElevationMap& a, const ElevationMap& b, double search_m);
+
+struct SwathAdjustmentConfig {
+  // Robust loss scale (Cauchy), m: ties that disagree with the others by much more than this
+  // are down-weighted instead of pulling the solution.
+  double loss_scale_m = 0.05;
+  double min_confidence = 0.05;  // ties below this confidence are left out
+  int max_iterations = 100;
+
+  void validate() const;
+};
+
+struct SwathAdjustment {
+  std::vector<Eigen::Vector3d> offsets;  // per swath (dx, dy, dz) to add to its positions, m
+  std::vector<double> tie_residual_m;    // per tie, |o_B − o_A − t| at the solution
+  std::vector<bool> tie_used;            // per tie: confident enough to take part
+  int iterations = 0;
+  double final_cost = 0;
+};
+
+// The thesis' method: each swath registered to the previous one, offsets accumulated along the
+// survey (swath 0 fixed). `ties` must hold (i−1, i) for every i ≥ 1.
+SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTie>& ties);
+
+// Beyond the thesis: all ties at once. Unknowns o_i ∈ R³ per swath (swath `fixed_swath` held at
+// 0, the gauge); each tie (A, B, t, confidence w) contributes the residual
+// √w · (o_B − o_A − t) under a Cauchy loss; solved by Ceres. Swaths that no usable tie connects to
+// the fixed one are an error naming them.
+SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
+                              const SwathAdjustmentConfig& config, int fixed_swath = 0);
+
+// A copy of `map` with its origin moved by (dx, dy) and heights by dz.
+ElevationMap shifted(const ElevationMap& map, const Eigen::Vector3d& t);
+
+}  // namespace sonar3d

@@ -1,0 +1,310 @@
+// Swath registration (thesis sec. 6.2.2.1, eq. 6.1–6.2) and the global adjustment of all swath
+// offsets (beyond the thesis).
+#include "sonar3d/mapping/swath_registration.hpp"
+
+#include <ceres/ceres.h>
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <queue>
+
+#include "sonar3d/core/error.hpp"
+
+namespace sonar3d {
+
+namespace {
+
+struct Cell {
+  int row, col;
+  float z;
+};
+
+// Median of v (reordered in place); v must not be empty.
+float median_in_place(std::vector<float>& v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  float m = *mid;
+  if (v.size() % 2 == 0) {
+    m = 0.5f * (m + *std::max_element(v.begin(), mid));
+  }
+  return m;
+}
+
+struct ShiftScore {
+  float score = std::numeric_limits<float>::infinity();  // eq. 6.2; inf = too little overlap
+  float zeta = 0;                                         // eq. 6.1
+  std::size_t overlap = 0;
+};
+
+}  // namespace
+
+void SwathRegistrationConfig::validate() const {
+  require_non_negative(search_m, "search_m", "m");
+  require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
+  require(overlap_full_cells >= 1, "overlap_full_cells must be >= 1");
+  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+}
+
+void SwathAdjustmentConfig::validate() const {
+  require_positive(loss_scale_m, "loss_scale_m", "m");
+  require(min_confidence >= 0 && min_confidence <= 1, "min_confidence must be within [0, 1]");
+  require(max_iterations >= 1, "max_iterations must be >= 1");
+}
+
+bool maps_may_overlap(const ElevationMap& a, const ElevationMap& b, double search_m) {
+  const double ax1 = a.origin_xy.x() + a.cols * a.cell_m, ay0 = a.origin_xy.y() - a.rows * a.cell_m;
+  const double bx1 = b.origin_xy.x() + b.cols * b.cell_m, by0 = b.origin_xy.y() - b.rows * b.cell_m;
+  return a.origin_xy.x() - search_m < bx1 && b.origin_xy.x() - search_m < ax1 &&
+         ay0 - search_m < b.origin_xy.y() && by0 - search_m < a.origin_xy.y();
+}
+
+SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationMap& moving,
+                                 const SwathRegistrationConfig& config) {
+  config.validate();
+  const auto start = std::chrono::steady_clock::now();
+  const ElevationMap& A = reference;
+  const ElevationMap& B = moving;
+  require(!A.empty() && !B.empty(), "swath registration: an elevation map is empty");
+  const double c = A.cell_m;
+  require(std::abs(B.cell_m - c) <= 1e-9 * c,
+          "swath registration: the maps have different cell sizes (" + std::to_string(A.cell_m) +
+              " m and " + std::to_string(B.cell_m) + " m): map both swaths at one resolution");
+  const double fc = (B.origin_xy.x() - A.origin_xy.x()) / c;
+  const double fr = (A.origin_xy.y() - B.origin_xy.y()) / c;
+  require(std::abs(fc - std::round(fc)) < 1e-3 && std::abs(fr - std::round(fr)) < 1e-3,
+          "swath registration: the maps' origins are not on a common cell grid: map both "
+          "swaths with origins on multiples of the cell size");
+  const long dc0 = std::lround(fc), dr0 = std::lround(fr);
+  const double search_cells_d = std::floor(config.search_m / c + 1e-9);
+  require(search_cells_d <= 2000, "search_m = " + std::to_string(config.search_m) +
+                                      " m is more than 2000 cells: search a smaller window");
+  const int S = static_cast<int>(search_cells_d);
+  const int W = 2 * S + 1;
+
+  // B's defined cells that can land in A for some shift of the window.
+  std::vector<Cell> cells;
+  for (int r = 0; r < B.rows; ++r) {
+    const long ra = r + dr0;
+    if (ra < -S || ra >= A.rows + S) continue;
+    for (int col = 0; col < B.cols; ++col) {
+      const long ca = col + dc0;
+      if (ca < -S || ca >= A.cols + S || !B.valid(r, col)) continue;
+      cells.push_back({static_cast<int>(ra), static_cast<int>(ca), B.at(r, col)});
+    }
+  }
+  require(cells.size() >= static_cast<std::size_t>(config.min_overlap_cells),
+          "swath registration: the maps do not overlap (" + std::to_string(cells.size()) +
+              " cells of the moving map fall within the reference map's extent grown by "
+              "search_m; min_overlap_cells = " + std::to_string(config.min_overlap_cells) + ")");
+
+  std::vector<ShiftScore> scores(static_cast<std::size_t>(W) * W);
+  std::optional<tbb::global_control> threads;
+  if (config.num_threads > 0) {
+    threads.emplace(tbb::global_control::max_allowed_parallelism,
+                    static_cast<std::size_t>(config.num_threads));
+  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, W * W), [&](const tbb::blocked_range<int>& range) {
+    std::vector<float> d;
+    d.reserve(cells.size());
+    for (int k = range.begin(); k != range.end(); ++k) {
+      const int i = k % W - S;  // East shift, cells
+      const int j = k / W - S;  // North shift, cells
+      d.clear();
+      // B moved by (i, j) cells east/north: its cell lands in A's row − j, column + i.
+      for (const Cell& cell : cells) {
+        const int ra = cell.row - j, ca = cell.col + i;
+        if (ra < 0 || ca < 0 || ra >= A.rows || ca >= A.cols) continue;
+        const float za = A.at(ra, ca);
+        if (za == za) d.push_back(za - cell.z);  // undefined cells discarded
+      }
+      ShiftScore& s = scores[static_cast<std::size_t>(k)];
+      s.overlap = d.size();
+      if (d.size() < static_cast<std::size_t>(config.min_overlap_cells)) continue;
+      s.zeta = median_in_place(d);                     // eq. 6.1: signed median of A − B
+      for (float& v : d) v = std::abs(v - s.zeta);
+      s.score = median_in_place(d);                    // eq. 6.2: median unsigned difference
+    }
+  });
+
+  int best = -1;
+  std::vector<float> finite;
+  for (int k = 0; k < W * W; ++k) {
+    if (!std::isfinite(scores[k].score)) continue;
+    finite.push_back(scores[k].score);
+    if (best < 0 || scores[k].score < scores[best].score) best = k;
+  }
+  require(best >= 0, "swath registration: no shift within ±" + std::to_string(config.search_m) +
+                         " m overlaps by min_overlap_cells = " +
+                         std::to_string(config.min_overlap_cells) + " defined cells");
+  const int bi = best % W - S, bj = best / W - S;
+  double sub_i = 0, sub_j = 0;
+  if (config.subcell) {
+    auto parabola = [&](int di, int dj) {
+      const int ki = best + di + dj * W;
+      const int ii = bi + di, jj = bj + dj;
+      const int kk = best - di - dj * W;
+      if (std::abs(ii) > S || std::abs(jj) > S || std::abs(bi - di) > S || std::abs(bj - dj) > S)
+        return 0.0;
+      const double sm = scores[kk].score, s0 = scores[best].score, sp = scores[ki].score;
+      if (!std::isfinite(sm) || !std::isfinite(sp)) return 0.0;
+      const double den = sm - 2 * s0 + sp;
+      if (den <= 0) return 0.0;
+      return std::clamp(0.5 * (sm - sp) / den, -0.5, 0.5);
+    };
+    sub_i = parabola(1, 0);
+    sub_j = parabola(0, 1);
+  }
+  SwathTie tie;
+  tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, scores[best].zeta};
+  tie.score_m = scores[best].score;
+  tie.overlap_cells = scores[best].overlap;
+  const float typical = median_in_place(finite);
+  const double distinct = typical > 0 ? std::max(0.0, 1.0 - tie.score_m / typical) : 0.0;
+  tie.confidence =
+      distinct * std::min(1.0, static_cast<double>(tie.overlap_cells) / config.overlap_full_cells);
+  tie.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return tie;
+}
+
+SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTie>& ties) {
+  require(num_swaths >= 1, "swath adjustment: no swaths");
+  SwathAdjustment out;
+  out.offsets.assign(static_cast<std::size_t>(num_swaths), Eigen::Vector3d::Zero());
+  std::vector<const SwathTie*> prev(static_cast<std::size_t>(num_swaths), nullptr);
+  for (const SwathTie& t : ties) {
+    if (t.moving >= 1 && t.moving < num_swaths && t.reference == t.moving - 1) prev[t.moving] = &t;
+  }
+  for (int i = 1; i < num_swaths; ++i) {
+    require(prev[i] != nullptr, "consecutive registration: no tie between swath " +
+                                    std::to_string(i - 1) + " and swath " + std::to_string(i));
+    out.offsets[i] = out.offsets[i - 1] + prev[i]->t;
+  }
+  for (const SwathTie& t : ties) {
+    const bool in = t.reference >= 0 && t.moving >= 0 && t.reference < num_swaths &&
+                    t.moving < num_swaths;
+    out.tie_used.push_back(in && t.reference == t.moving - 1);
+    out.tie_residual_m.push_back(
+        in ? (out.offsets[t.moving] - out.offsets[t.reference] - t.t).norm() : 0.0);
+  }
+  return out;
+}
+
+namespace {
+
+// √w · (o_B − o_A − t): the tie's translation between the two swaths' offsets.
+struct TieResidual {
+  Eigen::Vector3d t;
+  double sqrt_w;
+  template <typename T>
+  bool operator()(const T* o_a, const T* o_b, T* r) const {
+    for (int k = 0; k < 3; ++k) r[k] = T(sqrt_w) * (o_b[k] - o_a[k] - T(t[k]));
+    return true;
+  }
+};
+
+}  // namespace
+
+SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
+                              const SwathAdjustmentConfig& config, int fixed_swath) {
+  config.validate();
+  require(num_swaths >= 1, "swath adjustment: no swaths");
+  require(fixed_swath >= 0 && fixed_swath < num_swaths,
+          "swath adjustment: fixed swath " + std::to_string(fixed_swath) + " out of range");
+  SwathAdjustment out;
+  out.offsets.assign(static_cast<std::size_t>(num_swaths), Eigen::Vector3d::Zero());
+  // adjacent[s]: (neighbour swath, tie index) over confident ties.
+  std::vector<std::vector<std::pair<int, std::size_t>>> adjacent(
+      static_cast<std::size_t>(num_swaths));
+  for (std::size_t k = 0; k < ties.size(); ++k) {
+    const SwathTie& t = ties[k];
+    require(t.reference >= 0 && t.moving >= 0 && t.reference < num_swaths &&
+                t.moving < num_swaths && t.reference != t.moving,
+            "swath adjustment: a tie joins swaths " + std::to_string(t.reference) + " and " +
+                std::to_string(t.moving) + " of " + std::to_string(num_swaths));
+    require(t.t.allFinite() && std::isfinite(t.confidence), "swath adjustment: a tie between swaths " +
+                                                               std::to_string(t.reference) + " and " +
+                                                               std::to_string(t.moving) +
+                                                               " is not finite");
+    const bool used = t.confidence >= config.min_confidence && t.confidence > 0;
+    out.tie_used.push_back(used);
+    if (used) {
+      adjacent[t.reference].emplace_back(t.moving, k);
+      adjacent[t.moving].emplace_back(t.reference, k);
+    }
+  }
+  // Every swath must be tied, through confident ties, to the fixed one. The breadth-first walk
+  // also gives the initial guess: offsets accumulated along its tree (o_B = o_A + t).
+  std::vector<bool> reached(static_cast<std::size_t>(num_swaths), false);
+  std::queue<int> q;
+  q.push(fixed_swath);
+  reached[fixed_swath] = true;
+  while (!q.empty()) {
+    const int s = q.front();
+    q.pop();
+    for (const auto& [n, k] : adjacent[s]) {
+      if (reached[n]) continue;
+      reached[n] = true;
+      const SwathTie& t = ties[k];
+      out.offsets[n] = t.moving == n ? Eigen::Vector3d(out.offsets[s] + t.t)
+                                     : Eigen::Vector3d(out.offsets[s] - t.t);
+      q.push(n);
+    }
+  }
+  std::string lonely;
+  for (int i = 0; i < num_swaths; ++i) {
+    if (!reached[i]) lonely += (lonely.empty() ? "" : ", ") + std::to_string(i);
+  }
+  require(lonely.empty(), "swath adjustment: swath(s) " + lonely + " have no confident tie (min_confidence " +
+                              std::to_string(config.min_confidence) +
+                              ") linking them to swath " + std::to_string(fixed_swath) +
+                              ": widen search_m, or the overlaps are featureless");
+
+  ceres::Problem problem;
+  for (int i = 0; i < num_swaths; ++i) problem.AddParameterBlock(out.offsets[i].data(), 3);
+  problem.SetParameterBlockConstant(out.offsets[fixed_swath].data());
+  for (std::size_t k = 0; k < ties.size(); ++k) {
+    if (!out.tie_used[k]) continue;
+    const SwathTie& t = ties[k];
+    auto* cost = new ceres::AutoDiffCostFunction<TieResidual, 3, 3, 3>(
+        new TieResidual{t.t, std::sqrt(t.confidence)});
+    problem.AddResidualBlock(cost, new ceres::CauchyLoss(config.loss_scale_m),
+                             out.offsets[t.reference].data(), out.offsets[t.moving].data());
+  }
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) &&
+      !ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)) {
+    options.linear_solver_type = ceres::DENSE_QR;
+  }
+  options.max_num_iterations = config.max_iterations;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  require(summary.IsSolutionUsable(),
+          "swath adjustment: the solver failed: " + summary.message);
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.final_cost = summary.final_cost;
+  for (const SwathTie& t : ties) {
+    out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - t.t).norm());
+  }
+  return out;
+}
+
+ElevationMap shifted(const ElevationMap& map, const Eigen::Vector3d& t) {
+  ElevationMap out = map;
+  out.origin_xy += t.head<2>();
+  for (float& v : out.z) {
+    if (v == v) v = static_cast<float>(v + t.z());
+  }
+  return out;
+}
+
+}  // namespace sonar3d

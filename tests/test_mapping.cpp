@@ -1,0 +1,312 @@
+// mapping: elevation maps (sec. 6.2.1), GeoTIFF round trips, swath registration (sec. 6.2.2.1,
+// eq. 6.1–6.2) and the global adjustment of swath offsets.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/mapping/swath_registration.hpp"
+
+namespace fs = std::filesystem;
+using sonar3d::ElevationMap;
+using sonar3d::SwathTie;
+
+namespace {
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("sonar3d_test_mapping_" + std::to_string(getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+// A seabed with relief: smooth hills, a trench 30 cm deep running north-east, and rocks. Height
+// z at world (x, y), m.
+double terrain(double x, double y) {
+  double z = 0.25 * std::sin(0.7 * x) * std::cos(0.5 * y) + 0.1 * std::sin(1.9 * x + 1.3 * y);
+  const double d = (x - y) / std::sqrt(2.0);  // distance across the trench
+  z -= 0.3 * std::exp(-d * d / (2 * 0.2 * 0.2));
+  const double rocks[][3] = {{1.2, 0.7, 0.15}, {3.1, 2.2, 0.2}, {0.4, 3.3, 0.12}, {2.5, 0.3, 0.18}};
+  for (const auto& r : rocks) {
+    const double q = (x - r[0]) * (x - r[0]) + (y - r[1]) * (y - r[1]);
+    z += r[2] * std::exp(-q / (2 * 0.08 * 0.08));
+  }
+  return z;
+}
+
+// A map of `f` over [x0, x0 + cols·c) × (y_top − rows·c, y_top], seen by a vehicle whose
+// navigation is off by `nav_error`: the map lands at true position + nav_error.
+template <typename F>
+ElevationMap make_map(F f, double x0, double y_top, int rows, int cols, double c,
+                      const Eigen::Vector3d& nav_error = Eigen::Vector3d::Zero(), double noise = 0,
+                      unsigned seed = 1) {
+  ElevationMap m;
+  m.cell_m = c;
+  m.rows = rows;
+  m.cols = cols;
+  m.origin_xy = {x0, y_top};
+  m.z.resize(static_cast<std::size_t>(rows) * cols);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, noise > 0 ? noise : 1);
+  for (int r = 0; r < rows; ++r) {
+    for (int col = 0; col < cols; ++col) {
+      const Eigen::Vector2d p = m.cell_center_xy(r, col);
+      // The cell at logged position p saw the terrain at the true position p − nav_error.
+      m.at(r, col) = static_cast<float>(f(p.x() - nav_error.x(), p.y() - nav_error.y()) +
+                                        nav_error.z() + (noise > 0 ? n(rng) : 0.0));
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST(ElevationMap, HighestPointPerCellAndNoData) {
+  sonar3d::PointCloud cloud;
+  cloud.points = {{0.01f, 0.01f, -1.0f}, {0.015f, 0.005f, -0.5f}, {0.09f, 0.01f, 2.0f}};
+  sonar3d::ElevationMapConfig cfg;
+  cfg.cell_m = 0.02;
+  const ElevationMap m = sonar3d::elevation_map_from_points(cloud, cfg);
+  ASSERT_EQ(m.rows, 1);
+  ASSERT_EQ(m.cols, 5);  // x from 0.01 to 0.09: cells [0, 0.02) ... [0.08, 0.1)
+  EXPECT_DOUBLE_EQ(m.origin_xy.x(), 0.0);  // corners on the world grid
+  EXPECT_DOUBLE_EQ(m.origin_xy.y(), 0.02);
+  EXPECT_FLOAT_EQ(m.at(0, 0), -0.5f);  // the highest of the two points in the first cell
+  EXPECT_FALSE(m.valid(0, 1));
+  EXPECT_FALSE(m.valid(0, 2));
+  EXPECT_FALSE(m.valid(0, 3));
+  EXPECT_FLOAT_EQ(m.at(0, 4), 2.0f);
+  EXPECT_EQ(m.num_valid(), 2u);
+  // Row 0 is the northern edge: a point further north lands in a row above.
+  cloud.points.push_back({0.01f, 0.2f, 0.0f});
+  const ElevationMap m2 = sonar3d::elevation_map_from_points(cloud, cfg);
+  EXPECT_FLOAT_EQ(m2.at(0, 0), 0.0f);
+  EXPECT_FLOAT_EQ(m2.at(m2.rows - 1, 0), -0.5f);
+}
+
+TEST(ElevationMap, BadInputsGiveClearErrors) {
+  sonar3d::ElevationMapConfig cfg;
+  sonar3d::PointCloud empty;
+  EXPECT_THROW(sonar3d::elevation_map_from_points(empty, cfg), sonar3d::Error);
+  cfg.cell_m = 0;
+  sonar3d::PointCloud one;
+  one.points = {{0, 0, 0}};
+  try {
+    sonar3d::elevation_map_from_points(one, cfg);
+    FAIL() << "a resolution of 0 must be refused";
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cell_m"), std::string::npos) << e.what();
+  }
+  cfg.cell_m = 1e-6;  // 1 km at 1 µm: refused before allocating
+  one.points.push_back({1000, 1000, 0});
+  try {
+    sonar3d::elevation_map_from_points(one, cfg);
+    FAIL() << "an absurd map size must be refused";
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("max_cells"), std::string::npos) << e.what();
+  }
+  cfg.cell_m = 0.02;
+  one.points.push_back({NAN, 0, 0});
+  EXPECT_THROW(sonar3d::elevation_map_from_points(one, cfg), sonar3d::Error);
+}
+
+TEST(ElevationMap, GeoTiffRoundTripFloatAndUInt16) {
+  ElevationMap m = make_map(terrain, 10.0, 20.0, 60, 80, 0.02);
+  for (int c = 0; c < 10; ++c) m.at(5, c) = ElevationMap::kNoData;
+  const fs::path dir = temp_dir();
+  const std::string f32 = (dir / "map_f32.tif").string(), u16 = (dir / "map_u16.tif").string();
+  sonar3d::write_elevation_geotiff(f32, m);
+  sonar3d::ElevationWriteOptions q;
+  q.encoding = sonar3d::ElevationEncoding::UInt16;
+  q.uint16_step_m = 0.001;
+  sonar3d::write_elevation_geotiff(u16, m, q);
+  for (const auto& [path, tol] : {std::pair{f32, 0.0}, std::pair{u16, 0.0005 + 1e-6}}) {
+    SCOPED_TRACE(path);
+    const ElevationMap r = sonar3d::read_elevation_geotiff(path);
+    ASSERT_EQ(r.rows, m.rows);
+    ASSERT_EQ(r.cols, m.cols);
+    EXPECT_DOUBLE_EQ(r.cell_m, m.cell_m);
+    EXPECT_NEAR(r.origin_xy.x(), 10.0, 1e-12);
+    EXPECT_NEAR(r.origin_xy.y(), 20.0, 1e-12);
+    EXPECT_EQ(r.num_valid(), m.num_valid());
+    double worst = 0;
+    for (std::size_t i = 0; i < m.z.size(); ++i) {
+      if (m.z[i] == m.z[i]) worst = std::max(worst, std::abs(double(r.z[i]) - m.z[i]));
+      else EXPECT_FALSE(r.z[i] == r.z[i]) << i;
+    }
+    EXPECT_LE(worst, tol);
+  }
+  // Quantised is smaller (the thesis' point: 7 MB of cloud -> 780 kB of map at 2 cm).
+  EXPECT_LT(fs::file_size(u16), fs::file_size(f32));
+  // A PNG with the colour bar, and no file left behind under a temporary name.
+  const Eigen::Vector2f range = sonar3d::write_elevation_png((dir / "map.png").string(), m);
+  EXPECT_LT(range.x(), range.y());
+  EXPECT_GT(fs::file_size(dir / "map.png"), 1000u);
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 3);
+  // Not a raster: one clear error naming the file.
+  const std::string bad = (dir / "bad.tif").string();
+  { std::FILE* f = std::fopen(bad.c_str(), "w"); std::fputs("not a tiff", f); std::fclose(f); }
+  try {
+    sonar3d::read_elevation_geotiff(bad);
+    FAIL();
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.tif"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
+// Known shifts and depth offsets between two overlapping swaths are recovered exactly (at cell
+// resolution), whatever their sign.
+TEST(SwathRegistration, RecoversKnownShiftsAndDepthOffsetsExactly) {
+  const double c = 0.02;
+  const ElevationMap a = make_map(terrain, 0.0, 4.0, 200, 150, c);  // x 0–3 m, y 0–4 m
+  sonar3d::SwathRegistrationConfig cfg;
+  cfg.search_m = 0.3;
+  cfg.subcell = false;
+  const Eigen::Vector3d errors[] = {{0.10, -0.06, 0.05}, {-0.2, 0.14, -0.12}, {0, 0, 0},
+                                    {0.3, 0.3, 0.3}};
+  for (const Eigen::Vector3d& e : errors) {
+    SCOPED_TRACE(e.transpose());
+    // Swath B overlaps half of A (x 1.5–4.5 m) and was logged with navigation error e.
+    const ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, e);
+    const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
+    // Moving B onto A undoes the error.
+    EXPECT_NEAR(t.t.x(), -e.x(), 1e-9);
+    EXPECT_NEAR(t.t.y(), -e.y(), 1e-9);
+    EXPECT_NEAR(t.t.z(), -e.z(), 1e-5);
+    EXPECT_LT(t.score_m, 1e-5);
+    EXPECT_GT(t.confidence, 0.8);
+  }
+}
+
+TEST(SwathRegistration, SubCellShiftsWithNoise) {
+  const double c = 0.02;
+  const ElevationMap a = make_map(terrain, 0.0, 4.0, 200, 150, c, {0, 0, 0}, 0.005, 1);
+  const Eigen::Vector3d e(0.071, -0.043, 0.02);  // 3.55 and −2.15 cells
+  const ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, e, 0.005, 2);
+  sonar3d::SwathRegistrationConfig cfg;
+  cfg.search_m = 0.2;
+  const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
+  EXPECT_NEAR(t.t.x(), -e.x(), 0.5 * c);
+  EXPECT_NEAR(t.t.y(), -e.y(), 0.5 * c);
+  EXPECT_NEAR(t.t.z(), -e.z(), 0.005);
+}
+
+// A flat, featureless overlap (noise only) gives a low-confidence tie, never a confident shift.
+TEST(SwathRegistration, FlatOverlapGivesLowConfidence) {
+  auto flat = [](double, double) { return -5.0; };
+  const ElevationMap a = make_map(flat, 0.0, 4.0, 200, 150, 0.02, {0, 0, 0}, 0.01, 3);
+  const ElevationMap b = make_map(flat, 1.5, 4.0, 200, 150, 0.02, {0.2, 0.1, 0}, 0.01, 4);
+  sonar3d::SwathRegistrationConfig cfg;
+  cfg.search_m = 0.3;
+  const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
+  EXPECT_LT(t.confidence, 0.1);
+  // The same maps with relief: confident.
+  const ElevationMap a2 = make_map(terrain, 0.0, 4.0, 200, 150, 0.02, {0, 0, 0}, 0.01, 3);
+  const ElevationMap b2 = make_map(terrain, 1.5, 4.0, 200, 150, 0.02, {0.2, 0.1, 0}, 0.01, 4);
+  EXPECT_GT(sonar3d::register_elevation_maps(a2, b2, cfg).confidence, 0.5);
+}
+
+TEST(SwathRegistration, NoDataAndBadInputs) {
+  const double c = 0.02;
+  ElevationMap a = make_map(terrain, 0.0, 4.0, 200, 150, c);
+  ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, {0.08, 0.04, 0.01});
+  // Holes in both maps (no data) are discarded, not read as heights.
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> row(0, 199), col(0, 149);
+  for (int k = 0; k < 8000; ++k) {
+    a.at(row(rng), col(rng)) = ElevationMap::kNoData;
+    b.at(row(rng), col(rng)) = ElevationMap::kNoData;
+  }
+  sonar3d::SwathRegistrationConfig cfg;
+  cfg.search_m = 0.2;
+  cfg.subcell = false;
+  const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
+  EXPECT_NEAR(t.t.x(), -0.08, 1e-9);
+  EXPECT_NEAR(t.t.y(), -0.04, 1e-9);
+  EXPECT_NEAR(t.t.z(), -0.01, 1e-5);
+  // No overlap.
+  const ElevationMap far = make_map(terrain, 50.0, 4.0, 50, 50, c);
+  try {
+    sonar3d::register_elevation_maps(a, far, cfg);
+    FAIL();
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("do not overlap"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(sonar3d::maps_may_overlap(a, far, 0.2));
+  // Different resolutions, origins off the common grid, a negative window.
+  ElevationMap coarse = make_map(terrain, 0.0, 4.0, 100, 75, 0.04);
+  EXPECT_THROW(sonar3d::register_elevation_maps(a, coarse, cfg), sonar3d::Error);
+  ElevationMap off = make_map(terrain, 1.505, 4.0, 200, 150, c);
+  EXPECT_THROW(sonar3d::register_elevation_maps(a, off, cfg), sonar3d::Error);
+  cfg.search_m = -1;
+  EXPECT_THROW(sonar3d::register_elevation_maps(a, b, cfg), sonar3d::Error);
+}
+
+// Five swaths in a row, each overlapping the next and the one after; navigation drifts. The
+// consecutive method (the thesis') and the global adjustment both recover the offsets; with one
+// tie corrupted, the global adjustment's robust loss keeps the others right while the
+// consecutive chain carries the error to every later swath.
+TEST(SwathAdjustment, GlobalBeatsConsecutiveWithABadTie) {
+  const double c = 0.02;
+  const int n = 5;
+  std::vector<Eigen::Vector3d> drift(n);
+  std::vector<ElevationMap> maps;
+  for (int i = 0; i < n; ++i) {
+    drift[i] = Eigen::Vector3d(0.04 * i, -0.02 * (i * (i - 1) / 2), 0.01 * i);  // whole cells
+    // Swath i covers y ∈ [0.8·i, 0.8·i + 2] (North), x ∈ [0, 3].
+    maps.push_back(make_map(terrain, 0.0, 0.8 * i + 2.0, 100, 150, c, drift[i], 0.002, 10 + i));
+  }
+  sonar3d::SwathRegistrationConfig cfg;
+  cfg.search_m = 0.3;
+  cfg.subcell = false;
+  cfg.overlap_full_cells = 1000;
+  std::vector<SwathTie> ties;
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      if (!sonar3d::maps_may_overlap(maps[i], maps[j], cfg.search_m)) continue;
+      SwathTie t;
+      try {
+        t = sonar3d::register_elevation_maps(maps[i], maps[j], cfg);
+      } catch (const sonar3d::Error&) {
+        continue;  // overlap too small
+      }
+      t.reference = i;
+      t.moving = j;
+      ties.push_back(t);
+    }
+  }
+  ASSERT_GE(ties.size(), 7u);  // 4 consecutive + at least 3 skipping one swath
+  // Truth: offsets that undo the drift, relative to swath 0.
+  auto truth = [&](int i) { return Eigen::Vector3d(drift[0] - drift[i]); };
+  const sonar3d::SwathAdjustment cons = sonar3d::accumulate_consecutive(n, ties);
+  const sonar3d::SwathAdjustment glob = sonar3d::adjust_swaths(n, ties, {});
+  for (int i = 0; i < n; ++i) {
+    EXPECT_NEAR((cons.offsets[i] - truth(i)).head<2>().norm(), 0, 1e-6) << i;
+    EXPECT_NEAR((glob.offsets[i] - truth(i)).head<2>().norm(), 0, 0.005) << i;
+  }
+  // Corrupt the tie between swaths 1 and 2 by 20 cm.
+  for (SwathTie& t : ties) {
+    if (t.reference == 1 && t.moving == 2) t.t.x() += 0.2;
+  }
+  const sonar3d::SwathAdjustment cons2 = sonar3d::accumulate_consecutive(n, ties);
+  const sonar3d::SwathAdjustment glob2 = sonar3d::adjust_swaths(n, ties, {});
+  EXPECT_NEAR((cons2.offsets[4] - truth(4)).x(), 0.2, 1e-6);  // carried to the end
+  for (int i = 0; i < n; ++i) {
+    EXPECT_LT((glob2.offsets[i] - truth(i)).head<2>().norm(), 0.02) << i;
+  }
+  // A swath no confident tie reaches is an error naming it.
+  std::vector<SwathTie> only_first = {ties.front()};
+  try {
+    sonar3d::adjust_swaths(n, only_first, {});
+    FAIL();
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("swath(s)"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(sonar3d::accumulate_consecutive(n, only_first), sonar3d::Error);
+}
