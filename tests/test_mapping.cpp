@@ -170,8 +170,12 @@ TEST(SwathRegistration, RecoversKnownShiftsAndDepthOffsetsExactly) {
   cfg.subcell = false;
   const Eigen::Vector3d errors[] = {{0.10, -0.06, 0.05}, {-0.2, 0.14, -0.12}, {0, 0, 0},
                                     {0.3, 0.3, 0.3}};
+  // The thesis' exhaustive search (coarse_factor 1) and the coarse-to-fine one find the same.
+  for (int f : {1, 4})
   for (const Eigen::Vector3d& e : errors) {
-    SCOPED_TRACE(e.transpose());
+    cfg.coarse_factor = f;
+    SCOPED_TRACE("coarse_factor " + std::to_string(f) + ", error " +
+                 std::to_string(e.x()) + " " + std::to_string(e.y()) + " " + std::to_string(e.z()));
     // Swath B overlaps half of A (x 1.5–4.5 m) and was logged with navigation error e.
     const ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, e);
     const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
@@ -206,6 +210,9 @@ TEST(SwathRegistration, FlatOverlapGivesLowConfidence) {
   cfg.search_m = 0.3;
   const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
   EXPECT_LT(t.confidence, 0.1);
+  cfg.coarse_factor = 1;
+  EXPECT_LT(sonar3d::register_elevation_maps(a, b, cfg).confidence, 0.1);
+  cfg.coarse_factor = 4;
   // The same maps with relief: confident.
   const ElevationMap a2 = make_map(terrain, 0.0, 4.0, 200, 150, 0.02, {0, 0, 0}, 0.01, 3);
   const ElevationMap b2 = make_map(terrain, 1.5, 4.0, 200, 150, 0.02, {0.2, 0.1, 0}, 0.01, 4);

@@ -42,6 +42,101 @@ struct ShiftScore {
   std::size_t overlap = 0;
 };
 
+// A reference grid: heights row-major, NaN = no data.
+struct Grid {
+  int rows = 0, cols = 0;
+  std::vector<float> z;
+  float at(int r, int c) const { return z[static_cast<std::size_t>(r) * cols + c]; }
+};
+
+// Scores the shifts (ci + di, cj + dj), |di|, |dj| <= h, of the moving cells over the reference
+// grid: B moved by (i, j) cells east/north lands in the reference's row − j, column + i. Per
+// shift, over the cells defined in both (undefined ones discarded): ζ = signed median of A − B
+// (eq. 6.1), score = median |A − B − ζ| (eq. 6.2). Parallel over shifts.
+std::vector<ShiftScore> score_window(const Grid& A, const std::vector<Cell>& cells, int ci, int cj,
+                                     int h, std::size_t min_overlap) {
+  const int W = 2 * h + 1;
+  std::vector<ShiftScore> scores(static_cast<std::size_t>(W) * W);
+  tbb::parallel_for(tbb::blocked_range<int>(0, W * W), [&](const tbb::blocked_range<int>& range) {
+    std::vector<float> d;
+    d.reserve(cells.size());
+    for (int k = range.begin(); k != range.end(); ++k) {
+      const int i = ci + k % W - h, j = cj + k / W - h;
+      d.clear();
+      for (const Cell& cell : cells) {
+        const int ra = cell.row - j, ca = cell.col + i;
+        if (ra < 0 || ca < 0 || ra >= A.rows || ca >= A.cols) continue;
+        const float za = A.at(ra, ca);
+        if (za == za) d.push_back(za - cell.z);
+      }
+      ShiftScore& s = scores[static_cast<std::size_t>(k)];
+      s.overlap = d.size();
+      if (d.size() < min_overlap || d.empty()) continue;
+      s.zeta = median_in_place(d);  // eq. 6.1
+      for (float& v : d) v = std::abs(v - s.zeta);
+      s.score = median_in_place(d);  // eq. 6.2
+    }
+  });
+  return scores;
+}
+
+int floor_div(long a, int f) { return static_cast<int>(a >= 0 ? a / f : -((-a + f - 1) / f)); }
+
+// The grid and cells at f times the cell size, blocks aligned on the reference grid: each block
+// keeps the highest of its heights (the elevation map that would be built at that resolution).
+void coarsen(const Grid& A, const std::vector<Cell>& cells, int f, Grid& A_f,
+             std::vector<Cell>& cells_f) {
+  A_f.rows = floor_div(A.rows - 1, f) + 1;
+  A_f.cols = floor_div(A.cols - 1, f) + 1;
+  A_f.z.assign(static_cast<std::size_t>(A_f.rows) * A_f.cols, ElevationMap::kNoData);
+  for (int r = 0; r < A.rows; ++r) {
+    for (int c = 0; c < A.cols; ++c) {
+      const float v = A.at(r, c);
+      float& o = A_f.z[static_cast<std::size_t>(r / f) * A_f.cols + c / f];
+      if (v == v && !(o >= v)) o = v;
+    }
+  }
+  int r0 = std::numeric_limits<int>::max(), c0 = r0, r1 = std::numeric_limits<int>::min(), c1 = r1;
+  for (const Cell& cell : cells) {
+    r0 = std::min(r0, floor_div(cell.row, f)), r1 = std::max(r1, floor_div(cell.row, f));
+    c0 = std::min(c0, floor_div(cell.col, f)), c1 = std::max(c1, floor_div(cell.col, f));
+  }
+  const int nr = r1 - r0 + 1, nc = c1 - c0 + 1;
+  std::vector<float> blocks(static_cast<std::size_t>(nr) * nc, ElevationMap::kNoData);
+  for (const Cell& cell : cells) {
+    float& o = blocks[static_cast<std::size_t>(floor_div(cell.row, f) - r0) * nc +
+                      (floor_div(cell.col, f) - c0)];
+    if (!(o >= cell.z)) o = cell.z;
+  }
+  cells_f.clear();
+  for (int r = 0; r < nr; ++r) {
+    for (int c = 0; c < nc; ++c) {
+      const float v = blocks[static_cast<std::size_t>(r) * nc + c];
+      if (v == v) cells_f.push_back({r + r0, c + c0, v});
+    }
+  }
+}
+
+int best_of(const std::vector<ShiftScore>& scores) {
+  int best = -1;
+  for (int k = 0; k < static_cast<int>(scores.size()); ++k) {
+    if (std::isfinite(scores[k].score) && (best < 0 || scores[k].score < scores[best].score)) {
+      best = k;
+    }
+  }
+  return best;
+}
+
+// 1 − best / median over the searched shifts: near 0 when no shift stands out (flat overlap).
+double distinctness(const std::vector<ShiftScore>& scores, int best) {
+  std::vector<float> finite;
+  for (const ShiftScore& s : scores) {
+    if (std::isfinite(s.score)) finite.push_back(s.score);
+  }
+  const float typical = median_in_place(finite);
+  return typical > 0 ? std::max(0.0, 1.0 - scores[best].score / typical) : 0.0;
+}
+
 }  // namespace
 
 void SwathRegistrationConfig::validate() const {
@@ -49,6 +144,7 @@ void SwathRegistrationConfig::validate() const {
   require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
   require(overlap_full_cells >= 1, "overlap_full_cells must be >= 1");
   require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+  require(coarse_factor >= 1 && coarse_factor <= 64, "coarse_factor must be within 1-64");
 }
 
 void SwathAdjustmentConfig::validate() const {
@@ -85,7 +181,6 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
   require(search_cells_d <= 2000, "search_m = " + std::to_string(config.search_m) +
                                       " m is more than 2000 cells: search a smaller window");
   const int S = static_cast<int>(search_cells_d);
-  const int W = 2 * S + 1;
 
   // B's defined cells that can land in A for some shift of the window.
   std::vector<Cell> cells;
@@ -103,71 +198,69 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
               " cells of the moving map fall within the reference map's extent grown by "
               "search_m; min_overlap_cells = " + std::to_string(config.min_overlap_cells) + ")");
 
-  std::vector<ShiftScore> scores(static_cast<std::size_t>(W) * W);
   std::optional<tbb::global_control> threads;
   if (config.num_threads > 0) {
     threads.emplace(tbb::global_control::max_allowed_parallelism,
                     static_cast<std::size_t>(config.num_threads));
   }
-  tbb::parallel_for(tbb::blocked_range<int>(0, W * W), [&](const tbb::blocked_range<int>& range) {
-    std::vector<float> d;
-    d.reserve(cells.size());
-    for (int k = range.begin(); k != range.end(); ++k) {
-      const int i = k % W - S;  // East shift, cells
-      const int j = k / W - S;  // North shift, cells
-      d.clear();
-      // B moved by (i, j) cells east/north: its cell lands in A's row − j, column + i.
-      for (const Cell& cell : cells) {
-        const int ra = cell.row - j, ca = cell.col + i;
-        if (ra < 0 || ca < 0 || ra >= A.rows || ca >= A.cols) continue;
-        const float za = A.at(ra, ca);
-        if (za == za) d.push_back(za - cell.z);  // undefined cells discarded
-      }
-      ShiftScore& s = scores[static_cast<std::size_t>(k)];
-      s.overlap = d.size();
-      if (d.size() < static_cast<std::size_t>(config.min_overlap_cells)) continue;
-      s.zeta = median_in_place(d);                     // eq. 6.1: signed median of A − B
-      for (float& v : d) v = std::abs(v - s.zeta);
-      s.score = median_in_place(d);                    // eq. 6.2: median unsigned difference
-    }
-  });
-
-  int best = -1;
-  std::vector<float> finite;
-  for (int k = 0; k < W * W; ++k) {
-    if (!std::isfinite(scores[k].score)) continue;
-    finite.push_back(scores[k].score);
-    if (best < 0 || scores[k].score < scores[best].score) best = k;
+  Grid grid{A.rows, A.cols, A.z};
+  const std::size_t min_overlap = static_cast<std::size_t>(config.min_overlap_cells);
+  const std::string no_shift = "swath registration: no shift within ±" +
+                               std::to_string(config.search_m) + " m overlaps by " +
+                               "min_overlap_cells = " + std::to_string(config.min_overlap_cells) +
+                               " defined cells";
+  // Beyond the thesis: search the whole window on maps f times coarser, then every cell shift
+  // within ±f cells of the coarse winner at full resolution. f = 1 is the thesis' exhaustive
+  // search at map resolution.
+  const int f = config.coarse_factor;
+  int ci = 0, cj = 0, h = S;
+  double confidence_distinct = -1;
+  if (f > 1 && S > 2 * f) {
+    Grid coarse;
+    std::vector<Cell> coarse_cells;
+    coarsen(grid, cells, f, coarse, coarse_cells);
+    const int hc = (S + f - 1) / f;
+    const std::vector<ShiftScore> cs = score_window(
+        coarse, coarse_cells, 0, 0, hc, std::max<std::size_t>(1, min_overlap / (f * f)));
+    const int cb = best_of(cs);
+    require(cb >= 0, no_shift);
+    ci = f * (cb % (2 * hc + 1) - hc);
+    cj = f * (cb / (2 * hc + 1) - hc);
+    h = f;
+    confidence_distinct = distinctness(cs, cb);
   }
-  require(best >= 0, "swath registration: no shift within ±" + std::to_string(config.search_m) +
-                         " m overlaps by min_overlap_cells = " +
-                         std::to_string(config.min_overlap_cells) + " defined cells");
-  const int bi = best % W - S, bj = best / W - S;
+  const int W = 2 * h + 1;
+  const std::vector<ShiftScore> scores = score_window(grid, cells, ci, cj, h, min_overlap);
+  const int best = best_of(scores);
+  require(best >= 0, no_shift);
+  const int bi = ci + best % W - h, bj = cj + best / W - h;
   double sub_i = 0, sub_j = 0;
   if (config.subcell) {
-    auto parabola = [&](int di, int dj) {
-      const int ki = best + di + dj * W;
-      const int ii = bi + di, jj = bj + dj;
-      const int kk = best - di - dj * W;
-      if (std::abs(ii) > S || std::abs(jj) > S || std::abs(bi - di) > S || std::abs(bj - dj) > S)
+    // A parabola through the scores at the best shift and its two neighbours along an axis.
+    auto parabola = [&](int step) {
+      const int k = best;
+      const int km = k - step, kp = k + step;
+      const int col = k % W, row = k / W;
+      const bool along_x = step == 1;
+      if ((along_x && (col == 0 || col == W - 1)) || (!along_x && (row == 0 || row == W - 1))) {
         return 0.0;
-      const double sm = scores[kk].score, s0 = scores[best].score, sp = scores[ki].score;
+      }
+      const double sm = scores[km].score, s0 = scores[k].score, sp = scores[kp].score;
       if (!std::isfinite(sm) || !std::isfinite(sp)) return 0.0;
       const double den = sm - 2 * s0 + sp;
       if (den <= 0) return 0.0;
       return std::clamp(0.5 * (sm - sp) / den, -0.5, 0.5);
     };
-    sub_i = parabola(1, 0);
-    sub_j = parabola(0, 1);
+    sub_i = parabola(1);
+    sub_j = parabola(W);
   }
   SwathTie tie;
   tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, scores[best].zeta};
   tie.score_m = scores[best].score;
   tie.overlap_cells = scores[best].overlap;
-  const float typical = median_in_place(finite);
-  const double distinct = typical > 0 ? std::max(0.0, 1.0 - tie.score_m / typical) : 0.0;
-  tie.confidence =
-      distinct * std::min(1.0, static_cast<double>(tie.overlap_cells) / config.overlap_full_cells);
+  if (confidence_distinct < 0) confidence_distinct = distinctness(scores, best);
+  tie.confidence = confidence_distinct *
+                   std::min(1.0, static_cast<double>(tie.overlap_cells) / config.overlap_full_cells);
   tie.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return tie;

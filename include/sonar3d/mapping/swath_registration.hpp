@@ -23,6 +23,11 @@ struct SwathRegistrationConfig {
   // A tie's confidence is scaled down when the overlap has fewer cells than this (it reaches its
   // full value at overlap_full_cells).
   int overlap_full_cells = 5000;
+  // Beyond the thesis: search the window on maps coarse_factor times coarser (each block its
+  // highest cell), then ±coarse_factor cells around the winner at map resolution. 1 = the
+  // thesis' exhaustive search of every cell shift. Used when the window exceeds 2·coarse_factor
+  // cells.
+  int coarse_factor = 4;
   int num_threads = 0;  // 0 = all cores
 
   void validate() const;  // throws Error naming the parameter
