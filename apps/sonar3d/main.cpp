@@ -25,6 +25,8 @@ int main(int argc, char** argv) {
   add_plan(app, g, run);
   add_import(app, g, run);
   add_report(app, g, run);
+  add_elevation(app, g, run);
+  add_register(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

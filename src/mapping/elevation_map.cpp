@@ -183,7 +183,11 @@ ElevationMap read_elevation_geotiff(const std::string& path) {
   init_gdal();
   g_last_gdal_error.clear();
   DatasetPtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  require(ds != nullptr, "cannot read elevation map '" + path + "': " + gdal_reason());
+  require(ds != nullptr, "cannot read elevation map '" + path + "': " +
+                            (g_last_gdal_error.empty()
+                                 ? std::string("not a raster GDAL can read (a GeoTIFF written by "
+                                               "`sonar3d elevation` is expected)")
+                                 : g_last_gdal_error));
   require(ds->GetRasterCount() == 1, "elevation map '" + path + "': expected 1 band, found " +
                                          std::to_string(ds->GetRasterCount()));
   double t[6];

@@ -117,10 +117,15 @@ void coarsen(const Grid& A, const std::vector<Cell>& cells, int f, Grid& A_f,
   }
 }
 
+// The lowest score; among equal scores (flat areas shifted over themselves score alike) the
+// larger overlap, then the first in scan order.
 int best_of(const std::vector<ShiftScore>& scores) {
   int best = -1;
   for (int k = 0; k < static_cast<int>(scores.size()); ++k) {
-    if (std::isfinite(scores[k].score) && (best < 0 || scores[k].score < scores[best].score)) {
+    const ShiftScore& s = scores[k];
+    if (!std::isfinite(s.score)) continue;
+    if (best < 0 || s.score < scores[best].score ||
+        (s.score == scores[best].score && s.overlap > scores[best].overlap)) {
       best = k;
     }
   }
@@ -235,28 +240,48 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
   require(best >= 0, no_shift);
   const int bi = ci + best % W - h, bj = cj + best / W - h;
   double sub_i = 0, sub_j = 0;
+  float best_score = scores[best].score, best_zeta = scores[best].zeta;
   if (config.subcell) {
-    // A parabola through the scores at the best shift and its two neighbours along an axis.
-    auto parabola = [&](int step) {
-      const int k = best;
-      const int km = k - step, kp = k + step;
-      const int col = k % W, row = k / W;
-      const bool along_x = step == 1;
-      if ((along_x && (col == 0 || col == W - 1)) || (!along_x && (row == 0 || row == W - 1))) {
-        return 0.0;
+    // Beyond the thesis' cell resolution: eq. 6.1–6.2 evaluated directly at fractional shifts
+    // within ±½ cell of the winner, every tenth of a cell, the reference map interpolated
+    // bilinearly (cells whose four neighbours are not all defined are discarded). No model of
+    // the score's shape is assumed, so an exact integer shift stays exact.
+    const int n = 11;
+    std::vector<ShiftScore> fine(static_cast<std::size_t>(n) * n);
+    tbb::parallel_for(0, n * n, [&](int k) {
+      const double fi = bi + 0.1 * (k % n - 5), fj = bj + 0.1 * (k / n - 5);
+      std::vector<float> d;
+      d.reserve(cells.size());
+      for (const Cell& cell : cells) {
+        const double ra = cell.row - fj, ca = cell.col + fi;
+        const int r0 = static_cast<int>(std::floor(ra)), c0 = static_cast<int>(std::floor(ca));
+        if (r0 < 0 || c0 < 0 || r0 >= A.rows || c0 >= A.cols) continue;
+        const double wr = ra - r0, wc = ca - c0;
+        const int r1 = wr > 0 ? r0 + 1 : r0, c1 = wc > 0 ? c0 + 1 : c0;
+        if (r1 >= A.rows || c1 >= A.cols) continue;
+        const float z00 = A.at(r0, c0), z01 = A.at(r0, c1), z10 = A.at(r1, c0), z11 = A.at(r1, c1);
+        if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) continue;
+        const double za = (1 - wr) * ((1 - wc) * z00 + wc * z01) + wr * ((1 - wc) * z10 + wc * z11);
+        d.push_back(static_cast<float>(za) - cell.z);
       }
-      const double sm = scores[km].score, s0 = scores[k].score, sp = scores[kp].score;
-      if (!std::isfinite(sm) || !std::isfinite(sp)) return 0.0;
-      const double den = sm - 2 * s0 + sp;
-      if (den <= 0) return 0.0;
-      return std::clamp(0.5 * (sm - sp) / den, -0.5, 0.5);
-    };
-    sub_i = parabola(1);
-    sub_j = parabola(W);
+      ShiftScore& s = fine[static_cast<std::size_t>(k)];
+      s.overlap = d.size();
+      if (d.size() < min_overlap || d.empty()) return;
+      s.zeta = median_in_place(d);
+      for (float& v : d) v = std::abs(v - s.zeta);
+      s.score = median_in_place(d);
+    });
+    const int fb = best_of(fine);
+    if (fb >= 0 && fine[fb].score < best_score) {
+      sub_i = 0.1 * (fb % n - 5);
+      sub_j = 0.1 * (fb / n - 5);
+      best_score = fine[fb].score;
+      best_zeta = fine[fb].zeta;
+    }
   }
   SwathTie tie;
-  tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, scores[best].zeta};
-  tie.score_m = scores[best].score;
+  tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, best_zeta};
+  tie.score_m = best_score;
   tie.overlap_cells = scores[best].overlap;
   if (confidence_distinct < 0) confidence_distinct = distinctness(scores, best);
   tie.confidence = confidence_distinct *

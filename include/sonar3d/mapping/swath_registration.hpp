@@ -17,8 +17,9 @@ namespace sonar3d {
 struct SwathRegistrationConfig {
   double search_m = 0.5;        // ±ΔN = ±ΔE: half-width of the exhaustive search window, m
   int min_overlap_cells = 200;  // fewer overlapping defined cells than this: no tie
-  // Sub-cell refinement: a parabola through the score at the best shift and its neighbours
-  // along each axis (beyond the thesis' cell-resolution search).
+  // Sub-cell refinement (beyond the thesis' cell-resolution search): eq. 6.1–6.2 evaluated at
+  // fractional shifts within ±½ cell of the best one, every tenth of a cell, on the reference
+  // map interpolated bilinearly.
   bool subcell = true;
   // A tie's confidence is scaled down when the overlap has fewer cells than this (it reaches its
   // full value at overlap_full_cells).

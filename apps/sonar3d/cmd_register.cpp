@@ -1,0 +1,62 @@
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <memory>
+
+#include "commands.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/mapping/swath_registration.hpp"
+
+namespace sonar3d::cli {
+
+void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "register",
+      "Register two overlapping swath elevation maps (thesis sec. 6.2.2.1, eq. 6.1-6.2): the "
+      "East/North shift and height offset that move MOVING onto REFERENCE, with its score and "
+      "confidence.");
+  struct Opts {
+    std::string reference, moving, json;
+    SwathRegistrationConfig cfg;
+  };
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("reference", o->reference, "elevation map GeoTIFF (sonar3d elevation)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("moving", o->moving, "elevation map GeoTIFF at the same cell size")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--search-m", o->cfg.search_m, "half-width of the searched shifts, metres")
+      ->capture_default_str();
+  cmd->add_option("--coarse-factor", o->cfg.coarse_factor,
+                  "coarse-to-fine factor (1 = the thesis' exhaustive search)")
+      ->capture_default_str();
+  cmd->add_option("--min-overlap-cells", o->cfg.min_overlap_cells,
+                  "fewest cells defined in both maps for a shift to count")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->cfg.num_threads, "worker threads (0 = all cores)")
+      ->capture_default_str();
+  cmd->add_option("--json", o->json, "also write the result as JSON to this file");
+  cmd->callback([&run, o] {
+    run = [o] {
+      const ElevationMap a = read_elevation_geotiff(o->reference);
+      const ElevationMap b = read_elevation_geotiff(o->moving);
+      const SwathTie t = register_elevation_maps(a, b, o->cfg);
+      fmt::print(
+          "shift East {:+.3f} m, North {:+.3f} m, height {:+.3f} m; score (median |dz|) {:.4f} "
+          "m over {} cells; confidence {:.2f}; {:.2f} s\n",
+          t.t.x(), t.t.y(), t.t.z(), t.score_m, t.overlap_cells, t.confidence, t.seconds);
+      if (!o->json.empty()) {
+        const nlohmann::json j = {{"reference", o->reference}, {"moving", o->moving},
+                                  {"shift_east_m", t.t.x()},   {"shift_north_m", t.t.y()},
+                                  {"shift_up_m", t.t.z()},     {"score_m", t.score_m},
+                                  {"overlap_cells", t.overlap_cells},
+                                  {"confidence", t.confidence}, {"seconds", t.seconds}};
+        write_text_file(o->json, j.dump(2) + "\n");
+      }
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli
