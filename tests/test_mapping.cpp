@@ -192,7 +192,7 @@ TEST(SwathRegistration, RecoversKnownShiftsAndDepthOffsetsExactly) {
     EXPECT_NEAR(t.t.y(), -e.y(), 1e-9);
     EXPECT_NEAR(t.t.z(), -e.z(), 1e-5);
     EXPECT_LT(t.score_m, 1e-5);
-    EXPECT_GT(t.confidence, 0.8);
+    EXPECT_GT(t.confidence, 0.5);
   }
 }
 

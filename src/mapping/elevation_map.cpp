@@ -45,6 +45,16 @@ std::string gdal_reason() {
   return g_last_gdal_error.empty() ? std::string("GDAL failed") : g_last_gdal_error;
 }
 
+// The grid cell k with k·c <= v < (k+1)·c. Points of a voxel map at the same resolution sit on
+// cell boundaries, and float32 rounding would scatter them over two cells (leaving stripes of
+// empty cells): a value within a hair (0.1 % of a cell, or the float32 precision at that
+// magnitude) below a boundary counts as on it.
+double cell_index(double v, double c) {
+  const double u = v / c;
+  const double eps = std::max(1e-3, 4.0 * std::numeric_limits<float>::epsilon() * std::abs(u));
+  return std::floor(u + eps);
+}
+
 }  // namespace
 
 std::size_t ElevationMap::num_valid() const {
@@ -82,8 +92,8 @@ ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
   // Cells sit on one world grid, cell k along an axis covering [k·c, (k+1)·c): maps of different
   // swaths at one resolution then share their grid (swath registration needs that). Columns run
   // west → east, rows north → south.
-  const double kx0 = std::floor(lo.x() / c), kx1 = std::floor(hi.x() / c);
-  const double ky0 = std::floor(lo.y() / c), ky1 = std::floor(hi.y() / c);
+  const double kx0 = cell_index(lo.x(), c), kx1 = cell_index(hi.x(), c);
+  const double ky0 = cell_index(lo.y(), c), ky1 = cell_index(hi.y(), c);
   const double ncols = kx1 - kx0 + 1, nrows = ky1 - ky0 + 1;
   require(ncols * nrows <= static_cast<double>(config.max_cells),
           "elevation map: " + std::to_string(static_cast<long long>(ncols)) + " x " +
@@ -99,8 +109,8 @@ ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
   for (std::size_t i = 0; i < cloud_world.size(); ++i) {
     const Eigen::Vector3f& p = cloud_world.points[i];
     require(p.allFinite(), "elevation map: point " + std::to_string(i) + " is not finite");
-    const double col = std::floor(p.x() / c) - kx0;
-    const double row = ky1 - std::floor(p.y() / c);
+    const double col = cell_index(p.x(), c) - kx0;
+    const double row = ky1 - cell_index(p.y(), c);
     if (col < 0 || row < 0 || col >= map.cols || row >= map.rows) continue;  // outside region
     float& cell = map.at(static_cast<int>(row), static_cast<int>(col));
     // Sec. 6.2.1: the highest point of the cell.

@@ -39,8 +39,30 @@ float median_in_place(std::vector<float>& v) {
 struct ShiftScore {
   float score = std::numeric_limits<float>::infinity();  // eq. 6.2; inf = too little overlap
   float zeta = 0;                                         // eq. 6.1
+  float mean = std::numeric_limits<float>::infinity();    // mean |A − B − ζ|: breaks ties
   std::size_t overlap = 0;
 };
+
+// Eq. 6.2 decides; where it ties (within 1e-6 m) the mean unsigned difference does. Ties are
+// common on maps of a carved seabed: heights come in voxel steps, and where most of the overlap
+// is flat the median is 0 for every shift that keeps it flat, however the few objects in it
+// line up.
+bool better(const ShiftScore& a, const ShiftScore& b) {
+  if (std::abs(a.score - b.score) > 1e-6f) return a.score < b.score;
+  return a.mean < b.mean;
+}
+
+// Fills ζ (eq. 6.1), the score (eq. 6.2) and the mean from the differences A − B (reordered).
+void score_differences(std::vector<float>& d, ShiftScore& s) {
+  s.zeta = median_in_place(d);  // eq. 6.1: the signed median aligns the depth distributions
+  double sum = 0;
+  for (float& v : d) {
+    v = std::abs(v - s.zeta);
+    sum += v;
+  }
+  s.mean = static_cast<float>(sum / static_cast<double>(d.size()));
+  s.score = median_in_place(d);  // eq. 6.2: the median unsigned difference
+}
 
 // A reference grid: heights row-major, NaN = no data.
 struct Grid {
@@ -72,9 +94,7 @@ std::vector<ShiftScore> score_window(const Grid& A, const std::vector<Cell>& cel
       ShiftScore& s = scores[static_cast<std::size_t>(k)];
       s.overlap = d.size();
       if (d.size() < min_overlap || d.empty()) continue;
-      s.zeta = median_in_place(d);  // eq. 6.1
-      for (float& v : d) v = std::abs(v - s.zeta);
-      s.score = median_in_place(d);  // eq. 6.2
+      score_differences(d, s);
     }
   });
   return scores;
@@ -117,29 +137,25 @@ void coarsen(const Grid& A, const std::vector<Cell>& cells, int f, Grid& A_f,
   }
 }
 
-// The lowest score; among equal scores (flat areas shifted over themselves score alike) the
-// larger overlap, then the first in scan order.
+// The best shift by `better`; -1 when none has enough overlap.
 int best_of(const std::vector<ShiftScore>& scores) {
   int best = -1;
   for (int k = 0; k < static_cast<int>(scores.size()); ++k) {
-    const ShiftScore& s = scores[k];
-    if (!std::isfinite(s.score)) continue;
-    if (best < 0 || s.score < scores[best].score ||
-        (s.score == scores[best].score && s.overlap > scores[best].overlap)) {
-      best = k;
-    }
+    if (!std::isfinite(scores[k].score)) continue;
+    if (best < 0 || better(scores[k], scores[best])) best = k;
   }
   return best;
 }
 
-// 1 − best / median over the searched shifts: near 0 when no shift stands out (flat overlap).
+// 1 − best / typical, on the mean unsigned difference (the median alone is often 0 on flat
+// carved seabed): near 0 when no shift stands out, as on a flat, featureless overlap.
 double distinctness(const std::vector<ShiftScore>& scores, int best) {
   std::vector<float> finite;
   for (const ShiftScore& s : scores) {
-    if (std::isfinite(s.score)) finite.push_back(s.score);
+    if (std::isfinite(s.mean)) finite.push_back(s.mean);
   }
   const float typical = median_in_place(finite);
-  return typical > 0 ? std::max(0.0, 1.0 - scores[best].score / typical) : 0.0;
+  return typical > 0 ? std::max(0.0, 1.0 - scores[best].mean / typical) : 0.0;
 }
 
 }  // namespace
@@ -240,7 +256,7 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
   require(best >= 0, no_shift);
   const int bi = ci + best % W - h, bj = cj + best / W - h;
   double sub_i = 0, sub_j = 0;
-  float best_score = scores[best].score, best_zeta = scores[best].zeta;
+  ShiftScore chosen = scores[best];
   if (config.subcell) {
     // Beyond the thesis' cell resolution: eq. 6.1–6.2 evaluated directly at fractional shifts
     // within ±½ cell of the winner, every tenth of a cell, the reference map interpolated
@@ -267,21 +283,18 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
       ShiftScore& s = fine[static_cast<std::size_t>(k)];
       s.overlap = d.size();
       if (d.size() < min_overlap || d.empty()) return;
-      s.zeta = median_in_place(d);
-      for (float& v : d) v = std::abs(v - s.zeta);
-      s.score = median_in_place(d);
+      score_differences(d, s);
     });
     const int fb = best_of(fine);
-    if (fb >= 0 && fine[fb].score < best_score) {
+    if (fb >= 0 && better(fine[fb], chosen)) {
       sub_i = 0.1 * (fb % n - 5);
       sub_j = 0.1 * (fb / n - 5);
-      best_score = fine[fb].score;
-      best_zeta = fine[fb].zeta;
+      chosen = fine[fb];
     }
   }
   SwathTie tie;
-  tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, best_zeta};
-  tie.score_m = best_score;
+  tie.t = {(bi + sub_i) * c, (bj + sub_j) * c, chosen.zeta};
+  tie.score_m = chosen.score;
   tie.overlap_cells = scores[best].overlap;
   if (confidence_distinct < 0) confidence_distinct = distinctness(scores, best);
   tie.confidence = confidence_distinct *

@@ -40,8 +40,10 @@ struct SwathTie {
   double score_m = 0;      // eq. 6.2 at the best shift: median |A − B − ζ| over the overlap, m
   std::size_t overlap_cells = 0;  // defined in both maps at the best shift
   // 0…1. The score surface of a featureless (flat) overlap is flat: the best shift is barely
-  // better than a typical one, and confidence is near 0. Computed as
-  //   (1 − best / median over all searched shifts) · min(1, overlap / overlap_full_cells).
+  // better than a typical one, and confidence is near 0. Computed on the mean unsigned
+  // difference m (eq. 6.2's median is often 0 on carved seabed, whose heights come in voxel
+  // steps) as (1 − m_best / median of m over the searched shifts) · min(1, overlap /
+  // overlap_full_cells).
   double confidence = 0;
   double seconds = 0;
 };
@@ -49,7 +51,8 @@ struct SwathTie {
 // Sec. 6.2.2.1: every integer cell shift (i, j) in [−S, S]² (S = search_m / cell size) is scored
 // over the cells defined in both maps: ζ = the signed median of A − B (eq. 6.1: the depth
 // distributions aligned), score = median |A − B − ζ| (eq. 6.2); undefined cells are discarded.
-// The lowest score wins; dz = ζ there. Both maps must share the cell size and have their origins
+// The lowest score wins (ties, common where heights come in voxel steps, go to the lowest mean
+// unsigned difference); dz = ζ there. Both maps must share the cell size and have their origins
 // on a common cell grid. Parallel over shifts (TBB). Throws Error when no shift overlaps by
 // min_overlap_cells.
 SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationMap& moving,

@@ -1,0 +1,89 @@
+#include <fmt/core.h>
+
+#include <memory>
+
+#include "commands.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/mapping/survey.hpp"
+
+namespace sonar3d::cli {
+
+void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "map",
+      "Map a field survey (thesis sec. 6.2): split it into swaths at the turns, carve and map each "
+      "swath, register the swath elevation maps (eq. 6.1-6.2), correct the navigation and merge.");
+  struct Opts {
+    std::string dataset, output, method = "global";
+    MapSurveyConfig cfg;
+    std::vector<double> roi, swath_times;
+    double turn_deg = 30;
+  };
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", o->output, "map directory to create (must not exist)")
+      ->required();
+  cmd->add_option("--resolution", o->cfg.cell_m, "elevation map cell size, metres")
+      ->capture_default_str();
+  cmd->add_option("--voxel-size", o->cfg.carve.voxel_size, "carving voxel edge, metres")
+      ->capture_default_str();
+  cmd->add_option("--roi", o->roi,
+                  "region to carve, world frame: xmin ymin zmin xmax ymax zmax (metres); "
+                  "default: all the sonar sees")
+      ->expected(6);
+  cmd->add_option("--search", o->cfg.registration.search_m,
+                  "half-width of the searched swath shifts, metres")
+      ->capture_default_str();
+  cmd->add_option("--method", o->method,
+                  "consecutive (the thesis: each swath against the previous) or global (every "
+                  "overlapping pair, one robust adjustment)")
+      ->check(CLI::IsMember({"consecutive", "global"}))
+      ->capture_default_str();
+  cmd->add_option("--turn-deg", o->turn_deg,
+                  "a new swath starts where the track turns by more than this, degrees")
+      ->capture_default_str();
+  cmd->add_option("--swath-times", o->swath_times,
+                  "explicit swaths instead of turns: t0 t1 [t0 t1 ...] (seconds)");
+  cmd->add_option("--threads", o->cfg.carve.num_threads, "worker threads (0 = all cores)")
+      ->capture_default_str();
+  cmd->callback([&run, &g, o] {
+    run = [o, &g] {
+      MapSurveyConfig cfg = o->cfg;
+      cfg.method = o->method == "consecutive" ? SwathAdjustMethod::Consecutive
+                                              : SwathAdjustMethod::Global;
+      cfg.registration.num_threads = cfg.carve.num_threads;
+      cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
+      if (!o->roi.empty()) {
+        const Eigen::AlignedBox3d box(Eigen::Vector3d(o->roi[0], o->roi[1], o->roi[2]),
+                                      Eigen::Vector3d(o->roi[3], o->roi[4], o->roi[5]));
+        validate_region(box, "--roi");
+        cfg.carve.region = box;
+      }
+      require(o->swath_times.size() % 2 == 0,
+              "--swath-times: give pairs of times (t0 t1 per swath)");
+      for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
+        cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
+      }
+      const Dataset ds = read_dataset(o->dataset);
+      const MapSurveyResult r = map_survey(ds, cfg, o->output, !g.quiet);
+      std::size_t used = 0;
+      for (bool u : r.adjustment.tie_used) used += u;
+      fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method)\n",
+                 r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method);
+      for (std::size_t s = 0; s < r.swaths.size(); ++s) {
+        const SwathInfo& w = r.swaths[s];
+        fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m\n",
+                   s, w.first_frame, w.last_frame, w.points, w.offset.x(), w.offset.y(),
+                   w.offset.z());
+      }
+      fmt::print("  carving {:.1f} s, registration {:.2f} s, total {:.1f} s\n", r.seconds_carving,
+                 r.seconds_registration, r.seconds_total);
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

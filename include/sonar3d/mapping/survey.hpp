@@ -1,0 +1,86 @@
+#pragma once
+// Field mapping (thesis sec. 6.2): a survey split into swaths at its turns, each swath carved and
+// mapped on its own (streaming: memory follows one swath), the swath maps registered to each
+// other, the navigation corrected, and the merged cloud and elevation map built with it.
+//
+//   MapSurveyConfig cfg;                      // defaults: 2 cm maps, ±0.5 m search, global
+//   MapSurveyResult r = map_survey(dataset, cfg, "mapdir");
+//
+// World frame: local ENU. A swath's offset o = (dx, dy, dz) is added to the positions of its
+// frames (and of its cloud) to correct them.
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/recon/carve.hpp"
+
+namespace sonar3d {
+
+enum class SwathAdjustMethod {
+  Consecutive,  // the thesis: each swath against the previous one, offsets accumulated
+  Global        // every overlapping pair, one robust least-squares adjustment
+};
+
+struct SwathSplitConfig {
+  // A new swath starts where the direction of travel turns by more than this from the current
+  // swath's (the turns of a lawnmower), rad.
+  double turn_threshold_rad = 30.0 * 3.14159265358979323846 / 180.0;
+  int min_frames = 10;  // shorter runs (turns) belong to no swath
+  // Alternatively, explicit swaths as [t0, t1] time ranges (s); when set, turns are not searched.
+  std::vector<Eigen::Vector2d> time_ranges;
+
+  void validate() const;
+};
+
+struct MapSurveyConfig {
+  SwathSplitConfig split;
+  CarveConfig carve = [] {
+    CarveConfig c;
+    c.voxel_size = 0.02;  // the thesis' field maps: 2 cm
+    return c;
+  }();
+  double cell_m = 0.02;  // elevation map resolution, m
+  SwathRegistrationConfig registration;
+  SwathAdjustmentConfig adjustment;
+  SwathAdjustMethod method = SwathAdjustMethod::Global;
+
+  void validate() const;
+};
+
+struct SwathInfo {
+  int first_frame = 0, last_frame = 0;  // inclusive, dataset frame indices
+  double t0 = 0, t1 = 0;                // time span, s
+  std::size_t points = 0, map_cells = 0;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the correction, m
+  double seconds = 0;                                // carving + mapping
+};
+
+struct MapSurveyResult {
+  std::vector<SwathInfo> swaths;
+  std::vector<SwathTie> ties;
+  SwathAdjustment adjustment;
+  std::size_t merged_points = 0;
+  double seconds_carving = 0, seconds_registration = 0, seconds_total = 0;
+};
+
+// Swaths of a dataset as [first, last] frame index ranges (validated: at least one).
+std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
+                                              const SwathSplitConfig& config);
+
+// Runs the whole field mapping and writes into `out_dir` (which must not exist; written under a
+// temporary name and renamed when complete):
+//   swaths/swath_NN.ply, .tif, .png   per-swath cloud and elevation map (as logged)
+//   ties.json                         every registered pair: shift, score, overlap, confidence
+//   navigation_corrected.tum          the vehicle navigation with the swath offsets applied
+//                                     (interpolated in time across turns)
+//   merged.ply, merged.tif, merged.png      the field with the correction
+//   merged_uncorrected.png                  the field as logged, for comparison
+//   summary.json                      swaths, offsets, ties, timings
+// Progress: one bar over the frames.
+MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
+                           const std::filesystem::path& out_dir, bool progress = true);
+
+}  // namespace sonar3d

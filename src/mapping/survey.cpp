@@ -1,0 +1,270 @@
+// Field mapping (thesis sec. 6.2): swaths, per-swath carving and elevation maps, registration,
+// navigation correction, merged outputs.
+#include "sonar3d/mapping/survey.hpp"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
+
+namespace sonar3d {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+void SwathSplitConfig::validate() const {
+  require(std::isfinite(turn_threshold_rad) && turn_threshold_rad > 0 &&
+              turn_threshold_rad < 3.14159265358979323846,
+          "swath split: turn_threshold must be within (0°, 180°)");
+  require(min_frames >= 2, "swath split: min_frames must be >= 2");
+  for (const Eigen::Vector2d& r : time_ranges) {
+    require(r.allFinite() && r.x() < r.y(),
+            "swath split: a time range must be finite with start < end (s)");
+  }
+}
+
+void MapSurveyConfig::validate() const {
+  split.validate();
+  carve.validate();
+  require_positive(cell_m, "cell_m", "m");
+  registration.validate();
+  adjustment.validate();
+}
+
+std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
+                                              const SwathSplitConfig& config) {
+  config.validate();
+  const int n = static_cast<int>(dataset.size());
+  require(n >= 2, "field mapping: the dataset has " + std::to_string(n) +
+                      " frame(s); a survey needs swaths of many frames");
+  std::vector<std::pair<int, int>> swaths;
+  if (!config.time_ranges.empty()) {
+    for (const Eigen::Vector2d& r : config.time_ranges) {
+      int first = -1, last = -1;
+      for (int i = 0; i < n; ++i) {
+        const double t = dataset.frames[i].timestamp;
+        if (t < r.x() || t > r.y()) continue;
+        if (first < 0) first = i;
+        last = i;
+      }
+      require(first >= 0, fmt::format("field mapping: no frame within the swath time range "
+                                       "[{}, {}] s",
+                                       r.x(), r.y()));
+      swaths.emplace_back(first, last);
+    }
+    return swaths;
+  }
+  // Direction of travel of each frame (horizontal), from its sonar position to the next one's.
+  std::vector<Eigen::Vector2d> pos(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) pos[i] = dataset.T_world_sonar(i).translation().head<2>();
+  const double cos_turn = std::cos(config.turn_threshold_rad);
+  int start = 0;
+  Eigen::Vector2d heading = Eigen::Vector2d::Zero();  // the current run's direction
+  auto close_run = [&](int last) {
+    if (last - start + 1 >= config.min_frames) swaths.emplace_back(start, last);
+  };
+  for (int i = 0; i + 1 < n; ++i) {
+    const Eigen::Vector2d step = pos[i + 1] - pos[i];
+    if (step.norm() < 1e-9) continue;  // hovering: no direction
+    const Eigen::Vector2d dir = step.normalized();
+    if (heading.isZero()) {
+      heading = dir;
+      continue;
+    }
+    if (dir.dot(heading) < cos_turn) {  // a turn: frame i ends the run
+      close_run(i);
+      start = i + 1;
+      heading.setZero();
+    }
+  }
+  close_run(n - 1);
+  require(!swaths.empty(),
+          fmt::format("field mapping: no straight run of at least {} frames in the survey "
+                      "(turn threshold {:.1f}°): give swath time ranges, or lower min_frames",
+                      config.min_frames, config.turn_threshold_rad * 180 / 3.14159265358979323846));
+  return swaths;
+}
+
+MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
+                           const fs::path& out_dir, bool progress) {
+  config.validate();
+  const auto t_start = std::chrono::steady_clock::now();
+  require(!fs::exists(out_dir), "field mapping: '" + out_dir.string() +
+                                    "' already exists: choose a new output directory");
+  const std::vector<std::pair<int, int>> ranges = split_swaths(dataset, config.split);
+  const int num_swaths = static_cast<int>(ranges.size());
+  require(num_swaths >= 2, "field mapping: the survey has one swath only (frames " +
+                               std::to_string(ranges[0].first) + "–" +
+                               std::to_string(ranges[0].second) +
+                               "): registration needs at least two overlapping swaths");
+
+  AtomicPath out(out_dir);
+  const fs::path tmp = out.temp();
+  fs::create_directories(tmp / "swaths");
+  MapSurveyResult result;
+  std::vector<ElevationMap> maps;
+  std::size_t total_frames = 0;
+  for (const auto& r : ranges) total_frames += static_cast<std::size_t>(r.second - r.first + 1);
+  Progress bar("map: carving swaths", total_frames, progress);
+  ElevationMapConfig map_cfg;
+  map_cfg.cell_m = config.cell_m;
+  // 1. Each swath on its own: carve, map, write, let go of the carver (memory follows a swath).
+  const auto t_carve = std::chrono::steady_clock::now();
+  for (int s = 0; s < num_swaths; ++s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    SwathInfo info;
+    info.first_frame = ranges[s].first;
+    info.last_frame = ranges[s].second;
+    info.t0 = dataset.frames[info.first_frame].timestamp;
+    info.t1 = dataset.frames[info.last_frame].timestamp;
+    PointCloud cloud;
+    {
+      Carver carver(dataset.spec, config.carve, dataset.noise);
+      for (int i = info.first_frame; i <= info.last_frame; ++i) {
+        carver.integrate(dataset.load_frame(i), dataset.T_world_sonar(i),
+                         "frame " + std::to_string(dataset.frames[i].index));
+        bar.add();
+      }
+      cloud = carver.finalize();
+    }
+    require(!cloud.empty(), fmt::format("field mapping: swath {} (frames {}–{}) reconstructs to "
+                                        "no point: is the seabed within the sonar's range?",
+                                        s, info.first_frame, info.last_frame));
+    ElevationMap map = elevation_map_from_points(cloud, map_cfg);
+    info.points = cloud.size();
+    info.map_cells = map.num_valid();
+    const std::string stem = fmt::format("swaths/swath_{:02d}", s);
+    write_ply((tmp / (stem + ".ply")).string(), cloud);
+    write_elevation_geotiff((tmp / (stem + ".tif")).string(), map);
+    write_elevation_png((tmp / (stem + ".png")).string(), map);
+    info.seconds = seconds_since(t0);
+    result.swaths.push_back(info);
+    maps.push_back(std::move(map));
+  }
+  bar.finish();
+  result.seconds_carving = seconds_since(t_carve);
+
+  // 2. Ties: every pair whose maps can overlap (global), or consecutive pairs only (the thesis).
+  const auto t_reg = std::chrono::steady_clock::now();
+  for (int a = 0; a < num_swaths; ++a) {
+    for (int b = a + 1; b < num_swaths; ++b) {
+      if (config.method == SwathAdjustMethod::Consecutive && b != a + 1) continue;
+      if (!maps_may_overlap(maps[a], maps[b], config.registration.search_m)) continue;
+      SwathTie tie;
+      try {
+        tie = register_elevation_maps(maps[a], maps[b], config.registration);
+      } catch (const Error& e) {
+        if (config.method == SwathAdjustMethod::Consecutive) {
+          throw Error(fmt::format("field mapping: swaths {} and {}: {}", a, b, e.what()));
+        }
+        continue;  // too little overlap: no tie
+      }
+      tie.reference = a;
+      tie.moving = b;
+      result.ties.push_back(tie);
+    }
+  }
+  result.adjustment = config.method == SwathAdjustMethod::Consecutive
+                          ? accumulate_consecutive(num_swaths, result.ties)
+                          : adjust_swaths(num_swaths, result.ties, config.adjustment);
+  result.seconds_registration = seconds_since(t_reg);
+  for (int s = 0; s < num_swaths; ++s) result.swaths[s].offset = result.adjustment.offsets[s];
+
+  // 3. Corrected navigation: a swath's offset over its time span, linear across the turns
+  // between swaths, held before the first and after the last.
+  auto offset_at = [&](double t) -> Eigen::Vector3d {
+    const auto& sw = result.swaths;
+    if (t <= sw.front().t1) return sw.front().offset;
+    for (int s = 0; s + 1 < num_swaths; ++s) {
+      if (t <= sw[s].t1) return sw[s].offset;
+      if (t < sw[s + 1].t0) {
+        const double w = (t - sw[s].t1) / std::max(1e-12, sw[s + 1].t0 - sw[s].t1);
+        return (1 - w) * sw[s].offset + w * sw[s + 1].offset;
+      }
+    }
+    return sw.back().offset;
+  };
+  Trajectory corrected = dataset.navigation;
+  for (std::size_t k = 0; k < corrected.size(); ++k) {
+    corrected.poses[k].translation() += offset_at(corrected.times[k]);
+  }
+  write_tum((tmp / "navigation_corrected.tum").string(), corrected);
+
+  // 4. Merged field, as logged and corrected (swath clouds read back one at a time).
+  PointCloud merged;
+  PointCloud logged;
+  for (int s = 0; s < num_swaths; ++s) {
+    const PointCloud c = read_ply((tmp / fmt::format("swaths/swath_{:02d}.ply", s)).string());
+    const Eigen::Vector3f o = result.swaths[s].offset.cast<float>();
+    for (const Eigen::Vector3f& p : c.points) {
+      logged.points.push_back(p);
+      merged.points.push_back(p + o);
+    }
+  }
+  result.merged_points = merged.size();
+  write_ply((tmp / "merged.ply").string(), merged);
+  const ElevationMap merged_map = elevation_map_from_points(merged, map_cfg);
+  write_elevation_geotiff((tmp / "merged.tif").string(), merged_map);
+  write_elevation_png((tmp / "merged.png").string(), merged_map);
+  write_elevation_png((tmp / "merged_uncorrected.png").string(),
+                      elevation_map_from_points(logged, map_cfg));
+
+  // 5. The record.
+  nlohmann::json ties = nlohmann::json::array();
+  for (std::size_t k = 0; k < result.ties.size(); ++k) {
+    const SwathTie& t = result.ties[k];
+    ties.push_back({{"reference", t.reference},
+                    {"moving", t.moving},
+                    {"shift_m", vec3(t.t)},
+                    {"score_m", t.score_m},
+                    {"overlap_cells", t.overlap_cells},
+                    {"confidence", t.confidence},
+                    {"used", static_cast<bool>(result.adjustment.tie_used[k])},
+                    {"residual_m", result.adjustment.tie_residual_m[k]},
+                    {"seconds", t.seconds}});
+  }
+  write_text_file((tmp / "ties.json").string(), ties.dump(2) + "\n");
+  nlohmann::json swaths = nlohmann::json::array();
+  for (const SwathInfo& s : result.swaths) {
+    swaths.push_back({{"frames", {s.first_frame, s.last_frame}},
+                      {"time_s", {s.t0, s.t1}},
+                      {"points", s.points},
+                      {"map_cells", s.map_cells},
+                      {"offset_m", vec3(s.offset)},
+                      {"seconds", s.seconds}});
+  }
+  result.seconds_total = seconds_since(t_start);
+  const nlohmann::json summary = {
+      {"dataset", dataset.root.string()},
+      {"method", config.method == SwathAdjustMethod::Global ? "global" : "consecutive"},
+      {"cell_m", config.cell_m},
+      {"voxel_m", config.carve.voxel_size},
+      {"search_m", config.registration.search_m},
+      {"swaths", swaths},
+      {"ties", ties},
+      {"merged_points", result.merged_points},
+      {"seconds", {{"carving", result.seconds_carving},
+                   {"registration", result.seconds_registration},
+                   {"total", result.seconds_total}}}};
+  write_text_file((tmp / "summary.json").string(), summary.dump(2) + "\n");
+  out.commit();
+  return result;
+}
+
+}  // namespace sonar3d
