@@ -1,7 +1,7 @@
 // Never destroy what sonar3d did not write, never report an empty result as a success, and keep
 // the command line's promises (one error line, documented exit statuses, a stoppable planner).
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -94,8 +94,7 @@ std::string scene_at(double x) {
 class Safety : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = sonar3d::test::temp_dir(
-        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = sonar3d::test::temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
     write(dir / "scene.yaml", scene_at(2.5));
     write(dir / "behind.yaml", scene_at(-2.5));  // the sonar looks along +x: never in view
   }
@@ -148,16 +147,16 @@ TEST_F(Safety, ImportSourceIsNeverTheDestination) {
   const sonar3d::Dataset d = sonar3d::read_dataset(ds);
   std::ostringstream times;
   times << "timestamp,file\n";
-  for (const auto& f : d.frames) times << f.timestamp << "," << fs::path(f.file).filename().string() << "\n";
+  for (const auto& f : d.frames)
+    times << f.timestamp << "," << fs::path(f.file).filename().string() << "\n";
   write(dir / "times.csv", times.str());
   write(dir / "sonar.yaml", sonar3d::sonar_spec_to_yaml(d.spec));
   fs::copy(ds / "frames", dir / "images");
   fs::copy(ds / "navigation.tum", dir / "nav.tum");
   auto import = [&](const fs::path& images, const fs::path& out, const std::string& extra) {
     return cli("import frames --images " + images.string() + " --times " +
-               (dir / "times.csv").string() + " --nav " + (dir / "nav.tum").string() +
-               " --sonar " + (dir / "sonar.yaml").string() + " -o " + out.string() + " -q " +
-               extra);
+               (dir / "times.csv").string() + " --nav " + (dir / "nav.tum").string() + " --sonar " +
+               (dir / "sonar.yaml").string() + " -o " + out.string() + " -q " + extra);
   };
   const std::size_t n_images = d.size();
   auto count = [](const fs::path& p) {
@@ -165,7 +164,8 @@ TEST_F(Safety, ImportSourceIsNeverTheDestination) {
   };
   // The output is the recording, lies inside it, or contains it (its frames would be deleted).
   expect_error(import(dir / "images", dir / "images", "--overwrite"), 1, "is the input");
-  expect_error(import(dir / "images", dir / "images/out", "--overwrite"), 1, "lies inside the input");
+  expect_error(import(dir / "images", dir / "images/out", "--overwrite"), 1,
+               "lies inside the input");
   expect_error(import(dir / "images/.", dir / "images/../images", ""), 1, "is the input");
   EXPECT_EQ(count(dir / "images"), n_images);
   expect_error(import(ds / "frames", ds, "--overwrite"), 1, "lies inside the output");
@@ -189,7 +189,8 @@ TEST_F(Safety, InterruptedReplacementIsRestoredAndStaleTemporariesRemoved) {
   const fs::path live = dir / (".ds.tmp-" + std::to_string(getppid()) + "-1");
   for (const auto& p : {stale, nested, live}) fs::create_directories(p / "frames");
   const CliRun r = cli(simulate("scene.yaml", ds));
-  EXPECT_NE(r.err.find("sonar3d: note: restored '" + ds.string() + "'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sonar3d: note: restored '" + ds.string() + "'"), std::string::npos)
+      << r.err;
   EXPECT_NE(r.err.find("already holds a sonar3d dataset"), std::string::npos) << r.err;
   EXPECT_EQ(r.code, 1);
   EXPECT_EQ(sonar3d::read_dataset(ds).size(), 7u);
@@ -280,8 +281,8 @@ TEST_F(Safety, DeconvolutionOfAnOrbitFailsWithOneSummary) {
         "start_deg: 180, sweep_deg: 360}\n");
   const fs::path ds = dir / "orbit";
   ASSERT_EQ(cli(simulate("orbit.yaml", ds)).code, 0);
-  const CliRun r = cli("reconstruct " + ds.string() + " --method deconv -q -o " +
-                       (dir / "o.ply").string());
+  const CliRun r =
+      cli("reconstruct " + ds.string() + " --method deconv -q -o " + (dir / "o.ply").string());
   expect_error(r, 1, "deconvolution reconstructed no pass of the 60 frames");
   EXPECT_NE(r.err.find("--method carve"), std::string::npos) << r.err;
   // 60 skipped passes: one summary line, not 60 warnings.
@@ -315,7 +316,8 @@ TEST(PlanSafety, AWorkerThatDiedFailsItsPointWhateverItWrote) {
     write(out / "points" / sonar3d::point_id(i) / "next.json", st.dump());
   }
   write(dir / "worker.sh",
-        "#!/bin/sh\nd=\"$2/points/$(printf 'p%04d' \"$3\")\"\ncp \"$d/next.json\" \"$d/status.json\"\n"
+        "#!/bin/sh\nd=\"$2/points/$(printf 'p%04d' \"$3\")\"\ncp \"$d/next.json\" "
+        "\"$d/status.json\"\n"
         "if [ \"$3\" = 0 ]; then kill -SEGV $$; fi\nexit 0\n");
   fs::permissions(dir / "worker.sh", fs::perms::owner_all);
   sonar3d::PlanOptions opt;
@@ -339,7 +341,8 @@ TEST(PlanSafety, NoSucceededPointIsAnErrorUnlessAllowed) {
         "seed: 3\nworkers: 1\naxes: {object: [nowhere.stl]}\n"
         "fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, "
         "voxel_m: 0.04, standoff_m: 2}\n");
-  const std::string plan = "plan " + (dir / "s.yaml").string() + " -o " + (dir / "out").string() + " -q";
+  const std::string plan =
+      "plan " + (dir / "s.yaml").string() + " -o " + (dir / "out").string() + " -q";
   const CliRun r = run(dir, plan);
   expect_error(r, 1, "no point of the sweep succeeded");
   EXPECT_NE(r.out.find("1 failed"), std::string::npos) << r.out;
@@ -373,7 +376,8 @@ std::vector<pid_t> plan_workers(const fs::path& out) {
     if (name.find_first_not_of("0123456789") != std::string::npos) continue;
     std::ifstream f(e.path() / "cmdline");
     std::string cmd((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    if (cmd.find("plan-point") != std::string::npos && cmd.find(out.string()) != std::string::npos) {
+    if (cmd.find("plan-point") != std::string::npos &&
+        cmd.find(out.string()) != std::string::npos) {
       std::ifstream stat(e.path() / "stat");
       std::string pid, comm, state;
       stat >> pid >> comm >> state;

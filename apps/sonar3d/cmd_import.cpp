@@ -120,35 +120,34 @@ void add_import_frames(CLI::App& parent, const GlobalOptions& g, Runner& run) {
                   "with --overwrite; never the input or inside it)")
       ->required();
   add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
-  cmd->callback(
-      [&g, &run, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop,
-       overwrite] {
-        run = [&g, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop,
-               overwrite] {
-          OutputPolicy policy;
-          policy.overwrite = *overwrite;
-          policy.on_note = print_note;
-          policy.sources = {*images, *times, *nav, *sonar};
-          OutputDirectory dest(*out, OutputKind::Dataset, policy);
-          FrameImportConfig cfg;
-          cfg.images_dir = *images;
-          cfg.times_csv = *times;
-          cfg.navigation = *nav;
-          cfg.navigation_format = *nav_format;
-          cfg.navigation_csv.convention = parse_nav_convention(*convention);
-          cfg.navigation_csv.degrees = *angles == "deg";
-          cfg.spec = read_sonar_description(*sonar);
-          cfg.time_offset = *offset;
-          cfg.drop_outside = *drop;
-          const FrameImportResult r = import_frames(cfg, dest.staging(), !g.quiet);
-          dest.commit();
-          fmt::print("imported {} frames ({:.3f} – {:.3f} s) with {} navigation samples to {}",
-                     r.frames, r.first_time, r.last_time, r.navigation_samples, *out);
-          if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
-          fmt::print("\n");
-          return 0;
-        };
-      });
+  cmd->callback([&g, &run, images, times, nav, nav_format, convention, angles, sonar, out, offset,
+                 drop, overwrite] {
+    run = [&g, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop,
+           overwrite] {
+      OutputPolicy policy;
+      policy.overwrite = *overwrite;
+      policy.on_note = print_note;
+      policy.sources = {*images, *times, *nav, *sonar};
+      OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      FrameImportConfig cfg;
+      cfg.images_dir = *images;
+      cfg.times_csv = *times;
+      cfg.navigation = *nav;
+      cfg.navigation_format = *nav_format;
+      cfg.navigation_csv.convention = parse_nav_convention(*convention);
+      cfg.navigation_csv.degrees = *angles == "deg";
+      cfg.spec = read_sonar_description(*sonar);
+      cfg.time_offset = *offset;
+      cfg.drop_outside = *drop;
+      const FrameImportResult r = import_frames(cfg, dest.staging(), !g.quiet);
+      dest.commit();
+      fmt::print("imported {} frames ({:.3f} – {:.3f} s) with {} navigation samples to {}",
+                 r.frames, r.first_time, r.last_time, r.navigation_samples, *out);
+      if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
+      fmt::print("\n");
+      return 0;
+    };
+  });
 }
 
 }  // namespace

@@ -76,9 +76,9 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
                   "--allow-empty to write the empty cloud");
     }
     throw Error("deconvolution produced 0 points" +
-                (before_roi > 0 ? " inside --roi (" + std::to_string(before_roi) + " outside)"
-                                : std::string(" from ") + std::to_string(report.passes.size()) +
-                                      " passes") +
+                (before_roi > 0
+                     ? " inside --roi (" + std::to_string(before_roi) + " outside)"
+                     : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
                 "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
   }
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
@@ -111,8 +111,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const CarveStats& st = carver.stats();
   if (cloud.empty() && !o.allow_empty) {
     if (st.candidates == 0) {
-      throw Error("carving found no surface: no return in any of the " +
-                  std::to_string(st.frames) +
+      throw Error("carving found no surface: no return in any of the " + std::to_string(st.frames) +
                   " frames bounds a voxel of the map; check --roi, --image-threshold and the "
                   "frames (sonar3d preview), or pass --allow-empty to write the empty cloud");
     }

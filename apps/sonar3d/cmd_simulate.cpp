@@ -46,7 +46,8 @@ void add_simulate(CLI::App& app, const GlobalOptions& g, Runner& run) {
         const Dataset ds = read_dataset(dir.staging());
         if (!first_frame_with_return(ds, returns)) {
           throw Error("'" + *scene + "': no object is in view in any of the " +
-                      std::to_string(st.frames) + " frames" + (ds.noise ? " (above the noise)" : "") +
+                      std::to_string(st.frames) + " frames" +
+                      (ds.noise ? " (above the noise)" : "") +
                       "; check the trajectory, the sonar mounting (T_vehicle_sonar) and r_min/"
                       "r_max against the objects' positions, or pass --allow-empty");
         }

@@ -5,8 +5,8 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -61,7 +61,8 @@ std::optional<LeftOver> parse_left_over(const std::string& entry, const std::str
     return std::nullopt;
   }
   std::size_t end = pos;
-  while (end < entry.size() && end - pos < 10 && std::isdigit(static_cast<unsigned char>(entry[end]))) {
+  while (end < entry.size() && end - pos < 10 &&
+         std::isdigit(static_cast<unsigned char>(entry[end]))) {
     ++end;
   }
   if (end == pos || end >= entry.size() || entry[end] != '-') return std::nullopt;
@@ -94,16 +95,15 @@ std::vector<std::string> recover_interrupted_writes(const fs::path& final_path) 
   if (name.empty() || name == "." || name == "..") return notes;
   std::error_code ec;
   std::vector<std::pair<fs::path, LeftOver>> found;
-  for (fs::directory_iterator it(parent_of(final_p), ec), end; !ec && it != end;
-       it.increment(ec)) {
+  for (fs::directory_iterator it(parent_of(final_p), ec), end; !ec && it != end; it.increment(ec)) {
     const auto lo = parse_left_over(it->path().filename().string(), name);
     if (lo && process_is_dead(lo->pid)) found.emplace_back(it->path(), *lo);
   }
   std::sort(found.begin(), found.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& [path, lo] : found) {
-    const std::string who = " left by an interrupted sonar3d run (process " +
-                            std::to_string(lo.pid) + ")";
+    const std::string who =
+        " left by an interrupted sonar3d run (process " + std::to_string(lo.pid) + ")";
     if (lo.backup && !exists_no_follow(final_p)) {
       fs::rename(path, final_p, ec);
       if (ec) {
@@ -154,9 +154,9 @@ void AtomicPath::commit() {
   fsync_or_throw(temp_, temp_is_dir);
   if (temp_is_dir && exists_no_follow(final_)) {
     // rename() cannot replace a non-empty directory: move the old one to a backup name first.
-    const fs::path backup = parent / ("." + final_.filename().string() + ".backup-" +
-                                      std::to_string(::getpid()) + "-" +
-                                      std::to_string(g_counter++));
+    const fs::path backup =
+        parent / ("." + final_.filename().string() + ".backup-" + std::to_string(::getpid()) + "-" +
+                  std::to_string(g_counter++));
     fs::rename(final_, backup, ec);
     if (ec) throw Error("cannot replace '" + final_.string() + "': " + ec.message());
     fs::rename(temp_, final_, ec);
@@ -193,8 +193,9 @@ void write_text_file(const std::string& path, const std::string& contents) {
 
 std::string read_text_file(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error("cannot open '" + path + "' for reading: " +
-                      (fs::exists(path) ? "permission denied or not a file" : "no such file"));
+  if (!f)
+    throw Error("cannot open '" + path + "' for reading: " +
+                (fs::exists(path) ? "permission denied or not a file" : "no such file"));
   std::ostringstream os;
   os << f.rdbuf();
   return os.str();

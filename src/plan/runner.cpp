@@ -9,9 +9,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <csignal>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -110,7 +110,7 @@ class StopSignalForwarding {
   static constexpr int kSignals[2] = {SIGINT, SIGTERM};
 
  private:
-  struct sigaction old_[2] {};
+  struct sigaction old_[2]{};
   bool installed_[2] = {false, false};
 };
 
@@ -260,7 +260,8 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
       BlockStopSignals block;
       if (g_stop_signal) return;  // stopped: start nothing new
       const std::size_t i = todo[next++];
-      const pid_t pid = spawn_point(opt.worker_executable, opt.out_dir, i, threads, block.previous());
+      const pid_t pid =
+          spawn_point(opt.worker_executable, opt.out_dir, i, threads, block.previous());
       for (auto& slot : slots) {
         if (slot.load() == 0) {
           slot = pid;

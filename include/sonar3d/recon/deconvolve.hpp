@@ -240,7 +240,7 @@ struct DeconvReport {
   double seconds_occlusion = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> warnings;  // all passes' warnings, prefixed by the pass
-  std::string to_text() const;  // one line per pass + totals + summarize_pass_warnings()
+  std::string to_text() const;        // one line per pass + totals + summarize_pass_warnings()
   std::string to_json(int indent = 2) const;
 };
 
