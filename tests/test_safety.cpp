@@ -250,6 +250,37 @@ TEST_F(Safety, NoiseEstimateNeverLeavesMeanWithoutStd) {
   expect_no_left_overs(out);
 }
 
+TEST_F(Safety, OutputsAreFlushedBeforeTheyAreRenamed) {
+  // The system calls of a simulation, in order (strace is a development tool: skipped without it).
+  const fs::path trace = dir / "trace.txt";
+  const std::string cmd = "strace -f -qq -e trace=fsync,syncfs,rename,renameat,renameat2 -o " +
+                          trace.string() + " " + SONAR3D_CLI + " " +
+                          simulate("scene.yaml", dir / "ds") + " > /dev/null 2>&1";
+  if (std::system(("command -v strace > /dev/null && " + cmd).c_str()) != 0 ||
+      !fs::exists(dir / "ds")) {
+    GTEST_SKIP() << "strace is not available (or may not trace here)";
+  }
+  std::vector<std::string> calls;
+  std::istringstream in(read_text_file(trace.string()));
+  for (std::string line; std::getline(in, line);) {
+    for (const char* c : {"fsync(", "syncfs(", "rename"}) {
+      if (line.find(c) != std::string::npos) calls.push_back(c);
+    }
+  }
+  // Every rename (sonar.yaml, frames.csv, truth/*, the dataset directory) is preceded by a flush of
+  // what it renames and followed by a flush of the directory it renamed into.
+  std::size_t renames = 0;
+  for (std::size_t i = 0; i < calls.size(); ++i) {
+    if (calls[i] != "rename") continue;
+    ++renames;
+    EXPECT_TRUE(i > 0 && calls[i - 1] != "rename") << "rename #" << renames << " not flushed";
+    EXPECT_TRUE(i + 1 < calls.size() && calls[i + 1] == "fsync(")
+        << "directory not flushed after rename #" << renames;
+  }
+  EXPECT_GE(renames, 5u);
+  EXPECT_NE(std::find(calls.begin(), calls.end(), "syncfs("), calls.end());
+}
+
 // ---------------------------------------------------------------- item 6: empty results
 
 TEST_F(Safety, NothingInViewIsAnErrorUnlessAllowed) {
