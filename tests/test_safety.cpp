@@ -208,21 +208,30 @@ TEST_F(Safety, InterruptedReplacementIsRestoredAndStaleTemporariesRemoved) {
   EXPECT_FALSE(fs::exists(backup));
   EXPECT_TRUE(fs::exists(ds / "sonar.yaml"));
 
-  // A directory replacement through AtomicPath leaves no backup behind.
-  {
+  // A directory replacement through AtomicPath (the library's DatasetWriter, the Python module)
+  // leaves no backup behind, and never replaces a directory that is not a sonar3d dataset.
+  auto replace = [&](const std::string& file) {
     sonar3d::AtomicPath p(dir / "d");
     fs::create_directories(p.temp());
-    write(p.temp() / "a", "1");
+    write(p.temp() / "sonar.yaml", "format: sonar3d-dataset\nversion: 1\n");
+    write(p.temp() / file, "1");
     p.commit();
-  }
-  {
-    sonar3d::AtomicPath p(dir / "d");
-    fs::create_directories(p.temp());
-    write(p.temp() / "b", "2");
-    p.commit();
-  }
+  };
+  replace("a");
+  replace("b");
   EXPECT_FALSE(fs::exists(dir / "d/a"));
   EXPECT_TRUE(fs::exists(dir / "d/b"));
+  fs::create_directories(dir / "user");
+  write(dir / "user/keep", "mine");
+  sonar3d::test::expect_error(
+      [&] {
+        sonar3d::AtomicPath p(dir / "user");
+        fs::create_directories(p.temp());
+        write(p.temp() / "sonar.yaml", "format: sonar3d-dataset\nversion: 1\n");
+        p.commit();
+      },
+      "is not a sonar3d dataset");
+  EXPECT_EQ(read_text_file((dir / "user/keep").string()), "mine");
   expect_no_left_overs(dir);
 }
 

@@ -15,6 +15,7 @@
 #include <system_error>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/output_dir.hpp"
 
 namespace fs = std::filesystem;
 
@@ -153,6 +154,16 @@ void AtomicPath::commit() {
   // empty or truncated data. A directory of many files: one syncfs() rather than an fsync each.
   fsync_or_throw(temp_, temp_is_dir);
   if (temp_is_dir && exists_no_follow(final_)) {
+    // The safety net under every directory output, whoever calls (the CLI checks first, with
+    // OutputDirectory): only an empty directory or a sonar3d output of the same kind is replaced.
+    std::error_code e2;
+    const bool empty = fs::is_directory(final_, e2) && fs::is_empty(final_, e2) && !e2;
+    if (!empty && !(is_sonar3d_output(temp_, OutputKind::Dataset) &&
+                    is_sonar3d_output(final_, OutputKind::Dataset))) {
+      throw Error("'" + final_.string() +
+                  "' exists and is not a sonar3d dataset: sonar3d will not replace it; choose "
+                  "another output or remove it yourself");
+    }
     // rename() cannot replace a non-empty directory: move the old one to a backup name first.
     const fs::path backup =
         parent / ("." + final_.filename().string() + ".backup-" + std::to_string(::getpid()) + "-" +

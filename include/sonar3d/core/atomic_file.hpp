@@ -17,7 +17,9 @@ namespace sonar3d {
 //
 // commit() makes the new contents durable before they get the final name: a file is fsync'ed
 // (a directory's file system is synced) before the rename, the parent directory after it.
-// Replacing a directory is atomic as a whole: the old one is renamed to a backup name, the new
+// A directory replaces only an empty directory or a sonar3d output of the same kind (see
+// output_dir.hpp); anything else at final_path is an Error, never deleted. Replacing a directory
+// is atomic as a whole: the old one is renamed to a backup name, the new
 // one renamed in, then the backup deleted; a crash in between leaves the backup, which the next
 // sonar3d run writing that output restores (recover_interrupted_writes()).
 class AtomicPath {
