@@ -184,7 +184,8 @@ void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rus
       if (g_stop_signal) msg << ": the planner was stopped; run it again to resume";
     } else if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) != 0) {
       msg << "worker exited with status " << WEXITSTATUS(wstatus);
-      if (st && st->contains("message")) msg << ": " << (*st)["message"].get<std::string>();
+      if (st && st->contains("message") && (*st)["message"].is_string())
+        msg << ": " << (*st)["message"].get<std::string>();
     } else {
       msg << "worker exited without a result";
     }
