@@ -47,12 +47,9 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
             s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
             mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
         if (ok == 0 && !o->allow_empty) {
-          throw Error(
-              "no point of the sweep succeeded, nothing is ranked: the reasons are in the "
-              "message column of " +
-              o->out +
-              "/results.csv (pass --allow-empty to exit "
-              "with status 0 anyway)");
+          throw Error(std::string("no point of the sweep succeeded, nothing is ranked: the ") +
+                      "reasons are in the message column of " + o->out +
+                      "/results.csv (pass --allow-empty to exit with status 0 anyway)");
         }
       }
       return 0;

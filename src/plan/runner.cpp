@@ -164,7 +164,7 @@ pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index
 // Records what the parent saw of a finished child: peak memory, and a failure if the child died
 // (signal, non-zero exit) or exited without writing its status. Whatever a worker that died
 // wrote is not trusted: it may have been killed after writing "ok", or by `plan` being stopped.
-// A failed point's partial dataset is removed (with the temporaries of the dead worker).
+// A failed point's dataset is removed (with the temporaries of the dead worker).
 void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rusage& ru,
                   const std::string& key) {
   const fs::path point_dir = dir / "points" / point_id(index);
@@ -195,9 +195,10 @@ void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rus
   }
   if ((*st).value("status", "") != "ok") {
     std::error_code ec;
-    const fs::path partial = point_dir / kPartialDatasetName;
-    recover_interrupted_writes(partial);  // the dead worker's temporaries
-    fs::remove_all(partial, ec);
+    for (const fs::path& ds : {point_dir / kPartialDatasetName, point_dir / "dataset"}) {
+      recover_interrupted_writes(ds);  // the dead worker's temporaries
+      fs::remove_all(ds, ec);
+    }
   }
   (*st)["peak_rss_mb"] = ru.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
   write_text_file(file.string(), st->dump(2) + "\n");
