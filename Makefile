@@ -27,7 +27,7 @@ DEMO_ROI = --roi -3 -2 -0.03 3 14 3
 
 demo: build
 	mkdir -p $(DEMO_OUT)
-	$(SONAR3D) simulate data/scenes/reference_objects.yaml -o $(DEMO_OUT)/dataset
+	$(SONAR3D) simulate data/scenes/reference_objects.yaml -o $(DEMO_OUT)/dataset --overwrite
 	$(SONAR3D) info $(DEMO_OUT)/dataset
 	$(SONAR3D) preview $(DEMO_OUT)/dataset --frame 130 -o $(DEMO_OUT)/sphere_frame.png
 	$(SONAR3D) reconstruct $(DEMO_OUT)/dataset --method carve -o $(DEMO_OUT)/carve.ply $(DEMO_ROI)

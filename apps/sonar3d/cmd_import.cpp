@@ -1,6 +1,7 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
 
@@ -17,11 +18,15 @@ void add_import_holoocean(CLI::App& parent, const GlobalOptions& g, Runner& run)
   auto out = std::make_shared<std::string>();
   auto bins = std::make_shared<std::string>("sample");
   auto cfg = std::make_shared<HoloOceanImportConfig>();
+  auto overwrite = std::make_shared<bool>(false);
   cmd->add_option("dir", *dir, "HoloOcean dataset directory (Config.json, Data/)")
       ->required()
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", *out, "dataset directory to write (replaced if it exists)")
+  cmd->add_option("-o,--output", *out,
+                  "dataset directory to write (must not exist, be empty, or be a sonar3d dataset "
+                  "with --overwrite; never the input or inside it)")
       ->required();
+  add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
   cmd->add_option("--bins", *bins,
                   "pixel convention: 'sample' (neusis/AONeuS: row i at RangeMin + i·Δr, column j "
                   "at −Azimuth/2 + j·Δa) or 'cell' (HoloOcean's renderer: row i is the cell "
@@ -39,10 +44,16 @@ void add_import_holoocean(CLI::App& parent, const GlobalOptions& g, Runner& run)
                   "sensor's Hz, else 1)");
   cmd->add_option("--python", cfg->python,
                   "Python interpreter with numpy (default: $SONAR3D_PYTHON, /usr/bin/python3)");
-  cmd->callback([&g, &run, dir, out, bins, cfg] {
-    run = [&g, dir, out, bins, cfg] {
+  cmd->callback([&g, &run, dir, out, bins, cfg, overwrite] {
+    run = [&g, dir, out, bins, cfg, overwrite] {
       cfg->bins = parse_holoocean_bins(*bins);
-      const HoloOceanImportResult r = import_holoocean(*dir, *out, *cfg, !g.quiet);
+      OutputPolicy policy;
+      policy.overwrite = *overwrite;
+      policy.on_note = print_note;
+      policy.sources = {*dir};
+      OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      const HoloOceanImportResult r = import_holoocean(*dir, dest.staging(), *cfg, !g.quiet);
+      dest.commit();
       for (const auto& w : r.warnings) fmt::print(stderr, "sonar3d: warning: {}\n", w);
       fmt::print("imported {} frames ({}, {}×{}, {} bins) from {} to {}\n", r.frames, r.dtype,
                  r.sonar.range_bins, r.sonar.azimuth_bins, holoocean_bins_name(cfg->bins), *dir,
@@ -72,6 +83,7 @@ void add_import_frames(CLI::App& parent, const GlobalOptions& g, Runner& run) {
   auto out = std::make_shared<std::string>();
   auto offset = std::make_shared<double>(0.0);
   auto drop = std::make_shared<bool>(false);
+  auto overwrite = std::make_shared<bool>(false);
   cmd->add_option("--images", *images, "directory of frame images (PNG or float32 TIFF)")
       ->required()
       ->check(CLI::ExistingDirectory);
@@ -103,29 +115,39 @@ void add_import_frames(CLI::App& parent, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_flag("--drop-outside", *drop,
                 "drop (and count) frames outside the navigation span instead of failing");
-  cmd->add_option("-o,--output", *out, "dataset directory to write (replaced if it exists)")
+  cmd->add_option("-o,--output", *out,
+                  "dataset directory to write (must not exist, be empty, or be a sonar3d dataset "
+                  "with --overwrite; never the input or inside it)")
       ->required();
-  cmd->callback(
-      [&g, &run, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop] {
-        run = [&g, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop] {
-          FrameImportConfig cfg;
-          cfg.images_dir = *images;
-          cfg.times_csv = *times;
-          cfg.navigation = *nav;
-          cfg.navigation_format = *nav_format;
-          cfg.navigation_csv.convention = parse_nav_convention(*convention);
-          cfg.navigation_csv.degrees = *angles == "deg";
-          cfg.spec = read_sonar_description(*sonar);
-          cfg.time_offset = *offset;
-          cfg.drop_outside = *drop;
-          const FrameImportResult r = import_frames(cfg, *out, !g.quiet);
-          fmt::print("imported {} frames ({:.3f} – {:.3f} s) with {} navigation samples to {}",
-                     r.frames, r.first_time, r.last_time, r.navigation_samples, *out);
-          if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
-          fmt::print("\n");
-          return 0;
-        };
-      });
+  add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
+  cmd->callback([&g, &run, images, times, nav, nav_format, convention, angles, sonar, out, offset,
+                 drop, overwrite] {
+    run = [&g, images, times, nav, nav_format, convention, angles, sonar, out, offset, drop,
+           overwrite] {
+      OutputPolicy policy;
+      policy.overwrite = *overwrite;
+      policy.on_note = print_note;
+      policy.sources = {*images, *times, *nav, *sonar};
+      OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      FrameImportConfig cfg;
+      cfg.images_dir = *images;
+      cfg.times_csv = *times;
+      cfg.navigation = *nav;
+      cfg.navigation_format = *nav_format;
+      cfg.navigation_csv.convention = parse_nav_convention(*convention);
+      cfg.navigation_csv.degrees = *angles == "deg";
+      cfg.spec = read_sonar_description(*sonar);
+      cfg.time_offset = *offset;
+      cfg.drop_outside = *drop;
+      const FrameImportResult r = import_frames(cfg, dest.staging(), !g.quiet);
+      dest.commit();
+      fmt::print("imported {} frames ({:.3f} – {:.3f} s) with {} navigation samples to {}",
+                 r.frames, r.first_time, r.last_time, r.navigation_samples, *out);
+      if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
+      fmt::print("\n");
+      return 0;
+    };
+  });
 }
 
 }  // namespace

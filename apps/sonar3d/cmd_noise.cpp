@@ -3,11 +3,25 @@
 #include <filesystem>
 
 #include "commands.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/sim/noise.hpp"
 
+namespace fs = std::filesystem;
+
 namespace sonar3d::cli {
+namespace {
+
+// Writes `image` completely under `out`'s temporary name (renamed by out.commit()).
+void write_float_image_to(const AtomicPath& out, const SonarImage& image) {
+  const std::string tmp = out.temp().string() + ".tiff";  // the extension picks the encoder
+  write_float_image(tmp, image);
+  fs::rename(tmp, out.temp());
+}
+
+}  // namespace
 
 void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto* noise = app.add_subcommand("noise", "Sonar noise models (thesis sec. 2.5.2).");
@@ -19,11 +33,25 @@ void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "intensity), usable as a scene's noise model 'images' or a dataset's noise/.");
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
+  auto overwrite = std::make_shared<bool>(false);
   est->add_option("dataset", *in, "dataset directory of open-water frames")->required();
-  est->add_option("-o,--output", *out, "directory for mean.tiff and std.tiff (created)")
+  est->add_option("-o,--output", *out,
+                  "directory for mean.tiff and std.tiff (created if missing; other files in it "
+                  "are left alone)")
       ->required();
-  est->callback([&g, &run, in, out] {
-    run = [&g, in, out] {
+  add_overwrite_flag(est, *overwrite, "existing mean.tiff and std.tiff in --output");
+  est->callback([&g, &run, in, out, overwrite] {
+    run = [&g, in, out, overwrite] {
+      const fs::path dir = *out;
+      if (fs::exists(dir) && !fs::is_directory(dir)) {
+        throw Error("'" + dir.string() + "' exists and is not a directory; choose another -o");
+      }
+      for (const char* name : {"mean.tiff", "std.tiff"}) {
+        if (fs::exists(dir / name) && !*overwrite) {
+          throw Error("'" + (dir / name).string() +
+                      "' exists: pass --overwrite to replace it, or choose another -o");
+        }
+      }
       const Dataset ds = read_dataset(*in);
       NoiseEstimator estimator;
       Progress bar("noise", ds.size(), !g.quiet);
@@ -33,9 +61,15 @@ void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
       }
       bar.finish();
       const NoiseImages n = estimator.result();
-      std::filesystem::create_directories(*out);
-      write_float_image((std::filesystem::path(*out) / "mean.tiff").string(), n.mean);
-      write_float_image((std::filesystem::path(*out) / "std.tiff").string(), n.std);
+      fs::create_directories(dir);
+      // Both images are written completely (and flushed) before either gets its final name, and
+      // std.tiff is renamed first: a final-named mean.tiff always has its std.tiff beside it,
+      // whatever fails (a full disk) or stops the run.
+      AtomicPath mean(dir / "mean.tiff"), std_dev(dir / "std.tiff");
+      write_float_image_to(mean, n.mean);
+      write_float_image_to(std_dev, n.std);
+      std_dev.commit();
+      mean.commit();
       fmt::print("noise statistics from {} frames written to {}\n", estimator.count(), *out);
       return 0;
     };

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "commands.hpp"
+#include "sonar3d/core/error.hpp"
 #include "sonar3d/plan/mpi.hpp"
 #include "sonar3d/plan/sweep.hpp"
 
@@ -18,11 +19,14 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "Under `mpirun -np N` the points are spread over the ranks and rank 0 merges the results.");
   struct Opts {
     std::string sweep, out;
+    bool allow_empty = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("sweep", o->sweep, "sweep YAML file")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->out, "output directory (created; finished points are kept)")
       ->required();
+  cmd->add_flag("--allow-empty", o->allow_empty,
+                "exit with status 0 even when no point succeeded (by default an error)");
   cmd->callback([&g, &run, o] {
     run = [&g, o] {
       const Sweep sweep = load_sweep(o->sweep);
@@ -36,12 +40,17 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       const PlanSummary s = run_sweep(sweep, opt);
       mpi.gather_points(sweep, opt.out_dir);
       if (mpi.rank() == 0) {
-        write_sweep_results(sweep, opt.out_dir);
+        const std::size_t ok = write_sweep_results(sweep, opt.out_dir);
         fmt::print(
             "plan: {} points ({} run here, {} already done, {} excluded by constraints, "
             "{} failed) in {:.1f} s{}; results in {}/results.csv\n",
             s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
             mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
+        if (ok == 0 && !o->allow_empty) {
+          throw Error(std::string("no point of the sweep succeeded, nothing is ranked: the ") +
+                      "reasons are in the message column of " + o->out +
+                      "/results.csv (pass --allow-empty to exit with status 0 anyway)");
+        }
       }
       return 0;
     };

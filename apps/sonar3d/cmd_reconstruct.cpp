@@ -27,6 +27,7 @@ struct ReconstructCliOptions {
   std::string beam = "sinc";
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
+  bool allow_empty = false;
 };
 
 // --roi: xmin ymin zmin xmax ymax zmax (checked by the library: finite, max > min).
@@ -54,9 +55,33 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const Dataset ds = read_dataset(o.dataset);
   DeconvReport report;
   PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
+  const std::size_t before_roi = cloud.size();
   if (roi) cloud = crop_to_region(cloud, *roi);
+  fmt::print("{}", report.to_text());  // per-pass figures, then the warnings (collapsed)
+  if (cloud.empty() && !o.allow_empty) {
+    if (report.passes.empty()) {
+      std::string why;  // the passes' collapsed warnings
+      for (const auto& w : summarize_pass_warnings(report.warnings)) {
+        if (w != "no pass was reconstructed") why += (why.empty() ? "" : "; ") + w;
+      }
+      if (why.size() > 300) {  // one readable line; cut on a UTF-8 character boundary
+        std::size_t n = 300;
+        while (n > 0 && (static_cast<unsigned char>(why[n]) & 0xC0) == 0x80) --n;
+        why = why.substr(0, n) + "…";
+      }
+      throw Error("deconvolution reconstructed no pass of the " + std::to_string(ds.size()) +
+                  " frames" + (why.empty() ? "" : " (" + why + ")") +
+                  ": it needs straight passes along the sonar's z axis that see something "
+                  "(docs/deconvolution.md); use --method carve for other trajectories, or pass "
+                  "--allow-empty to write the empty cloud");
+    }
+    throw Error("deconvolution produced 0 points" +
+                (before_roi > 0
+                     ? " inside --roi (" + std::to_string(before_roi) + " outside)"
+                     : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
+                "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
+  }
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
-  fmt::print("{}", report.to_text());  // per-pass figures, then the warnings
   fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
   if (!o.json.empty()) {
     nlohmann::json j;
@@ -83,10 +108,20 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     Progress bar("occlusions", ds.size(), cfg.resolve_occlusions && !g.quiet);
     cloud = carver.finalize(&bar);
   }
+  const CarveStats& st = carver.stats();
+  if (cloud.empty() && !o.allow_empty) {
+    if (st.candidates == 0) {
+      throw Error("carving found no surface: no return in any of the " + std::to_string(st.frames) +
+                  " frames bounds a voxel of the map; check --roi, --image-threshold and the "
+                  "frames (sonar3d preview), or pass --allow-empty to write the empty cloud");
+    }
+    throw Error("carving kept none of its " + std::to_string(st.candidates) +
+                " candidates; relax --min-observations, --min-elevation-span or "
+                "--static-threshold, try --no-occlusion, or pass --allow-empty");
+  }
   write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   if (!o.vdb.empty()) carver.write_vdb(o.vdb, &cloud);
 
-  const CarveStats& st = carver.stats();
   const double n = static_cast<double>(st.frames);
   fmt::print(
       "carved {} frames into {} candidates, {} points after occlusion resolution -> {}\n"
@@ -221,6 +256,8 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--threads", o->carve.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
   cmd->add_flag("--ascii", o->ascii, "write an ASCII PLY");
+  cmd->add_flag("--allow-empty", o->allow_empty,
+                "write the cloud even when it has no point (by default an error, exit status 1)");
   cmd->add_option("--json", o->json, "also write run statistics (timings, memory) as JSON");
   cmd->callback([&g, &run, o] {
     run = [&g, o]() -> int {

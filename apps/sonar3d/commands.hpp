@@ -3,12 +3,23 @@
 // algorithm lives here.
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace sonar3d::cli {
 
 struct GlobalOptions {
   bool quiet = false;  // no progress bars
 };
+
+// Exit statuses (README.md, "Command-line reference").
+inline constexpr int kExitFailure = 1;  // the command failed: one line `sonar3d: error: ...`
+inline constexpr int kExitUsage = 2;    // the command line is wrong: same one-line format
+
+// --overwrite, with the same meaning on every command that replaces an output.
+void add_overwrite_flag(CLI::App* cmd, bool& flag, const std::string& what);
+// Prints `sonar3d: note: LINE` on stderr (e.g. an interrupted run cleaned up).
+void print_note(const std::string& line);
 
 // Registers the subcommand and returns the function that runs it once parsed.
 using Runner = std::function<int()>;

@@ -1,15 +1,44 @@
 // sonar3d: 3D maps from 2D imaging-sonar images. One file per subcommand in this directory.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
+
+namespace sonar3d::cli {
+
+void add_overwrite_flag(CLI::App* cmd, bool& flag, const std::string& what) {
+  cmd->add_flag("--overwrite", flag,
+                "replace " + what +
+                    " (sonar3d never replaces what it did not write: anything else at that path "
+                    "is an error)");
+}
+
+void print_note(const std::string& line) {
+  std::fprintf(stderr, "sonar3d: note: %s\n", line.c_str());
+}
+
+namespace {
+
+// One line: newlines of multi-line messages become spaces.
+std::string one_line(std::string s) {
+  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+  for (char& c : s) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  return s;
+}
+
+}  // namespace
+}  // namespace sonar3d::cli
 
 int main(int argc, char** argv) {
   using namespace sonar3d::cli;
   CLI::App app{
       "sonar3d: simulate 2D imaging sonars, reconstruct 3D scenes and measure them against CAD.\n"
-      "Units: metres, seconds, degrees where an option name ends in _deg."};
+      "Units: metres, seconds, degrees where an option name ends in _deg.\n"
+      "Exit status: 0 success, 1 failure, 2 usage error, 128+N interrupted by signal N."};
   app.require_subcommand(1);
   app.fallthrough();  // global flags (--quiet) may follow the subcommand
   GlobalOptions g;
@@ -31,12 +60,24 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version are "errors" with exit code 0: CLI11 prints them.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::string help = "sonar3d";  // the (sub)command whose --help lists the options
+    for (CLI::App* sub = &app; !sub->get_subcommands().empty();) {
+      sub = sub->get_subcommands().front();
+      help += " " + sub->get_name();
+    }
+    std::fprintf(stderr, "sonar3d: error: %s (see '%s --help')\n", one_line(e.what()).c_str(),
+                 help.c_str());
+    return kExitUsage;
   }
   try {
     return run ? run() : 0;
+  } catch (const sonar3d::Interrupted& e) {
+    std::fprintf(stderr, "sonar3d: error: %s\n", one_line(e.what()).c_str());
+    return 128 + e.signal();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sonar3d: error: %s\n", e.what());
-    return 1;
+    std::fprintf(stderr, "sonar3d: error: %s\n", one_line(e.what()).c_str());
+    return kExitFailure;
   }
 }

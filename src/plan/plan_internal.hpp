@@ -10,6 +10,10 @@
 
 namespace sonar3d {
 
+// A point's simulated dataset while the point runs; renamed to "dataset" when the point finished
+// and the sweep keeps datasets, so that an unfinished point never has a complete-looking dataset/.
+inline constexpr const char* kPartialDatasetName = "dataset.partial";
+
 TriangleMesh plan_object_mesh(const std::string& object, const std::filesystem::path& sweep_dir);
 // The simulated inspection of one point (sensor, object at the origin, path, noise).
 SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, SweepValue>& params,

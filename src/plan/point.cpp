@@ -138,6 +138,10 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
   const std::string id = point_id(index);
   const fs::path dir = out_dir / "points" / id;
   fs::create_directories(dir);
+  // A re-run replaces what an earlier run of this point left: until this one finishes, the point
+  // has no status (the planner records a failure if the worker dies) and no dataset/.
+  const fs::path ds_dir = dir / kPartialDatasetName, ds_final = dir / "dataset";
+  for (const fs::path& old : {dir / "status.json", ds_final, ds_dir}) fs::remove_all(old);
   nlohmann::json status;
   status["id"] = id;
   status["index"] = index;
@@ -147,7 +151,6 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
   try {
     const SimulationSetup setup = plan_setup(
         sweep, params, sweep.source.empty() ? out_dir : fs::path(sweep.source).parent_path());
-    const fs::path ds_dir = dir / "dataset";
     const SimulationStats sim = simulate_dataset(setup, ds_dir, false);
     const Dataset ds = read_dataset(ds_dir);
     ReconstructOptions ro;
@@ -167,6 +170,11 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
     ro.region = roi;
     ro.num_threads = plan_threads_per_point();
     const ReconstructResult rec = reconstruct_dataset(ds, ro);
+    if (rec.cloud.empty()) {
+      throw Error("the " + ro.method + " reconstruction has no point" +
+                  (rec.notes.empty() ? std::string() : " (" + rec.notes + ")") +
+                  ": this configuration sees nothing usable of the object");
+    }
     write_ply((dir / "cloud.ply").string(), rec.cloud);
     const auto results = evaluate_objects(rec.cloud, setup.scene.objects, EvalConfig{});
     nlohmann::json metrics = nlohmann::json::array();
@@ -197,10 +205,16 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
       fs::create_directories(truth.parent_path());
       save_mesh(truth.string(), setup.scene.objects[0].mesh_world);
     }
-    if (!sweep.keep_datasets) fs::remove_all(ds_dir);
+    if (sweep.keep_datasets) {
+      fs::rename(ds_dir, ds_final);
+    } else {
+      fs::remove_all(ds_dir);
+    }
   } catch (const std::exception& e) {
     status["status"] = "failed";
     status["message"] = e.what();
+    std::error_code ec;
+    fs::remove_all(ds_dir, ec);
   }
   status["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

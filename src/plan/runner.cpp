@@ -1,14 +1,17 @@
 // Runs a sweep: subprocess per point (failure isolation and per-point peak memory), resumable,
 // parallel on this machine, spread over MPI ranks when launched under mpirun.
+#include <signal.h>
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -63,8 +66,75 @@ std::optional<nlohmann::json> read_status(const fs::path& file) {
   }
 }
 
-// Spawns `exe plan-point DIR INDEX`; returns the pid.
-pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index, int threads) {
+// SIGINT/SIGTERM while the planner runs: remember the signal and forward it to the workers, so
+// that none goes on writing into the output after `plan` was stopped. The handler only reads the
+// pid table (async-signal-safe); workers are registered with these signals blocked.
+volatile std::sig_atomic_t g_stop_signal = 0;
+std::atomic<pid_t>* g_workers = nullptr;
+std::size_t g_worker_slots = 0;
+
+extern "C" void forward_stop_signal(int sig) {
+  g_stop_signal = sig;
+  for (std::size_t i = 0; i < g_worker_slots; ++i) {
+    const pid_t pid = g_workers[i].load();
+    if (pid > 0) ::kill(pid, sig);
+  }
+}
+
+// Installs forward_stop_signal for SIGINT and SIGTERM (unless they are ignored, as in a
+// background job) and restores the previous handlers when destroyed.
+class StopSignalForwarding {
+ public:
+  explicit StopSignalForwarding(std::vector<std::atomic<pid_t>>& slots) {
+    g_stop_signal = 0;
+    g_workers = slots.data();
+    g_worker_slots = slots.size();
+    for (int i = 0; i < 2; ++i) {
+      struct sigaction sa {};
+      sa.sa_handler = forward_stop_signal;
+      sigemptyset(&sa.sa_mask);
+      sa.sa_flags = 0;  // no SA_RESTART: wait4() returns EINTR
+      ::sigaction(kSignals[i], nullptr, &old_[i]);
+      installed_[i] = old_[i].sa_handler != SIG_IGN && ::sigaction(kSignals[i], &sa, nullptr) == 0;
+    }
+  }
+  ~StopSignalForwarding() {
+    for (int i = 0; i < 2; ++i) {
+      if (installed_[i]) ::sigaction(kSignals[i], &old_[i], nullptr);
+    }
+    g_worker_slots = 0;
+    g_workers = nullptr;
+  }
+  StopSignalForwarding(const StopSignalForwarding&) = delete;
+  StopSignalForwarding& operator=(const StopSignalForwarding&) = delete;
+  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+
+ private:
+  struct sigaction old_[2]{};
+  bool installed_[2] = {false, false};
+};
+
+// Blocks SIGINT/SIGTERM in this thread while alive (a worker is spawned and registered as one
+// step, so that the forwarding handler cannot miss it).
+class BlockStopSignals {
+ public:
+  BlockStopSignals() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    ::pthread_sigmask(SIG_BLOCK, &set, &old_);
+  }
+  ~BlockStopSignals() { ::pthread_sigmask(SIG_SETMASK, &old_, nullptr); }
+  const sigset_t& previous() const { return old_; }
+
+ private:
+  sigset_t old_;
+};
+
+// Spawns `exe plan-point DIR INDEX` with the signal mask `mask`; returns the pid.
+pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index, int threads,
+                  const sigset_t& mask) {
   const std::string s_dir = dir.string(), s_idx = std::to_string(index);
   std::vector<std::string> args = {exe, "plan-point", s_dir, s_idx};
   std::vector<char*> argv;
@@ -78,8 +148,13 @@ pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index
   std::vector<char*> envp;
   for (auto& e : env_store) envp.push_back(e.data());
   envp.push_back(nullptr);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  posix_spawnattr_setsigmask(&attr, &mask);  // the worker starts with the caller's usual mask
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), envp.data());
+  const int rc = posix_spawn(&pid, exe.c_str(), nullptr, &attr, argv.data(), envp.data());
+  posix_spawnattr_destroy(&attr);
   if (rc != 0) {
     throw Error("cannot start the worker '" + exe + "': " + std::strerror(rc));
   }
@@ -87,12 +162,16 @@ pid_t spawn_point(const std::string& exe, const fs::path& dir, std::size_t index
 }
 
 // Records what the parent saw of a finished child: peak memory, and a failure if the child died
-// without writing its status (crash, kill).
+// (signal, non-zero exit) or exited without writing its status. Whatever a worker that died
+// wrote is not trusted: it may have been killed after writing "ok", or by `plan` being stopped.
+// A failed point's dataset is removed (with the temporaries of the dead worker).
 void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rusage& ru,
                   const std::string& key) {
-  const fs::path file = dir / "points" / point_id(index) / "status.json";
+  const fs::path point_dir = dir / "points" / point_id(index);
+  const fs::path file = point_dir / "status.json";
   auto st = read_status(file);
-  if (!st || (*st).value("params_key", "") != key) {
+  const bool died = !WIFEXITED(wstatus) || WEXITSTATUS(wstatus) != 0;
+  if (died || !st || (*st).value("params_key", "") != key) {
     nlohmann::json j;
     j["id"] = point_id(index);
     j["index"] = index;
@@ -100,13 +179,26 @@ void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rus
     j["status"] = "failed";
     std::ostringstream msg;
     if (WIFSIGNALED(wstatus)) {
-      msg << "worker killed by signal " << WTERMSIG(wstatus);
+      msg << "worker killed by signal " << WTERMSIG(wstatus) << " (" << strsignal(WTERMSIG(wstatus))
+          << ")";
+      if (g_stop_signal) msg << ": the planner was stopped; run it again to resume";
+    } else if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) != 0) {
+      msg << "worker exited with status " << WEXITSTATUS(wstatus);
+      if (st && st->contains("message") && (*st)["message"].is_string())
+        msg << ": " << (*st)["message"].get<std::string>();
     } else {
-      msg << "worker exited with status " << WEXITSTATUS(wstatus) << " without a result";
+      msg << "worker exited without a result";
     }
     j["message"] = msg.str();
     st = j;
     fs::create_directories(file.parent_path());
+  }
+  if ((*st).value("status", "") != "ok") {
+    std::error_code ec;
+    for (const fs::path& ds : {point_dir / kPartialDatasetName, point_dir / "dataset"}) {
+      recover_interrupted_writes(ds);  // the dead worker's temporaries
+      fs::remove_all(ds, ec);
+    }
   }
   (*st)["peak_rss_mb"] = ru.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
   write_text_file(file.string(), st->dump(2) + "\n");
@@ -161,11 +253,24 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
   const int threads = std::max(1, cores / workers);
   Progress bar("plan", todo.size(), opt.progress);
   std::map<pid_t, std::size_t> running;
+  std::vector<std::atomic<pid_t>> slots(static_cast<std::size_t>(workers));
+  for (auto& p : slots) p = 0;
+  StopSignalForwarding forwarding(slots);
   std::size_t next = 0;
   auto launch = [&] {
     while (static_cast<int>(running.size()) < workers && next < todo.size()) {
+      BlockStopSignals block;
+      if (g_stop_signal) return;  // stopped: start nothing new
       const std::size_t i = todo[next++];
-      running[spawn_point(opt.worker_executable, opt.out_dir, i, threads)] = i;
+      const pid_t pid =
+          spawn_point(opt.worker_executable, opt.out_dir, i, threads, block.previous());
+      for (auto& slot : slots) {
+        if (slot.load() == 0) {
+          slot = pid;
+          break;
+        }
+      }
+      running[pid] = i;
     }
   };
   launch();
@@ -174,11 +279,14 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     rusage ru{};
     const pid_t pid = wait4(-1, &wstatus, 0, &ru);
     if (pid < 0) {
-      if (errno == EINTR) continue;
+      if (errno == EINTR) continue;  // a stop signal: forwarded, the workers are exiting
       throw Error(std::string("planner: waiting for workers failed: ") + std::strerror(errno));
     }
     const auto it = running.find(pid);
     if (it == running.end()) continue;
+    for (auto& slot : slots) {
+      if (slot.load() == pid) slot = 0;
+    }
     const std::size_t i = it->second;
     running.erase(it);
     finish_point(opt.out_dir, i, wstatus, ru, plan_params_key(sweep.point(i)));
@@ -189,11 +297,17 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     launch();
   }
   bar.finish();
+  if (const int sig = g_stop_signal) {
+    throw Interrupted("plan stopped by signal " + std::to_string(sig) + " (" + strsignal(sig) +
+                          "): its workers were stopped and their points recorded as failed; " +
+                          "finished points are kept, run the same command to resume",
+                      sig);
+  }
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return sum;
 }
 
-void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
+std::size_t write_sweep_results(const Sweep& sweep, const fs::path& dir) {
   // ordered_json keeps the axes in the sweep file's order (the report's plots follow it).
   nlohmann::ordered_json results;
   results["version"] = 1;
@@ -298,6 +412,9 @@ void write_sweep_results(const Sweep& sweep, const fs::path& dir) {
     csv << ',' << quoted(p.value("message", "")) << '\n';
   }
   write_text_file((dir / "results.csv").string(), csv.str());
+  std::size_t ok = 0;
+  for (const auto& p : points) ok += p.value("status", "") == "ok";
+  return ok;
 }
 
 }  // namespace sonar3d

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -1011,6 +1012,39 @@ PointCloud deconvolve_dataset(const Dataset& dataset, const DeconvConfig& config
 // ---------------------------------------------------------------------------------------------
 // Reports
 
+std::vector<std::string> summarize_pass_warnings(const std::vector<std::string>& warnings) {
+  // "pass N (frames A–B): what" → group by "what", in order of first appearance.
+  std::vector<std::string> keys;
+  std::map<std::string, std::vector<std::string>> labels;  // what -> pass labels
+  std::vector<std::string> out_order;                      // key, or "\n" + a plain warning
+  for (const auto& w : warnings) {
+    const std::size_t sep = w.find("): ");
+    if (w.rfind("pass ", 0) != 0 || sep == std::string::npos) {
+      out_order.push_back("\n" + w);
+      continue;
+    }
+    const std::string label = w.substr(0, sep + 1), what = w.substr(sep + 3);
+    auto& l = labels[what];
+    if (l.empty()) out_order.push_back(what);
+    l.push_back(label);
+  }
+  std::vector<std::string> out;
+  for (const auto& k : out_order) {
+    if (k.rfind("\n", 0) == 0) {
+      out.push_back(k.substr(1));
+      continue;
+    }
+    const auto& l = labels[k];
+    if (l.size() == 1) {
+      out.push_back(l[0] + ": " + k);
+    } else {
+      out.push_back(std::to_string(l.size()) + " passes, " + l.front() +
+                    (l.size() > 2 ? " … " : " and ") + l.back() + ": " + k);
+    }
+  }
+  return out;
+}
+
 std::string DeconvReport::to_text() const {
   std::ostringstream os;
   for (std::size_t i = 0; i < passes.size(); ++i) {
@@ -1036,7 +1070,7 @@ std::string DeconvReport::to_text() const {
   os << "; " << fmt(seconds_total, 2) << " s (read " << fmt(seconds_load, 2) << ", solve "
      << fmt(seconds_solve, 2) << ", de-ring " << fmt(seconds_dering, 2) << ", multipass "
      << fmt(seconds_multipass, 2) << ", occlusion " << fmt(seconds_occlusion, 2) << ")\n";
-  for (const auto& w : warnings) os << "warning: " << w << "\n";
+  for (const auto& w : summarize_pass_warnings(warnings)) os << "warning: " << w << "\n";
   return os.str();
 }
 

@@ -39,4 +39,17 @@ void denoise(SonarImage& image, const std::optional<NoiseImages>& noise,
   }
 }
 
+std::optional<std::size_t> first_frame_with_return(const Dataset& dataset,
+                                                   const DenoiseConfig& config) {
+  config.validate();
+  for (std::size_t i = 0; i < dataset.size(); ++i) {
+    SonarImage img = dataset.load_frame(i);
+    denoise(img, dataset.noise, config);
+    for (float v : img.data) {
+      if (v > 0.0f) return i;
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace sonar3d

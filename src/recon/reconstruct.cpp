@@ -42,7 +42,8 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     DeconvReport report;
     out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
     if (options.region) out.cloud = crop_to_region(out.cloud, *options.region);
-    for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
+    for (const auto& w : summarize_pass_warnings(report.warnings))
+      out.notes += (out.notes.empty() ? "" : "; ") + w;
   } else {
     std::string list;
     for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;

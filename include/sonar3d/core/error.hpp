@@ -11,6 +11,17 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
+// A long operation stopped by a signal (SIGINT, SIGTERM) after cleaning up what it started; the
+// CLI prints what() and exits with 128 + signal(), as a shell does for a killed command.
+class Interrupted : public Error {
+ public:
+  Interrupted(const std::string& what, int signal) : Error(what), signal_(signal) {}
+  int signal() const { return signal_; }
+
+ private:
+  int signal_;
+};
+
 // Throws Error(message) when cond is false.
 inline void require(bool cond, const std::string& message) {
   if (!cond) throw Error(message);

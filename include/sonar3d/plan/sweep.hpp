@@ -73,14 +73,18 @@ struct PlanSummary {
 // points run as subprocesses `worker_executable plan-point DIR ID` (so that a crash or an error
 // is recorded as that point's failure and the sweep goes on, and each point's peak memory is
 // measured), `workers` at a time; rank 0 writes results.json and results.csv.
+// A worker that dies (signal, non-zero exit) fails its point whatever it wrote. SIGINT/SIGTERM
+// are forwarded to the running workers; their points are recorded as failed and Interrupted is
+// thrown once they have exited.
 PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& options);
 
 // Runs one point in this process and writes DIR/points/<id>/status.json (+ cloud.ply,
 // metrics.json). Never throws for a failure of the configuration itself: it is recorded.
 void run_sweep_point(const std::filesystem::path& out_dir, std::size_t index);
 
-// Rebuilds results.json / results.csv from the points' status files (ranking included).
-void write_sweep_results(const Sweep& sweep, const std::filesystem::path& out_dir);
+// Rebuilds results.json / results.csv from the points' status files (ranking included). Returns
+// the number of points whose status is "ok".
+std::size_t write_sweep_results(const Sweep& sweep, const std::filesystem::path& out_dir);
 
 std::string point_id(std::size_t index);
 

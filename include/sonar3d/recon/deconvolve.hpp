@@ -223,6 +223,11 @@ struct PassReport {
   std::vector<std::string> warnings;
 };
 
+// Collapses warnings that repeat for many passes ("pass N (frames A–B): what") into one line per
+// distinct "what": "36 passes, pass 1 (frames 0–0) … pass 36 (frames 35–35): what". Other
+// warnings are kept as they are, in order.
+std::vector<std::string> summarize_pass_warnings(const std::vector<std::string>& warnings);
+
 struct DeconvReport {
   std::vector<PassReport> passes;
   std::size_t frames = 0;
@@ -235,7 +240,7 @@ struct DeconvReport {
   double seconds_occlusion = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> warnings;  // all passes' warnings, prefixed by the pass
-  std::string to_text() const;        // one line per pass + totals
+  std::string to_text() const;        // one line per pass + totals + summarize_pass_warnings()
   std::string to_json(int indent = 2) const;
 };
 

@@ -23,4 +23,10 @@ struct DenoiseConfig {
 void denoise(SonarImage& image, const std::optional<NoiseImages>& noise,
              const DenoiseConfig& config);
 
+// The first frame of `dataset` holding a return: a pixel that survives denoise() with `config`
+// and the dataset's noise statistics; nullopt when no frame does (nothing was ever in view, or
+// everything is below the thresholds). Frames are read in order until one is found.
+std::optional<std::size_t> first_frame_with_return(const Dataset& dataset,
+                                                   const DenoiseConfig& config);
+
 }  // namespace sonar3d
