@@ -1,15 +1,18 @@
 // sonar3d: 3D maps from 2D imaging-sonar images. One file per subcommand in this directory.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/version.hpp"
 
 int main(int argc, char** argv) {
   using namespace sonar3d::cli;
   CLI::App app{
       "sonar3d: simulate 2D imaging sonars, reconstruct 3D scenes and measure them against CAD.\n"
       "Units: metres, seconds, degrees where an option name ends in _deg."};
+  app.set_version_flag("--version", std::string("sonar3d ") + SONAR3D_VERSION);
   app.require_subcommand(1);
   app.fallthrough();  // global flags (--quiet) may follow the subcommand
   GlobalOptions g;
