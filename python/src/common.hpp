@@ -186,29 +186,27 @@ class ProgressArg {
 // CarveConfig(voxel_size=0.01, region=None, ...); arrays of more than 8 values are summarised by
 // shape. Bound as .def("__repr__", &fields_repr).
 inline std::string fields_repr(const py::object& self) {
-  {
-    const py::object type = py::type::of(self);
-    const py::object property = py::module_::import("builtins").attr("property");
-    const py::object ndarray = py::module_::import("numpy").attr("ndarray");
-    std::string out = type.attr("__name__").cast<std::string>() + "(";
-    bool first = true;
-    for (const auto item : type.attr("__dict__").attr("items")()) {
-      const auto kv = item.cast<py::tuple>();
-      const auto name = kv[0].cast<std::string>();
-      if (name.empty() || name[0] == '_' || !py::isinstance(kv[1], property)) continue;
-      const py::object value = self.attr(kv[0]);
-      std::string text;
-      if (py::isinstance(value, ndarray) && value.attr("size").cast<py::ssize_t>() > 8) {
-        text = "<array shape " + py::repr(value.attr("shape")).cast<std::string>() + " " +
-               py::str(value.attr("dtype")).cast<std::string>() + ">";
-      } else {
-        text = py::repr(value).cast<std::string>();
-      }
-      out += (first ? "" : ", ") + name + "=" + text;
-      first = false;
+  const py::object type = py::type::of(self);
+  const py::object property = py::module_::import("builtins").attr("property");
+  const py::object ndarray = py::module_::import("numpy").attr("ndarray");
+  std::string out = type.attr("__name__").cast<std::string>() + "(";
+  bool first = true;
+  for (const auto item : type.attr("__dict__").attr("items")()) {
+    const auto kv = item.cast<py::tuple>();
+    const auto name = kv[0].cast<std::string>();
+    if (name.empty() || name[0] == '_' || !py::isinstance(kv[1], property)) continue;
+    const py::object value = self.attr(kv[0]);
+    std::string text;
+    if (py::isinstance(value, ndarray) && value.attr("size").cast<py::ssize_t>() > 8) {
+      text = "<array shape " + py::repr(value.attr("shape")).cast<std::string>() + " " +
+             py::str(value.attr("dtype")).cast<std::string>() + ">";
+    } else {
+      text = py::repr(value).cast<std::string>();
     }
-    return out + ")";
+    out += (first ? "" : ", ") + name + "=" + text;
+    first = false;
   }
+  return out + ")";
 }
 
 // A mesh from a Mesh object, a (vertices, triangles) pair or a file path.
