@@ -22,18 +22,7 @@ set(_sonar3d_shared_libs ${BUILD_SHARED_LIBS})
 find_package(OpenVDB REQUIRED COMPONENTS openvdb)
 set(BUILD_SHARED_LIBS ${_sonar3d_shared_libs})
 
-# Debian splits OpenCV into per-module -dev packages; only the full libopencv-dev ships the CMake
-# config, so we import the three modules we use ourselves rather than install all of OpenCV.
-find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
-foreach(mod core imgproc imgcodecs)
-  find_library(OPENCV_${mod}_LIBRARY opencv_${mod} REQUIRED)
-  if(NOT TARGET opencv::${mod})
-    add_library(opencv::${mod} UNKNOWN IMPORTED)
-    set_target_properties(opencv::${mod} PROPERTIES
-      IMPORTED_LOCATION ${OPENCV_${mod}_LIBRARY}
-      INTERFACE_INCLUDE_DIRECTORIES ${OPENCV_INCLUDE_DIR})
-  endif()
-endforeach()
+include(Sonar3dOpenCV)  # opencv::core, opencv::imgproc, opencv::imgcodecs
 
 if(NOT TARGET embree)
   message(FATAL_ERROR "embree imported target not found")

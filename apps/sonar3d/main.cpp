@@ -5,6 +5,7 @@
 
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/version.hpp"
 
 namespace sonar3d::cli {
 
@@ -39,6 +40,7 @@ int main(int argc, char** argv) {
       "sonar3d: simulate 2D imaging sonars, reconstruct 3D scenes and measure them against CAD.\n"
       "Units: metres, seconds, degrees where an option name ends in _deg.\n"
       "Exit status: 0 success, 1 failure, 2 usage error, 128+N interrupted by signal N."};
+  app.set_version_flag("--version", std::string("sonar3d ") + SONAR3D_VERSION);
   app.require_subcommand(1);
   app.fallthrough();  // global flags (--quiet) may follow the subcommand
   GlobalOptions g;

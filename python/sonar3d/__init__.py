@@ -14,7 +14,7 @@ Errors raise ``sonar3d.Error`` (a RuntimeError) whose message names the file, li
 import numpy as _np
 
 from ._sonar3d import *  # noqa: F401,F403
-from ._sonar3d import Error, _polar_to_sonar, _sonar_to_polar  # noqa: F401
+from ._sonar3d import Error, _polar_to_sonar, _sonar_to_polar, __version__  # noqa: F401
 from . import _sonar3d
 
 __all__ = [name for name in dir(_sonar3d) if not name.startswith("_")] + [

@@ -10,12 +10,14 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <Eigen/Geometry>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/trajectory.hpp"
 
@@ -121,6 +123,90 @@ inline std::vector<Eigen::Vector3f> array_to_points(const carray<float>& a,
   std::vector<Eigen::Vector3f> out(a.shape(0));
   std::copy(a.data(), a.data() + a.size(), out.empty() ? nullptr : out[0].data());
   return out;
+}
+
+// The `progress` argument of the long calls: None/False (silent), True (the terminal bars the CLI
+// shows, on stderr) or a callable progress(done, total). run() calls the library with the GIL
+// released, inside a ScopedProgressCallback (core/progress.hpp) that forwards every stage of the
+// call to the callable with the GIL held. An exception the callable raises stops further reports
+// and is raised again once the library call returns.
+class ProgressArg {
+ public:
+  explicit ProgressArg(const py::object& progress) {
+    if (progress.is_none()) return;
+    if (py::isinstance<py::bool_>(progress)) {
+      terminal_ = progress.cast<bool>();
+    } else if (PyCallable_Check(progress.ptr())) {
+      callback_ = progress;
+    } else {
+      throw py::type_error("progress must be None, a bool or a callable progress(done, total)");
+    }
+  }
+  ~ProgressArg() = default;
+  ProgressArg(const ProgressArg&) = delete;
+  ProgressArg& operator=(const ProgressArg&) = delete;
+
+  bool terminal() const { return terminal_; }  // the library's `bool progress` (terminal bars)
+
+  template <class F>
+  auto run(F&& f) -> decltype(f()) {
+    std::optional<decltype(f())> result;
+    {
+      ScopedProgressCallback scope(
+          callback_ ? ProgressCallback([this](const std::string&, std::size_t done,
+                                              std::size_t total) { report(done, total); })
+                    : ProgressCallback());
+      py::gil_scoped_release release;
+      result.emplace(f());
+    }
+    if (error_) {
+      py::error_already_set e = std::move(*error_);
+      error_.reset();
+      throw e;
+    }
+    return std::move(*result);
+  }
+
+ private:
+  void report(std::size_t done, std::size_t total) noexcept {
+    py::gil_scoped_acquire gil;
+    if (error_) return;
+    try {
+      callback_(done, total);
+    } catch (py::error_already_set& e) {
+      error_ = std::move(e);
+    }
+  }
+  py::object callback_;
+  bool terminal_ = false;
+  std::optional<py::error_already_set> error_;
+};
+
+// A __repr__ listing every property of the object's class in declaration order, e.g.
+// CarveConfig(voxel_size=0.01, region=None, ...); arrays of more than 8 values are summarised by
+// shape. Bound as .def("__repr__", &fields_repr).
+inline std::string fields_repr(const py::object& self) {
+  const py::object type = py::type::of(self);
+  const py::object property = py::module_::import("builtins").attr("property");
+  const py::object ndarray = py::module_::import("numpy").attr("ndarray");
+  std::string out = type.attr("__name__").cast<std::string>() + "(";
+  bool first = true;
+  for (const auto item : type.attr("__dict__").attr("items")()) {
+    const auto kv = item.cast<py::tuple>();
+    const auto name = kv[0].cast<std::string>();
+    if (name.empty() || name[0] == '_' || !py::isinstance(kv[1], property)) continue;
+    const py::object value = self.attr(kv[0]);
+    std::string text;
+    if (py::isinstance(value, ndarray) && value.attr("size").cast<py::ssize_t>() > 8) {
+      text = "<array shape " + py::repr(value.attr("shape")).cast<std::string>() + " " +
+             py::str(value.attr("dtype")).cast<std::string>() + ">";
+    } else {
+      text = py::repr(value).cast<std::string>();
+    }
+    out += (first ? "" : ", ") + name + "=" + text;
+    first = false;
+  }
+  return out + ")";
 }
 
 // A mesh from a Mesh object, a (vertices, triangles) pair or a file path.

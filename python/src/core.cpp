@@ -118,11 +118,7 @@ void bind_core(py::module_& m) {
            "count beams uniformly over a field of view fov (rad) centred on the boresight.")
       .def("validate", &SonarSpec::validate, "Raises sonar3d.Error naming the first bad field.")
       .def("to_yaml", &sonar_spec_to_yaml, "The sensor fields as sonar.yaml text.")
-      .def("__repr__", [](const SonarSpec& s) {
-        return "SonarSpec('" + s.name + "', beams=" + std::to_string(s.beams()) +
-               ", range_bins=" + std::to_string(s.range_bins) + ", r=[" + std::to_string(s.r_min) +
-               ", " + std::to_string(s.r_max) + ") m)";
-      });
+      .def("__repr__", &fields_repr);
 
   m.def(
       "_polar_to_sonar",

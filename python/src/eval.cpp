@@ -56,6 +56,7 @@ void bind_eval(py::module_& m) {
       .def_readwrite("histogram_max", &EvalConfig::histogram_max)
       .def_readwrite("histogram_bins", &EvalConfig::histogram_bins)
       .def_readwrite("seed", &EvalConfig::seed)
+      .def("__repr__", &fields_repr)
       .def("validate", &EvalConfig::validate);
 
   m.def(

@@ -202,7 +202,7 @@ void bind_io(py::module_& m) {
       "import_holoocean",
       [](const std::string& dir, const std::string& output, const std::string& bins,
          const std::string& sensor, double rate, const std::string& python,
-         const std::string& image_key, const std::string& pose_key) {
+         const std::string& image_key, const std::string& pose_key, const py::object& progress) {
         HoloOceanImportConfig cfg;
         cfg.bins = parse_holoocean_bins(bins);
         cfg.sensor = sensor;
@@ -210,11 +210,9 @@ void bind_io(py::module_& m) {
         cfg.python = python;
         cfg.image_key = image_key;
         cfg.pose_key = pose_key;
-        HoloOceanImportResult r;
-        {
-          py::gil_scoped_release release;
-          r = import_holoocean(dir, output, cfg, false);
-        }
+        ProgressArg p(progress);
+        const HoloOceanImportResult r =
+            p.run([&] { return import_holoocean(dir, output, cfg, p.terminal()); });
         py::dict d;
         d["frames"] = r.frames;
         d["dtype"] = r.dtype;
@@ -224,10 +222,11 @@ void bind_io(py::module_& m) {
         return d;
       },
       "dir"_a, "output"_a, "bins"_a = "sample", "sensor"_a = "", "rate"_a = 0.0, "python"_a = "",
-      "image_key"_a = "", "pose_key"_a = "PoseSensor",
+      "image_key"_a = "", "pose_key"_a = "PoseSensor", "progress"_a = py::none(),
       "Imports a HoloOcean/neusis recording (Config.json + Data/N.pkl) into a dataset; see "
       "docs/import.md. bins: 'sample' (neusis: row i at RangeMin + i·Δr) or 'cell' (HoloOcean's "
-      "renderer cells). Returns {frames, dtype, frame_rate_hz, spec, warnings}.");
+      "renderer cells). Returns {frames, dtype, frame_rate_hz, spec, warnings}. progress: True "
+      "(terminal bar) or progress(done, total).");
 
   m.def(
       "read_navigation",
@@ -249,7 +248,8 @@ void bind_io(py::module_& m) {
       "import_frames",
       [](const std::string& images, const std::string& times, const std::string& navigation,
          const py::object& sonar, const std::string& output, const std::string& convention,
-         bool degrees, const std::string& nav_format, double time_offset, bool drop_outside) {
+         bool degrees, const std::string& nav_format, double time_offset, bool drop_outside,
+         const py::object& progress) {
         FrameImportConfig cfg;
         cfg.images_dir = images;
         cfg.times_csv = times;
@@ -262,11 +262,8 @@ void bind_io(py::module_& m) {
                        : read_sonar_description(py::str(sonar).cast<std::string>());
         cfg.time_offset = time_offset;
         cfg.drop_outside = drop_outside;
-        FrameImportResult r;
-        {
-          py::gil_scoped_release release;
-          r = import_frames(cfg, output, false);
-        }
+        ProgressArg p(progress);
+        const FrameImportResult r = p.run([&] { return import_frames(cfg, output, p.terminal()); });
         py::dict d;
         d["frames"] = r.frames;
         d["dropped"] = r.dropped;
@@ -277,10 +274,11 @@ void bind_io(py::module_& m) {
       },
       "images"_a, "times"_a, "navigation"_a, "sonar"_a, "output"_a, "convention"_a = "enu",
       "degrees"_a = true, "nav_format"_a = "", "time_offset"_a = 0.0, "drop_outside"_a = false,
+      "progress"_a = py::none(),
       "Imports frame images + a 'timestamp,file' CSV + navigation (TUM or CSV) with the sensor "
       "(a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a dataset. "
       "Frames outside the navigation span raise sonar3d.Error, or are dropped and counted with "
-      "drop_outside=True.");
+      "drop_outside=True. progress: True (terminal bar) or progress(done, total).");
 }
 
 }  // namespace sonar3d::python

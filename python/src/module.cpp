@@ -2,6 +2,7 @@
 // core.cpp (sensor, poses, clouds, meshes), io.cpp (datasets, imports), sim.cpp (simulation),
 // recon.cpp (denoise, carve, deconvolve), eval.cpp (metrics). No algorithm lives here.
 #include "common.hpp"
+#include "sonar3d/version.hpp"
 
 PYBIND11_MODULE(_sonar3d, m) {
   namespace py = pybind11;
@@ -11,6 +12,7 @@ PYBIND11_MODULE(_sonar3d, m) {
       "Units are SI (metres, seconds, radians). Images are float32 arrays of range bins × beams "
       "(row 0 nearest), poses 4×4 float64 arrays T_world_sonar (sonar frame: +x boresight, +y "
       "left, +z up), point clouds N×3 float32 arrays in the world frame.";
+  m.attr("__version__") = SONAR3D_VERSION;
   py::register_exception<sonar3d::Error>(m, "Error", PyExc_RuntimeError);
   sonar3d::python::bind_core(m);
   sonar3d::python::bind_io(m);

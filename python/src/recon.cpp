@@ -1,18 +1,14 @@
 // Reconstruction: denoising (thesis sec. 4.4.7), space carving (ch. 4), deconvolution (ch. 5)
-// and the single reconstruct() entry point. Carving and deconvolution are bound when their
-// headers are part of the build (python/CMakeLists.txt defines SONAR3D_HAVE_RECON_*).
+// and the single reconstruct() entry point. carve(), deconvolve() and reconstruct() all run the
+// library's reconstruct_dataset() and return the same Reconstruction.
+#include <chrono>
+
 #include "common.hpp"
 #include "sonar3d/core/point_cloud.hpp"
-#include "sonar3d/recon/denoise.hpp"
-#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
 #include "sonar3d/recon/carve.hpp"
-#endif
-#if defined(SONAR3D_HAVE_RECON_DECONVOLVE_HPP)
 #include "sonar3d/recon/deconvolve.hpp"
-#endif
-#if defined(SONAR3D_HAVE_RECON_RECONSTRUCT_HPP)
+#include "sonar3d/recon/denoise.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
-#endif
 
 namespace sonar3d::python {
 
@@ -37,7 +33,7 @@ std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& 
 }
 
 // (points (N, 3) float32, intensity (N,) float32 or None), both moved out of the cloud.
-[[maybe_unused]] py::tuple cloud_tuple(PointCloud&& c) {
+py::tuple cloud_tuple(PointCloud&& c) {
   py::object intensity = py::none();
   if (c.has_intensity()) {
     const py::ssize_t n = static_cast<py::ssize_t>(c.intensity.size());
@@ -46,12 +42,34 @@ std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& 
   return py::make_tuple(points_to_array(std::move(c.points)), intensity);
 }
 
+// ReconstructResult as Python sees it: arrays, and the report parsed into a dict.
+struct Reconstruction {
+  explicit Reconstruction(ReconstructResult&& r)
+      : method(std::move(r.method)), seconds(r.seconds), notes(std::move(r.notes)) {
+    py::tuple t = cloud_tuple(std::move(r.cloud));
+    points = t[0];
+    intensity = t[1];
+    report = py::module_::import("json").attr("loads")(r.report);
+  }
+  py::object points, intensity, report;
+  std::string method;
+  double seconds = 0;
+  std::string notes;
+};
+
+Reconstruction run_reconstruct(const Dataset& dataset, ReconstructOptions options,
+                               const py::object& progress) {
+  ProgressArg p(progress);
+  options.progress = p.terminal();
+  return Reconstruction(p.run([&] { return reconstruct_dataset(dataset, options); }));
+}
+
 // A world-frame box as Python sees it: (min xyz, max xyz) or None.
-[[maybe_unused]] py::object region_to_py(const std::optional<Eigen::AlignedBox3d>& r) {
+py::object region_to_py(const std::optional<Eigen::AlignedBox3d>& r) {
   if (!r) return py::none();
   return py::make_tuple(Eigen::Vector3d(r->min()), Eigen::Vector3d(r->max()));
 }
-[[maybe_unused]] std::optional<Eigen::AlignedBox3d> region_from_py(const py::object& r) {
+std::optional<Eigen::AlignedBox3d> region_from_py(const py::object& r) {
   if (r.is_none()) return std::nullopt;
   const auto t = r.cast<py::sequence>();
   if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
@@ -69,6 +87,7 @@ void bind_recon(py::module_& m) {
       .def_readwrite("z_threshold", &DenoiseConfig::z_threshold)
       .def_readwrite("subtract_mean", &DenoiseConfig::subtract_mean)
       .def_readwrite("static_threshold", &DenoiseConfig::static_threshold)
+      .def("__repr__", &fields_repr)
       .def("validate", &DenoiseConfig::validate);
 
   m.def(
@@ -87,7 +106,29 @@ void bind_recon(py::module_& m) {
       "statistics are given) or the static threshold become 0; kept pixels lose the noise mean "
       "when config.subtract_mean.");
 
-#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
+  py::class_<Reconstruction>(
+      m, "Reconstruction",
+      "What carve(), deconvolve() and reconstruct() return: points (N, 3) float32, world frame; "
+      "intensity (N,) float32 (carved reflectivity bound, or deconvolved layer intensity b); "
+      "report (dict: carving statistics, or per-pass deconvolution report); method; seconds; "
+      "notes (the method's warnings, '; '-separated). Unpacks as points, intensity, report.")
+      .def_readonly("points", &Reconstruction::points)
+      .def_readonly("intensity", &Reconstruction::intensity)
+      .def_readonly("report", &Reconstruction::report)
+      .def_readonly("method", &Reconstruction::method)
+      .def_readonly("seconds", &Reconstruction::seconds)
+      .def_readonly("notes", &Reconstruction::notes)
+      .def("__iter__",
+           [](const Reconstruction& r) {
+             return py::iter(py::make_tuple(r.points, r.intensity, r.report));
+           })
+      .def("__repr__", [](const Reconstruction& r) {
+        return "Reconstruction(method=" + py::repr(py::str(r.method)).cast<std::string>() +
+               ", points=" + std::to_string(py::len(r.points)) +
+               ", seconds=" + py::repr(py::float_(r.seconds)).cast<std::string>() +
+               ", notes=" + py::repr(py::str(r.notes)).cast<std::string>() + ")";
+      });
+
   py::class_<CarveConfig>(m, "CarveConfig",
                           "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or "
                           "None), denoise (DenoiseConfig), resolve_occlusions, static_threshold, "
@@ -105,6 +146,7 @@ void bind_recon(py::module_& m) {
       .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
       .def_readwrite("min_observations", &CarveConfig::min_observations)
       .def_readwrite("num_threads", &CarveConfig::num_threads)
+      .def("__repr__", &fields_repr)
       .def("validate", &CarveConfig::validate);
 
   py::class_<Carver>(m, "Carver",
@@ -162,22 +204,17 @@ void bind_recon(py::module_& m) {
 
   m.def(
       "carve",
-      [](const Dataset& dataset, const CarveConfig& config, bool progress) {
-        PointCloud cloud;
-        {
-          py::gil_scoped_release release;
-          Carver carver(dataset.spec, config, dataset.noise);
-          integrate_dataset(carver, dataset, progress);
-          cloud = carver.finalize();
-        }
-        return cloud_tuple(std::move(cloud));
+      [](const Dataset& dataset, const CarveConfig& config, const py::object& progress) {
+        ReconstructOptions o;
+        o.method = "carve";
+        o.carve = config;
+        return run_reconstruct(dataset, o, progress);
       },
-      "dataset"_a, "config"_a = CarveConfig(), "progress"_a = false,
-      "Space-carves every frame of a dataset (with its noise statistics) and resolves occlusions: "
-      "(points (N, 3) world frame, reflectivity bounds (N,)).");
-#endif
+      "dataset"_a, "config"_a = CarveConfig(), "progress"_a = py::none(),
+      "Space-carves every frame of a dataset (with its noise statistics) and resolves occlusions. "
+      "Returns a Reconstruction: points (N, 3) world frame, intensity = reflectivity bounds (N,), "
+      "report = the carving statistics. progress: True (terminal bars) or progress(done, total).");
 
-#if defined(SONAR3D_HAVE_RECON_DECONVOLVE_HPP)
   py::class_<DeconvConfig>(m, "DeconvConfig",
                            "Deconvolution (ch. 5): beam ('sinc', 'flat', 'sensor'), "
                            "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
@@ -213,29 +250,26 @@ void bind_recon(py::module_& m) {
       .def_readwrite("min_intensity", &DeconvConfig::min_intensity)
       .def_readwrite("min_relative_intensity", &DeconvConfig::min_relative_intensity)
       .def_readwrite("num_threads", &DeconvConfig::num_threads)
+      .def("__repr__", &fields_repr)
       .def("validate", &DeconvConfig::validate);
 
   m.def(
       "deconvolve",
-      [](const Dataset& dataset, const DeconvConfig& config, bool progress) {
-        PointCloud cloud;
-        DeconvReport report;
-        {
-          py::gil_scoped_release release;
-          cloud = deconvolve_dataset(dataset, config, progress, &report);
-        }
-        py::tuple t = cloud_tuple(std::move(cloud));
-        return py::make_tuple(t[0], t[1],
-                              py::module_::import("json").attr("loads")(report.to_json()));
+      [](const Dataset& dataset, const DeconvConfig& config, const py::object& progress) {
+        ReconstructOptions o;
+        o.method = "deconv";
+        o.deconv = config;
+        return run_reconstruct(dataset, o, progress);
       },
-      "dataset"_a, "config"_a = DeconvConfig(), "progress"_a = false,
-      "Deconvolves the vertical passes of a dataset (eq. 5.28): (points, layer intensities b, "
-      "report dict with per-pass geometry, timings and warnings).");
+      "dataset"_a, "config"_a = DeconvConfig(), "progress"_a = py::none(),
+      "Deconvolves the vertical passes of a dataset (eq. 5.28). Returns a Reconstruction: points, "
+      "intensity = layer intensities b, report = per-pass geometry, timings and warnings. "
+      "progress: True (terminal bars) or progress(done, total).");
 
   m.def(
       "deconvolve_frames",
       [](const carray<float>& images, const carray<double>& poses, const SonarSpec& spec,
-         const DeconvConfig& config) {
+         const DeconvConfig& config, const py::object& progress) {
         if (images.ndim() != 3) throw Error("images must be (N, range bins, beams), denoised");
         std::vector<SonarImage> imgs;
         for (py::ssize_t k = 0; k < images.shape(0); ++k) {
@@ -244,51 +278,46 @@ void bind_recon(py::module_& m) {
           imgs.push_back(std::move(img));
         }
         const auto P = array_to_poses(poses, "poses");
-        PointCloud cloud;
-        DeconvReport report;
-        {
-          py::gil_scoped_release release;
-          cloud = deconvolve_frames(imgs, P, spec, config, &report, false);
-        }
-        py::tuple t = cloud_tuple(std::move(cloud));
-        return py::make_tuple(t[0], t[1],
-                              py::module_::import("json").attr("loads")(report.to_json()));
+        ProgressArg p(progress);
+        ReconstructResult r = p.run([&] {
+          const auto t0 = std::chrono::steady_clock::now();
+          ReconstructResult out;
+          DeconvReport report;
+          out.cloud = deconvolve_frames(imgs, P, spec, config, &report, p.terminal());
+          out.method = "deconv";
+          out.report = report.to_json();
+          for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
+          out.seconds =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          return out;
+        });
+        return Reconstruction(std::move(r));
       },
-      "images"_a, "poses"_a, "spec"_a, "config"_a = DeconvConfig(),
-      "Deconvolves already denoised frames (N, rows, cols) taken at poses (N, 4, 4).");
-#endif
+      "images"_a, "poses"_a, "spec"_a, "config"_a = DeconvConfig(), "progress"_a = py::none(),
+      "Deconvolves already denoised frames (N, rows, cols) taken at poses (N, 4, 4); returns a "
+      "Reconstruction like deconvolve().");
 
-#if defined(SONAR3D_HAVE_RECON_RECONSTRUCT_HPP)
   m.def("reconstruction_methods", &reconstruction_methods, "Names reconstruct() accepts.");
   m.def(
       "reconstruct",
       [](const Dataset& dataset, const std::string& method, const py::object& carve,
-         const py::object& region, int num_threads, bool progress) {
+         const py::object& deconv, const py::object& region, int num_threads,
+         const py::object& progress) {
         ReconstructOptions o;
         o.method = method;
         o.region = region_from_py(region);
-#if defined(SONAR3D_HAVE_RECON_CARVE_HPP)
         if (!carve.is_none()) o.carve = carve.cast<CarveConfig>();
-#endif
+        if (!deconv.is_none()) o.deconv = deconv.cast<DeconvConfig>();
         o.num_threads = num_threads;
-        o.progress = progress;
-        ReconstructResult r;
-        {
-          py::gil_scoped_release release;
-          r = reconstruct_dataset(dataset, o);
-        }
-        py::tuple t = cloud_tuple(std::move(r.cloud));
-        py::dict info;
-        info["seconds"] = r.seconds;
-        info["notes"] = r.notes;
-        return py::make_tuple(t[0], t[1], info);
+        return run_reconstruct(dataset, o, progress);
       },
-      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "region"_a = py::none(),
-      "num_threads"_a = 0, "progress"_a = false,
-      "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...): "
-      "(points, intensity, {seconds, notes}). region: (min xyz, max xyz) in the world frame (m) "
-      "or None; carving maps only inside it, the other methods keep the points inside it.");
-#endif
+      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "deconv"_a = py::none(),
+      "region"_a = py::none(), "num_threads"_a = 0, "progress"_a = py::none(),
+      "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...) and "
+      "the given CarveConfig / DeconvConfig (default: the library's). region: (min xyz, max xyz) "
+      "in the world frame (m) or None; carving maps only inside it, the other methods keep the "
+      "points inside it. num_threads > 0 overrides the configs'. Returns a Reconstruction, as "
+      "carve() and deconvolve() do. progress: True (terminal bars) or progress(done, total).");
 }
 
 }  // namespace sonar3d::python

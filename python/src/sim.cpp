@@ -57,28 +57,27 @@ void bind_sim(py::module_& m) {
       .def_readwrite("jitter", &SimulatorConfig::jitter)
       .def_readwrite("gain", &SimulatorConfig::gain)
       .def_readwrite("num_threads", &SimulatorConfig::num_threads)
+      .def("__repr__", &fields_repr)
       .def("validate", &SimulatorConfig::validate);
 
   m.def(
       "simulate",
       [](const std::string& scene, const std::string& output, const py::object& seed,
-         bool progress) {
+         const py::object& progress) {
         SimulationSetup setup = load_simulation_setup(scene);
         if (!seed.is_none()) setup.seed = seed.cast<unsigned long long>();
-        SimulationStats st;
-        {
-          py::gil_scoped_release release;
-          st = simulate_dataset(setup, output, progress);
-        }
+        ProgressArg p(progress);
+        const SimulationStats st =
+            p.run([&] { return simulate_dataset(setup, output, p.terminal()); });
         py::dict d;
         d["frames"] = st.frames;
         d["rays"] = st.rays;
         d["seconds"] = st.seconds;
         return d;
       },
-      "scene"_a, "output"_a, "seed"_a = py::none(), "progress"_a = false,
+      "scene"_a, "output"_a, "seed"_a = py::none(), "progress"_a = py::none(),
       "Simulates a scene file (docs/formats.md) into a dataset directory with truth/, atomically. "
-      "Returns {frames, rays, seconds}.");
+      "Returns {frames, rays, seconds}. progress: True (terminal bar) or progress(done, total).");
 
   py::class_<Simulator>(m, "Simulator",
                         "Renders noise-free sonar images of objects (thesis eq. 2.13): "

@@ -1,5 +1,8 @@
 """Reconstruction through the bindings: carving (ch. 4) and deconvolution (ch. 5) of a simulated
-sphere seen by a vertical pass. Skipped when the build has no such method."""
+sphere seen by a vertical pass; one result type for carve, deconvolve and reconstruct; progress
+callbacks."""
+import threading
+
 import numpy as np
 import pytest
 
@@ -23,13 +26,13 @@ def sphere_dataset(tmp_path_factory):
     return str(root / "ds")
 
 
-@pytest.mark.skipif(not hasattr(sonar3d, "carve"), reason="carving is not in this build")
 def test_carve_a_sphere(sphere_dataset):
     ds = sonar3d.read_dataset(sphere_dataset)
     cfg = sonar3d.CarveConfig(voxel_size=0.02, region=([-1, -1, -1], [1, 1, 1]))
     assert cfg.region is not None
-    points, bounds = sonar3d.carve(ds, cfg)
+    points, bounds, report = sonar3d.carve(ds, cfg)
     assert points.shape[1] == 3 and len(points) > 100
+    assert report["frames"] == len(ds) and report["points"] == len(points)
     assert bounds.shape == (len(points),)
     r = sonar3d.evaluate_dataset(points, sphere_dataset)["ball"]
     assert r["median_error"] < 0.03
@@ -42,7 +45,6 @@ def test_carve_a_sphere(sphere_dataset):
     assert abs(len(p2) - len(points)) <= 0.01 * len(points)
 
 
-@pytest.mark.skipif(not hasattr(sonar3d, "deconvolve"), reason="deconvolution is not in this build")
 def test_deconvolve_a_sphere(sphere_dataset):
     ds = sonar3d.read_dataset(sphere_dataset)
     points, b, report = sonar3d.deconvolve(ds, sonar3d.DeconvConfig(beam="sinc"))
@@ -52,18 +54,18 @@ def test_deconvolve_a_sphere(sphere_dataset):
     assert r["median_error"] < 0.03
 
 
-@pytest.mark.skipif(not hasattr(sonar3d, "reconstruct"), reason="reconstruct is not in this build")
 def test_reconstruct_region_applies_to_every_method(sphere_dataset):
     ds = sonar3d.read_dataset(sphere_dataset)
     upper = ([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0])  # the sphere's upper half only
     for method in ("carve", "deconv"):
-        whole, _, _ = sonar3d.reconstruct(ds, method)
-        cut, intensity, info = sonar3d.reconstruct(ds, method, region=upper)
+        whole = sonar3d.reconstruct(ds, method).points
+        r = sonar3d.reconstruct(ds, method, region=upper)
+        cut, intensity = r.points, r.intensity
         assert len(cut) > 50, method
         assert len(cut) < len(whole), method
         assert cut[:, 2].min() >= 0.0, method
         assert intensity is not None and len(intensity) == len(cut)
-        assert info["seconds"] > 0
+        assert r.seconds > 0 and r.method == method and isinstance(r.report, dict)
     with pytest.raises(Exception, match="region"):
         sonar3d.reconstruct(ds, "deconv", region=([0, 0, 0], [1, 1, 0]))
     carver = sonar3d.Carver(ds.spec, sonar3d.CarveConfig(voxel_size=0.02))
@@ -73,3 +75,70 @@ def test_reconstruct_region_applies_to_every_method(sphere_dataset):
     # 2 cm steps, a 10° aperture at 2 m: every point is seen by many frames, the filter holds.
     assert carver.stats["min_observations_used"] == 2
     assert carver.stats["views_per_scatterer"] > 5
+
+
+def test_carve_deconvolve_and_reconstruct_return_the_same_result(sphere_dataset):
+    ds = sonar3d.read_dataset(sphere_dataset)
+    carve_cfg = sonar3d.CarveConfig(voxel_size=0.02, region=([-1, -1, -1], [1, 1, 1]))
+    deconv_cfg = sonar3d.DeconvConfig(beam="flat")
+    results = {
+        "carve": sonar3d.carve(ds, carve_cfg),
+        "deconvolve": sonar3d.deconvolve(ds, deconv_cfg),
+        "reconstruct carve": sonar3d.reconstruct(ds, "carve", carve=carve_cfg),
+        "reconstruct deconv": sonar3d.reconstruct(ds, "deconv", deconv=deconv_cfg),
+    }
+    for name, r in results.items():
+        assert type(r) is sonar3d.Reconstruction, name
+        assert r.points.dtype == np.float32 and r.points.shape == (len(r.points), 3), name
+        assert r.intensity.dtype == np.float32 and r.intensity.shape == (len(r.points),), name
+        assert isinstance(r.report, dict) and isinstance(r.notes, str) and r.seconds > 0, name
+        points, intensity, report = r  # unpacks the same way for every call
+        assert points is r.points and intensity is r.intensity and report is r.report
+        assert "points=%d" % len(r.points) in repr(r), name
+    assert results["carve"].method == "carve" and results["deconvolve"].method == "deconv"
+    # The same method through either entry point gives the same cloud.
+    assert len(results["carve"].points) == len(results["reconstruct carve"].points)
+    assert len(results["deconvolve"].points) == len(results["reconstruct deconv"].points)
+    assert results["deconvolve"].report["frames"] == len(ds)
+    assert results["carve"].report["frames"] == len(ds)
+
+
+def test_progress_callbacks_report_every_stage(sphere_dataset, tmp_path):
+    ds = sonar3d.read_dataset(sphere_dataset)
+    n = len(ds)
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(SCENE)
+    calls = []
+    threads = set()
+
+    def progress(done, total):
+        calls.append((done, total))
+        threads.add(threading.get_ident())
+
+    cfg = sonar3d.CarveConfig(voxel_size=0.02, region=([-1, -1, -1], [1, 1, 1]))
+    sonar3d.carve(ds, cfg, progress=progress)
+    # Two stages (integration, occlusion resolution), each from (0, n) to (n, n), never decreasing
+    # within a stage and never beyond the total.
+    assert calls[0] == (0, n) and calls[-1] == (n, n)
+    assert all(0 <= d <= t == n for d, t in calls)
+    assert calls.count((0, n)) == 2 and calls.count((n, n)) >= 2
+
+    for call in (lambda p: sonar3d.deconvolve(ds, sonar3d.DeconvConfig(beam="flat"), progress=p),
+                 lambda p: sonar3d.reconstruct(ds, "deconv", progress=p),
+                 lambda p: sonar3d.simulate(str(scene), str(tmp_path / "again"), progress=p)):
+        calls.clear()
+        call(progress)
+        assert len(calls) >= 2 and calls[0][0] == 0, calls
+        assert calls[-1][0] == calls[-1][1] > 0, calls
+    assert calls[0] == (0, n)  # the simulation renders the same trajectory
+
+    # An exception in the callback is raised once the call returns (no further reports).
+    def failing(done, total):
+        raise KeyError("stop")
+
+    with pytest.raises(KeyError, match="stop"):
+        sonar3d.carve(ds, cfg, progress=failing)
+    with pytest.raises(TypeError, match="progress"):
+        sonar3d.carve(ds, cfg, progress="yes")
+    r = sonar3d.carve(ds, cfg, progress=False)  # booleans keep meaning "terminal bar or not"
+    assert len(r.points) > 100

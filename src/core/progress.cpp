@@ -1,10 +1,25 @@
 #include "sonar3d/core/progress.hpp"
 
-#include <cmath>
-#include <cstdio>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 namespace sonar3d {
+
+namespace {
+// The callback of ScopedProgressCallback, per thread.
+thread_local std::shared_ptr<const ProgressCallback> t_callback;
+constexpr auto kInterval = std::chrono::milliseconds(100);  // redraw / report at most 10 Hz
+}  // namespace
+
+ScopedProgressCallback::ScopedProgressCallback(ProgressCallback callback)
+    : previous_(std::move(t_callback)) {
+  if (callback) t_callback = std::make_shared<const ProgressCallback>(std::move(callback));
+}
+
+ScopedProgressCallback::~ScopedProgressCallback() { t_callback = std::move(previous_); }
 
 bool Progress::stderr_is_terminal() { return ::isatty(STDERR_FILENO) == 1; }
 
@@ -13,27 +28,48 @@ Progress::Progress(std::string label, std::size_t total, bool enabled)
       total_(total),
       enabled_(enabled && stderr_is_terminal()),
       start_(std::chrono::steady_clock::now()),
-      last_draw_(start_) {}
+      last_draw_(start_),
+      last_report_(start_),
+      callback_(t_callback) {
+  if (callback_) (*callback_)(label_, 0, total_);
+}
 
 Progress::~Progress() { finish(); }
 
 void Progress::add(std::size_t n) {
   done_ += n;
-  if (!enabled_) return;
+  if (!enabled_ && !callback_) return;
   const auto now = std::chrono::steady_clock::now();
+  if (callback_) {
+    std::unique_lock<std::mutex> lock(callback_mutex_, std::try_to_lock);
+    if (lock.owns_lock() && !reported_final_ && now - last_report_ >= kInterval) {
+      last_report_ = now;
+      report();
+    }
+  }
+  if (!enabled_) return;
   std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
   if (!lock.owns_lock() || finished_) return;
-  if (now - last_draw_ < std::chrono::milliseconds(100)) return;  // redraw at most 10 Hz
+  if (now - last_draw_ < kInterval) return;
   last_draw_ = now;
   draw(false);
 }
 
 void Progress::finish() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (finished_) return;
-  finished_ = true;
-  if (enabled_) draw(true);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (finished_) return;
+    finished_ = true;
+    if (enabled_) draw(true);
+  }
+  if (callback_) {
+    std::lock_guard<std::mutex> lock(callback_mutex_);
+    reported_final_ = true;
+    report();
+  }
 }
+
+void Progress::report() { (*callback_)(label_, std::min(done_.load(), total_), total_); }
 
 void Progress::draw(bool final_line) {
   const std::size_t done = std::min(done_.load(), total_);

@@ -1,8 +1,10 @@
 #include "sonar3d/recon/reconstruct.hpp"
 
 #include <chrono>
+#include <nlohmann/json.hpp>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
 
 namespace sonar3d {
 
@@ -31,7 +33,24 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     if (options.region) cfg.region = options.region;
     Carver carver(dataset.spec, cfg, dataset.noise);
     integrate_dataset(carver, dataset, options.progress);
-    out.cloud = carver.finalize();
+    if (cfg.resolve_occlusions) {
+      Progress bar("occlusions", dataset.size(), options.progress);
+      out.cloud = carver.finalize(&bar);
+    } else {
+      out.cloud = carver.finalize();
+    }
+    const CarveStats& st = carver.stats();
+    nlohmann::ordered_json j;
+    j["frames"] = st.frames;
+    j["candidates"] = st.candidates;
+    j["points"] = st.points;
+    j["integrate_seconds"] = st.integrate_seconds;
+    j["occlusion_seconds"] = st.occlusion_seconds;
+    j["map_bytes"] = st.map_bytes;
+    j["frame_bytes"] = st.frame_bytes;
+    j["min_observations_used"] = st.min_observations_used;
+    j["views_per_scatterer"] = st.views_per_scatterer;
+    out.report = j.dump(2);
   } else if (options.method.rfind("deconv", 0) == 0 &&
              (options.method == "deconv" || options.method == "deconv-l1" ||
               options.method == "deconv-exact")) {
@@ -44,11 +63,13 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     if (options.region) out.cloud = crop_to_region(out.cloud, *options.region);
     for (const auto& w : summarize_pass_warnings(report.warnings))
       out.notes += (out.notes.empty() ? "" : "; ") + w;
+    out.report = report.to_json();
   } else {
     std::string list;
     for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;
     throw Error("unknown reconstruction method '" + options.method + "' (available: " + list + ")");
   }
+  out.method = options.method;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

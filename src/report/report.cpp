@@ -277,12 +277,25 @@ fs::path default_web_dir() {
   if (const char* env = std::getenv("SONAR3D_WEB_DIR"); env != nullptr && *env != '\0') {
     return fs::path(env);
   }
-#ifdef SONAR3D_SOURCE_DIR
-  return fs::path(SONAR3D_SOURCE_DIR) / "web";
-#else
-  // src/report/report.cpp -> <source tree>/web (CMake compiles with absolute source paths).
-  return fs::path(__FILE__).parent_path().parent_path().parent_path() / "web";
+  // Installed: <prefix>/bin/sonar3d finds <prefix>/share/sonar3d/web wherever the prefix was
+  // installed or moved to (SONAR3D_WEB_DIR_FROM_BIN is that relative path, src/CMakeLists.txt).
+  std::error_code ec;
+  fs::path installed;
+#ifdef SONAR3D_WEB_DIR_FROM_BIN
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec && !exe.empty()) {
+    installed = (exe.parent_path() / SONAR3D_WEB_DIR_FROM_BIN).lexically_normal();
+    if (fs::is_regular_file(installed / "report_template.html", ec)) return installed;
+  }
 #endif
+  // Development: a build that is not installed reads the source tree's web/.
+#ifdef SONAR3D_SOURCE_DIR
+  const fs::path source = fs::path(SONAR3D_SOURCE_DIR) / "web";
+#else
+  const fs::path source = fs::path(__FILE__).parent_path().parent_path().parent_path() / "web";
+#endif
+  if (installed.empty() || fs::is_directory(source, ec)) return source;
+  return installed;  // neither exists: the error then names the installed location
 }
 
 ReportSummary write_report(const fs::path& plan_dir, const ReportConfig& cfg) {

@@ -23,14 +23,21 @@ struct ReconstructOptions {
   // seabed). Carving maps only the voxels inside it (it replaces CarveConfig::region); the other
   // methods reconstruct as usual and keep the points inside it.
   std::optional<Eigen::AlignedBox3d> region;
-  bool progress = false;
-  int num_threads = 0;  // 0 = all cores; overrides the method configs' thread counts
+  bool progress = false;  // terminal bars (and a ScopedProgressCallback, core/progress.hpp)
+  int num_threads = 0;    // 0 = all cores; overrides the method configs' thread counts
 };
 
+// The same result whatever the method (the Python carve(), deconvolve() and reconstruct() all
+// return it).
 struct ReconstructResult {
-  PointCloud cloud;
+  PointCloud cloud;    // world frame; intensity: carved reflectivity bound or deconvolved layer b
+  std::string method;  // the method that ran
   double seconds = 0;
   std::string notes;  // warnings the method reported (e.g. a pass that is not straight)
+  // What the method measured, as a JSON object: for carving the Carver's statistics (frames,
+  // candidates, points, timings, map memory, min_observations_used, views_per_scatterer), for
+  // deconvolution DeconvReport::to_json() (passes, geometry, timings, warnings).
+  std::string report = "{}";
 };
 
 // Throws Error on an unknown method or when the method cannot run on the dataset.

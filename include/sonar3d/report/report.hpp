@@ -52,7 +52,9 @@ struct ReportSummary {
   std::vector<std::string> warnings;
 };
 
-// $SONAR3D_WEB_DIR if set, else <source tree>/web.
+// $SONAR3D_WEB_DIR if set; else, for an installed sonar3d, <prefix>/share/sonar3d/web found from
+// the executable (/proc/self/exe is <prefix>/bin/...); else the source tree's web/ (a build that
+// is not installed).
 std::filesystem::path default_web_dir();
 
 // Writes the report of the sweep in `plan_dir` atomically. Throws Error on a missing or malformed
