@@ -13,8 +13,13 @@
 #include <sys/wait.h>
 #include <tuple>
 
+#include <nlohmann/json.hpp>
+
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 
 namespace fs = std::filesystem;
@@ -375,5 +380,116 @@ TEST(MappingCli, ElevationAndRegister) {
   EXPECT_EQ(rc, 1);
   EXPECT_NE(out.find("a.ply"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  fs::remove_all(dir);
+}
+
+namespace {
+
+// A small field: seabed, a box, a half-buried pipe and a rock, surveyed by a downward-looking
+// 1° × 80° sonar (MB2250-like) on four East–West lines 3 m above the seabed.
+constexpr const char* kFieldScene = R"(seed: 3
+sensor:
+  fov_deg: 80
+  beams: 160
+  r_min: 1.0
+  r_max: 4.0
+  range_bins: 150
+  vertical_aperture_deg: 1
+  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3}
+  - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}, reflectivity: 0.8}
+  - {name: pipe, primitive: {type: cylinder, radius: 0.15, height: 5}, pose: {translation: [3, 2.0, 0.05], rpy_deg: [0, 90, 20]}, reflectivity: 0.8}
+  - {name: rock, primitive: {type: sphere, radius: 0.3}, pose: {translation: [4.5, 3.2, -0.1]}, reflectivity: 0.6}
+trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5, spacing: 0.04, period: 0.1}
+)";
+
+struct CliRun {
+  int code;
+  std::string out;
+};
+
+CliRun run_cli(const fs::path& dir, const std::string& args) {
+  const std::string log = (dir / "cli.log").string();
+  const int rc =
+      std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
+  std::ifstream in(log);
+  return {WEXITSTATUS(rc), std::string((std::istreambuf_iterator<char>(in)),
+                                       std::istreambuf_iterator<char>())};
+}
+
+}  // namespace
+
+// End to end: a four-line survey whose logged navigation is off by a different amount on each
+// line (the drift a vehicle accumulates between lines); `sonar3d map` recovers each line's offset
+// within one map cell, by the global adjustment and by the thesis' consecutive registration.
+TEST(MappingCli, FieldSurveyWithDriftIsCorrected) {
+  const fs::path dir = temp_dir() / "field";
+  fs::create_directories(dir);
+  { std::ofstream(dir / "field.yaml") << kFieldScene; }
+  CliRun r = run_cli(dir, "simulate " + (dir / "field.yaml").string() + " -o " +
+                              (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  // The drift: line k's navigation is off by e_k (swath 0 exact).
+  const sonar3d::Dataset ds = sonar3d::read_dataset(dir / "ds");
+  const auto swaths = sonar3d::split_swaths(ds, {});
+  ASSERT_EQ(swaths.size(), 4u);
+  const Eigen::Vector3d e[4] = {{0, 0, 0}, {0.08, -0.06, 0.02}, {0.14, -0.02, 0.04},
+                                {0.2, 0.04, 0.02}};
+  sonar3d::Trajectory nav = sonar3d::read_tum((dir / "ds/navigation.tum").string());
+  for (std::size_t k = 0; k < nav.size(); ++k) {
+    for (int s = 0; s < 4; ++s) {
+      if (nav.times[k] >= ds.frames[swaths[s].first].timestamp - 1e-9 &&
+          nav.times[k] <= ds.frames[swaths[s].second].timestamp + 1e-9) {
+        nav.poses[k].translation() += e[s];
+      }
+    }
+  }
+  sonar3d::write_tum((dir / "ds/navigation.tum").string(), nav);
+
+  for (const std::string method : {"global", "consecutive"}) {
+    SCOPED_TRACE(method);
+    const fs::path out = dir / ("map_" + method);
+    r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + out.string() +
+                         " --roi -1 -1 -0.6 7 6 0.8 --search 0.3 --method " + method + " -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    std::ifstream f(out / "summary.json");
+    const nlohmann::json summary = nlohmann::json::parse(f);
+    ASSERT_EQ(summary["swaths"].size(), 4u);
+    for (int s = 0; s < 4; ++s) {
+      const auto& o = summary["swaths"][s]["offset_m"];
+      // The correction undoes the error: o_s = e_0 − e_s.
+      EXPECT_NEAR(o[0].get<double>(), -e[s].x(), 0.02) << "swath " << s;
+      EXPECT_NEAR(o[1].get<double>(), -e[s].y(), 0.02) << "swath " << s;
+      EXPECT_NEAR(o[2].get<double>(), -e[s].z(), 0.01) << "swath " << s;
+    }
+    for (const char* file : {"merged.ply", "merged.tif", "merged.png", "merged_uncorrected.png",
+                             "navigation_corrected.tum", "ties.json", "swaths/swath_03.tif"}) {
+      EXPECT_TRUE(fs::exists(out / file)) << file;
+    }
+    // The corrected navigation of a frame of line 2 is back on the truth.
+    const sonar3d::Trajectory corrected =
+        sonar3d::read_tum((out / "navigation_corrected.tum").string());
+    const double t = ds.frames[(swaths[2].first + swaths[2].second) / 2].timestamp;
+    const sonar3d::Trajectory truth_nav = ds.navigation;  // read before the drift was added
+    EXPECT_LT((corrected.interpolate(t).translation() - truth_nav.interpolate(t).translation())
+                  .head<2>()
+                  .norm(),
+              0.02);
+  }
+  // An existing output is refused; a survey of one straight line has nothing to register.
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "map_global").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "one").string() +
+                       " --swath-times 0 5");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("one swath"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "one"));
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "x").string() +
+                       " --resolution 0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("cell_m"), std::string::npos) << r.out;
   fs::remove_all(dir);
 }
