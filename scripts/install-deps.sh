@@ -16,6 +16,7 @@ PACKAGES=(
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-pytest pybind11-dev  # the Python module and its tests
+  python3-pip python3-setuptools python3-wheel python3-venv       # `pip install .` of the module
   libopenmpi-dev openmpi-bin  # planner sweeps over MPI ranks
   chromium                    # headless browser test of `sonar3d report`
 )
