@@ -19,6 +19,7 @@ PACKAGES=(
   python3-pip python3-setuptools python3-wheel python3-venv       # `pip install .` of the module
   libopenmpi-dev openmpi-bin  # planner sweeps over MPI ranks
   chromium                    # headless browser test of `sonar3d report`
+  strace                      # the test that atomic writes fsync before renaming
 )
 
 missing=()

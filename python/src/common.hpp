@@ -182,6 +182,16 @@ class ProgressArg {
   std::optional<py::error_already_set> error_;
 };
 
+// A config built from keyword arguments: C() with each keyword set as an attribute (so unknown
+// names raise AttributeError and values go through the bound setters' checks).
+template <class C>
+C from_kwargs(const py::kwargs& kw) {
+  C c;
+  py::object o = py::cast(&c, py::return_value_policy::reference);
+  for (auto item : kw) py::setattr(o, item.first, item.second);
+  return c;
+}
+
 // A __repr__ listing every property of the object's class in declaration order, e.g.
 // CarveConfig(voxel_size=0.01, region=None, ...); arrays of more than 8 values are summarised by
 // shape. Bound as .def("__repr__", &fields_repr).
@@ -217,5 +227,6 @@ void bind_io(py::module_& m);
 void bind_sim(py::module_& m);
 void bind_recon(py::module_& m);
 void bind_eval(py::module_& m);
+void bind_mapping(py::module_& m);
 
 }  // namespace sonar3d::python

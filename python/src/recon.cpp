@@ -16,14 +16,6 @@ using namespace pybind11::literals;
 
 namespace {
 
-template <class C>
-C from_kwargs(const py::kwargs& kw) {
-  C c;
-  py::object o = py::cast(&c, py::return_value_policy::reference);
-  for (auto item : kw) py::setattr(o, item.first, item.second);
-  return c;
-}
-
 std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& std) {
   if (mean.is_none() && std.is_none()) return std::nullopt;
   if (mean.is_none() || std.is_none())

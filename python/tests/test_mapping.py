@@ -1,0 +1,53 @@
+"""Field mapping through the bindings: elevation maps, GeoTIFF round trip, swath registration."""
+import math
+
+import numpy as np
+import pytest
+
+import sonar3d
+
+
+def terrain(x, y):
+    return 0.25 * np.sin(0.7 * x) * np.cos(0.5 * y) + 0.1 * np.sin(1.9 * x + 1.3 * y)
+
+
+def seabed(offset=(0.0, 0.0, 0.0), step=0.01):
+    xs, ys = np.meshgrid(np.arange(0, 4, step) + step / 2, np.arange(0, 3, step) + step / 2)
+    pts = np.column_stack([xs.ravel(), ys.ravel(), terrain(xs, ys).ravel()])
+    return (pts + np.asarray(offset)).astype(np.float32)
+
+
+def test_elevation_map_keeps_the_highest_point_and_no_data():
+    pts = np.float32([[0.01, 0.01, -1.0], [0.015, 0.005, -0.5], [0.09, 0.01, 2.0]])
+    m = sonar3d.elevation_map(pts, cell_m=0.02)
+    assert (m.rows, m.cols) == (1, 5)
+    assert m.z[0, 0] == pytest.approx(-0.5)
+    assert np.isnan(m.z[0, 1:4]).all()
+    assert m.num_valid() == 2
+    assert "cell_m=0.02" in repr(m)
+    with pytest.raises(sonar3d.Error, match="cell_m"):
+        sonar3d.elevation_map(pts, cell_m=0.0)
+
+
+def test_geotiff_round_trip(tmp_path):
+    m = sonar3d.elevation_map(seabed(), cell_m=0.02)
+    path = str(tmp_path / "m.tif")
+    sonar3d.write_elevation_geotiff(path, m, uint16_step_m=0.001)
+    r = sonar3d.read_elevation_geotiff(path)
+    assert (r.rows, r.cols) == (m.rows, m.cols)
+    assert np.allclose(r.origin_xy, m.origin_xy)
+    assert np.nanmax(np.abs(r.z - m.z)) <= 0.0005 + 1e-6
+
+
+def test_registration_recovers_a_known_shift():
+    a = sonar3d.elevation_map(seabed(), cell_m=0.02)
+    b = sonar3d.elevation_map(seabed((0.08, -0.06, 0.03)), cell_m=0.02)
+    cfg = sonar3d.SwathRegistrationConfig(search_m=0.2)
+    assert "coarse_factor=4" in repr(cfg)
+    tie = sonar3d.register_elevation_maps(a, b, cfg)
+    assert tie.t[0] == pytest.approx(-0.08, abs=0.005)
+    assert tie.t[1] == pytest.approx(0.06, abs=0.005)
+    assert tie.t[2] == pytest.approx(-0.03, abs=0.003)
+    assert tie.confidence > 0.5
+    with pytest.raises(AttributeError):
+        sonar3d.SwathRegistrationConfig(serach_m=0.2)  # a misspelt keyword is an error
