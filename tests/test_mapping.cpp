@@ -21,6 +21,7 @@
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/sim/dead_reckoning.hpp"
 
 namespace fs = std::filesystem;
 using sonar3d::ElevationMap;
@@ -491,5 +492,81 @@ TEST(MappingCli, FieldSurveyWithDriftIsCorrected) {
                        " --resolution 0");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("cell_m"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+// The dead-reckoning model: a 100 m straight line logged with a 1 % velocity scale error ends
+// 1 m long; a 0.5° heading bias puts it 100·sin(0.5°) = 0.87 m to the side; the depth sensor's
+// offset shifts z; the bias random walk is seeded.
+TEST(DeadReckoning, DriftsLikeAVehicle) {
+  sonar3d::Trajectory truth;
+  for (int k = 0; k <= 1000; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(0.1 * k, 0, -20);
+    truth.push_back(0.1 * k, T);
+  }
+  sonar3d::DeadReckoningConfig cfg;
+  cfg.velocity_scale_error = 0.01;
+  cfg.velocity_bias_walk = 0;
+  cfg.heading_bias_deg = 0;
+  cfg.depth_offset_m = 0.05;
+  sonar3d::Trajectory dr = sonar3d::dead_reckoning(truth, cfg, 1);
+  EXPECT_NEAR(dr.poses.back().translation().x(), 101.0, 1e-9);
+  EXPECT_NEAR(dr.poses.back().translation().y(), 0.0, 1e-9);
+  EXPECT_NEAR(dr.poses.back().translation().z(), -20.05, 1e-12);
+  EXPECT_EQ(dr.poses.front().translation(), truth.poses.front().translation() -
+                                                Eigen::Vector3d(0, 0, 0.05));
+  cfg.velocity_scale_error = 0;
+  cfg.heading_bias_deg = 0.5;
+  dr = sonar3d::dead_reckoning(truth, cfg, 1);
+  EXPECT_NEAR(dr.poses.back().translation().y(), 100 * std::sin(0.5 * M_PI / 180), 1e-9);
+  cfg.velocity_bias_walk = 0.001;
+  const sonar3d::Trajectory a = sonar3d::dead_reckoning(truth, cfg, 7);
+  const sonar3d::Trajectory b = sonar3d::dead_reckoning(truth, cfg, 7);
+  const sonar3d::Trajectory c = sonar3d::dead_reckoning(truth, cfg, 8);
+  EXPECT_EQ(a.poses.back().translation(), b.poses.back().translation());
+  EXPECT_NE(a.poses.back().translation(), c.poses.back().translation());
+  cfg.velocity_scale_error = 2;  // absurd: refused, naming the key
+  try {
+    sonar3d::dead_reckoning(truth, cfg, 1);
+    FAIL();
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("velocity_scale"), std::string::npos) << e.what();
+  }
+}
+
+// A scene with navigation_error: the dataset logs drifting navigation, truth/ keeps the true
+// path, and `sonar3d map` reports each swath's offset error before and after its correction
+// (a simulator-only metric). One offset per swath cannot undo the drift that grows within a
+// line (a 2 % scale error stretches a 6 m line by 12 cm), so the bar is a clear improvement, not
+// exactness: measured 7.9 cm → 3.1 cm mean over the swaths on this seed (docs/mapping.md).
+TEST(MappingCli, SimulatedDeadReckoningDriftIsReducedAndMeasured) {
+  const fs::path dir = temp_dir() / "dr";
+  fs::create_directories(dir);
+  std::string scene = kFieldScene;
+  scene.replace(scene.find("seed: 3\n"), 8,
+                "seed: 3\nnavigation_error: {velocity_scale: 0.02, heading_bias_deg: 0.3}\n");
+  { std::ofstream(dir / "f.yaml") << scene; }
+  CliRun r = run_cli(dir, "simulate " + (dir / "f.yaml").string() + " -o " +
+                              (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const sonar3d::Trajectory logged = sonar3d::read_tum((dir / "ds/navigation.tum").string());
+  const sonar3d::Trajectory truth = sonar3d::read_tum((dir / "ds/truth/navigation.tum").string());
+  ASSERT_EQ(logged.size(), truth.size());
+  EXPECT_GT((logged.poses.back().translation() - truth.poses.back().translation()).head<2>().norm(),
+            0.05);
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "m").string() +
+                       " --roi -1 -1 -0.6 7 6 0.8 --search 0.3 -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream f(dir / "m/summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(f);
+  double before = 0, after = 0;
+  for (const auto& w : summary["swaths"]) {
+    ASSERT_TRUE(w.contains("error_after_m")) << w.dump();
+    before += w["error_before_m"][0].get<double>();
+    after += w["error_after_m"][0].get<double>();
+  }
+  EXPECT_GT(before, 0.1);
+  EXPECT_LT(after, 0.6 * before);
   fs::remove_all(dir);
 }

@@ -75,9 +75,14 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                  r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method);
       for (std::size_t s = 0; s < r.swaths.size(); ++s) {
         const SwathInfo& w = r.swaths[s];
-        fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m\n",
+        fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m",
                    s, w.first_frame, w.last_frame, w.points, w.offset.x(), w.offset.y(),
                    w.offset.z());
+        if (w.has_truth) {  // simulated drift: how far from the exact correction
+          fmt::print(" (horizontal error vs truth {:.3f} m, uncorrected {:.3f} m)",
+                     (w.offset - w.true_offset).head<2>().norm(), w.true_offset.head<2>().norm());
+        }
+        fmt::print("\n");
       }
       fmt::print("  carving {:.1f} s, registration {:.2f} s, total {:.1f} s\n", r.seconds_carving,
                  r.seconds_registration, r.seconds_total);

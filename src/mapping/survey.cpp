@@ -186,6 +186,27 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   result.seconds_registration = seconds_since(t_reg);
   for (int s = 0; s < num_swaths; ++s) result.swaths[s].offset = result.adjustment.offsets[s];
 
+  // Simulated drift: the exact corrections, from the true trajectory the simulator kept.
+  const fs::path truth_nav = dataset.truth_dir() / "navigation.tum";
+  if (fs::exists(truth_nav)) {
+    const Trajectory truth = read_tum(truth_nav.string());
+    std::vector<Eigen::Vector3d> err(static_cast<std::size_t>(num_swaths));
+    for (int s = 0; s < num_swaths; ++s) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      const SwathInfo& w = result.swaths[s];
+      for (int i = w.first_frame; i <= w.last_frame; ++i) {
+        const double t = dataset.frames[i].timestamp;
+        sum += truth.interpolate(t).translation() -
+               dataset.navigation.interpolate(t).translation();
+      }
+      err[s] = sum / static_cast<double>(w.last_frame - w.first_frame + 1);
+    }
+    for (int s = 0; s < num_swaths; ++s) {
+      result.swaths[s].has_truth = true;
+      result.swaths[s].true_offset = err[s] - err[0];
+    }
+  }
+
   // 3. Corrected navigation: a swath's offset over its time span, linear across the turns
   // between swaths, held before the first and after the last.
   auto offset_at = [&](double t) -> Eigen::Vector3d {
@@ -242,12 +263,20 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   write_text_file((tmp / "ties.json").string(), ties.dump(2) + "\n");
   nlohmann::json swaths = nlohmann::json::array();
   for (const SwathInfo& s : result.swaths) {
-    swaths.push_back({{"frames", {s.first_frame, s.last_frame}},
-                      {"time_s", {s.t0, s.t1}},
-                      {"points", s.points},
-                      {"map_cells", s.map_cells},
-                      {"offset_m", vec3(s.offset)},
-                      {"seconds", s.seconds}});
+    nlohmann::json j = {{"frames", {s.first_frame, s.last_frame}},
+                        {"time_s", {s.t0, s.t1}},
+                        {"points", s.points},
+                        {"map_cells", s.map_cells},
+                        {"offset_m", vec3(s.offset)},
+                        {"seconds", s.seconds}};
+    if (s.has_truth) {
+      // Before: the drift left as logged; after: what the correction leaves (horizontal, up).
+      const Eigen::Vector3d after = s.offset - s.true_offset;
+      j["true_offset_m"] = vec3(s.true_offset);
+      j["error_before_m"] = {s.true_offset.head<2>().norm(), std::abs(s.true_offset.z())};
+      j["error_after_m"] = {after.head<2>().norm(), std::abs(after.z())};
+    }
+    swaths.push_back(j);
   }
   result.seconds_total = seconds_since(t_start);
   const nlohmann::json summary = {

@@ -120,7 +120,10 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   const fs::path base = fs::path(path).parent_path();
   YAML::Node root = yaml::load_file(path);
   if (!root.IsMap()) throw Error(path + ": expected a mapping at the top level");
-  yaml::check_keys(root, {"sensor", "simulation", "objects", "trajectory", "noise", "seed"}, path);
+  yaml::check_keys(root,
+                   {"sensor", "simulation", "objects", "trajectory", "noise", "seed",
+                    "navigation_error"},
+                   path);
   if (!root["sensor"]) throw Error(path + ": required key 'sensor' is missing");
   setup.spec = yaml::parse_sonar_spec(root["sensor"], path, "sensor");
   setup.seed = static_cast<unsigned long long>(yaml::get_int(root, "seed", 1, path));
@@ -229,6 +232,22 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   }
   setup.T_world_vehicle.validate(path + ": trajectory");
 
+  if (const YAML::Node n = root["navigation_error"]) {
+    const std::string c = "navigation_error";
+    yaml::check_keys(n, {"velocity_scale", "bias_walk", "heading_bias_deg", "depth_offset"}, path,
+                     c);
+    DeadReckoningConfig dr;
+    dr.velocity_scale_error = yaml::get_double(n, "velocity_scale", dr.velocity_scale_error, path, c);
+    dr.velocity_bias_walk = yaml::get_double(n, "bias_walk", dr.velocity_bias_walk, path, c);
+    dr.heading_bias_deg = yaml::get_double(n, "heading_bias_deg", dr.heading_bias_deg, path, c);
+    dr.depth_offset_m = yaml::get_double(n, "depth_offset", dr.depth_offset_m, path, c);
+    try {
+      dr.validate();
+    } catch (const Error& e) {
+      throw Error(yaml::where(path, n, c) + ": " + e.what());
+    }
+    setup.navigation_error = dr;
+  }
   if (const YAML::Node n = root["noise"]) {
     yaml::check_keys(n, {"model", "scale", "stripes", "mean", "std"}, path, "noise");
     const std::string model = yaml::get_string(n, "model", "none", path, "noise");
@@ -326,7 +345,10 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
     bar.add();
   }
   bar.finish();
-  writer.set_navigation(traj);
+  // The navigation the vehicle logs: the true one, or dead reckoning drifting from it.
+  writer.set_navigation(setup.navigation_error
+                            ? dead_reckoning(traj, *setup.navigation_error, setup.seed)
+                            : traj);
   if (noise) writer.set_noise(*noise);
 
   // Ground truth: every object's world-frame mesh and a scene.yaml that lists them.
@@ -345,6 +367,7 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
   y << YAML::EndSeq << YAML::EndMap;
   write_text_file((truth / "scene.yaml").string(), std::string(y.c_str()) + "\n");
   fs::copy_file(setup.source, truth / "source_scene.yaml", fs::copy_options::overwrite_existing);
+  write_tum((truth / "navigation.tum").string(), traj);  // the true vehicle trajectory
   writer.commit();
 
   SimulationStats st;

@@ -56,6 +56,10 @@ struct SwathInfo {
   std::size_t points = 0, map_cells = 0;
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the correction, m
   double seconds = 0;                                // carving + mapping
+  // Simulated datasets with truth/navigation.tum: the correction that would be exact (the mean
+  // over the swath's frames of true − logged position, relative to swath 0's).
+  bool has_truth = false;
+  Eigen::Vector3d true_offset = Eigen::Vector3d::Zero();
 };
 
 struct MapSurveyResult {
@@ -78,7 +82,9 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
 //                                     (interpolated in time across turns)
 //   merged.ply, merged.tif, merged.png      the field with the correction
 //   merged_uncorrected.png                  the field as logged, for comparison
-//   summary.json                      swaths, offsets, ties, timings
+//   summary.json                      swaths, offsets, ties, timings; with truth/navigation.tum
+//                                     (simulated drift) each swath's offset error before and
+//                                     after the correction
 // Progress: one bar over the frames.
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
                            const std::filesystem::path& out_dir, bool progress = true);

@@ -9,6 +9,7 @@
 
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/sim/dead_reckoning.hpp"
 #include "sonar3d/sim/noise.hpp"
 #include "sonar3d/sim/scene.hpp"
 #include "sonar3d/sim/simulator.hpp"
@@ -30,6 +31,9 @@ struct SimulationSetup {
   Scene scene;
   Trajectory T_world_vehicle;  // one pose per frame
   NoiseModelConfig noise;
+  // Scene key navigation_error: the logged navigation drifts (navigation.tum); truth/ keeps the
+  // true trajectory (truth/navigation.tum).
+  std::optional<DeadReckoningConfig> navigation_error;
   unsigned long long seed = 1;
 };
 
