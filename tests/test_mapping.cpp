@@ -22,6 +22,7 @@
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/sim/dead_reckoning.hpp"
+#include "sonar3d/sim/terrain.hpp"
 
 namespace fs = std::filesystem;
 using sonar3d::ElevationMap;
@@ -569,4 +570,37 @@ TEST(MappingCli, SimulatedDeadReckoningDriftIsReducedAndMeasured) {
   EXPECT_GT(before, 0.1);
   EXPECT_LT(after, 0.6 * before);
   fs::remove_all(dir);
+}
+
+// The procedural seabed: a height field meshed at its cell size, upward facing, seeded, with its
+// trenches reaching about their depth below the relief, and absurd sizes refused.
+TEST(Terrain, HeightFieldWithTrenchesAndRocks) {
+  sonar3d::TerrainConfig cfg;
+  cfg.size = {10, 6};
+  cfg.cell_m = 0.1;
+  cfg.relief_m = 0.2;
+  cfg.trenches = 1;
+  cfg.trench_depth_m = 0.3;
+  cfg.rocks = 5;
+  cfg.seed = 4;
+  const sonar3d::Terrain t(cfg);
+  const sonar3d::TriangleMesh m = t.mesh();
+  EXPECT_EQ(m.vertices.size(), 101u * 61u);
+  EXPECT_EQ(m.triangles.size(), 2u * 100u * 60u);
+  const Eigen::AlignedBox3f box = m.bounding_box();
+  EXPECT_NEAR(box.min().x(), -5, 1e-5);
+  EXPECT_NEAR(box.max().y(), 3, 1e-5);
+  EXPECT_LT(box.min().z(), -0.3);  // a trench below the relief's mean
+  EXPECT_GT(box.max().z(), 0.0);
+  EXPECT_LT(box.max().z(), 0.2 + 0.6 * 0.375 + 1e-3);  // relief + the tallest rock
+  for (const Eigen::Vector3i& tri : m.triangles) {  // counter-clockwise seen from +z
+    const Eigen::Vector3f n = (m.vertices[tri[1]] - m.vertices[tri[0]])
+                                  .cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+    ASSERT_GT(n.z(), 0);
+  }
+  EXPECT_EQ(sonar3d::Terrain(cfg).height(1.23, -0.7), t.height(1.23, -0.7));
+  cfg.seed = 5;
+  EXPECT_NE(sonar3d::Terrain(cfg).height(1.23, -0.7), t.height(1.23, -0.7));
+  cfg.cell_m = 1e-4;  // 6e9 vertices: refused before allocating
+  EXPECT_THROW(sonar3d::Terrain{cfg}, sonar3d::Error);
 }

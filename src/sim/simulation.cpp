@@ -11,6 +11,7 @@
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/sim/terrain.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
 
 namespace fs = std::filesystem;
@@ -47,8 +48,31 @@ TriangleMesh load_primitive(const YAML::Node& n, const std::string& file, const 
     for (double v : s) require_positive(v, (ctx + ".size").c_str(), "m");
     return make_plane(s[0], s[1]);
   }
+  if (type == "terrain") {
+    yaml::check_keys(n,
+                     {"type", "size", "cell", "relief", "wavelength", "trenches", "trench_depth",
+                      "trench_width", "rocks", "rock_radius", "seed"},
+                     file, ctx);
+    TerrainConfig t;
+    const auto s = yaml::get_vector(n, "size", 2, file, ctx);
+    t.size = {s[0], s[1]};
+    t.cell_m = yaml::get_double(n, "cell", t.cell_m, file, ctx);
+    t.relief_m = yaml::get_double(n, "relief", t.relief_m, file, ctx);
+    t.wavelength_m = yaml::get_double(n, "wavelength", t.wavelength_m, file, ctx);
+    t.trenches = yaml::get_int(n, "trenches", t.trenches, file, ctx);
+    t.trench_depth_m = yaml::get_double(n, "trench_depth", t.trench_depth_m, file, ctx);
+    t.trench_width_m = yaml::get_double(n, "trench_width", t.trench_width_m, file, ctx);
+    t.rocks = yaml::get_int(n, "rocks", t.rocks, file, ctx);
+    t.rock_radius_m = yaml::get_double(n, "rock_radius", t.rock_radius_m, file, ctx);
+    t.seed = static_cast<unsigned long long>(yaml::get_int(n, "seed", 1, file, ctx));
+    try {
+      return Terrain(t).mesh();
+    } catch (const Error& e) {
+      throw Error(yaml::where(file, n, ctx) + ": " + e.what());
+    }
+  }
   throw Error(yaml::where(file, n, ctx + ".type") + ": unknown primitive '" + type +
-              "' (sphere, box, cylinder, plane)");
+              "' (sphere, box, cylinder, plane, terrain)");
 }
 
 Trajectory load_segment(const YAML::Node& n, const std::string& file, const std::string& ctx,
