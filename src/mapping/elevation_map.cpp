@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
@@ -192,7 +193,9 @@ void write_elevation_geotiff(const std::string& path, const ElevationMap& map,
 ElevationMap read_elevation_geotiff(const std::string& path) {
   init_gdal();
   g_last_gdal_error.clear();
-  DatasetPtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  // GeoTIFF only: GDAL's other drivers are parsers we neither need nor test.
+  const char* const drivers[] = {"GTiff", nullptr};
+  DatasetPtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, drivers));
   require(ds != nullptr, "cannot read elevation map '" + path + "': " +
                             (g_last_gdal_error.empty()
                                  ? std::string("not a raster GDAL can read (a GeoTIFF written by "
@@ -206,29 +209,37 @@ ElevationMap read_elevation_geotiff(const std::string& path) {
   require(t[2] == 0 && t[4] == 0 && t[1] > 0 && std::abs(t[5] + t[1]) <= 1e-9 * t[1],
           "elevation map '" + path + "': only north-up rasters with square cells are supported");
   const int cols = ds->GetRasterXSize(), rows = ds->GetRasterYSize();
-  require(cols > 0 && rows > 0 && static_cast<double>(cols) * rows <= 4e8,
+  // A size the file can justify: real maps compress to about 2 bytes a cell; no more than 10^4
+  // cells per byte of file (and 10^8 in all, 400 MB) are read, so a small corrupt file cannot
+  // make us allocate gigabytes.
+  std::error_code ec;
+  const double file_bytes = static_cast<double>(std::filesystem::file_size(path, ec));
+  const double cells = static_cast<double>(cols) * rows;
+  require(cols > 0 && rows > 0 && cells <= 1e8 && cells <= 1e6 + 1e4 * file_bytes,
           "elevation map '" + path + "': " + std::to_string(cols) + " x " + std::to_string(rows) +
-              " cells is empty or beyond the 4e8-cell limit");
+              " cells is empty, beyond the 1e8-cell limit, or more than its " +
+              std::to_string(static_cast<long long>(file_bytes)) + " bytes can hold");
   GDALRasterBand* band = ds->GetRasterBand(1);
   ElevationMap map;
   map.origin_xy = {t[0], t[3]};
   map.cell_m = t[1];
   map.rows = rows;
   map.cols = cols;
-  std::vector<double> raw(static_cast<std::size_t>(rows) * cols);
-  require(band->RasterIO(GF_Read, 0, 0, cols, rows, raw.data(), cols, rows, GDT_Float64, 0, 0) ==
-              CE_None,
+  map.z.resize(static_cast<std::size_t>(rows) * cols);
+  require(band->RasterIO(GF_Read, 0, 0, cols, rows, map.z.data(), cols, rows, GDT_Float32, 0,
+                         0) == CE_None,
           "cannot read elevation map '" + path + "': " + gdal_reason());
   int has_nodata = 0, has_offset = 0, has_scale = 0;
   const double nodata = band->GetNoDataValue(&has_nodata);
   double offset = band->GetOffset(&has_offset), scale = band->GetScale(&has_scale);
   if (!has_offset) offset = 0;
   if (!has_scale) scale = 1;
-  map.z.resize(raw.size());
-  for (std::size_t i = 0; i < raw.size(); ++i) {
-    const double v = raw[i];
-    const bool missing = !std::isfinite(v) || (has_nodata && v == nodata);
-    map.z[i] = missing ? ElevationMap::kNoData : static_cast<float>(offset + scale * v);
+  require(std::isfinite(offset) && std::isfinite(scale),
+          "elevation map '" + path + "': its offset or scale is not finite");
+  const float nodata_f = static_cast<float>(nodata);
+  for (float& v : map.z) {  // uint16 values are exact in float32
+    const bool missing = !std::isfinite(v) || (has_nodata && v == nodata_f);
+    v = missing ? ElevationMap::kNoData : static_cast<float>(offset + scale * v);
   }
   return map;
 }
