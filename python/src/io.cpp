@@ -1,5 +1,6 @@
 // Datasets (read, write), HoloOcean and frames + navigation imports, navigation logs.
 #include "common.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
@@ -202,7 +203,12 @@ void bind_io(py::module_& m) {
       "import_holoocean",
       [](const std::string& dir, const std::string& output, const std::string& bins,
          const std::string& sensor, double rate, const std::string& python,
-         const std::string& image_key, const std::string& pose_key, const py::object& progress) {
+         const std::string& image_key, const std::string& pose_key, const py::object& progress,
+         bool overwrite) {
+        OutputPolicy policy;  // as the CLI: the recording is never the destination
+        policy.overwrite = overwrite;
+        policy.sources = {dir};
+        check_output_directory(output, OutputKind::Dataset, policy);
         HoloOceanImportConfig cfg;
         cfg.bins = parse_holoocean_bins(bins);
         cfg.sensor = sensor;
@@ -223,6 +229,7 @@ void bind_io(py::module_& m) {
       },
       "dir"_a, "output"_a, "bins"_a = "sample", "sensor"_a = "", "rate"_a = 0.0, "python"_a = "",
       "image_key"_a = "", "pose_key"_a = "PoseSensor", "progress"_a = py::none(),
+      "overwrite"_a = false,
       "Imports a HoloOcean/neusis recording (Config.json + Data/N.pkl) into a dataset; see "
       "docs/import.md. bins: 'sample' (neusis: row i at RangeMin + i·Δr) or 'cell' (HoloOcean's "
       "renderer cells). Returns {frames, dtype, frame_rate_hz, spec, warnings}. progress: True "
@@ -249,7 +256,11 @@ void bind_io(py::module_& m) {
       [](const std::string& images, const std::string& times, const std::string& navigation,
          const py::object& sonar, const std::string& output, const std::string& convention,
          bool degrees, const std::string& nav_format, double time_offset, bool drop_outside,
-         const py::object& progress) {
+         const py::object& progress, bool overwrite) {
+        OutputPolicy policy;  // as the CLI: no input is, holds or lies in the destination
+        policy.overwrite = overwrite;
+        policy.sources = {images, times, navigation};
+        check_output_directory(output, OutputKind::Dataset, policy);
         FrameImportConfig cfg;
         cfg.images_dir = images;
         cfg.times_csv = times;
@@ -274,7 +285,7 @@ void bind_io(py::module_& m) {
       },
       "images"_a, "times"_a, "navigation"_a, "sonar"_a, "output"_a, "convention"_a = "enu",
       "degrees"_a = true, "nav_format"_a = "", "time_offset"_a = 0.0, "drop_outside"_a = false,
-      "progress"_a = py::none(),
+      "progress"_a = py::none(), "overwrite"_a = false,
       "Imports frame images + a 'timestamp,file' CSV + navigation (TUM or CSV) with the sensor "
       "(a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a dataset. "
       "Frames outside the navigation span raise sonar3d.Error, or are dropped and counted with "

@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "common.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/sim/noise.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/sim/simulator.hpp"
@@ -63,7 +64,12 @@ void bind_sim(py::module_& m) {
   m.def(
       "simulate",
       [](const std::string& scene, const std::string& output, const py::object& seed,
-         const py::object& progress) {
+         const py::object& progress, bool overwrite) {
+        // As the CLI: never replace what sonar3d did not write; a dataset only when asked.
+        OutputPolicy policy;
+        policy.overwrite = overwrite;
+        policy.sources = {scene};
+        check_output_directory(output, OutputKind::Dataset, policy);
         SimulationSetup setup = load_simulation_setup(scene);
         if (!seed.is_none()) setup.seed = seed.cast<unsigned long long>();
         ProgressArg p(progress);
@@ -76,6 +82,7 @@ void bind_sim(py::module_& m) {
         return d;
       },
       "scene"_a, "output"_a, "seed"_a = py::none(), "progress"_a = py::none(),
+      "overwrite"_a = false,
       "Simulates a scene file (docs/formats.md) into a dataset directory with truth/, atomically. "
       "Returns {frames, rays, seconds}. progress: True (terminal bar) or progress(done, total).");
 
