@@ -8,6 +8,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 
 namespace sonar3d {
 
@@ -30,6 +31,10 @@ void Trajectory::validate(const std::string& where) const {
     if (!is_rigid(poses[i], 1e-5)) {
       throw Error(where + ": pose " + std::to_string(i) + " (t=" + std::to_string(times[i]) +
                   " s) is not a finite rigid transform");
+    }
+    if (poses[i].translation().cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+      throw Error(where + ": pose " + std::to_string(i) + " (t=" + std::to_string(times[i]) +
+                  " s) lies more than 1e7 m from the origin; use a local frame");
     }
     if (i > 0 && !(times[i] > times[i - 1])) {
       throw Error(where + ": timestamps must increase strictly; pose " + std::to_string(i) +

@@ -168,6 +168,66 @@ void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& pa
   for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], M, out);
 }
 
+// Everything the post-processing steps and collect() index: meshes, faces, vertices and the
+// node tree. Throws naming the file and what is wrong.
+void validate_scene(const aiScene* scene, const std::string& path) {
+  auto fail = [&](const std::string& what) {
+    throw Error("cannot load mesh '" + path + "': " + what + " (the file is corrupt)");
+  };
+  if (scene->mRootNode == nullptr) fail("the file has no scene graph");
+  if (scene->mNumMeshes > 0 && scene->mMeshes == nullptr) fail("mesh table missing");
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    if (mesh == nullptr) fail("mesh " + std::to_string(m) + " is missing");
+    if (mesh->mNumVertices > 0 && mesh->mVertices == nullptr) {
+      fail("mesh " + std::to_string(m) + " has no vertex array");
+    }
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+        fail("mesh " + std::to_string(m) + " vertex " + std::to_string(v) + " is not finite");
+      }
+    }
+    if (mesh->mNumFaces > 0 && mesh->mFaces == nullptr) {
+      fail("mesh " + std::to_string(m) + " has no face array");
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices == 0 || face.mIndices == nullptr) {
+        fail("mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertex");
+      }
+      for (unsigned c = 0; c < face.mNumIndices; ++c) {
+        if (face.mIndices[c] >= mesh->mNumVertices) {
+          fail("mesh " + std::to_string(m) + " face " + std::to_string(f) + " refers to vertex " +
+               std::to_string(face.mIndices[c]) + " of " + std::to_string(mesh->mNumVertices));
+        }
+      }
+    }
+  }
+  // The node tree, iteratively (a deep tree must not overflow the stack) and with a cap on the
+  // number of visits (a node listed as its own descendant would loop).
+  // collect() recurses, so the depth is bounded too.
+  std::vector<std::pair<const aiNode*, int>> todo{{scene->mRootNode, 0}};
+  std::size_t visits = 0;
+  while (!todo.empty()) {
+    const auto [node, depth] = todo.back();
+    todo.pop_back();
+    if (++visits > 1000000) fail("the node tree has more than a million nodes or a cycle");
+    if (depth > 1000) fail("the node tree is more than 1000 levels deep");
+    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+      if (node->mMeshes == nullptr || node->mMeshes[k] >= scene->mNumMeshes) {
+        fail("node '" + std::string(node->mName.C_Str()) + "' refers to a mesh that does not exist");
+      }
+    }
+    for (unsigned c = 0; c < node->mNumChildren; ++c) {
+      if (node->mChildren == nullptr || node->mChildren[c] == nullptr) {
+        fail("node '" + std::string(node->mName.C_Str()) + "' has a missing child");
+      }
+      todo.emplace_back(node->mChildren[c], depth + 1);
+    }
+  }
+}
+
 void put_le(std::ostream& os, const void* data, size_t size) {
   // PLY binary_little_endian regardless of the host's byte order.
   const auto* bytes = static_cast<const unsigned char*>(data);
@@ -234,10 +294,21 @@ TriangleMesh load_mesh(const std::string& path) {
   // instanced meshes repeated), rather than with aiProcess_PreTransformVertices.
   const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate |
                          aiProcess_JoinIdenticalVertices | aiProcess_SortByPType;
-  const aiScene* scene = importer.ReadFile(path, flags);
+  // Read with validation only, check the data ourselves, then post-process: Assimp's
+  // post-processing steps trust the indices (a PLY face "3 0 1 100000000" crashed them).
+  const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
   if (scene == nullptr) {
-    throw Error("cannot load mesh '" + path + "': " + importer.GetErrorString() +
+    std::string why = importer.GetErrorString();
+    for (char& c : why) {
+      if (c == '\n' || c == '\r') c = ' ';
+    }
+    throw Error("cannot load mesh '" + path + "': " + why +
                 " (is it a valid mesh file in a format Assimp reads?)");
+  }
+  validate_scene(scene, path);
+  scene = importer.ApplyPostProcessing(flags);
+  if (scene == nullptr) {
+    throw Error("cannot load mesh '" + path + "': " + importer.GetErrorString());
   }
   if (scene->mRootNode == nullptr) {
     throw Error("cannot load mesh '" + path + "': the file has no scene graph");

@@ -6,6 +6,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/mesh_io.hpp"
@@ -222,6 +223,11 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   double t0 = 0.0;
   for (const auto& [node, ctx] : segs) {
     const Trajectory seg = load_segment(node, path, ctx, t0, period, base);
+    if (static_cast<double>(setup.T_world_vehicle.size() + seg.size()) > limits::kMaxFrames) {
+      throw Error(yaml::where(path, node, ctx) + ": the trajectory has more than " +
+                  std::to_string(static_cast<long long>(limits::kMaxFrames)) +
+                  " frames; increase the spacing");
+    }
     for (std::size_t k = 0; k < seg.size(); ++k) {
       setup.T_world_vehicle.push_back(seg.times[k], seg.poses[k]);
     }
