@@ -400,3 +400,23 @@ TEST(HostileHoloOcean, PickleMemoryBombsFailWithinTheBudget) {
     EXPECT_FALSE(fs::exists(d / (name + "_out")));
   }
 }
+
+TEST(HostileMesh, PlyHeaderWithoutEndHeaderDoesNotHang) {
+  // Assimp's PLY reader looped forever on this (found by fuzz_mesh).
+  const fs::path p = temp_dir("plyhang") / "m.ply";
+  write_file(p,
+             "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+             "property float z\nelem\x03OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n"
+             "3 0 1 3\nnd_header\n0 0 0\n");
+  expect_one_line_error([&] { load_mesh(p.string()); }, {"m.ply", "end_header"});
+}
+
+TEST(HostileMesh, OnlySupportedReadersSeeTheFile) {
+  // A corrupt .ply that Assimp handed to its OFF reader, which overflowed its heap (fuzz_mesh).
+  const fs::path d = temp_dir("offheap");
+  const std::string bad("  02\n1 3\x03OFF\n4 4 0\n0 0 02\n1 3\n", 29);
+  write_file(d / "m.ply", bad);
+  expect_one_line_error([&] { load_mesh((d / "m.ply").string()); }, {"m.ply"});
+  write_file(d / "m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  expect_one_line_error([&] { load_mesh((d / "m.off").string()); }, {"m.off"});
+}

@@ -1,5 +1,6 @@
 #include "sonar3d/core/point_cloud.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -30,9 +31,12 @@ int ply_type_size(const std::string& t) {
   return 0;
 }
 
-double read_binary_value(const char* p, const std::string& t) {
-  auto get = [p](auto v) {
-    std::memcpy(&v, p, sizeof(v));
+double read_binary_value(const char* p, const std::string& t, bool big_endian = false) {
+  auto get = [p, big_endian](auto v) {
+    char b[sizeof(v)];
+    std::memcpy(b, p, sizeof(v));
+    if (big_endian) std::reverse(b, b + sizeof(v));  // hosts are little-endian (x86, arm)
+    std::memcpy(&v, b, sizeof(v));
     return static_cast<double>(v);
   };
   if (t == "char" || t == "int8") return get(int8_t{});
@@ -83,7 +87,9 @@ bool parse_ascii_value(const std::string& tok, double* out) {
 
 }  // namespace
 
-PointCloud read_ply(const std::string& path) {
+PointCloud read_ply(const std::string& path) { return read_ply_faces(path, nullptr); }
+
+PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint32_t>>* faces) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw Error("cannot open point cloud '" + path + "'");
   std::error_code ec;
@@ -130,8 +136,10 @@ PointCloud read_ply(const std::string& path) {
       if (!format.empty()) fail("a second 'format' line");
       if (tok.size() != 3 || tok[2] != "1.0") fail("expected 'format <type> 1.0'");
       format = tok[1];
-      if (format != "ascii" && format != "binary_little_endian") {
-        fail("unsupported PLY format '" + format + "' (ascii or binary_little_endian)");
+      if (format != "ascii" && format != "binary_little_endian" &&
+          format != "binary_big_endian") {
+        fail("unsupported PLY format '" + printable(format) +
+             "' (ascii, binary_little_endian or binary_big_endian)");
       }
     } else if (key == "element") {
       if (tok.size() != 3) fail("expected 'element <name> <count>'");
@@ -139,7 +147,7 @@ PointCloud read_ply(const std::string& path) {
       e.name = tok[1];
       e.line = lineno;
       if (!parse_count(tok[2], &e.count)) {
-        fail("element '" + e.name + "' count '" + tok[2] +
+        fail("element '" + e.name + "' count '" + printable(tok[2]) +
              "' is not a whole number of at most 18 digits");
       }
       for (const auto& other : elements) {
@@ -167,7 +175,7 @@ PointCloud read_ply(const std::string& path) {
       } else {
         fail("expected 'property <type> <name>' or 'property list <type> <type> <name>'");
       }
-      if (prop.size == 0) fail("unknown property type '" + prop.type + "'");
+      if (prop.size == 0) fail("unknown property type '" + printable(prop.type) + "'");
       for (const auto& other : e.props) {
         if (other.name == prop.name) fail("property '" + prop.name + "' declared twice");
       }
@@ -178,7 +186,7 @@ PointCloud read_ply(const std::string& path) {
       ended = true;
       break;
     } else {
-      fail("unknown header keyword '" + key + "'");
+      fail("unknown header keyword '" + printable(key) + "'");
     }
   }
   if (!ended) fail("the header has no 'end_header' line");
@@ -209,6 +217,19 @@ PointCloud read_ply(const std::string& path) {
          (format == "ascii" ? "at least " : "") + std::to_string(min_bytes) +
          " bytes per vertex): the file is truncated or its header is wrong");
   }
+  const bool big = format == "binary_big_endian";
+  if (faces) faces->clear();
+  auto is_face_list = [](const PlyElement& e, std::size_t k) {
+    return e.name == "face" && !e.list_count_type[k].empty() &&
+           (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index");
+  };
+  auto face_index = [&](double x, unsigned long long face) -> uint32_t {
+    if (!(x >= 0) || x != std::floor(x) || x >= static_cast<double>(vertex_count)) {
+      throw Error(path + ": face " + std::to_string(face) + " refers to vertex " +
+                  std::to_string(x) + " of " + std::to_string(vertex_count));
+    }
+    return static_cast<uint32_t>(x);
+  };
   PointCloud cloud;
   cloud.points.resize(vertex_count);
   if (ii >= 0) cloud.intensity.resize(vertex_count);
@@ -247,14 +268,17 @@ PointCloud read_ply(const std::string& path) {
             }
             ++at;
           }
+          const bool face_list = faces && is_face_list(e, k);
+          if (face_list) faces->emplace_back();
           for (unsigned long long c = 0; c < n; ++c, ++at) {
             double x = 0;
             if (at >= tok.size()) fail(e.name + " " + std::to_string(v) + " has too few values");
             if (!parse_ascii_value(tok[at], &x)) {
-              fail(e.name + " " + std::to_string(v) + ": '" + tok[at].substr(0, 40) +
+              fail(e.name + " " + std::to_string(v) + ": '" + printable(tok[at], 40) +
                    "' is not a finite number");
             }
             if (&e == &vert) vals[k] = x;
+            if (face_list) faces->back().push_back(face_index(x, v));
           }
         }
         if (at != tok.size()) fail(e.name + " " + std::to_string(v) + " has too many values");
@@ -273,7 +297,7 @@ PointCloud read_ply(const std::string& path) {
     for (unsigned long long v = 0; v < vertex_count; ++v) {
       const char* p = buf.data() + static_cast<std::size_t>(v * stride);
       for (std::size_t k = 0; k < props.size(); ++k) {
-        vals[k] = read_binary_value(p, props[k].type);
+        vals[k] = read_binary_value(p, props[k].type, big);
         p += props[k].size;
       }
       store(v);
@@ -303,7 +327,7 @@ PointCloud read_ply(const std::string& path) {
               throw Error(path + ": truncated binary PLY in element '" + e.name + "' " +
                           std::to_string(v));
             }
-            const double d = read_binary_value(b, e.list_count_type[k]);
+            const double d = read_binary_value(b, e.list_count_type[k], big);
             if (d < 0) {
               throw Error(path + ": element '" + e.name + "' " + std::to_string(v) +
                           " has a negative list length");
@@ -311,11 +335,21 @@ PointCloud read_ply(const std::string& path) {
             n = static_cast<unsigned long long>(d);
             pos += static_cast<unsigned long long>(cs);
           }
-          pos += n * static_cast<unsigned long long>(e.props[k].size);
-          if (pos > file_size) {
+          const unsigned long long bytes = n * static_cast<unsigned long long>(e.props[k].size);
+          if (n > file_size || pos + bytes > file_size) {
             throw Error(path + ": truncated binary PLY in element '" + e.name + "' " +
                         std::to_string(v));
           }
+          if (faces && is_face_list(e, k)) {
+            std::vector<char> b(static_cast<std::size_t>(bytes));
+            f.read(b.data(), static_cast<std::streamsize>(bytes));
+            faces->emplace_back();
+            for (unsigned long long c = 0; c < n; ++c) {
+              faces->back().push_back(face_index(
+                  read_binary_value(b.data() + c * e.props[k].size, e.props[k].type, big), v));
+            }
+          }
+          pos += bytes;
           f.seekg(static_cast<std::streamoff>(pos));
         }
       }

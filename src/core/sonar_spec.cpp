@@ -53,7 +53,7 @@ BeamPattern::Kind BeamPattern::parse_kind(const std::string& s) {
   if (s == "sinc") return Kind::Sinc;
   if (s == "flat") return Kind::Flat;
   if (s == "table") return Kind::Table;
-  throw Error("unknown beam pattern '" + s + "' (expected sinc, flat or table)");
+  throw Error("unknown beam pattern '" + printable(s) + "' (expected sinc, flat or table)");
 }
 
 int SonarSpec::bin_of_range(double r) const {
@@ -118,7 +118,7 @@ void SonarSpec::set_uniform_bearings(double fov_rad, int count) {
 }
 
 void SonarSpec::validate() const {
-  const std::string where = "sonar '" + name + "': ";
+  const std::string where = "sonar '" + printable(name) + "': ";
   if (bearings_rad.empty()) throw Error(where + "no beams (bearings is empty)");
   if (bearings_rad.size() > static_cast<std::size_t>(limits::kMaxBeams)) {
     throw Error(where + "too many beams (" + std::to_string(bearings_rad.size()) +
@@ -234,7 +234,7 @@ SonarSpec sonar_preset(const std::string& name) {
   } else {
     std::string names;
     for (const auto& n : sonar_preset_names()) names += (names.empty() ? "" : ", ") + n;
-    throw Error("unknown sonar preset '" + name + "' (known: " + names + ")");
+    throw Error("unknown sonar preset '" + printable(name) + "' (known: " + names + ")");
   }
   return s;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -67,6 +68,10 @@ Eigen::Isometry3d Trajectory::interpolate(double t) const {
 }
 
 Trajectory read_tum(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    throw Error("cannot read trajectory '" + path + "': not a regular file");
+  }
   std::ifstream f(path);
   if (!f) throw Error("cannot open trajectory '" + path + "'");
   Trajectory traj;
@@ -86,7 +91,7 @@ Trajectory read_tum(const std::string& path) {
     }
     std::string extra;
     if (is >> extra) {
-      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" + extra + "'");
+      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" + printable(extra) + "'");
     }
     for (double x : v) {
       if (!std::isfinite(x)) throw Error(path + ":" + std::to_string(lineno) + ": non-finite value");

@@ -28,6 +28,7 @@
 // becomes +z, and x is kept.
 #include "sonar3d/io/mesh_io.hpp"
 
+#include <assimp/BaseImporter.h>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -47,6 +48,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
 
 namespace fs = std::filesystem;
 
@@ -168,6 +170,65 @@ void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& pa
   for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], M, out);
 }
 
+// The formats we read (docs/formats.md, section 3). Assimp registers ~50 readers and, when the
+// reader chosen by the extension refuses a file, tries every other one on the content: a
+// corrupt .ply was then read by the OFF reader, which overflows its heap buffers (found by
+// fuzz_mesh). Readers of other formats are removed from this importer.
+void keep_supported_readers(Assimp::Importer& importer) {
+  static const std::vector<std::string> kSupported = {"dae", "zae", "stl", "obj", "ply",
+                                                      "gltf", "glb", "fbx"};
+  std::vector<Assimp::BaseImporter*> drop;
+  for (std::size_t i = 0; i < importer.GetImporterCount(); ++i) {
+    const aiImporterDesc* d = importer.GetImporterInfo(i);
+    bool keep = false;
+    if (d != nullptr && d->mFileExtensions != nullptr) {
+      std::istringstream exts(d->mFileExtensions);
+      for (std::string e; exts >> e;) {
+        keep = keep || std::find(kSupported.begin(), kSupported.end(), e) != kSupported.end();
+      }
+    }
+    if (!keep) drop.push_back(importer.GetImporter(i));
+  }
+  for (Assimp::BaseImporter* imp : drop) {
+    if (imp != nullptr && importer.UnregisterLoader(imp) == aiReturn_SUCCESS) delete imp;
+  }
+}
+
+bool starts_with_ply(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[3] = {};
+  return f.read(magic, 3) && std::string(magic, 3) == "ply";
+}
+
+// PLY meshes are read by our own strict reader (sonar3d's own mesh output is PLY): Assimp 5.2's
+// PLY reader loops forever on a header without "end_header" and corrupts its heap on some
+// malformed files (both found by fuzz_mesh). Polygons are fanned into triangles; only vertices
+// used by a triangle are kept, as in collect().
+TriangleMesh load_ply_mesh(const std::string& path) {
+  std::vector<std::vector<uint32_t>> faces;
+  const PointCloud cloud = read_ply_faces(path, &faces);  // errors name the file
+  TriangleMesh mesh;
+  std::vector<int> remap(cloud.points.size(), -1);
+  auto vertex = [&](uint32_t i) {
+    if (remap[i] < 0) {
+      remap[i] = static_cast<int>(mesh.vertices.size());
+      mesh.vertices.push_back(cloud.points[i]);
+    }
+    return remap[i];
+  };
+  for (const auto& face : faces) {
+    for (std::size_t k = 1; k + 1 < face.size(); ++k) {
+      const uint32_t a = face[0], b = face[k], c = face[k + 1];
+      if (a == b || b == c || c == a) continue;
+      mesh.triangles.emplace_back(vertex(a), vertex(b), vertex(c));
+    }
+  }
+  if (mesh.triangles.empty()) {
+    throw Error("cannot load mesh '" + path + "': it contains no triangles");
+  }
+  return mesh;
+}
+
 // Everything the post-processing steps and collect() index: meshes, faces, vertices and the
 // node tree. Throws naming the file and what is wrong.
 void validate_scene(const aiScene* scene, const std::string& path) {
@@ -280,7 +341,10 @@ TriangleMesh load_mesh(const std::string& path) {
     throw Error("cannot load mesh '" + path + "': not a regular file");
   }
 
+  if (starts_with_ply(path) || lower_extension(path) == ".ply") return load_ply_mesh(path);
+
   Assimp::Importer importer;
+  keep_supported_readers(importer);
   // Keep Collada's up-axis handling on (see the top of this file) and say so explicitly.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
   // We keep positions only. Dropping normals, texture coordinates and colours first lets

@@ -39,7 +39,7 @@ static void check_unique_keys(const YAML::Node& node, const std::string& path,
       const int line = kv.first.Mark().line + 1;
       const auto [it, fresh] = seen.emplace(kv.first.Scalar(), line);
       if (!fresh) {
-        throw Error(path + ":" + std::to_string(line) + ": duplicate key '" + kv.first.Scalar() +
+        throw Error(path + ":" + std::to_string(line) + ": duplicate key '" + printable(kv.first.Scalar()) +
                     "' (first given on line " + std::to_string(it->second) +
                     "); give each key once");
       }
@@ -50,6 +50,9 @@ static void check_unique_keys(const YAML::Node& node, const std::string& path,
 
 YAML::Node load_file(const std::string& path) {
   std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    throw Error("cannot read '" + path + "': not a regular file");
+  }
   const auto size = std::filesystem::file_size(path, ec);
   if (!ec && size > limits::kMaxConfigBytes) {
     throw Error("'" + path + "' is " + std::to_string(size) +
@@ -93,7 +96,7 @@ double get_double(const YAML::Node& parent, const std::string& key, const std::s
     v = n.as<double>();
   } catch (const YAML::Exception&) {
     throw Error(where(file, n, full_key(ctx, key)) + ": expected a number, got '" +
-                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+                (n.IsScalar() ? printable(n.Scalar()) : std::string("a list or map")) + "'");
   }
   if (!std::isfinite(v)) throw Error(where(file, n, full_key(ctx, key)) + ": must be finite");
   return v;
@@ -113,7 +116,7 @@ int get_int(const YAML::Node& parent, const std::string& key, int fallback, cons
     return n.as<int>();
   } catch (const YAML::Exception&) {
     throw Error(where(file, n, full_key(ctx, key)) + ": expected an integer, got '" +
-                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+                (n.IsScalar() ? printable(n.Scalar()) : std::string("a list or map")) + "'");
   }
 }
 
@@ -176,9 +179,10 @@ void check_keys(const YAML::Node& node, const std::set<std::string>& allowed,
     }
     const std::string k = kv.first.Scalar();
     if (!allowed.count(k)) {
+      const std::string shown = printable(k);
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw Error(where(file, kv.first, full_key(ctx, k)) +
+      throw Error(where(file, kv.first, full_key(ctx, shown)) +
                   ": unknown key (expected one of: " + list + ")");
     }
   }

@@ -48,7 +48,7 @@ TriangleMesh load_primitive(const YAML::Node& n, const std::string& file, const 
     for (double v : s) require_positive(v, (ctx + ".size").c_str(), "m");
     return make_plane(s[0], s[1]);
   }
-  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown primitive '" + type +
+  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown primitive '" + printable(type) +
               "' (sphere, box, cylinder, plane)");
 }
 
@@ -109,7 +109,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     for (double& t : tum.times) t += shift;
     return tum;
   }
-  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" + type +
+  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" + printable(type) +
               "' (straight, orbit, lawnmower, tum)");
 }
 
@@ -185,7 +185,7 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     }
     for (const auto& other : setup.scene.objects) {
       if (other.name == obj.name) {
-        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" + obj.name +
+        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" + printable(obj.name) +
                     "'");
       }
     }
@@ -276,7 +276,7 @@ SimulationSetup load_simulation_setup(const std::string& path) {
       nc.std_path = (s.is_relative() ? base / s : s).string();
       noise_images(setup);  // check the files now, not after the first frames
     } else {
-      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" + model +
+      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" + printable(model) +
                   "' (none, stripes, images)");
     }
   }
