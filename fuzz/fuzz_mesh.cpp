@@ -11,7 +11,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const char* kExt[] = {".ply", ".obj", ".stl", ".glb", ".gltf"};
   // SONAR3D_FUZZ_MESH_EXT=.obj (say) fuzzes one reader only.
   static const char* only = std::getenv("SONAR3D_FUZZ_MESH_EXT");
-  const auto p = sonar3d::fuzz::scratch() / (std::string("mesh") + (only ? only : kExt[data[0] % 5]));
+  const auto p =
+      sonar3d::fuzz::scratch() / (std::string("mesh") + (only ? only : kExt[data[0] % 5]));
   sonar3d::fuzz::write_file(p, {reinterpret_cast<const char*>(data + 1), size - 1});
   sonar3d::fuzz::run([&] { sonar3d::load_mesh(p.string()); });
   std::filesystem::remove(p);

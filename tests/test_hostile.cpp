@@ -153,23 +153,23 @@ TEST(HostilePly, TrailingDataAndRetypedPropertiesAreRejected) {
   write_file(p, binary_ply_header("1", kXyz) + floats({1, 2, 3, 4}));
   expect_one_line_error([&] { read_ply(p.string()); }, {"c.ply", "unexpected data"});
   // "float z" retyped "double z": the data no longer fill the file exactly.
-  write_file(p,
-             binary_ply_header("2", "property float x\nproperty float y\nproperty double z\n") +
-                 floats({1, 2, 3, 4, 5, 6}));
+  write_file(p, binary_ply_header("2", "property float x\nproperty float y\nproperty double z\n") +
+                    floats({1, 2, 3, 4, 5, 6}));
   expect_one_line_error([&] { read_ply(p.string()); }, {"c.ply"});
   // Non-finite values, binary and ascii.
   write_file(p, binary_ply_header("1", kXyz + std::string("property float intensity\n")) +
                     floats({1, 2, 3, std::numeric_limits<float>::infinity()}));
   expect_one_line_error([&] { read_ply(p.string()); }, {"c.ply", "not finite"});
-  write_file(p, "ply\nformat ascii 1.0\nelement vertex 1\n" + std::string(kXyz) +
-                    "end_header\n1 nan 3\n");
+  write_file(
+      p, "ply\nformat ascii 1.0\nelement vertex 1\n" + std::string(kXyz) + "end_header\n1 nan 3\n");
   expect_one_line_error([&] { read_ply(p.string()); }, {"c.ply", "not a finite number"});
   write_file(p, "ply\nformat ascii 1.0\nelement vertex 1\n" + std::string(kXyz) +
                     "end_header\n1 1e309 3\n");
   expect_one_line_error([&] { read_ply(p.string()); }, {"c.ply"});
   // A face element after the vertices is walked, and must end the file exactly.
-  const std::string face_hdr = "property float x\nproperty float y\nproperty float z\n"
-                               "element face 1\nproperty list uchar int vertex_indices\n";
+  const std::string face_hdr =
+      "property float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\n";
   std::string face(1, '\3');
   face += std::string(12, '\0');
   write_file(p, binary_ply_header("3", face_hdr) + floats({0, 0, 0, 1, 0, 0, 0, 1, 0}) + face);
@@ -209,8 +209,7 @@ TEST(HostileScene, TinySpacingsFailWithTheKeyNotASegfault) {
   write_file(p, scene_yaml("  type: lawnmower\n  x: [-1, 1]\n  y: [-1, 1]\n  z: 2\n"
                            "  line_spacing: 1e-300\n  spacing: 0.5\n"));
   const auto t0 = std::chrono::steady_clock::now();
-  expect_one_line_error([&] { load_simulation_setup(p.string()); },
-                        {"scene.yaml", "line_spacing"});
+  expect_one_line_error([&] { load_simulation_setup(p.string()); }, {"scene.yaml", "line_spacing"});
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
   write_file(p, scene_yaml("  type: lawnmower\n  x: [-1, 1]\n  y: [-1, 1]\n  z: 2\n"
                            "  line_spacing: 0.5\n  spacing: 1e-10\n"));
@@ -267,11 +266,12 @@ TEST(HostileYaml, DuplicateKeysAndDoublePosesAreRejected) {
                            "  radius: 5\n"));
   expect_one_line_error([&] { load_simulation_setup(p.string()); },
                         {"scene.yaml:11", "duplicate key 'radius'", "line 9"});
-  write_file(p, "sensor:\n  preset: sim-10deg\n"
-                "objects:\n  - name: ball\n    primitive: {type: sphere, radius: 0.5}\n"
-                "    pose: {translation: [0, 0, 0], rpy_deg: [0, 0, 90],"
-                " quaternion: [0, 0, 0, 1]}\n"
-                "trajectory:\n  type: orbit\n  center: [0, 0, 0]\n  radius: 3\n  count: 4\n");
+  write_file(p,
+             "sensor:\n  preset: sim-10deg\n"
+             "objects:\n  - name: ball\n    primitive: {type: sphere, radius: 0.5}\n"
+             "    pose: {translation: [0, 0, 0], rpy_deg: [0, 0, 90],"
+             " quaternion: [0, 0, 0, 1]}\n"
+             "trajectory:\n  type: orbit\n  center: [0, 0, 0]\n  radius: 3\n  count: 4\n");
   expect_one_line_error([&] { load_simulation_setup(p.string()); },
                         {"scene.yaml:6", "rpy_deg", "quaternion"});
   // Aliases are visited once: a "billion laughs" document is cheap to check.

@@ -118,7 +118,9 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
     if (!f && line.empty()) return false;
     ++lineno;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (lineno > kMaxHeaderLines) fail("header longer than " + std::to_string(kMaxHeaderLines) + " lines");
+    if (lineno > kMaxHeaderLines) {
+      fail("header longer than " + std::to_string(kMaxHeaderLines) + " lines");
+    }
     return true;
   };
   if (!next_line() || line != "ply") fail("not a PLY file (missing 'ply' magic)");

@@ -91,7 +91,8 @@ Trajectory read_tum(const std::string& path) {
     }
     std::string extra;
     if (is >> extra) {
-      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" + printable(extra) + "'");
+      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" +
+                  printable(extra) + "'");
     }
     for (double x : v) {
       if (!std::isfinite(x)) throw Error(path + ":" + std::to_string(lineno) + ": non-finite value");

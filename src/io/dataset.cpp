@@ -226,7 +226,8 @@ Dataset read_dataset(const fs::path& dir) {
     r.file = c;
     if (const auto [it, fresh] = index_line.emplace(r.index, lineno); !fresh) {
       throw Error(csv + ":" + std::to_string(lineno) + ": frame index " + std::to_string(r.index) +
-                  " repeats line " + std::to_string(it->second) + "; every frame needs its own index");
+                  " repeats line " + std::to_string(it->second) +
+                  "; every frame needs its own index");
     }
     ds.frames.push_back(r);
   }

@@ -132,8 +132,8 @@ ImageHeader read_image_header(const std::string& path) {
   if (f.gcount() == 8 && std::memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0) {
     return png_header(f, path);
   }
-  if (f.gcount() >= 4 && (std::memcmp(magic, "II*\0", 4) == 0 ||
-                          std::memcmp(magic, "MM\0*", 4) == 0)) {
+  if (f.gcount() >= 4 &&
+      (std::memcmp(magic, "II*\0", 4) == 0 || std::memcmp(magic, "MM\0*", 4) == 0)) {
     f.clear();
     f.seekg(4);
     return tiff_header(f, path, magic[0] == 'I');

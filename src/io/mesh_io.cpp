@@ -277,12 +277,12 @@ void validate_scene(const aiScene* scene, const std::string& path) {
     if (depth > 1000) fail("the node tree is more than 1000 levels deep");
     for (unsigned k = 0; k < node->mNumMeshes; ++k) {
       if (node->mMeshes == nullptr || node->mMeshes[k] >= scene->mNumMeshes) {
-        fail("node '" + std::string(node->mName.C_Str()) + "' refers to a mesh that does not exist");
+        fail("node '" + printable(node->mName.C_Str()) + "' refers to a mesh that does not exist");
       }
     }
     for (unsigned c = 0; c < node->mNumChildren; ++c) {
       if (node->mChildren == nullptr || node->mChildren[c] == nullptr) {
-        fail("node '" + std::string(node->mName.C_Str()) + "' has a missing child");
+        fail("node '" + printable(node->mName.C_Str()) + "' has a missing child");
       }
       todo.emplace_back(node->mChildren[c], depth + 1);
     }

@@ -215,7 +215,8 @@ std::vector<FrameTime> read_frame_times(const std::string& path) {
       c_time = column(cells, {"timestamp", "time", "t"});
       c_file = column(cells, {"file"});
       if (c_time < 0 || c_file < 0) {
-        throw Error(where + ": expected the header 'timestamp,file', got '" + printable(trim(line)) + "'");
+        throw Error(where + ": expected the header 'timestamp,file', got '" +
+                    printable(trim(line)) + "'");
       }
       continue;
     }

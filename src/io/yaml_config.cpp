@@ -39,7 +39,8 @@ static void check_unique_keys(const YAML::Node& node, const std::string& path,
       const int line = kv.first.Mark().line + 1;
       const auto [it, fresh] = seen.emplace(kv.first.Scalar(), line);
       if (!fresh) {
-        throw Error(path + ":" + std::to_string(line) + ": duplicate key '" + printable(kv.first.Scalar()) +
+        throw Error(path + ":" + std::to_string(line) + ": duplicate key '" +
+                    printable(kv.first.Scalar()) +
                     "' (first given on line " + std::to_string(it->second) +
                     "); give each key once");
       }

@@ -109,7 +109,8 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     for (double& t : tum.times) t += shift;
     return tum;
   }
-  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" + printable(type) +
+  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" +
+              printable(type) +
               "' (straight, orbit, lawnmower, tum)");
 }
 
@@ -185,7 +186,8 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     }
     for (const auto& other : setup.scene.objects) {
       if (other.name == obj.name) {
-        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" + printable(obj.name) +
+        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" +
+                    printable(obj.name) +
                     "'");
       }
     }
@@ -276,7 +278,8 @@ SimulationSetup load_simulation_setup(const std::string& path) {
       nc.std_path = (s.is_relative() ? base / s : s).string();
       noise_images(setup);  // check the files now, not after the first frames
     } else {
-      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" + printable(model) +
+      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" +
+                  printable(model) +
                   "' (none, stripes, images)");
     }
   }
