@@ -422,3 +422,36 @@ TEST(HostileMesh, OnlySupportedReadersSeeTheFile) {
   write_file(d / "m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   expect_one_line_error([&] { load_mesh((d / "m.off").string()); }, {"m.off"});
 }
+
+TEST(HostileMesh, PlyMeshesUseTheStrictReader) {
+  const fs::path d = temp_dir("plymesh");
+  // A quad fanned into two triangles; an unused vertex is dropped.
+  write_file(d / "q.ply",
+             "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+             "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n9 9 9\n4 0 1 2 3\n");
+  const TriangleMesh m = load_mesh((d / "q.ply").string());
+  EXPECT_EQ(m.triangles.size(), 2u);
+  EXPECT_EQ(m.vertices.size(), 4u);
+  // Big-endian binary, one triangle.
+  std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\n"
+                   "property float y\nproperty float z\nelement face 1\n"
+                   "property list uchar int vertex_indices\nend_header\n";
+  auto put_be = [&](const void* p, int n) {
+    for (int i = n - 1; i >= 0; --i) be.push_back(static_cast<const char*>(p)[i]);
+  };
+  for (float v : {0.f, 0.f, 0.f, 2.f, 0.f, 0.f, 0.f, 3.f, 0.f}) put_be(&v, 4);
+  be.push_back('\3');
+  for (int32_t i : {0, 1, 2}) put_be(&i, 4);
+  write_file(d / "be.ply", be);
+  const TriangleMesh b = load_mesh((d / "be.ply").string());
+  ASSERT_EQ(b.triangles.size(), 1u);
+  EXPECT_EQ(b.vertices[1].x(), 2.f);
+  EXPECT_EQ(b.vertices[2].y(), 3.f);
+  // A face index beyond the vertices names the file.
+  write_file(d / "bad.ply",
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+             "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  expect_one_line_error([&] { load_mesh((d / "bad.ply").string()); }, {"bad.ply", "vertex 7"});
+}

@@ -227,8 +227,9 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
   };
   auto face_index = [&](double x, unsigned long long face) -> uint32_t {
     if (!(x >= 0) || x != std::floor(x) || x >= static_cast<double>(vertex_count)) {
-      throw Error(path + ": face " + std::to_string(face) + " refers to vertex " +
-                  std::to_string(x) + " of " + std::to_string(vertex_count));
+      std::ostringstream os;
+      os << path << ": face " << face << " refers to vertex " << x << " of " << vertex_count;
+      throw Error(os.str());
     }
     return static_cast<uint32_t>(x);
   };

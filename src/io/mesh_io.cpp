@@ -220,7 +220,8 @@ TriangleMesh load_ply_mesh(const std::string& path) {
     for (std::size_t k = 1; k + 1 < face.size(); ++k) {
       const uint32_t a = face[0], b = face[k], c = face[k + 1];
       if (a == b || b == c || c == a) continue;
-      mesh.triangles.emplace_back(vertex(a), vertex(b), vertex(c));
+      const int ia = vertex(a), ib = vertex(b), ic = vertex(c);  // in order: file order kept
+      mesh.triangles.emplace_back(ia, ib, ic);
     }
   }
   if (mesh.triangles.empty()) {
