@@ -455,3 +455,14 @@ TEST(HostileMesh, PlyMeshesUseTheStrictReader) {
              "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   expect_one_line_error([&] { load_mesh((d / "bad.ply").string()); }, {"bad.ply", "vertex 7"});
 }
+
+TEST(HostileMesh, FarVerticesAreRejectedAtLoading) {
+  const fs::path d = temp_dir("farmesh");
+  write_file(d / "far.obj", "v 0 0 0\nv 1e19 0 0\nv 0 1 0\nf 1 2 3\n");
+  expect_one_line_error([&] { load_mesh((d / "far.obj").string()); }, {"far.obj", "1e7"});
+  write_file(d / "far.ply",
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+             "end_header\n0 0 0\n1e19 0 0\n0 1 0\n3 0 1 2\n");
+  expect_one_line_error([&] { load_mesh((d / "far.ply").string()); }, {"far.ply", "1e7"});
+}

@@ -48,6 +48,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 
 namespace fs = std::filesystem;
@@ -194,6 +195,20 @@ void keep_supported_readers(Assimp::Importer& importer) {
   }
 }
 
+// Finite and within ±1e7 m (Embree, used by the simulator and the evaluation, asserts on
+// coordinates beyond ~1e18; docs/formats.md, section 5).
+void check_vertices(const TriangleMesh& mesh, const std::string& path) {
+  for (const auto& v : mesh.vertices) {
+    if (!v.allFinite()) {
+      throw Error("cannot load mesh '" + path + "': it has non-finite vertex coordinates");
+    }
+    if (v.cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+      throw Error("cannot load mesh '" + path +
+                  "': a vertex lies more than 1e7 from the origin (check the file's unit)");
+    }
+  }
+}
+
 bool starts_with_ply(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   char magic[3] = {};
@@ -227,6 +242,7 @@ TriangleMesh load_ply_mesh(const std::string& path) {
   if (mesh.triangles.empty()) {
     throw Error("cannot load mesh '" + path + "': it contains no triangles");
   }
+  check_vertices(mesh, path);
   return mesh;
 }
 
@@ -393,11 +409,7 @@ TriangleMesh load_mesh(const std::string& path) {
     throw Error("cannot load mesh '" + path + "': it contains no triangles (" +
                 std::to_string(scene->mNumMeshes) + " mesh(es) of points or lines only)");
   }
-  for (const auto& v : mesh.vertices) {
-    if (!v.allFinite()) {
-      throw Error("cannot load mesh '" + path + "': it has non-finite vertex coordinates");
-    }
-  }
+  check_vertices(mesh, path);
   return mesh;
 }
 

@@ -599,6 +599,9 @@ void Carver::integrate(const SonarImage& image, const Eigen::Isometry3d& T_world
   if (!is_rigid(T_world_sonar)) {
     throw Error("carve: " + who + ": the pose T_world_sonar is not a rigid transform");
   }
+  if (T_world_sonar.translation().cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+    throw Error("carve: " + who + ": the sonar lies more than 1e7 m from the origin");
+  }
   const auto t0 = std::chrono::steady_clock::now();
   SonarImage denoised = image;
   denoise(denoised, m.noise, m.cfg.denoise);
