@@ -466,3 +466,14 @@ TEST(HostileMesh, FarVerticesAreRejectedAtLoading) {
              "end_header\n0 0 0\n1e19 0 0\n0 1 0\n3 0 1 2\n");
   expect_one_line_error([&] { load_mesh((d / "far.ply").string()); }, {"far.ply", "1e7"});
 }
+
+TEST(HostileMesh, OnlyTheExtensionsReaderReadsTheFile) {
+  // A Collada document named .gltf reached the Collada reader through Assimp's content sniffing.
+  const fs::path d = temp_dir("sniff");
+  write_file(d / "m.gltf",
+             "<?xml version=\"1.0\"?><COLLADA xmlns=\"http://www.collada.org/2005/11/"
+             "COLLADASchema\" version=\"1.4.1\"></COLLADA>\n");
+  expect_one_line_error([&] { load_mesh((d / "m.gltf").string()); }, {"m.gltf"});
+  write_file(d / "m.xyz", "solid t\nendsolid t\n");
+  expect_one_line_error([&] { load_mesh((d / "m.xyz").string()); }, {"m.xyz", "unsupported"});
+}

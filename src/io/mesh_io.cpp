@@ -175,9 +175,17 @@ void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& pa
 // reader chosen by the extension refuses a file, tries every other one on the content: a
 // corrupt .ply was then read by the OFF reader, which overflows its heap buffers (found by
 // fuzz_mesh). Readers of other formats are removed from this importer.
-void keep_supported_readers(Assimp::Importer& importer) {
-  static const std::vector<std::string> kSupported = {"dae", "zae", "stl", "obj", "ply",
+void keep_supported_readers(Assimp::Importer& importer, const std::string& path) {
+  static const std::vector<std::string> kSupported = {"dae", "zae", "stl", "obj",
                                                       "gltf", "glb", "fbx"};
+  // Only the reader of the file's own extension: content sniffing handed a corrupt .gltf to the
+  // Collada reader, which then asked for 3 GB (fuzz_mesh).
+  const std::string dotted = lower_extension(path);
+  const std::string ext = dotted.empty() ? dotted : dotted.substr(1);
+  if (std::find(kSupported.begin(), kSupported.end(), ext) == kSupported.end()) {
+    throw Error("cannot load mesh '" + path + "': unsupported format '." + printable(ext) +
+                "' (use .dae .zae .stl .obj .ply .gltf .glb or .fbx)");
+  }
   std::vector<Assimp::BaseImporter*> drop;
   for (std::size_t i = 0; i < importer.GetImporterCount(); ++i) {
     const aiImporterDesc* d = importer.GetImporterInfo(i);
@@ -185,7 +193,7 @@ void keep_supported_readers(Assimp::Importer& importer) {
     if (d != nullptr && d->mFileExtensions != nullptr) {
       std::istringstream exts(d->mFileExtensions);
       for (std::string e; exts >> e;) {
-        keep = keep || std::find(kSupported.begin(), kSupported.end(), e) != kSupported.end();
+        keep = keep || e == ext;
       }
     }
     if (!keep) drop.push_back(importer.GetImporter(i));
@@ -361,7 +369,7 @@ TriangleMesh load_mesh(const std::string& path) {
   if (starts_with_ply(path) || lower_extension(path) == ".ply") return load_ply_mesh(path);
 
   Assimp::Importer importer;
-  keep_supported_readers(importer);
+  keep_supported_readers(importer, path);
   // Keep Collada's up-axis handling on (see the top of this file) and say so explicitly.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
   // We keep positions only. Dropping normals, texture coordinates and colours first lets
