@@ -14,7 +14,7 @@ for t in $targets; do
     -artifact_prefix="$build/fuzz_$t-" > "$build/fuzz_$t.log" 2>&1
   rc=$?
   end=$(date +%s)
-  execs=$(grep -oE 'stat::number_of_executed_units: [0-9]+' "$build/fuzz_$t.log" | awk '{print $2}')
-  rss=$(grep -oE 'stat::peak_rss_mb: [0-9]+' "$build/fuzz_$t.log" | awk '{print $2}')
+  execs=$(awk '/stat::number_of_executed_units:/ {print $2}' "$build/fuzz_$t.log")
+  rss=$(awk '/stat::peak_rss_mb:/ {print $2}' "$build/fuzz_$t.log")
   echo "$t $((end - start)) s ${execs:-?} execs peak_rss ${rss:-?} MB rc=$rc"
 done
