@@ -7,7 +7,7 @@ CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 SONAR3D = $(BUILD)/bin/sonar3d
 DEMO_OUT ?= $(BUILD)/demo
 
-.PHONY: all deps configure build demo test bench clean format
+.PHONY: all deps configure build demo test bench clean format fuzz
 
 all: build
 
@@ -44,6 +44,30 @@ test: build
 bench: build
 	$(SONAR3D) bench
 	$(BUILD)/bench/bench_sim --benchmark_min_time=2
+
+# Fuzzing (docs/fuzzing.md): builds the libFuzzer targets with clang + ASan/UBSan in $(FUZZ_BUILD)
+# and runs each for FUZZ_SECONDS on a copy of its seed corpus, one at a time, at low priority.
+# Needs the Debian packages clang and libclang-rt-14-dev.
+FUZZ_BUILD ?= build-fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?= dataset scene sweep ply mesh holoocean_config pickle navcsv
+FUZZ_SAN = -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+
+fuzz:
+	cmake -S . -B $(FUZZ_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_CXX_FLAGS="$(FUZZ_SAN)" \
+	  -DSONAR3D_FUZZ=ON -DSONAR3D_BUILD_TESTS=OFF -DSONAR3D_BUILD_BENCH=OFF -DSONAR3D_BUILD_PYTHON=OFF
+	cmake --build $(FUZZ_BUILD) -j$(JOBS) --target fuzz_targets
+	@for t in $(FUZZ_TARGETS); do \
+	  mkdir -p $(FUZZ_BUILD)/corpus/$$t && cp -n fuzz/corpus/$$t/* $(FUZZ_BUILD)/corpus/$$t/ ; \
+	  echo "== fuzz_$$t for $(FUZZ_SECONDS) s"; \
+	  ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/fuzz/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 nice -n 19 \
+	    $(FUZZ_BUILD)/fuzz/fuzz_$$t $(FUZZ_BUILD)/corpus/$$t -max_total_time=$(FUZZ_SECONDS) \
+	    -rss_limit_mb=2048 -timeout=30 -max_len=65536 -print_final_stats=1 \
+	    -artifact_prefix=$(FUZZ_BUILD)/fuzz_$$t- > $(FUZZ_BUILD)/fuzz_$$t.log 2>&1; rc=$$?; \
+	  grep -E "^(Done|stat::)|ERROR|SUMMARY|Test unit written" $(FUZZ_BUILD)/fuzz_$$t.log; \
+	  test $$rc -eq 0 || { echo "fuzz_$$t failed: $(FUZZ_BUILD)/fuzz_$$t.log"; exit 1; }; \
+	done
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')

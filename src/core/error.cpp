@@ -5,6 +5,19 @@
 
 namespace sonar3d {
 
+std::string printable(const std::string& text, std::size_t max) {
+  std::string out;
+  for (char c : text) {
+    if (out.size() >= max) {
+      out += "...";
+      break;
+    }
+    const auto u = static_cast<unsigned char>(c);
+    out.push_back(u >= 0x20 && u < 0x7F ? c : '?');
+  }
+  return out;
+}
+
 void require_positive(double value, const char* name, const char* unit) {
   if (!std::isfinite(value) || value <= 0.0) {
     std::ostringstream os;

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 
 namespace sonar3d {
 namespace {
@@ -52,7 +53,7 @@ BeamPattern::Kind BeamPattern::parse_kind(const std::string& s) {
   if (s == "sinc") return Kind::Sinc;
   if (s == "flat") return Kind::Flat;
   if (s == "table") return Kind::Table;
-  throw Error("unknown beam pattern '" + s + "' (expected sinc, flat or table)");
+  throw Error("unknown beam pattern '" + printable(s) + "' (expected sinc, flat or table)");
 }
 
 int SonarSpec::bin_of_range(double r) const {
@@ -109,14 +110,20 @@ bool SonarSpec::uniform_bearings() const {
 
 void SonarSpec::set_uniform_bearings(double fov_rad, int count) {
   require_positive(fov_rad, "fov", "rad");
-  require(count > 0, "parameter 'beams' must be > 0, got " + std::to_string(count));
+  require(count > 0 && count <= limits::kMaxBeams,
+          "parameter 'beams' must lie in [1, " + std::to_string(limits::kMaxBeams) + "], got " +
+              std::to_string(count));
   bearings_rad.resize(count);
   for (int j = 0; j < count; ++j) bearings_rad[j] = -0.5 * fov_rad + (j + 0.5) * fov_rad / count;
 }
 
 void SonarSpec::validate() const {
-  const std::string where = "sonar '" + name + "': ";
+  const std::string where = "sonar '" + printable(name) + "': ";
   if (bearings_rad.empty()) throw Error(where + "no beams (bearings is empty)");
+  if (bearings_rad.size() > static_cast<std::size_t>(limits::kMaxBeams)) {
+    throw Error(where + "too many beams (" + std::to_string(bearings_rad.size()) +
+                "; the limit is " + std::to_string(limits::kMaxBeams) + ")");
+  }
   for (std::size_t j = 0; j < bearings_rad.size(); ++j) {
     if (!std::isfinite(bearings_rad[j]) || std::abs(bearings_rad[j]) >= M_PI) {
       throw Error(where + "bearing " + std::to_string(j) +
@@ -134,6 +141,11 @@ void SonarSpec::validate() const {
     }
   };
   positive(r_max, "r_max", "m");
+  if (r_max > limits::kMaxRange) {
+    std::ostringstream os;
+    os << where << "'r_max' must be <= " << limits::kMaxRange << " m, got " << r_max;
+    throw Error(os.str());
+  }
   if (!std::isfinite(r_min) || r_min < 0) {
     throw Error(where + "'r_min' must be a finite number >= 0 m, got " + std::to_string(r_min));
   }
@@ -141,14 +153,21 @@ void SonarSpec::validate() const {
     throw Error(where + "'r_max' (" + std::to_string(r_max) + " m) must exceed 'r_min' (" +
                 std::to_string(r_min) + " m)");
   }
-  if (range_bins <= 0) {
-    throw Error(where + "'range_bins' must be > 0, got " + std::to_string(range_bins));
+  if (range_bins <= 0 || range_bins > limits::kMaxRangeBins) {
+    throw Error(where + "'range_bins' must lie in [1, " + std::to_string(limits::kMaxRangeBins) +
+                "], got " + std::to_string(range_bins));
   }
-  if (!std::isfinite(vertical_aperture_rad) || vertical_aperture_rad <= 0 ||
-      vertical_aperture_rad >= M_PI) {
+  if (static_cast<double>(range_bins) * static_cast<double>(bearings_rad.size()) >
+      limits::kMaxPixels) {
+    throw Error(where + "an image of " + std::to_string(range_bins) + " range bins × " +
+                std::to_string(bearings_rad.size()) + " beams exceeds the limit of " +
+                std::to_string(static_cast<long long>(limits::kMaxPixels)) + " pixels");
+  }
+  if (!std::isfinite(vertical_aperture_rad) ||
+      vertical_aperture_rad < limits::kMinApertureDeg * kDeg || vertical_aperture_rad >= M_PI) {
     std::ostringstream os;
-    os << where << "'vertical_aperture_deg' must lie strictly between 0° and 180°, got "
-       << vertical_aperture_rad / kDeg << "°";
+    os << where << "'vertical_aperture_deg' must lie in [" << limits::kMinApertureDeg
+       << "°, 180°), got " << vertical_aperture_rad / kDeg << "°";
     throw Error(os.str());
   }
   if (beam_pattern.kind == BeamPattern::Kind::Table) {
@@ -215,7 +234,7 @@ SonarSpec sonar_preset(const std::string& name) {
   } else {
     std::string names;
     for (const auto& n : sonar_preset_names()) names += (names.empty() ? "" : ", ") + n;
-    throw Error("unknown sonar preset '" + name + "' (known: " + names + ")");
+    throw Error("unknown sonar preset '" + printable(name) + "' (known: " + names + ")");
   }
   return s;
 }

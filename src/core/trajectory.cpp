@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 
 namespace sonar3d {
 
@@ -30,6 +32,10 @@ void Trajectory::validate(const std::string& where) const {
     if (!is_rigid(poses[i], 1e-5)) {
       throw Error(where + ": pose " + std::to_string(i) + " (t=" + std::to_string(times[i]) +
                   " s) is not a finite rigid transform");
+    }
+    if (poses[i].translation().cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+      throw Error(where + ": pose " + std::to_string(i) + " (t=" + std::to_string(times[i]) +
+                  " s) lies more than 1e7 m from the origin; use a local frame");
     }
     if (i > 0 && !(times[i] > times[i - 1])) {
       throw Error(where + ": timestamps must increase strictly; pose " + std::to_string(i) +
@@ -62,6 +68,10 @@ Eigen::Isometry3d Trajectory::interpolate(double t) const {
 }
 
 Trajectory read_tum(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    throw Error("cannot read trajectory '" + path + "': not a regular file");
+  }
   std::ifstream f(path);
   if (!f) throw Error("cannot open trajectory '" + path + "'");
   Trajectory traj;
@@ -81,7 +91,8 @@ Trajectory read_tum(const std::string& path) {
     }
     std::string extra;
     if (is >> extra) {
-      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" + extra + "'");
+      throw Error(path + ":" + std::to_string(lineno) + ": unexpected extra field '" +
+                  printable(extra) + "'");
     }
     for (double x : v) {
       if (!std::isfinite(x)) throw Error(path + ":" + std::to_string(lineno) + ": non-finite value");

@@ -6,10 +6,13 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <sstream>
 
 #include "sonar3d/core/atomic_file.hpp"
+#include "image_header.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/io/yaml_config.hpp"
 
 namespace fs = std::filesystem;
@@ -28,6 +31,20 @@ cv::Mat to_mat(const SonarImage& img) {
   return cv::Mat(img.rows, img.cols, CV_32F, const_cast<float*>(img.data.data()));
 }
 
+// The header of a PNG or TIFF image, checked before OpenCV allocates its pixels.
+detail::ImageHeader checked_header(const std::string& path, const char* what) {
+  const detail::ImageHeader h = detail::read_image_header(path);
+  if (!h.known) {
+    throw Error(std::string(what) + " '" + path + "' is neither a PNG nor a TIFF image");
+  }
+  if (static_cast<double>(h.width) * h.height > limits::kMaxPixels) {
+    throw Error(std::string(what) + " '" + path + "' declares " + std::to_string(h.width) + "×" +
+                std::to_string(h.height) + " pixels, more than the limit of " +
+                std::to_string(static_cast<long long>(limits::kMaxPixels)));
+  }
+  return h;
+}
+
 std::string frame_name(int index, const char* ext) {
   std::ostringstream os;
   os << "frames/" << std::setw(6) << std::setfill('0') << index << ext;
@@ -38,6 +55,7 @@ std::string frame_name(int index, const char* ext) {
 
 SonarImage read_float_image(const std::string& path) {
   if (!fs::exists(path)) throw Error("image '" + path + "' does not exist");
+  checked_header(path, "image");
   const cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (m.empty()) throw Error("cannot decode image '" + path + "' (corrupt or unsupported)");
   if (m.channels() != 1) {
@@ -61,6 +79,13 @@ void write_float_image(const std::string& path, const SonarImage& image) {
 
 SonarImage read_sonar_image(const std::string& path, const SonarSpec& spec) {
   if (!fs::exists(path)) throw Error("frame '" + path + "' does not exist");
+  const detail::ImageHeader h = checked_header(path, "frame");
+  if (h.width != spec.beams() || h.height != spec.range_bins) {
+    throw Error("frame '" + path + "' is " + std::to_string(h.height) + "×" +
+                std::to_string(h.width) + " (rows×cols) but sonar.yaml declares " +
+                std::to_string(spec.range_bins) + " range bins × " +
+                std::to_string(spec.beams()) + " beams");
+  }
   const cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (m.empty()) throw Error("cannot decode frame '" + path + "' (corrupt or unsupported image)");
   if (m.channels() != 1) {
@@ -76,6 +101,14 @@ SonarImage read_sonar_image(const std::string& path, const SonarSpec& spec) {
   const int depth = m.depth();
   double scale = 1.0;
   if (depth == CV_8U || depth == CV_16U) {
+    // An 8-bit frame in a 16-bit dataset would read 256× too dark (and the reverse too bright).
+    const int bits = depth == CV_8U ? 8 : 16;
+    if (bits != spec.bit_depth) {
+      throw Error("frame '" + path + "' is a " + std::to_string(bits) +
+                  "-bit image but sonar.yaml declares intensity.bit_depth " +
+                  std::to_string(spec.bit_depth) + "; re-export the frame at " +
+                  std::to_string(spec.bit_depth) + " bits");
+    }
     scale = spec.intensity_scale;
   } else if (depth != CV_32F) {
     throw Error("frame '" + path + "': pixel type must be 8/16-bit unsigned or float32");
@@ -153,6 +186,7 @@ Dataset read_dataset(const fs::path& dir) {
   std::string line;
   int lineno = 0;
   bool header = true;
+  std::map<int, int> index_line;  // frame index -> line of frames.csv
   while (std::getline(f, line)) {
     ++lineno;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -190,6 +224,11 @@ Dataset read_dataset(const fs::path& dir) {
                   ": file must be a relative path inside the dataset");
     }
     r.file = c;
+    if (const auto [it, fresh] = index_line.emplace(r.index, lineno); !fresh) {
+      throw Error(csv + ":" + std::to_string(lineno) + ": frame index " + std::to_string(r.index) +
+                  " repeats line " + std::to_string(it->second) +
+                  "; every frame needs its own index");
+    }
     ds.frames.push_back(r);
   }
 

@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/dataset.hpp"
@@ -97,11 +98,21 @@ class SafeUnpickler(pickle.Unpickler):
             module = "numpy.core" + module[len("numpy._core"):]
         if (module, name) not in ALLOWED:
             raise Refused("it refers to %s.%s; only numpy arrays and plain containers are "
-                          "loaded (a pickle can run arbitrary code)" % (module, name))
+                          "loaded (a pickle can run arbitrary code)" % (ascii(module)[:80],
+                                                                         ascii(name)[:80]))
         return super().find_class(module, name)
-base, image_key, pose_key = sys.argv[1], sys.argv[2], sys.argv[3]
+base, image_key, pose_key, budget = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+# The memory budget: what the interpreter holds now plus `budget` bytes of address space, so a
+# tiny pickle that asks for bytearray(3e9) or a huge memo index fails with a MemoryError.
+try:
+    import resource
+    with open("/proc/self/statm") as sf:
+        vm = int(sf.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    resource.setrlimit(resource.RLIMIT_AS, (vm + budget, vm + budget))
+except (ImportError, OSError, ValueError):
+    pass
 send({"hello": 1, "numpy": np.__version__})
-for name in sys.argv[4:]:
+for name in sys.argv[5:]:
     msg = {"file": name}
     try:
         with open(os.path.join(base, name), "rb") as f:
@@ -112,9 +123,14 @@ for name in sys.argv[4:]:
         msg["error"] = "not loaded: %s" % e
         send(msg)
         continue
+    except MemoryError:
+        msg["error"] = ("cannot unpickle: it needs more memory than the decoder's budget "
+                        "(docs/formats.md, Limits); the file is corrupt or not a HoloOcean frame")
+        send(msg)
+        continue
     except Exception as e:
         msg["error"] = "cannot unpickle (%s: %s); the file is truncated or corrupt" % (
-            type(e).__name__, e)
+            type(e).__name__, str(e)[:200])
         send(msg)
         continue
     if not isinstance(d, dict):
@@ -122,7 +138,7 @@ for name in sys.argv[4:]:
             type(d).__name__, image_key, pose_key)
         send(msg)
         continue
-    keys = ", ".join(sorted(repr(k) for k in d.keys()))
+    keys = ", ".join(sorted(repr(k)[:40] for k in d.keys()))[:300]
     payload = b""
     try:
         for key in (image_key, pose_key):
@@ -142,11 +158,11 @@ for name in sys.argv[4:]:
         if img.ndim == 2 and img.dtype.name in ("uint8", "float32"):
             payload = np.ascontiguousarray(img, dtype=img.dtype.newbyteorder("=")).tobytes()
     except Exception as e:
-        msg["error"] = str(e)
+        msg["error"] = str(e)[:300]
         payload = b""
     msg["nbytes"] = len(payload)
     send(msg, payload)
-send({"done": len(sys.argv) - 4})
+send({"done": len(sys.argv) - 5})
 )PY";
 
 // A child interpreter running the decoder, read through a pipe. The destructor stops and reaps it.
@@ -342,11 +358,32 @@ HoloOceanSonar read_holoocean_config(const fs::path& config_json, const std::str
   const std::string file = config_json.string();
   std::ifstream f(config_json);
   if (!f) throw Error("cannot open '" + file + "' (a HoloOcean dataset has a Config.json)");
+  std::error_code ec;
+  const auto size = fs::file_size(config_json, ec);
+  if (!ec && size > limits::kMaxConfigBytes) {
+    throw Error(file + " is " + std::to_string(size) + " bytes; Config.json is limited to " +
+                std::to_string(limits::kMaxConfigBytes) + " bytes");
+  }
+  // Nesting is bounded while parsing: copying or comparing a value 200,000 levels deep recurses
+  // as deep and overflows the stack.
+  const json::parser_callback_t depth_guard = [&file](int depth, json::parse_event_t event,
+                                                      json&) {
+    if ((event == json::parse_event_t::object_start ||
+         event == json::parse_event_t::array_start) &&
+        depth >= limits::kMaxNestingDepth) {
+      throw Error(file + ": JSON nested more than " + std::to_string(limits::kMaxNestingDepth) +
+                  " levels deep");
+    }
+    return true;
+  };
   json root;
   try {
-    root = json::parse(f);
+    root = json::parse(f, depth_guard);
   } catch (const json::parse_error& e) {
     throw Error(file + ": malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+  } catch (const json::exception& e) {
+    // e.g. "number overflow parsing '1e309'"
+    throw Error(file + ": malformed JSON: " + e.what());
   }
   if (!root.is_object() || !root.contains("agents") || !root.at("agents").is_array()) {
     throw Error(file + ": expected a HoloOcean scenario with an 'agents' list");
@@ -509,7 +546,15 @@ HoloOceanImportResult import_holoocean(const fs::path& dir, const fs::path& out,
   const std::string image_key = config.image_key.empty() ? res.sonar.sensor_name : config.image_key;
 
   const std::string python = pickle_python(config.python);
-  std::vector<std::string> args = {data_dir.string(), image_key, config.pose_key};
+  std::uintmax_t largest = 0;
+  for (const auto& pf : files) {
+    std::error_code ec;
+    const auto sz = fs::file_size(data_dir / pf.name, ec);
+    if (!ec) largest = std::max(largest, sz);
+  }
+  const std::uintmax_t budget = limits::kPickleBudgetBytes + 4 * largest;
+  std::vector<std::string> args = {data_dir.string(), image_key, config.pose_key,
+                                   std::to_string(budget)};
   for (const auto& pf : files) args.push_back(pf.name);
   DecoderProcess decoder(python, args);
   const json hello = decoder.next_message();
@@ -533,7 +578,13 @@ HoloOceanImportResult import_holoocean(const fs::path& dir, const fs::path& out,
     }
     // Every check comes before the payload is read: on an error the decoder is stopped, so a
     // huge wrong-shaped array is never buffered.
-    if (msg.contains("error")) throw Error(where + ": " + msg.at("error").get<std::string>());
+    if (msg.contains("error")) {
+      std::string why = msg.at("error").get<std::string>();
+      for (char& c : why) {
+        if (static_cast<unsigned char>(c) < 0x20) c = ' ';  // one line, no raw control bytes
+      }
+      throw Error(where + ": " + why);
+    }
     const std::string dtype = msg.at("dtype").get<std::string>();
     const auto shape = msg.at("shape").get<std::vector<long>>();
     const std::string key = "'" + image_key + "'";

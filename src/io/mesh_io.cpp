@@ -28,6 +28,7 @@
 // becomes +z, and x is kept.
 #include "sonar3d/io/mesh_io.hpp"
 
+#include <assimp/BaseImporter.h>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -47,6 +48,8 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/point_cloud.hpp"
 
 namespace fs = std::filesystem;
 
@@ -168,6 +171,149 @@ void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& pa
   for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], M, out);
 }
 
+// The formats we read (docs/formats.md, section 3). Assimp registers ~50 readers and, when the
+// reader chosen by the extension refuses a file, tries every other one on the content: a
+// corrupt .ply was then read by the OFF reader, which overflows its heap buffers (found by
+// fuzz_mesh). Readers of other formats are removed from this importer.
+void keep_supported_readers(Assimp::Importer& importer, const std::string& path) {
+  static const std::vector<std::string> kSupported = {"dae", "zae", "stl", "obj",
+                                                      "gltf", "glb", "fbx"};
+  // Only the reader of the file's own extension: content sniffing handed a corrupt .gltf to the
+  // Collada reader, which then asked for 3 GB (fuzz_mesh).
+  const std::string dotted = lower_extension(path);
+  const std::string ext = dotted.empty() ? dotted : dotted.substr(1);
+  if (std::find(kSupported.begin(), kSupported.end(), ext) == kSupported.end()) {
+    throw Error("cannot load mesh '" + path + "': unsupported format '." + printable(ext) +
+                "' (use .dae .zae .stl .obj .ply .gltf .glb or .fbx)");
+  }
+  std::vector<Assimp::BaseImporter*> drop;
+  for (std::size_t i = 0; i < importer.GetImporterCount(); ++i) {
+    const aiImporterDesc* d = importer.GetImporterInfo(i);
+    bool keep = false;
+    if (d != nullptr && d->mFileExtensions != nullptr) {
+      std::istringstream exts(d->mFileExtensions);
+      for (std::string e; exts >> e;) {
+        keep = keep || e == ext;
+      }
+    }
+    if (!keep) drop.push_back(importer.GetImporter(i));
+  }
+  for (Assimp::BaseImporter* imp : drop) {
+    if (imp != nullptr && importer.UnregisterLoader(imp) == aiReturn_SUCCESS) delete imp;
+  }
+}
+
+// Finite and within ±1e7 m (Embree, used by the simulator and the evaluation, asserts on
+// coordinates beyond ~1e18; docs/formats.md, section 5).
+void check_vertices(const TriangleMesh& mesh, const std::string& path) {
+  for (const auto& v : mesh.vertices) {
+    if (!v.allFinite()) {
+      throw Error("cannot load mesh '" + path + "': it has non-finite vertex coordinates");
+    }
+    if (v.cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+      throw Error("cannot load mesh '" + path +
+                  "': a vertex lies more than 1e7 from the origin (check the file's unit)");
+    }
+  }
+}
+
+bool starts_with_ply(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[3] = {};
+  return f.read(magic, 3) && std::string(magic, 3) == "ply";
+}
+
+// PLY meshes are read by our own strict reader (sonar3d's own mesh output is PLY): Assimp 5.2's
+// PLY reader loops forever on a header without "end_header" and corrupts its heap on some
+// malformed files (both found by fuzz_mesh). Polygons are fanned into triangles; only vertices
+// used by a triangle are kept, as in collect().
+TriangleMesh load_ply_mesh(const std::string& path) {
+  std::vector<std::vector<uint32_t>> faces;
+  const PointCloud cloud = read_ply_faces(path, &faces);  // errors name the file
+  TriangleMesh mesh;
+  std::vector<int> remap(cloud.points.size(), -1);
+  auto vertex = [&](uint32_t i) {
+    if (remap[i] < 0) {
+      remap[i] = static_cast<int>(mesh.vertices.size());
+      mesh.vertices.push_back(cloud.points[i]);
+    }
+    return remap[i];
+  };
+  for (const auto& face : faces) {
+    for (std::size_t k = 1; k + 1 < face.size(); ++k) {
+      const uint32_t a = face[0], b = face[k], c = face[k + 1];
+      if (a == b || b == c || c == a) continue;
+      const int ia = vertex(a), ib = vertex(b), ic = vertex(c);  // in order: file order kept
+      mesh.triangles.emplace_back(ia, ib, ic);
+    }
+  }
+  if (mesh.triangles.empty()) {
+    throw Error("cannot load mesh '" + path + "': it contains no triangles");
+  }
+  check_vertices(mesh, path);
+  return mesh;
+}
+
+// Everything the post-processing steps and collect() index: meshes, faces, vertices and the
+// node tree. Throws naming the file and what is wrong.
+void validate_scene(const aiScene* scene, const std::string& path) {
+  auto fail = [&](const std::string& what) {
+    throw Error("cannot load mesh '" + path + "': " + what + " (the file is corrupt)");
+  };
+  if (scene->mRootNode == nullptr) fail("the file has no scene graph");
+  if (scene->mNumMeshes > 0 && scene->mMeshes == nullptr) fail("mesh table missing");
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    if (mesh == nullptr) fail("mesh " + std::to_string(m) + " is missing");
+    if (mesh->mNumVertices > 0 && mesh->mVertices == nullptr) {
+      fail("mesh " + std::to_string(m) + " has no vertex array");
+    }
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+        fail("mesh " + std::to_string(m) + " vertex " + std::to_string(v) + " is not finite");
+      }
+    }
+    if (mesh->mNumFaces > 0 && mesh->mFaces == nullptr) {
+      fail("mesh " + std::to_string(m) + " has no face array");
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices == 0 || face.mIndices == nullptr) {
+        fail("mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertex");
+      }
+      for (unsigned c = 0; c < face.mNumIndices; ++c) {
+        if (face.mIndices[c] >= mesh->mNumVertices) {
+          fail("mesh " + std::to_string(m) + " face " + std::to_string(f) + " refers to vertex " +
+               std::to_string(face.mIndices[c]) + " of " + std::to_string(mesh->mNumVertices));
+        }
+      }
+    }
+  }
+  // The node tree, iteratively (a deep tree must not overflow the stack) and with a cap on the
+  // number of visits (a node listed as its own descendant would loop).
+  // collect() recurses, so the depth is bounded too.
+  std::vector<std::pair<const aiNode*, int>> todo{{scene->mRootNode, 0}};
+  std::size_t visits = 0;
+  while (!todo.empty()) {
+    const auto [node, depth] = todo.back();
+    todo.pop_back();
+    if (++visits > 1000000) fail("the node tree has more than a million nodes or a cycle");
+    if (depth > 1000) fail("the node tree is more than 1000 levels deep");
+    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+      if (node->mMeshes == nullptr || node->mMeshes[k] >= scene->mNumMeshes) {
+        fail("node '" + printable(node->mName.C_Str()) + "' refers to a mesh that does not exist");
+      }
+    }
+    for (unsigned c = 0; c < node->mNumChildren; ++c) {
+      if (node->mChildren == nullptr || node->mChildren[c] == nullptr) {
+        fail("node '" + printable(node->mName.C_Str()) + "' has a missing child");
+      }
+      todo.emplace_back(node->mChildren[c], depth + 1);
+    }
+  }
+}
+
 void put_le(std::ostream& os, const void* data, size_t size) {
   // PLY binary_little_endian regardless of the host's byte order.
   const auto* bytes = static_cast<const unsigned char*>(data);
@@ -220,7 +366,10 @@ TriangleMesh load_mesh(const std::string& path) {
     throw Error("cannot load mesh '" + path + "': not a regular file");
   }
 
+  if (starts_with_ply(path) || lower_extension(path) == ".ply") return load_ply_mesh(path);
+
   Assimp::Importer importer;
+  keep_supported_readers(importer, path);
   // Keep Collada's up-axis handling on (see the top of this file) and say so explicitly.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
   // We keep positions only. Dropping normals, texture coordinates and colours first lets
@@ -234,10 +383,21 @@ TriangleMesh load_mesh(const std::string& path) {
   // instanced meshes repeated), rather than with aiProcess_PreTransformVertices.
   const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate |
                          aiProcess_JoinIdenticalVertices | aiProcess_SortByPType;
-  const aiScene* scene = importer.ReadFile(path, flags);
+  // Read with validation only, check the data ourselves, then post-process: Assimp's
+  // post-processing steps trust the indices (a PLY face "3 0 1 100000000" crashed them).
+  const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
   if (scene == nullptr) {
-    throw Error("cannot load mesh '" + path + "': " + importer.GetErrorString() +
+    std::string why = importer.GetErrorString();
+    for (char& c : why) {
+      if (c == '\n' || c == '\r') c = ' ';
+    }
+    throw Error("cannot load mesh '" + path + "': " + why +
                 " (is it a valid mesh file in a format Assimp reads?)");
+  }
+  validate_scene(scene, path);
+  scene = importer.ApplyPostProcessing(flags);
+  if (scene == nullptr) {
+    throw Error("cannot load mesh '" + path + "': " + importer.GetErrorString());
   }
   if (scene->mRootNode == nullptr) {
     throw Error("cannot load mesh '" + path + "': the file has no scene graph");
@@ -257,11 +417,7 @@ TriangleMesh load_mesh(const std::string& path) {
     throw Error("cannot load mesh '" + path + "': it contains no triangles (" +
                 std::to_string(scene->mNumMeshes) + " mesh(es) of points or lines only)");
   }
-  for (const auto& v : mesh.vertices) {
-    if (!v.allFinite()) {
-      throw Error("cannot load mesh '" + path + "': it has non-finite vertex coordinates");
-    }
-  }
+  check_vertices(mesh, path);
   return mesh;
 }
 

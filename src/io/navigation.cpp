@@ -56,7 +56,7 @@ double parse_number(const std::string& cell, const std::string& where, const std
     used = 0;
   }
   if (cell.empty() || used != cell.size()) {
-    throw Error(where + ": " + what + " '" + cell + "' is not a number");
+    throw Error(where + ": " + what + " '" + printable(cell) + "' is not a number");
   }
   if (!std::isfinite(v)) throw Error(where + ": " + what + " is not finite");
   return v;
@@ -112,6 +112,10 @@ Eigen::Isometry3d vehicle_pose_from_nav(const Eigen::Vector3d& xyz, double roll,
 }
 
 Trajectory read_navigation_csv(const std::string& path, const NavCsvConfig& config) {
+  std::error_code ec;
+  if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) {
+    throw Error("cannot read navigation file '" + path + "': not a regular file");
+  }
   std::ifstream f(path);
   if (!f) throw Error("cannot open navigation file '" + path + "'");
   Trajectory traj;
@@ -135,7 +139,7 @@ Trajectory read_navigation_csv(const std::string& path, const NavCsvConfig& conf
         throw Error(where +
                     ": expected a header naming the columns time, x, y, z, roll, pitch, "
                     "yaw (any order), got '" +
-                    trim(line) + "'");
+                    printable(trim(line)) + "'");
       }
       continue;
     }
@@ -211,7 +215,8 @@ std::vector<FrameTime> read_frame_times(const std::string& path) {
       c_time = column(cells, {"timestamp", "time", "t"});
       c_file = column(cells, {"file"});
       if (c_time < 0 || c_file < 0) {
-        throw Error(where + ": expected the header 'timestamp,file', got '" + trim(line) + "'");
+        throw Error(where + ": expected the header 'timestamp,file', got '" +
+                    printable(trim(line)) + "'");
       }
       continue;
     }

@@ -1,9 +1,13 @@
 #include "sonar3d/io/yaml_config.hpp"
 
 #include <cmath>
+#include <filesystem>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 
 namespace sonar3d::yaml {
 namespace {
@@ -14,14 +18,61 @@ std::string full_key(const std::string& ctx, const std::string& key) {
 }
 }  // namespace
 
+// yaml-cpp keeps every entry of a mapping, in file order, and a lookup returns the first: a
+// repeated key would silently lose its later value. Aliased nodes are visited once (their mark is
+// their anchor's), so `*a` repeated a billion times costs nothing.
+static void check_unique_keys(const YAML::Node& node, const std::string& path,
+                              std::set<std::size_t>* visited, int depth) {
+  if (!node.IsMap() && !node.IsSequence()) return;
+  if (!visited->insert(node.Mark().pos).second) return;
+  if (depth > limits::kMaxNestingDepth) {
+    throw Error(path + ":" + std::to_string(node.Mark().line + 1) + ": nested more than " +
+                std::to_string(limits::kMaxNestingDepth) + " levels deep");
+  }
+  if (node.IsSequence()) {
+    for (const auto& child : node) check_unique_keys(child, path, visited, depth + 1);
+    return;
+  }
+  std::map<std::string, int> seen;  // key -> line (1-based)
+  for (const auto& kv : node) {
+    if (kv.first.IsScalar()) {
+      const int line = kv.first.Mark().line + 1;
+      const auto [it, fresh] = seen.emplace(kv.first.Scalar(), line);
+      if (!fresh) {
+        throw Error(path + ":" + std::to_string(line) + ": duplicate key '" +
+                    printable(kv.first.Scalar()) +
+                    "' (first given on line " + std::to_string(it->second) +
+                    "); give each key once");
+      }
+    }
+    check_unique_keys(kv.second, path, visited, depth + 1);
+  }
+}
+
 YAML::Node load_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    throw Error("cannot read '" + path + "': not a regular file");
+  }
+  const auto size = std::filesystem::file_size(path, ec);
+  if (!ec && size > limits::kMaxConfigBytes) {
+    throw Error("'" + path + "' is " + std::to_string(size) +
+                " bytes; configuration files are limited to " +
+                std::to_string(limits::kMaxConfigBytes) + " bytes");
+  }
+  YAML::Node root;
   try {
-    return YAML::LoadFile(path);
+    root = YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {
     throw Error("cannot open '" + path + "'");
   } catch (const YAML::ParserException& e) {
     throw Error(path + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": malformed YAML: " + e.msg);
   }
+  std::set<std::size_t> visited;
+  check_unique_keys(root, path, &visited, 0);
+  return root;
 }
 
 std::string where(const std::string& file, const YAML::Node& node, const std::string& key) {
@@ -46,7 +97,7 @@ double get_double(const YAML::Node& parent, const std::string& key, const std::s
     v = n.as<double>();
   } catch (const YAML::Exception&) {
     throw Error(where(file, n, full_key(ctx, key)) + ": expected a number, got '" +
-                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+                (n.IsScalar() ? printable(n.Scalar()) : std::string("a list or map")) + "'");
   }
   if (!std::isfinite(v)) throw Error(where(file, n, full_key(ctx, key)) + ": must be finite");
   return v;
@@ -66,7 +117,7 @@ int get_int(const YAML::Node& parent, const std::string& key, int fallback, cons
     return n.as<int>();
   } catch (const YAML::Exception&) {
     throw Error(where(file, n, full_key(ctx, key)) + ": expected an integer, got '" +
-                (n.IsScalar() ? n.Scalar() : std::string("a list or map")) + "'");
+                (n.IsScalar() ? printable(n.Scalar()) : std::string("a list or map")) + "'");
   }
 }
 
@@ -123,11 +174,16 @@ void check_keys(const YAML::Node& node, const std::set<std::string>& allowed,
     throw Error(where(file, node, ctx.empty() ? "<root>" : ctx) + ": expected a mapping");
   }
   for (const auto& kv : node) {
-    const std::string k = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {
+      throw Error(where(file, kv.first, ctx.empty() ? "<root>" : ctx) +
+                  ": a key must be a plain name, not a list or mapping");
+    }
+    const std::string k = kv.first.Scalar();
     if (!allowed.count(k)) {
+      const std::string shown = printable(k);
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw Error(where(file, kv.first, full_key(ctx, k)) +
+      throw Error(where(file, kv.first, full_key(ctx, shown)) +
                   ": unknown key (expected one of: " + list + ")");
     }
   }
@@ -146,6 +202,10 @@ Eigen::Isometry3d pose_from_rpy(const Eigen::Vector3d& t, double roll, double pi
 Eigen::Isometry3d get_pose(const YAML::Node& node, const std::string& file,
                            const std::string& ctx) {
   check_keys(node, {"translation", "rpy_deg", "quaternion"}, file, ctx);
+  if (node["quaternion"] && node["rpy_deg"]) {
+    throw Error(where(file, node["rpy_deg"], full_key(ctx, "rpy_deg")) +
+                ": give the orientation once, as either 'rpy_deg' or 'quaternion'");
+  }
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   if (node["translation"]) {
     const auto v = get_vector(node, "translation", 3, file, ctx);
@@ -196,7 +256,11 @@ SonarSpec parse_sonar_spec(const YAML::Node& node, const std::string& file,
       throw Error(where(file, node, full_key(ctx, "fov_deg")) +
                   ": fov_deg must be in (0, 360) and beams > 0");
     }
-    s.set_uniform_bearings(fov * kDeg, beams);
+    try {
+      s.set_uniform_bearings(fov * kDeg, beams);
+    } catch (const Error& e) {
+      throw Error(where(file, node, full_key(ctx, "beams")) + ": " + e.what());
+    }
   }
   s.r_min = get_double(node, "r_min", s.r_min, file, ctx);
   s.r_max = get_double(node, "r_max", s.r_max, file, ctx);

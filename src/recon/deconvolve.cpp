@@ -741,7 +741,8 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
     };
     std::vector<PassPlan> plans;
     for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
-      const auto [first, last] = ranges[pi];
+      // Not a structured binding: C++17 lambdas cannot capture those (clang rejects it).
+      const std::size_t first = ranges[pi].first, last = ranges[pi].second;
       const std::string label = frames_label(pi, first, last - first);
       if (static_cast<int>(last - first) < config.min_pass_frames) {
         report.warnings.push_back(

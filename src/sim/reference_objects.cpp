@@ -296,7 +296,7 @@ TriangleMesh make_reference_object(const std::string& name) {
   if (name == "pillar") return make_reference_pillar();
   if (name == "riser") return make_reference_riser();
   std::ostringstream os;
-  os << "unknown reference object '" << name << "'; known objects:";
+  os << "unknown reference object '" << printable(name) << "'; known objects:";
   const auto names = reference_object_names();
   for (size_t i = 0; i < names.size(); ++i) os << (i ? ", " : " ") << names[i];
   throw Error(os.str());

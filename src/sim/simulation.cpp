@@ -6,6 +6,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/mesh_io.hpp"
@@ -71,7 +72,7 @@ TriangleMesh load_primitive(const YAML::Node& n, const std::string& file, const 
       throw Error(yaml::where(file, n, ctx) + ": " + e.what());
     }
   }
-  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown primitive '" + type +
+  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown primitive '" + printable(type) +
               "' (sphere, box, cylinder, plane, terrain)");
 }
 
@@ -132,7 +133,8 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     for (double& t : tum.times) t += shift;
     return tum;
   }
-  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" + type +
+  throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" +
+              printable(type) +
               "' (straight, orbit, lawnmower, tum)");
 }
 
@@ -211,7 +213,8 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     }
     for (const auto& other : setup.scene.objects) {
       if (other.name == obj.name) {
-        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" + obj.name +
+        throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" +
+                    printable(obj.name) +
                     "'");
       }
     }
@@ -249,6 +252,11 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   double t0 = 0.0;
   for (const auto& [node, ctx] : segs) {
     const Trajectory seg = load_segment(node, path, ctx, t0, period, base);
+    if (static_cast<double>(setup.T_world_vehicle.size() + seg.size()) > limits::kMaxFrames) {
+      throw Error(yaml::where(path, node, ctx) + ": the trajectory has more than " +
+                  std::to_string(static_cast<long long>(limits::kMaxFrames)) +
+                  " frames; increase the spacing");
+    }
     for (std::size_t k = 0; k < seg.size(); ++k) {
       setup.T_world_vehicle.push_back(seg.times[k], seg.poses[k]);
     }
@@ -313,7 +321,8 @@ SimulationSetup load_simulation_setup(const std::string& path) {
       nc.std_path = (s.is_relative() ? base / s : s).string();
       noise_images(setup);  // check the files now, not after the first frames
     } else {
-      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" + model +
+      throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" +
+                  printable(model) +
                   "' (none, stripes, images)");
     }
   }

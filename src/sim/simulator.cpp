@@ -10,6 +10,7 @@
 
 #include "../core/embree_device.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 
 namespace sonar3d {
 
@@ -59,6 +60,12 @@ Simulator::Simulator(const Scene& scene, const SonarSpec& spec, const SimulatorC
         rtcReleaseGeometry(geom);
         throw Error("object '" + obj.name + "': vertex " + std::to_string(i) + " is not finite");
       }
+      // Embree builds its bounds in float and asserts on coordinates beyond ~1e18.
+      if (p.cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+        rtcReleaseGeometry(geom);
+        throw Error("object '" + obj.name + "': vertex " + std::to_string(i) +
+                    " lies more than 1e7 m from the origin (check the mesh's unit and pose)");
+      }
       std::memcpy(v + 3 * i, p.data(), 3 * sizeof(float));
     }
     auto* idx = static_cast<unsigned*>(
@@ -107,6 +114,9 @@ unsigned long long splitmix(unsigned long long x) {
 SonarImage Simulator::render(const Eigen::Isometry3d& T_world_sonar,
                              unsigned long long seed) const {
   if (!T_world_sonar.matrix().allFinite()) throw Error("render: the sonar pose is not finite");
+  if (T_world_sonar.translation().cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+    throw Error("render: the sonar lies more than 1e7 m from the origin; use a local frame");
+  }
   const SonarSpec& s = spec_;
   const int beams = s.beams();
   const int bins = s.range_bins;

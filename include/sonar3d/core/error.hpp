@@ -27,6 +27,10 @@ inline void require(bool cond, const std::string& message) {
   if (!cond) throw Error(message);
 }
 
+// `text` made safe to quote in a one-line error: control and non-ASCII bytes become '?', and
+// anything beyond `max` characters is cut with "...". Used wherever file content is echoed.
+std::string printable(const std::string& text, std::size_t max = 60);
+
 // Checks that a configuration value is finite and strictly positive; names the parameter.
 void require_positive(double value, const char* name, const char* unit = "");
 // Checks that a configuration value is finite and >= 0.

@@ -1,6 +1,7 @@
 #pragma once
 // A point cloud in one frame (normally world) with an optional per-point intensity.
 #include <Eigen/Core>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,10 @@ enum class PlyFormat { Binary, Ascii };
 // binary_little_endian; extra vertex properties are skipped. Errors name the file and the
 // header line or vertex at fault.
 PointCloud read_ply(const std::string& path);
+// The same, also returning the faces' vertex index lists (element `face`, list property
+// `vertex_indices` or `vertex_index`); every index is checked against the vertex count. Used to
+// read PLY meshes without Assimp's PLY reader (docs/formats.md, section 3).
+PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint32_t>>* faces);
 void write_ply(const std::string& path, const PointCloud& cloud,
                PlyFormat format = PlyFormat::Binary);  // atomic write
 
