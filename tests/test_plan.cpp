@@ -164,3 +164,35 @@ fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, 
   ASSERT_EQ(results["points"].size(), 2u);
   for (const auto& p : results["points"]) EXPECT_EQ(p["status"], "ok") << p.dump();
 }
+
+// Resolutions so fine that their counts overflow an int (they silently became 1 beam, 1 bin or 8
+// frames and were ranked ok): each point fails, naming the count and the parameter to change.
+TEST(Plan, AbsurdResolutionsFailTheirPointsWithAClearMessage) {
+  const fs::path dir = temp_dir("absurd");
+  write(dir / "s.yaml", R"(
+seed: 3
+workers: 1
+elevation_step_deg: 0.1
+axes:
+  bearing_res_deg: [1e-9, 0.5]
+  range_res_m: [1e-12, 0.04]
+fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, voxel_m: 0.04, spacing_m: 1e-14, path: orbit}
+)");
+  const fs::path out = dir / "out";
+  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " +
+                          out.string() + " -q --allow-empty > " + (dir / "log.txt").string() +
+                          " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << read_text_file((dir / "log.txt").string());
+  const auto results = read_json(out / "results.json");
+  ASSERT_EQ(results["points"].size(), 4u);
+  for (const auto& p : results["points"]) {
+    EXPECT_EQ(p["status"], "failed") << p.dump();
+    const std::string msg = p["message"];
+    const bool bad_beams = p["params"]["bearing_res_deg"].get<double>() < 1e-6;
+    const bool bad_bins = p["params"]["range_res_m"].get<double>() < 1e-6;
+    const char* expected = bad_beams  ? "bearing_res_deg"
+                           : bad_bins ? "range_res_m"
+                                      : "spacing_m";  // the orbit's frame count
+    EXPECT_NE(msg.find(expected), std::string::npos) << msg;
+  }
+}

@@ -7,6 +7,7 @@
 #include "plan_internal.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/plan/sweep.hpp"
@@ -67,14 +68,18 @@ SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, Sweep
   SonarSpec& s = setup.spec;
   s.name = "plan";
   const double fov = num(p, "fov_deg") * kDeg;
-  s.set_uniform_bearings(
-      fov,
-      std::max(1, static_cast<int>(std::lround(num(p, "fov_deg") / num(p, "bearing_res_deg")))));
+  // Counts from ratios are checked before they become integers: a resolution of 1e-9 would
+  // otherwise overflow int and silently become 1 beam, 1 bin or 8 frames (limits.hpp).
+  const long long beams = limits::checked_count(
+      std::round(num(p, "fov_deg") / num(p, "bearing_res_deg")), 1, limits::kMaxBeams,
+      "fov_deg / bearing_res_deg (beams)", "use a coarser bearing_res_deg");
+  s.set_uniform_bearings(fov, static_cast<int>(beams));
   s.vertical_aperture_rad = aperture;
   s.r_min = std::max(0.1, standoff - half - 0.5);
   s.r_max = standoff + half + 1.0;
-  s.range_bins =
-      std::max(1, static_cast<int>(std::ceil((s.r_max - s.r_min) / num(p, "range_res_m"))));
+  s.range_bins = static_cast<int>(limits::checked_count(
+      std::ceil((s.r_max - s.r_min) / num(p, "range_res_m")), 1, limits::kMaxRangeBins,
+      "range window / range_res_m (range bins)", "use a coarser range_res_m"));
   s.r_max = s.r_min + s.range_bins * num(p, "range_res_m");
   setup.simulator.elevation_step_rad = std::min(sweep.elevation_step_deg * kDeg, aperture);
   setup.simulator.num_threads = 1;
@@ -97,7 +102,10 @@ SimulationSetup plan_setup(const Sweep& sweep, const std::map<std::string, Sweep
                                           spacing, Eigen::Matrix3d::Identity(), 0.0, 0.1);
   } else {
     const double circumference = 2 * M_PI * standoff;
-    const int count = std::max(8, static_cast<int>(std::ceil(circumference / spacing)));
+    const int count = static_cast<int>(std::max<long long>(
+        8, limits::checked_count(std::ceil(circumference / spacing), 1, limits::kMaxFrames,
+                                 "orbit circumference / spacing_m (frames)",
+                                 "use a larger spacing_m")));
     setup.T_world_vehicle =
         orbit(Eigen::Vector3d(0, 0, box.center().z()), standoff, count, M_PI, 2 * M_PI, 0.0, 0.1);
   }
