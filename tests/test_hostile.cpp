@@ -57,16 +57,7 @@ std::string scene_yaml(const std::string& trajectory, const std::string& sensor_
          trajectory;
 }
 
-SonarSpec small_spec() {
-  SonarSpec s;
-  s.name = "small";
-  s.set_uniform_bearings(0.5, 16);
-  s.r_min = 0.5;
-  s.r_max = 2.5;
-  s.range_bins = 40;
-  s.vertical_aperture_rad = 0.2;
-  return s;
-}
+SonarSpec small_spec() { return sonar3d::test::small_dataset_spec(); }
 
 // A dataset of `frames` frames (1 s apart from t = 10 s).
 void write_small(const fs::path& dir, const SonarSpec& s, int frames = 3) {

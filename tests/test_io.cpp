@@ -17,13 +17,7 @@ namespace fs = std::filesystem;
 namespace {
 
 SonarSpec small_spec() {
-  SonarSpec s;
-  s.name = "small";
-  s.set_uniform_bearings(0.5, 16);
-  s.r_min = 0.5;
-  s.r_max = 2.5;
-  s.range_bins = 40;
-  s.vertical_aperture_rad = 0.2;
+  SonarSpec s = sonar3d::test::small_dataset_spec();
   s.T_vehicle_sonar.translation() = Eigen::Vector3d(0.1, 0.2, -0.3);
   s.T_vehicle_sonar.linear() =
       Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();

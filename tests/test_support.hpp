@@ -7,6 +7,7 @@
 #include <string>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/sonar_spec.hpp"
 
 namespace sonar3d::test {
 
@@ -20,6 +21,19 @@ inline std::filesystem::path temp_dir(const std::string& name) {
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;
+}
+
+// A small sonar for dataset tests: 16 beams over 0.5 rad, 40 range bins over 0.5–2.5 m, 0.2 rad
+// vertical aperture.
+inline SonarSpec small_dataset_spec() {
+  SonarSpec s;
+  s.name = "small";
+  s.set_uniform_bearings(0.5, 16);
+  s.r_min = 0.5;
+  s.r_max = 2.5;
+  s.range_bins = 40;
+  s.vertical_aperture_rad = 0.2;
+  return s;
 }
 
 // Expects f() to throw sonar3d::Error whose message contains `needle`.
