@@ -468,3 +468,22 @@ TEST(HostileMesh, OnlyTheExtensionsReaderReadsTheFile) {
   write_file(d / "m.xyz", "solid t\nendsolid t\n");
   expect_one_line_error([&] { load_mesh((d / "m.xyz").string()); }, {"m.xyz", "unsupported"});
 }
+
+// Assimp 5.2's Collada reader crashes on this file (found by fuzz_mesh, fuzz/findings/): it runs
+// in a child process, so the crash is one Error naming the file, and the caller lives on.
+TEST(HostileMesh, AssimpCrashBecomesAnError) {
+  const fs::path dir = sonar3d::test::temp_dir("assimp_crash");
+  const fs::path bad = dir / "crash.dae";
+  fs::copy_file(fs::path(SONAR3D_SOURCE_DIR) / "fuzz/findings/assimp-5.2-collada-segv.dae.bin", bad);
+  try {
+    sonar3d::load_mesh(bad.string());
+    FAIL() << "a malformed Collada file must not load";
+  } catch (const sonar3d::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("crash.dae"), std::string::npos) << e.what();
+  }
+  // Good meshes still come back whole through the child process.
+  const sonar3d::TriangleMesh valve =
+      sonar3d::load_mesh(std::string(SONAR3D_SOURCE_DIR) + "/data/meshes/valve.dae");
+  EXPECT_GT(valve.triangles.size(), 100u);
+  fs::remove_all(dir);
+}

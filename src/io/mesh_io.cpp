@@ -38,8 +38,12 @@
 #include <assimp/Importer.hpp>
 #include <cctype>
 #include <cmath>
+#include <cerrno>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <new>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -50,6 +54,10 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/point_cloud.hpp"
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -357,6 +365,11 @@ void write_obj(std::ostream& os, const TriangleMesh& mesh) {
 
 }  // namespace
 
+namespace {
+TriangleMesh load_mesh_isolated(const std::string& path);
+TriangleMesh load_mesh_assimp(const std::string& path);
+}  // namespace
+
 TriangleMesh load_mesh(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) {
@@ -367,7 +380,17 @@ TriangleMesh load_mesh(const std::string& path) {
   }
 
   if (starts_with_ply(path) || lower_extension(path) == ".ply") return load_ply_mesh(path);
+  // SONAR3D_MESH_IN_PROCESS=1 keeps Assimp in this process (fuzz_mesh: libFuzzer needs the
+  // coverage and the crash where it happens).
+  const char* in_process = std::getenv("SONAR3D_MESH_IN_PROCESS");
+  if (in_process != nullptr && std::string(in_process) == "1") return load_mesh_assimp(path);
+  return load_mesh_isolated(path);
+}
 
+namespace {
+
+// Assimp's part of load_mesh. Runs in a child process (load_mesh_isolated).
+TriangleMesh load_mesh_assimp(const std::string& path) {
   Assimp::Importer importer;
   keep_supported_readers(importer, path);
   // Keep Collada's up-axis handling on (see the top of this file) and say so explicitly.
@@ -420,6 +443,126 @@ TriangleMesh load_mesh(const std::string& path) {
   check_vertices(mesh, path);
   return mesh;
 }
+
+bool write_all(int fd, const void* data, std::size_t size) {
+  const char* p = static_cast<const char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::write(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n;
+    size -= static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+bool read_all(int fd, void* data, std::size_t size) {
+  char* p = static_cast<char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::read(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n;
+    size -= static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+// Assimp 5.2 (Debian) still crashes, or allocates whatever a count asks for, on some malformed
+// files of the formats we read with it (docs/fuzzing.md, fuzz/findings/). Its readers therefore
+// run in a child process under an address-space limit; the child sends the mesh back through a
+// pipe. A crash or exhausted memory in the child becomes one Error naming the file.
+TriangleMesh load_mesh_isolated(const std::string& path) {
+  std::error_code ec;
+  const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  int fds[2];
+  if (::pipe(fds) != 0) throw Error("cannot load mesh '" + path + "': pipe() failed");
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw Error("cannot load mesh '" + path + "': fork() failed");
+  }
+  if (pid == 0) {  // child: read, send, leave without running the parent's atexit handlers
+    ::close(fds[0]);
+    // 1 GB plus 64 bytes of address space per byte of file beyond what the process maps now.
+    struct rlimit lim;
+    const double budget = 1024.0 * 1024 * 1024 + 64.0 * static_cast<double>(file_bytes);
+    std::size_t mapped = 0;
+    if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
+      unsigned long pages = 0;
+      if (std::fscanf(f, "%lu", &pages) == 1) mapped = pages * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+      std::fclose(f);
+    }
+    lim.rlim_cur = lim.rlim_max = static_cast<rlim_t>(mapped + budget);
+    ::setrlimit(RLIMIT_AS, &lim);
+    std::uint8_t status = 1;
+    std::string message;
+    TriangleMesh mesh;
+    try {
+      mesh = load_mesh_assimp(path);
+      status = 0;
+    } catch (const Error& e) {
+      message = e.what();
+    } catch (const std::bad_alloc&) {
+      message = "cannot load mesh '" + path + "': it asks for more memory than its " +
+                std::to_string(file_bytes) + " bytes justify (a malformed count?)";
+    } catch (const std::exception& e) {
+      message = "cannot load mesh '" + path + "': " + e.what();
+    }
+    bool ok = write_all(fds[1], &status, 1);
+    if (status == 0) {
+      const std::uint64_t nv = mesh.vertices.size(), nt = mesh.triangles.size();
+      ok = ok && write_all(fds[1], &nv, sizeof nv) && write_all(fds[1], &nt, sizeof nt) &&
+           write_all(fds[1], mesh.vertices.data(), nv * sizeof(Eigen::Vector3f)) &&
+           write_all(fds[1], mesh.triangles.data(), nt * sizeof(Eigen::Vector3i));
+    } else {
+      const std::uint64_t n = message.size();
+      ok = ok && write_all(fds[1], &n, sizeof n) && write_all(fds[1], message.data(), n);
+    }
+    ::close(fds[1]);
+    ::_exit(ok ? 0 : 3);
+  }
+  ::close(fds[1]);
+  std::uint8_t status = 255;
+  TriangleMesh mesh;
+  std::string message;
+  bool got = read_all(fds[0], &status, 1);
+  if (got && status == 0) {
+    std::uint64_t nv = 0, nt = 0;
+    got = read_all(fds[0], &nv, sizeof nv) && read_all(fds[0], &nt, sizeof nt) &&
+          nv <= (1ull << 31) && nt <= (1ull << 31);
+    if (got) {
+      mesh.vertices.resize(nv);
+      mesh.triangles.resize(nt);
+      got = read_all(fds[0], mesh.vertices.data(), nv * sizeof(Eigen::Vector3f)) &&
+            read_all(fds[0], mesh.triangles.data(), nt * sizeof(Eigen::Vector3i));
+    }
+  } else if (got) {
+    std::uint64_t n = 0;
+    got = read_all(fds[0], &n, sizeof n) && n <= 65536;
+    if (got) {
+      message.resize(n);
+      got = read_all(fds[0], message.data(), n);
+    }
+  }
+  ::close(fds[0]);
+  int wstatus = 0;
+  while (::waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(wstatus)) {
+    throw Error("cannot load mesh '" + path + "': the mesh reader (Assimp) crashed on it (signal " +
+                std::to_string(WTERMSIG(wstatus)) + "): the file is malformed");
+  }
+  if (!got) {
+    throw Error("cannot load mesh '" + path + "': the mesh reader (Assimp) failed on it");
+  }
+  if (status != 0) throw Error(message);
+  return mesh;
+}
+
+}  // namespace
 
 void save_mesh(const std::string& path, const TriangleMesh& mesh) {
   const std::string ext = lower_extension(path);
