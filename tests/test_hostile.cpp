@@ -425,9 +425,10 @@ TEST(HostileMesh, PlyMeshesUseTheStrictReader) {
   EXPECT_EQ(m.triangles.size(), 2u);
   EXPECT_EQ(m.vertices.size(), 4u);
   // Big-endian binary, one triangle.
-  std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\n"
-                   "property float y\nproperty float z\nelement face 1\n"
-                   "property list uchar int vertex_indices\nend_header\n";
+  std::string be =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n";
   auto put_be = [&](const void* p, int n) {
     for (int i = n - 1; i >= 0; --i) be.push_back(static_cast<const char*>(p)[i]);
   };
@@ -474,7 +475,8 @@ TEST(HostileMesh, OnlyTheExtensionsReaderReadsTheFile) {
 TEST(HostileMesh, AssimpCrashBecomesAnError) {
   const fs::path dir = sonar3d::test::temp_dir("assimp_crash");
   const fs::path bad = dir / "crash.dae";
-  fs::copy_file(fs::path(SONAR3D_SOURCE_DIR) / "fuzz/findings/assimp-5.2-collada-segv.dae.bin", bad);
+  fs::copy_file(fs::path(SONAR3D_SOURCE_DIR) / "fuzz/findings/assimp-5.2-collada-segv.dae.bin",
+                bad);
   try {
     sonar3d::load_mesh(bad.string());
     FAIL() << "a malformed Collada file must not load";

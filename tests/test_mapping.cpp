@@ -1,6 +1,7 @@
 // mapping: elevation maps (sec. 6.2.1), GeoTIFF round trips, swath registration (sec. 6.2.2.1,
 // eq. 6.1–6.2) and the global adjustment of swath offsets.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -9,11 +10,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <random>
-#include <sys/wait.h>
-#include <tuple>
-
 #include <nlohmann/json.hpp>
+#include <random>
+#include <tuple>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -31,7 +30,8 @@ using sonar3d::SwathTie;
 namespace {
 
 fs::path temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("sonar3d_test_mapping_" + std::to_string(getpid()));
+  const fs::path d =
+      fs::temp_directory_path() / ("sonar3d_test_mapping_" + std::to_string(getpid()));
   fs::create_directories(d);
   return d;
 }
@@ -84,7 +84,7 @@ TEST(ElevationMap, HighestPointPerCellAndNoData) {
   cfg.cell_m = 0.02;
   const ElevationMap m = sonar3d::elevation_map_from_points(cloud, cfg);
   ASSERT_EQ(m.rows, 1);
-  ASSERT_EQ(m.cols, 5);  // x from 0.01 to 0.09: cells [0, 0.02) ... [0.08, 0.1)
+  ASSERT_EQ(m.cols, 5);                    // x from 0.01 to 0.09: cells [0, 0.02) ... [0.08, 0.1)
   EXPECT_DOUBLE_EQ(m.origin_xy.x(), 0.0);  // corners on the world grid
   EXPECT_DOUBLE_EQ(m.origin_xy.y(), 0.02);
   EXPECT_FLOAT_EQ(m.at(0, 0), -0.5f);  // the highest of the two points in the first cell
@@ -147,8 +147,10 @@ TEST(ElevationMap, GeoTiffRoundTripFloatAndUInt16) {
     EXPECT_EQ(r.num_valid(), m.num_valid());
     double worst = 0;
     for (std::size_t i = 0; i < m.z.size(); ++i) {
-      if (m.z[i] == m.z[i]) worst = std::max(worst, std::abs(double(r.z[i]) - m.z[i]));
-      else EXPECT_FALSE(r.z[i] == r.z[i]) << i;
+      if (m.z[i] == m.z[i])
+        worst = std::max(worst, std::abs(double(r.z[i]) - m.z[i]));
+      else
+        EXPECT_FALSE(r.z[i] == r.z[i]) << i;
     }
     EXPECT_LE(worst, tol);
   }
@@ -163,7 +165,11 @@ TEST(ElevationMap, GeoTiffRoundTripFloatAndUInt16) {
   EXPECT_EQ(files, 3);
   // Not a raster: one clear error naming the file.
   const std::string bad = (dir / "bad.tif").string();
-  { std::FILE* f = std::fopen(bad.c_str(), "w"); std::fputs("not a tiff", f); std::fclose(f); }
+  {
+    std::FILE* f = std::fopen(bad.c_str(), "w");
+    std::fputs("not a tiff", f);
+    std::fclose(f);
+  }
   try {
     sonar3d::read_elevation_geotiff(bad);
     FAIL();
@@ -181,26 +187,27 @@ TEST(SwathRegistration, RecoversKnownShiftsAndDepthOffsetsExactly) {
   sonar3d::SwathRegistrationConfig cfg;
   cfg.search_m = 0.3;
   cfg.subcell = false;
-  const Eigen::Vector3d errors[] = {{0.10, -0.06, 0.05}, {-0.2, 0.14, -0.12}, {0, 0, 0},
-                                    {0.3, 0.3, 0.3}};
+  const Eigen::Vector3d errors[] = {
+      {0.10, -0.06, 0.05}, {-0.2, 0.14, -0.12}, {0, 0, 0}, {0.3, 0.3, 0.3}};
   // The thesis' exhaustive search (coarse_factor 1) and the coarse-to-fine one find the same.
   for (bool subcell : {false, true})
-  for (int f : {1, 4})
-  for (const Eigen::Vector3d& e : errors) {
-    cfg.subcell = subcell;
-    cfg.coarse_factor = f;
-    SCOPED_TRACE("subcell " + std::to_string(subcell) + ", coarse_factor " + std::to_string(f) + ", error " +
-                 std::to_string(e.x()) + " " + std::to_string(e.y()) + " " + std::to_string(e.z()));
-    // Swath B overlaps half of A (x 1.5–4.5 m) and was logged with navigation error e.
-    const ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, e);
-    const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
-    // Moving B onto A undoes the error.
-    EXPECT_NEAR(t.t.x(), -e.x(), 1e-9);
-    EXPECT_NEAR(t.t.y(), -e.y(), 1e-9);
-    EXPECT_NEAR(t.t.z(), -e.z(), 1e-5);
-    EXPECT_LT(t.score_m, 1e-5);
-    EXPECT_GT(t.confidence, 0.5);
-  }
+    for (int f : {1, 4})
+      for (const Eigen::Vector3d& e : errors) {
+        cfg.subcell = subcell;
+        cfg.coarse_factor = f;
+        SCOPED_TRACE("subcell " + std::to_string(subcell) + ", coarse_factor " + std::to_string(f) +
+                     ", error " + std::to_string(e.x()) + " " + std::to_string(e.y()) + " " +
+                     std::to_string(e.z()));
+        // Swath B overlaps half of A (x 1.5–4.5 m) and was logged with navigation error e.
+        const ElevationMap b = make_map(terrain, 1.5, 4.0, 200, 150, c, e);
+        const SwathTie t = sonar3d::register_elevation_maps(a, b, cfg);
+        // Moving B onto A undoes the error.
+        EXPECT_NEAR(t.t.x(), -e.x(), 1e-9);
+        EXPECT_NEAR(t.t.y(), -e.y(), 1e-9);
+        EXPECT_NEAR(t.t.z(), -e.z(), 1e-5);
+        EXPECT_LT(t.score_m, 1e-5);
+        EXPECT_GT(t.confidence, 0.5);
+      }
 }
 
 TEST(SwathRegistration, SubCellShiftsWithNoise) {
@@ -352,7 +359,8 @@ TEST(MappingCli, ElevationAndRegister) {
   sonar3d::write_ply((dir / "b.ply").string(), cloud({0.06, -0.04, 0.03}));
   auto run = [&](const std::string& args) {
     const std::string log = (dir / "log.txt").string();
-    const int rc = std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
+    const int rc =
+        std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
     std::ifstream in(log);
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     return std::pair{WEXITSTATUS(rc), text};
@@ -363,8 +371,8 @@ TEST(MappingCli, ElevationAndRegister) {
   EXPECT_NE(out.find("elevation map 150 x 100 cells"), std::string::npos) << out;
   std::tie(rc, out) = run("elevation " + d + "b.ply -o " + d + "b.tif --uint16-step-m 0.0005");
   ASSERT_EQ(rc, 0) << out;
-  std::tie(rc, out) = run("register " + d + "a.tif " + d + "b.tif --search-m 0.2 --json " + d +
-                          "tie.json");
+  std::tie(rc, out) =
+      run("register " + d + "a.tif " + d + "b.tif --search-m 0.2 --json " + d + "tie.json");
   ASSERT_EQ(rc, 0) << out;
   std::ifstream tie(dir / "tie.json");
   const std::string j((std::istreambuf_iterator<char>(tie)), std::istreambuf_iterator<char>());
@@ -417,8 +425,8 @@ CliRun run_cli(const fs::path& dir, const std::string& args) {
   const int rc =
       std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
   std::ifstream in(log);
-  return {WEXITSTATUS(rc), std::string((std::istreambuf_iterator<char>(in)),
-                                       std::istreambuf_iterator<char>())};
+  return {WEXITSTATUS(rc),
+          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>())};
 }
 
 }  // namespace
@@ -430,15 +438,15 @@ TEST(MappingCli, FieldSurveyWithDriftIsCorrected) {
   const fs::path dir = temp_dir() / "field";
   fs::create_directories(dir);
   { std::ofstream(dir / "field.yaml") << kFieldScene; }
-  CliRun r = run_cli(dir, "simulate " + (dir / "field.yaml").string() + " -o " +
-                              (dir / "ds").string() + " -q");
+  CliRun r = run_cli(
+      dir, "simulate " + (dir / "field.yaml").string() + " -o " + (dir / "ds").string() + " -q");
   ASSERT_EQ(r.code, 0) << r.out;
   // The drift: line k's navigation is off by e_k (swath 0 exact).
   const sonar3d::Dataset ds = sonar3d::read_dataset(dir / "ds");
   const auto swaths = sonar3d::split_swaths(ds, {});
   ASSERT_EQ(swaths.size(), 4u);
-  const Eigen::Vector3d e[4] = {{0, 0, 0}, {0.08, -0.06, 0.02}, {0.14, -0.02, 0.04},
-                                {0.2, 0.04, 0.02}};
+  const Eigen::Vector3d e[4] = {
+      {0, 0, 0}, {0.08, -0.06, 0.02}, {0.14, -0.02, 0.04}, {0.2, 0.04, 0.02}};
   sonar3d::Trajectory nav = sonar3d::read_tum((dir / "ds/navigation.tum").string());
   for (std::size_t k = 0; k < nav.size(); ++k) {
     for (int s = 0; s < 4; ++s) {
@@ -484,13 +492,13 @@ TEST(MappingCli, FieldSurveyWithDriftIsCorrected) {
   r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "map_global").string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
-  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "one").string() +
-                       " --swath-times 0 5");
+  r = run_cli(
+      dir, "map " + (dir / "ds").string() + " -o " + (dir / "one").string() + " --swath-times 0 5");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("one swath"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(dir / "one"));
-  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "x").string() +
-                       " --resolution 0");
+  r = run_cli(dir,
+              "map " + (dir / "ds").string() + " -o " + (dir / "x").string() + " --resolution 0");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("cell_m"), std::string::npos) << r.out;
   fs::remove_all(dir);
@@ -515,8 +523,8 @@ TEST(DeadReckoning, DriftsLikeAVehicle) {
   EXPECT_NEAR(dr.poses.back().translation().x(), 101.0, 1e-9);
   EXPECT_NEAR(dr.poses.back().translation().y(), 0.0, 1e-9);
   EXPECT_NEAR(dr.poses.back().translation().z(), -20.05, 1e-12);
-  EXPECT_EQ(dr.poses.front().translation(), truth.poses.front().translation() -
-                                                Eigen::Vector3d(0, 0, 0.05));
+  EXPECT_EQ(dr.poses.front().translation(),
+            truth.poses.front().translation() - Eigen::Vector3d(0, 0, 0.05));
   cfg.velocity_scale_error = 0;
   cfg.heading_bias_deg = 0.5;
   dr = sonar3d::dead_reckoning(truth, cfg, 1);
@@ -548,8 +556,8 @@ TEST(MappingCli, SimulatedDeadReckoningDriftIsReducedAndMeasured) {
   scene.replace(scene.find("seed: 3\n"), 8,
                 "seed: 3\nnavigation_error: {velocity_scale: 0.02, heading_bias_deg: 0.3}\n");
   { std::ofstream(dir / "f.yaml") << scene; }
-  CliRun r = run_cli(dir, "simulate " + (dir / "f.yaml").string() + " -o " +
-                              (dir / "ds").string() + " -q");
+  CliRun r = run_cli(
+      dir, "simulate " + (dir / "f.yaml").string() + " -o " + (dir / "ds").string() + " -q");
   ASSERT_EQ(r.code, 0) << r.out;
   const sonar3d::Trajectory logged = sonar3d::read_tum((dir / "ds/navigation.tum").string());
   const sonar3d::Trajectory truth = sonar3d::read_tum((dir / "ds/truth/navigation.tum").string());
@@ -593,9 +601,9 @@ TEST(Terrain, HeightFieldWithTrenchesAndRocks) {
   EXPECT_LT(box.min().z(), -0.3);  // a trench below the relief's mean
   EXPECT_GT(box.max().z(), 0.0);
   EXPECT_LT(box.max().z(), 0.2 + 0.6 * 0.375 + 1e-3);  // relief + the tallest rock
-  for (const Eigen::Vector3i& tri : m.triangles) {  // counter-clockwise seen from +z
-    const Eigen::Vector3f n = (m.vertices[tri[1]] - m.vertices[tri[0]])
-                                  .cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+  for (const Eigen::Vector3i& tri : m.triangles) {     // counter-clockwise seen from +z
+    const Eigen::Vector3f n =
+        (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
     ASSERT_GT(n.z(), 0);
   }
   EXPECT_EQ(sonar3d::Terrain(cfg).height(1.23, -0.7), t.height(1.23, -0.7));

@@ -38,10 +38,11 @@ void add_elevation(CLI::App& app, const GlobalOptions&, Runner& run) {
         w.uint16_step_m = o->uint16_step_m;
       }
       write_elevation_geotiff(o->output, map, w);
-      fmt::print("elevation map {} x {} cells of {} m ({} with data) from {} points -> {} ({} "
-                 "bytes; the cloud: {} bytes)\n",
-                 map.cols, map.rows, map.cell_m, map.num_valid(), cloud.size(), o->output,
-                 std::filesystem::file_size(o->output), std::filesystem::file_size(o->cloud));
+      fmt::print(
+          "elevation map {} x {} cells of {} m ({} with data) from {} points -> {} ({} "
+          "bytes; the cloud: {} bytes)\n",
+          map.cols, map.rows, map.cell_m, map.num_valid(), cloud.size(), o->output,
+          std::filesystem::file_size(o->output), std::filesystem::file_size(o->cloud));
       if (!o->png.empty()) {
         const Eigen::Vector2f range = write_elevation_png(o->png, map);
         fmt::print("picture {} (heights {:.3f} to {:.3f} m)\n", o->png, range.x(), range.y());

@@ -24,8 +24,7 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
       ->required()
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", o->output, "map directory to create (must not exist)")
-      ->required();
+  cmd->add_option("-o,--output", o->output, "map directory to create (must not exist)")->required();
   cmd->add_option("--resolution", o->cfg.cell_m, "elevation map cell size, metres")
       ->capture_default_str();
   cmd->add_option("--voxel-size", o->cfg.carve.voxel_size, "carving voxel edge, metres")
@@ -52,8 +51,8 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
       MapSurveyConfig cfg = o->cfg;
-      cfg.method = o->method == "consecutive" ? SwathAdjustMethod::Consecutive
-                                              : SwathAdjustMethod::Global;
+      cfg.method =
+          o->method == "consecutive" ? SwathAdjustMethod::Consecutive : SwathAdjustMethod::Global;
       cfg.registration.num_threads = cfg.carve.num_threads;
       cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
       if (!o->roi.empty()) {

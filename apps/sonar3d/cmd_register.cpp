@@ -1,7 +1,7 @@
 #include <fmt/core.h>
-#include <nlohmann/json.hpp>
 
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "sonar3d/core/atomic_file.hpp"
@@ -47,11 +47,15 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
           "m over {} cells; confidence {:.2f}; {:.2f} s\n",
           t.t.x(), t.t.y(), t.t.z(), t.score_m, t.overlap_cells, t.confidence, t.seconds);
       if (!o->json.empty()) {
-        const nlohmann::json j = {{"reference", o->reference}, {"moving", o->moving},
-                                  {"shift_east_m", t.t.x()},   {"shift_north_m", t.t.y()},
-                                  {"shift_up_m", t.t.z()},     {"score_m", t.score_m},
+        const nlohmann::json j = {{"reference", o->reference},
+                                  {"moving", o->moving},
+                                  {"shift_east_m", t.t.x()},
+                                  {"shift_north_m", t.t.y()},
+                                  {"shift_up_m", t.t.z()},
+                                  {"score_m", t.score_m},
                                   {"overlap_cells", t.overlap_cells},
-                                  {"confidence", t.confidence}, {"seconds", t.seconds}};
+                                  {"confidence", t.confidence},
+                                  {"seconds", t.seconds}};
         write_text_file(o->json, j.dump(2) + "\n");
       }
       return 0;

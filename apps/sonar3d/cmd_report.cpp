@@ -36,9 +36,10 @@ void add_report(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "top of the error colour scale in metres (0: per cloud, its 95th percentile)")
       ->capture_default_str();
   cmd->add_option("--title", o->cfg.title, "page title (default: sonar3d sweep: <dir name>)");
-  cmd->add_option("--web-dir", o->web_dir,
-                  "web assets directory (default: $SONAR3D_WEB_DIR, else <prefix>/share/sonar3d/web "
-                  "when installed, else the source tree's web/)");
+  cmd->add_option(
+      "--web-dir", o->web_dir,
+      "web assets directory (default: $SONAR3D_WEB_DIR, else <prefix>/share/sonar3d/web "
+      "when installed, else the source tree's web/)");
   cmd->add_option("--seed", o->cfg.seed, "subsampling seed")->capture_default_str();
   cmd->callback([&run, &g, o] {
     run = [&g, o] {

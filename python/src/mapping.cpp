@@ -136,8 +136,8 @@ void bind_mapping(py::module_& m) {
         return d;
       },
       "dataset"_a, "output"_a, "cell_m"_a = 0.02, "voxel_size"_a = 0.02,
-      "registration"_a = SwathRegistrationConfig(), "method"_a = "global",
-      "region"_a = py::none(), "progress"_a = py::none(),
+      "registration"_a = SwathRegistrationConfig(), "method"_a = "global", "region"_a = py::none(),
+      "progress"_a = py::none(),
       "Field mapping (sec. 6.2; `sonar3d map`): writes `output` (swath maps, ties, corrected "
       "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz), ties, "
       "merged_points, seconds}.");

@@ -24,8 +24,7 @@ struct PlyProperty {
 int ply_type_size(const std::string& t) {
   if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
   if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-  if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" ||
-      t == "float32")
+  if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32")
     return 4;
   if (t == "double" || t == "float64") return 8;
   return 0;
@@ -138,8 +137,7 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
       if (!format.empty()) fail("a second 'format' line");
       if (tok.size() != 3 || tok[2] != "1.0") fail("expected 'format <type> 1.0'");
       format = tok[1];
-      if (format != "ascii" && format != "binary_little_endian" &&
-          format != "binary_big_endian") {
+      if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian") {
         fail("unsupported PLY format '" + printable(format) +
              "' (ascii, binary_little_endian or binary_big_endian)");
       }
@@ -375,8 +373,8 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
     std::ofstream f(out.temp(), std::ios::binary);
     if (!f) throw Error("cannot open '" + path + "' for writing");
     f << "ply\nformat " << (format == PlyFormat::Binary ? "binary_little_endian" : "ascii")
-      << " 1.0\ncomment sonar3d point cloud, world frame, metres\nelement vertex "
-      << cloud.size() << "\nproperty float x\nproperty float y\nproperty float z\n";
+      << " 1.0\ncomment sonar3d point cloud, world frame, metres\nelement vertex " << cloud.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n";
     if (cloud.has_intensity()) f << "property float intensity\n";
     f << "end_header\n";
     if (format == PlyFormat::Binary) {

@@ -110,9 +110,9 @@ bool SonarSpec::uniform_bearings() const {
 
 void SonarSpec::set_uniform_bearings(double fov_rad, int count) {
   require_positive(fov_rad, "fov", "rad");
-  require(count > 0 && count <= limits::kMaxBeams,
-          "parameter 'beams' must lie in [1, " + std::to_string(limits::kMaxBeams) + "], got " +
-              std::to_string(count));
+  require(count > 0 && count <= limits::kMaxBeams, "parameter 'beams' must lie in [1, " +
+                                                       std::to_string(limits::kMaxBeams) +
+                                                       "], got " + std::to_string(count));
   bearings_rad.resize(count);
   for (int j = 0; j < count; ++j) bearings_rad[j] = -0.5 * fov_rad + (j + 0.5) * fov_rad / count;
 }

@@ -95,7 +95,8 @@ Trajectory read_tum(const std::string& path) {
                   printable(extra) + "'");
     }
     for (double x : v) {
-      if (!std::isfinite(x)) throw Error(path + ":" + std::to_string(lineno) + ": non-finite value");
+      if (!std::isfinite(x))
+        throw Error(path + ":" + std::to_string(lineno) + ": non-finite value");
     }
     Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
     const double n = q.norm();

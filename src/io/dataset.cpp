@@ -1,16 +1,15 @@
 #include "sonar3d/io/dataset.hpp"
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include <cmath>
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "sonar3d/core/atomic_file.hpp"
 #include "image_header.hpp"
+#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/io/yaml_config.hpp"
@@ -83,8 +82,8 @@ SonarImage read_sonar_image(const std::string& path, const SonarSpec& spec) {
   if (h.width != spec.beams() || h.height != spec.range_bins) {
     throw Error("frame '" + path + "' is " + std::to_string(h.height) + "×" +
                 std::to_string(h.width) + " (rows×cols) but sonar.yaml declares " +
-                std::to_string(spec.range_bins) + " range bins × " +
-                std::to_string(spec.beams()) + " beams");
+                std::to_string(spec.range_bins) + " range bins × " + std::to_string(spec.beams()) +
+                " beams");
   }
   const cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (m.empty()) throw Error("cannot decode frame '" + path + "' (corrupt or unsupported image)");
@@ -93,10 +92,9 @@ SonarImage read_sonar_image(const std::string& path, const SonarSpec& spec) {
                 " channels; sonar frames are single-channel");
   }
   if (m.rows != spec.range_bins || m.cols != spec.beams()) {
-    throw Error("frame '" + path + "' is " + std::to_string(m.rows) + "×" +
-                std::to_string(m.cols) + " (rows×cols) but sonar.yaml declares " +
-                std::to_string(spec.range_bins) + " range bins × " +
-                std::to_string(spec.beams()) + " beams");
+    throw Error("frame '" + path + "' is " + std::to_string(m.rows) + "×" + std::to_string(m.cols) +
+                " (rows×cols) but sonar.yaml declares " + std::to_string(spec.range_bins) +
+                " range bins × " + std::to_string(spec.beams()) + " beams");
   }
   const int depth = m.depth();
   double scale = 1.0;
@@ -240,8 +238,10 @@ Dataset read_dataset(const fs::path& dir) {
   if (const YAML::Node noise = root["noise"]) {
     yaml::check_keys(noise, {"mean", "std"}, yaml_path, "noise");
     NoiseImages n;
-    n.mean = read_float_image((dir / yaml::get_string(noise, "mean", "", yaml_path, "noise")).string());
-    n.std = read_float_image((dir / yaml::get_string(noise, "std", "", yaml_path, "noise")).string());
+    n.mean =
+        read_float_image((dir / yaml::get_string(noise, "mean", "", yaml_path, "noise")).string());
+    n.std =
+        read_float_image((dir / yaml::get_string(noise, "std", "", yaml_path, "noise")).string());
     for (const SonarImage* im : {&n.mean, &n.std}) {
       if (im->rows != ds.spec.range_bins || im->cols != ds.spec.beams()) {
         throw Error(yaml_path + ": noise images must be " + std::to_string(ds.spec.range_bins) +
@@ -277,9 +277,9 @@ int DatasetWriter::add_frame(const SonarImage& image) {
   const SonarSpec& s = impl_->spec;
   if (image.rows != s.range_bins || image.cols != s.beams()) {
     throw Error("frame " + std::to_string(impl_->frames.size()) + " is " +
-                std::to_string(image.rows) + "×" + std::to_string(image.cols) +
-                "; the sonar has " + std::to_string(s.range_bins) + " range bins × " +
-                std::to_string(s.beams()) + " beams");
+                std::to_string(image.rows) + "×" + std::to_string(image.cols) + "; the sonar has " +
+                std::to_string(s.range_bins) + " range bins × " + std::to_string(s.beams()) +
+                " beams");
   }
   FrameRecord r;
   r.index = static_cast<int>(impl_->frames.size());

@@ -366,10 +366,8 @@ HoloOceanSonar read_holoocean_config(const fs::path& config_json, const std::str
   }
   // Nesting is bounded while parsing: copying or comparing a value 200,000 levels deep recurses
   // as deep and overflows the stack.
-  const json::parser_callback_t depth_guard = [&file](int depth, json::parse_event_t event,
-                                                      json&) {
-    if ((event == json::parse_event_t::object_start ||
-         event == json::parse_event_t::array_start) &&
+  const json::parser_callback_t depth_guard = [&file](int depth, json::parse_event_t event, json&) {
+    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
         depth >= limits::kMaxNestingDepth) {
       throw Error(file + ": JSON nested more than " + std::to_string(limits::kMaxNestingDepth) +
                   " levels deep");

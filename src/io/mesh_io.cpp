@@ -32,20 +32,23 @@
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <assimp/Importer.hpp>
 #include <cctype>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <new>
 #include <fstream>
 #include <iomanip>
+#include <new>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -54,10 +57,6 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/point_cloud.hpp"
-
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -184,7 +183,7 @@ void collect(const aiScene* scene, const aiNode* node, const Eigen::Matrix4d& pa
 // corrupt .ply was then read by the OFF reader, which overflows its heap buffers (found by
 // fuzz_mesh). Readers of other formats are removed from this importer.
 void keep_supported_readers(Assimp::Importer& importer, const std::string& path) {
-  static const std::vector<std::string> kSupported = {"dae", "zae", "stl", "obj",
+  static const std::vector<std::string> kSupported = {"dae",  "zae", "stl", "obj",
                                                       "gltf", "glb", "fbx"};
   // Only the reader of the file's own extension: content sniffing handed a corrupt .gltf to the
   // Collada reader, which then asked for 3 GB (fuzz_mesh).
@@ -492,7 +491,8 @@ TriangleMesh load_mesh_isolated(const std::string& path) {
     std::size_t mapped = 0;
     if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
       unsigned long pages = 0;
-      if (std::fscanf(f, "%lu", &pages) == 1) mapped = pages * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+      if (std::fscanf(f, "%lu", &pages) == 1)
+        mapped = pages * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
       std::fclose(f);
     }
     lim.rlim_cur = lim.rlim_max = static_cast<rlim_t>(mapped + budget);

@@ -40,9 +40,8 @@ static void check_unique_keys(const YAML::Node& node, const std::string& path,
       const auto [it, fresh] = seen.emplace(kv.first.Scalar(), line);
       if (!fresh) {
         throw Error(path + ":" + std::to_string(line) + ": duplicate key '" +
-                    printable(kv.first.Scalar()) +
-                    "' (first given on line " + std::to_string(it->second) +
-                    "); give each key once");
+                    printable(kv.first.Scalar()) + "' (first given on line " +
+                    std::to_string(it->second) + "); give each key once");
       }
     }
     check_unique_keys(kv.second, path, visited, depth + 1);

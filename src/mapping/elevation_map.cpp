@@ -197,10 +197,10 @@ ElevationMap read_elevation_geotiff(const std::string& path) {
   const char* const drivers[] = {"GTiff", nullptr};
   DatasetPtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, drivers));
   require(ds != nullptr, "cannot read elevation map '" + path + "': " +
-                            (g_last_gdal_error.empty()
-                                 ? std::string("not a raster GDAL can read (a GeoTIFF written by "
-                                               "`sonar3d elevation` is expected)")
-                                 : g_last_gdal_error));
+                             (g_last_gdal_error.empty()
+                                  ? std::string("not a raster GDAL can read (a GeoTIFF written by "
+                                                "`sonar3d elevation` is expected)")
+                                  : g_last_gdal_error));
   require(ds->GetRasterCount() == 1, "elevation map '" + path + "': expected 1 band, found " +
                                          std::to_string(ds->GetRasterCount()));
   double t[6];
@@ -226,8 +226,8 @@ ElevationMap read_elevation_geotiff(const std::string& path) {
   map.rows = rows;
   map.cols = cols;
   map.z.resize(static_cast<std::size_t>(rows) * cols);
-  require(band->RasterIO(GF_Read, 0, 0, cols, rows, map.z.data(), cols, rows, GDT_Float32, 0,
-                         0) == CE_None,
+  require(band->RasterIO(GF_Read, 0, 0, cols, rows, map.z.data(), cols, rows, GDT_Float32, 0, 0) ==
+              CE_None,
           "cannot read elevation map '" + path + "': " + gdal_reason());
   int has_nodata = 0, has_offset = 0, has_scale = 0;
   const double nodata = band->GetNoDataValue(&has_nodata);
@@ -269,7 +269,8 @@ Eigen::Vector2f write_elevation_png(const std::string& path, const ElevationMap&
   cv::Mat canvas(h, map.cols + bar_w + label_w + 10, CV_8UC3, cv::Scalar(255, 255, 255));
   colour.copyTo(canvas(cv::Rect(0, 0, map.cols, map.rows)));
   cv::Mat ramp(h, 1, CV_8UC1);
-  for (int r = 0; r < h; ++r) ramp.at<std::uint8_t>(r) = static_cast<std::uint8_t>(255 - (255 * r) / (h - 1));
+  for (int r = 0; r < h; ++r)
+    ramp.at<std::uint8_t>(r) = static_cast<std::uint8_t>(255 - (255 * r) / (h - 1));
   cv::Mat ramp_colour;
   cv::applyColorMap(ramp, ramp_colour, cv::COLORMAP_TURBO);
   cv::resize(ramp_colour, ramp_colour, cv::Size(bar_w, h), 0, 0, cv::INTER_NEAREST);
@@ -282,12 +283,11 @@ Eigen::Vector2f write_elevation_png(const std::string& path, const ElevationMap&
               cv::LINE_AA);
   cv::putText(canvas, bottom, {tx, h - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
               cv::LINE_AA);
-  cv::putText(canvas, "height z", {tx, h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
-              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(canvas, "height z", {tx, h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0),
+              1, cv::LINE_AA);
   AtomicPath out(path);
   std::vector<int> params;
-  require(cv::imwrite(out.temp().string() + ".png", canvas, params),
-          "cannot write '" + path + "'");
+  require(cv::imwrite(out.temp().string() + ".png", canvas, params), "cannot write '" + path + "'");
   std::filesystem::rename(out.temp().string() + ".png", out.temp());
   out.commit();
   return {lo, hi};

@@ -3,10 +3,10 @@
 #include "sonar3d/mapping/survey.hpp"
 
 #include <fmt/core.h>
-#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
@@ -64,8 +64,8 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
         last = i;
       }
       require(first >= 0, fmt::format("field mapping: no frame within the swath time range "
-                                       "[{}, {}] s",
-                                       r.x(), r.y()));
+                                      "[{}, {}] s",
+                                      r.x(), r.y()));
       swaths.emplace_back(first, last);
     }
     return swaths;
@@ -196,8 +196,7 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       const SwathInfo& w = result.swaths[s];
       for (int i = w.first_frame; i <= w.last_frame; ++i) {
         const double t = dataset.frames[i].timestamp;
-        sum += truth.interpolate(t).translation() -
-               dataset.navigation.interpolate(t).translation();
+        sum += truth.interpolate(t).translation() - dataset.navigation.interpolate(t).translation();
       }
       err[s] = sum / static_cast<double>(w.last_frame - w.first_frame + 1);
     }
@@ -288,9 +287,10 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       {"swaths", swaths},
       {"ties", ties},
       {"merged_points", result.merged_points},
-      {"seconds", {{"carving", result.seconds_carving},
-                   {"registration", result.seconds_registration},
-                   {"total", result.seconds_total}}}};
+      {"seconds",
+       {{"carving", result.seconds_carving},
+        {"registration", result.seconds_registration},
+        {"total", result.seconds_total}}}};
   write_text_file((tmp / "summary.json").string(), summary.dump(2) + "\n");
   out.commit();
   return result;

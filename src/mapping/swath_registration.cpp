@@ -38,8 +38,8 @@ float median_in_place(std::vector<float>& v) {
 
 struct ShiftScore {
   float score = std::numeric_limits<float>::infinity();  // eq. 6.2; inf = too little overlap
-  float zeta = 0;                                         // eq. 6.1
-  float mean = std::numeric_limits<float>::infinity();    // mean |A − B − ζ|: breaks ties
+  float zeta = 0;                                        // eq. 6.1
+  float mean = std::numeric_limits<float>::infinity();   // mean |A − B − ζ|: breaks ties
   std::size_t overlap = 0;
 };
 
@@ -217,7 +217,8 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
   require(cells.size() >= static_cast<std::size_t>(config.min_overlap_cells),
           "swath registration: the maps do not overlap (" + std::to_string(cells.size()) +
               " cells of the moving map fall within the reference map's extent grown by "
-              "search_m; min_overlap_cells = " + std::to_string(config.min_overlap_cells) + ")");
+              "search_m; min_overlap_cells = " +
+              std::to_string(config.min_overlap_cells) + ")");
 
   std::optional<tbb::global_control> threads;
   if (config.num_threads > 0) {
@@ -297,10 +298,9 @@ SwathTie register_elevation_maps(const ElevationMap& reference, const ElevationM
   tie.score_m = chosen.score;
   tie.overlap_cells = scores[best].overlap;
   if (confidence_distinct < 0) confidence_distinct = distinctness(scores, best);
-  tie.confidence = confidence_distinct *
-                   std::min(1.0, static_cast<double>(tie.overlap_cells) / config.overlap_full_cells);
-  tie.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  tie.confidence = confidence_distinct * std::min(1.0, static_cast<double>(tie.overlap_cells) /
+                                                           config.overlap_full_cells);
+  tie.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return tie;
 }
 
@@ -318,8 +318,8 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
     out.offsets[i] = out.offsets[i - 1] + prev[i]->t;
   }
   for (const SwathTie& t : ties) {
-    const bool in = t.reference >= 0 && t.moving >= 0 && t.reference < num_swaths &&
-                    t.moving < num_swaths;
+    const bool in =
+        t.reference >= 0 && t.moving >= 0 && t.reference < num_swaths && t.moving < num_swaths;
     out.tie_used.push_back(in && t.reference == t.moving - 1);
     out.tie_residual_m.push_back(
         in ? (out.offsets[t.moving] - out.offsets[t.reference] - t.t).norm() : 0.0);
@@ -359,10 +359,9 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
                 t.moving < num_swaths && t.reference != t.moving,
             "swath adjustment: a tie joins swaths " + std::to_string(t.reference) + " and " +
                 std::to_string(t.moving) + " of " + std::to_string(num_swaths));
-    require(t.t.allFinite() && std::isfinite(t.confidence), "swath adjustment: a tie between swaths " +
-                                                               std::to_string(t.reference) + " and " +
-                                                               std::to_string(t.moving) +
-                                                               " is not finite");
+    require(t.t.allFinite() && std::isfinite(t.confidence),
+            "swath adjustment: a tie between swaths " + std::to_string(t.reference) + " and " +
+                std::to_string(t.moving) + " is not finite");
     const bool used = t.confidence >= config.min_confidence && t.confidence > 0;
     out.tie_used.push_back(used);
     if (used) {
@@ -392,10 +391,10 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
   for (int i = 0; i < num_swaths; ++i) {
     if (!reached[i]) lonely += (lonely.empty() ? "" : ", ") + std::to_string(i);
   }
-  require(lonely.empty(), "swath adjustment: swath(s) " + lonely + " have no confident tie (min_confidence " +
-                              std::to_string(config.min_confidence) +
-                              ") linking them to swath " + std::to_string(fixed_swath) +
-                              ": widen search_m, or the overlaps are featureless");
+  require(lonely.empty(),
+          "swath adjustment: swath(s) " + lonely + " have no confident tie (min_confidence " +
+              std::to_string(config.min_confidence) + ") linking them to swath " +
+              std::to_string(fixed_swath) + ": widen search_m, or the overlaps are featureless");
 
   ceres::Problem problem;
   for (int i = 0; i < num_swaths; ++i) problem.AddParameterBlock(out.offsets[i].data(), 3);
@@ -419,8 +418,7 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
   options.minimizer_progress_to_stdout = false;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
-  require(summary.IsSolutionUsable(),
-          "swath adjustment: the solver failed: " + summary.message);
+  require(summary.IsSolutionUsable(), "swath adjustment: the solver failed: " + summary.message);
   out.iterations = static_cast<int>(summary.iterations.size());
   out.final_cost = summary.final_cost;
   for (const SwathTie& t : ties) {

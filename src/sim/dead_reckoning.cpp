@@ -39,7 +39,8 @@ Trajectory dead_reckoning(const Trajectory& truth, const DeadReckoningConfig& co
           truth.poses[k].translation() - truth.poses[k - 1].translation();
       // What the DVL measures, in the vehicle frame (scale error + bias), and the heading it is
       // rotated into the world with (true attitude + yaw bias).
-      Eigen::Vector3d d_vehicle = (1.0 + config.velocity_scale_error) * (R_true.transpose() * d_world);
+      Eigen::Vector3d d_vehicle =
+          (1.0 + config.velocity_scale_error) * (R_true.transpose() * d_world);
       bias += config.velocity_bias_walk * std::sqrt(dt) * Eigen::Vector2d(unit(rng), unit(rng));
       d_vehicle.head<2>() += bias * dt;
       const Eigen::Vector3d d_logged = yaw_bias * (R_true * d_vehicle);

@@ -134,8 +134,7 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     return tum;
   }
   throw Error(yaml::where(file, n, ctx + ".type") + ": unknown trajectory type '" +
-              printable(type) +
-              "' (straight, orbit, lawnmower, tum)");
+              printable(type) + "' (straight, orbit, lawnmower, tum)");
 }
 
 }  // namespace
@@ -146,10 +145,9 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   const fs::path base = fs::path(path).parent_path();
   YAML::Node root = yaml::load_file(path);
   if (!root.IsMap()) throw Error(path + ": expected a mapping at the top level");
-  yaml::check_keys(root,
-                   {"sensor", "simulation", "objects", "trajectory", "noise", "seed",
-                    "navigation_error"},
-                   path);
+  yaml::check_keys(
+      root, {"sensor", "simulation", "objects", "trajectory", "noise", "seed", "navigation_error"},
+      path);
   if (!root["sensor"]) throw Error(path + ": required key 'sensor' is missing");
   setup.spec = yaml::parse_sonar_spec(root["sensor"], path, "sensor");
   setup.seed = static_cast<unsigned long long>(yaml::get_int(root, "seed", 1, path));
@@ -214,8 +212,7 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     for (const auto& other : setup.scene.objects) {
       if (other.name == obj.name) {
         throw Error(yaml::where(path, o, ctx + ".name") + ": duplicate object name '" +
-                    printable(obj.name) +
-                    "'");
+                    printable(obj.name) + "'");
       }
     }
     setup.scene.objects.push_back(std::move(obj));
@@ -269,7 +266,8 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     yaml::check_keys(n, {"velocity_scale", "bias_walk", "heading_bias_deg", "depth_offset"}, path,
                      c);
     DeadReckoningConfig dr;
-    dr.velocity_scale_error = yaml::get_double(n, "velocity_scale", dr.velocity_scale_error, path, c);
+    dr.velocity_scale_error =
+        yaml::get_double(n, "velocity_scale", dr.velocity_scale_error, path, c);
     dr.velocity_bias_walk = yaml::get_double(n, "bias_walk", dr.velocity_bias_walk, path, c);
     dr.heading_bias_deg = yaml::get_double(n, "heading_bias_deg", dr.heading_bias_deg, path, c);
     dr.depth_offset_m = yaml::get_double(n, "depth_offset", dr.depth_offset_m, path, c);
@@ -322,8 +320,7 @@ SimulationSetup load_simulation_setup(const std::string& path) {
       noise_images(setup);  // check the files now, not after the first frames
     } else {
       throw Error(yaml::where(path, n["model"], "noise.model") + ": unknown noise model '" +
-                  printable(model) +
-                  "' (none, stripes, images)");
+                  printable(model) + "' (none, stripes, images)");
     }
   }
   // Fails early on settings the simulator refuses (e.g. a step wider than the aperture).
@@ -379,9 +376,8 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
   }
   bar.finish();
   // The navigation the vehicle logs: the true one, or dead reckoning drifting from it.
-  writer.set_navigation(setup.navigation_error
-                            ? dead_reckoning(traj, *setup.navigation_error, setup.seed)
-                            : traj);
+  writer.set_navigation(
+      setup.navigation_error ? dead_reckoning(traj, *setup.navigation_error, setup.seed) : traj);
   if (noise) writer.set_noise(*noise);
 
   // Ground truth: every object's world-frame mesh and a scene.yaml that lists them.

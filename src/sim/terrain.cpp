@@ -65,7 +65,8 @@ double Terrain::height(double x, double y) const {
   }
   for (const Rock& r : rocks_) {
     const double q = (p - r.center).squaredNorm();
-    if (q < 16 * r.radius * r.radius) z += 0.6 * r.radius * std::exp(-q / (2 * 0.25 * r.radius * r.radius));
+    if (q < 16 * r.radius * r.radius)
+      z += 0.6 * r.radius * std::exp(-q / (2 * 0.25 * r.radius * r.radius));
   }
   return z;
 }

@@ -18,12 +18,11 @@ Trajectory straight_pass(const Eigen::Vector3d& start, const Eigen::Vector3d& en
   const double length = (end - start).norm();
   // Frames at 0, Δ, 2Δ ... up to the end (inclusive within 1e-9 of a step). Counted in double:
   // length / spacing overflows an int for a tiny spacing.
-  const int n = static_cast<int>(
-      limits::checked_count(std::floor(length / spacing + 1e-9) + 1, 1, limits::kMaxFrames,
-                            "trajectory: the frame count (length / spacing + 1)",
-                            "increase 'spacing'"));
-  const Eigen::Vector3d dir = length > 0 ? Eigen::Vector3d((end - start) / length)
-                                         : Eigen::Vector3d::Zero();
+  const int n = static_cast<int>(limits::checked_count(
+      std::floor(length / spacing + 1e-9) + 1, 1, limits::kMaxFrames,
+      "trajectory: the frame count (length / spacing + 1)", "increase 'spacing'"));
+  const Eigen::Vector3d dir =
+      length > 0 ? Eigen::Vector3d((end - start) / length) : Eigen::Vector3d::Zero();
   Trajectory traj;
   for (int k = 0; k < n; ++k) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

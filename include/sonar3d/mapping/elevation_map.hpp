@@ -18,7 +18,7 @@ namespace sonar3d {
 
 struct ElevationMap {
   Eigen::Vector2d origin_xy = Eigen::Vector2d::Zero();  // world x, y of the north-west corner, m
-  double cell_m = 0.02;                                  // cell size, m
+  double cell_m = 0.02;                                 // cell size, m
   int rows = 0, cols = 0;
   std::vector<float> z;  // rows·cols heights, row-major; NaN = no data (cell never observed)
 

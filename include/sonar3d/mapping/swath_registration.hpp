@@ -35,9 +35,9 @@ struct SwathRegistrationConfig {
 };
 
 struct SwathTie {
-  int reference = -1, moving = -1;           // swath indices (A, B)
+  int reference = -1, moving = -1;              // swath indices (A, B)
   Eigen::Vector3d t = Eigen::Vector3d::Zero();  // (dx, dy, dz) moving B onto A, m
-  double score_m = 0;      // eq. 6.2 at the best shift: median |A − B − ζ| over the overlap, m
+  double score_m = 0;  // eq. 6.2 at the best shift: median |A − B − ζ| over the overlap, m
   std::size_t overlap_cells = 0;  // defined in both maps at the best shift
   // 0…1. The score surface of a featureless (flat) overlap is flat: the best shift is barely
   // better than a typical one, and confidence is near 0. Computed on the mean unsigned
