@@ -22,6 +22,7 @@
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/sim/dead_reckoning.hpp"
 #include "sonar3d/sim/terrain.hpp"
+#include "sonar3d/sim/trajectory_gen.hpp"
 
 namespace fs = std::filesystem;
 using sonar3d::ElevationMap;
@@ -430,6 +431,44 @@ CliRun run_cli(const fs::path& dir, const std::string& args) {
 }
 
 }  // namespace
+
+// Swaths of a survey that turns as a vehicle does: one swath per line along any heading, the
+// frames of the turns (quarter circles and the leg across) in none; the idealised survey that
+// jumps between lines splits the same way.
+TEST(SwathSplit, TurnsOfAnyHeadingBelongToNoSwath) {
+  for (const double radius : {0.0, 2.0, 5.0}) {
+    SCOPED_TRACE(radius);
+    sonar3d::LawnmowerConfig c;
+    c.x0 = -15;
+    c.x1 = 15;
+    c.y0 = -10;
+    c.y1 = 10;
+    c.z = 5;
+    c.line_spacing = 10;
+    c.spacing = 0.04;
+    c.heading = -55.0 * M_PI / 180;
+    c.turn_radius = radius;
+    sonar3d::Dataset ds;
+    ds.navigation = sonar3d::lawnmower(c, 0, 0.1);
+    for (std::size_t k = 0; k < ds.navigation.size(); ++k) {
+      ds.frames.push_back({static_cast<int>(k), ds.navigation.times[k], ""});
+    }
+    const auto swaths = sonar3d::split_swaths(ds, {});
+    ASSERT_EQ(swaths.size(), 3u);
+    const Eigen::Rotation2Dd back(-c.heading);
+    for (const auto& [first, last] : swaths) {
+      // Every frame of a swath lies on a line, and the swath covers all but its ends.
+      for (int i = first; i <= last; ++i) {
+        const Eigen::Vector2d s = back * ds.navigation.poses[i].translation().head<2>();
+        EXPECT_LE(std::abs(s.x()), 15 + 1e-9) << "frame " << i;
+      }
+      const double length =
+          (ds.navigation.poses[last].translation() - ds.navigation.poses[first].translation())
+              .norm();
+      EXPECT_GT(length, 30 - 2.5);
+    }
+  }
+}
 
 // End to end: a four-line survey whose logged navigation is off by a different amount on each
 // line (the drift a vehicle accumulates between lines); `sonar3d map` recovers each line's offset

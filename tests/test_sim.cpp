@@ -240,10 +240,69 @@ TEST(TrajectoryGen, StraightOrbitLawnmower) {
     const Eigen::Vector3d to_centre = (Eigen::Vector3d(1, 2, 3) - T.translation()).normalized();
     EXPECT_NEAR(T.linear().col(0).dot(to_centre), 1.0, 1e-9);  // +x faces the centre
   }
-  const Trajectory l = lawnmower(0, 10, 0, 4, -5, 2, 1, 0, 0.1);
+  LawnmowerConfig lc;
+  lc.x1 = 10;
+  lc.y1 = 4;
+  lc.z = -5;
+  lc.line_spacing = 2;
+  lc.spacing = 1;
+  const Trajectory l = lawnmower(lc, 0, 0.1);
   EXPECT_EQ(l.size(), 3u * 11u);
   l.validate();
   EXPECT_THROW(straight_pass({0, 0, 0}, {0, 0, 1}, 0, Eigen::Matrix3d::Identity(), 0, 0.1), Error);
+}
+
+// Lines along any heading with turns a vehicle can fly: every frame a spacing apart along the
+// track (no jump), the yaw along the direction of travel, the lines along the heading and inside
+// the turned rectangle, the turns outside it with the given radius.
+TEST(TrajectoryGen, LawnmowerAlongAHeadingWithTurns) {
+  LawnmowerConfig c;
+  c.x0 = -10;
+  c.x1 = 10;
+  c.y0 = -6;
+  c.y1 = 6;
+  c.z = 5;
+  c.line_spacing = 6;
+  c.spacing = 0.05;
+  c.heading = 30.0 * M_PI / 180;
+  c.turn_radius = 2;
+  const Trajectory t = lawnmower(c, 0, 0.1);
+  t.validate();
+  // Length: 3 lines of 20 m, 2 turns of two quarter circles (π·R) and a 2 m leg.
+  const double length = 3 * 20.0 + 2 * (M_PI * 2 + 2.0);
+  EXPECT_EQ(t.size(), static_cast<std::size_t>(std::floor(length / 0.05 + 1e-9)) + 1);
+  const Eigen::Vector2d centre(0, 0);
+  const Eigen::Rotation2Dd back(-c.heading);
+  int on_lines = 0;
+  for (std::size_t k = 0; k + 1 < t.size(); ++k) {
+    const Eigen::Vector3d p = t.poses[k].translation(), q = t.poses[k + 1].translation();
+    EXPECT_NEAR((q - p).norm(), 0.05, 2e-3) << "frame " << k;  // chords on the arcs: < spacing
+    EXPECT_NEAR(p.z(), 5.0, 1e-12);
+    // +x of the vehicle along the track.
+    const Eigen::Vector3d fwd = t.poses[k].linear().col(0);
+    EXPECT_GT(fwd.dot((q - p).normalized()), std::cos(2.0 * 0.05 / 2)) << "frame " << k;
+    // In the survey frame: on a line (|v| within the rectangle) or on a turn outside it.
+    const Eigen::Vector2d s = back * (p.head<2>() - centre);
+    if (s.x() >= -10 - 1e-9 && s.x() <= 10 + 1e-9) {
+      ++on_lines;
+      EXPECT_TRUE(std::abs(s.y() + 6) < 1e-9 || std::abs(s.y()) < 1e-9 ||
+                  std::abs(s.y() - 6) < 1e-9)
+          << "frame " << k << " at " << s.transpose();
+      const double yaw = std::atan2(fwd.y(), fwd.x());
+      EXPECT_NEAR(std::abs(std::sin(yaw - c.heading)), 0.0, 1e-9);  // along the heading
+    } else {
+      EXPECT_LE(std::abs(s.x()), 10 + 2 + 1e-9);  // the turn stays within R of the line ends
+    }
+  }
+  EXPECT_GT(on_lines, static_cast<int>(0.9 * 60 / 0.05));
+  // A turn wider than half the line spacing cannot be flown with two quarter circles.
+  c.turn_radius = 3.5;
+  EXPECT_THROW(lawnmower(c, 0, 0.1), Error);
+  c.turn_radius = -1;
+  EXPECT_THROW(lawnmower(c, 0, 0.1), Error);
+  c.turn_radius = 0;
+  c.heading = std::nan("");
+  EXPECT_THROW(lawnmower(c, 0, 0.1), Error);
 }
 
 TEST(SceneFile, SimulatesADatasetWithTruth) {

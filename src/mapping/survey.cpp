@@ -4,6 +4,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -32,7 +33,12 @@ void SwathSplitConfig::validate() const {
   require(std::isfinite(turn_threshold_rad) && turn_threshold_rad > 0 &&
               turn_threshold_rad < 3.14159265358979323846,
           "swath split: turn_threshold must be within (0°, 180°)");
+  require(std::isfinite(straight_radius_m) && straight_radius_m > 0,
+          "swath split: straight_radius must be > 0 m");
   require(min_frames >= 2, "swath split: min_frames must be >= 2");
+  require(
+      std::isfinite(min_length_fraction) && min_length_fraction >= 0 && min_length_fraction <= 1,
+      "swath split: min_length_fraction must lie in [0, 1]");
   for (const Eigen::Vector2d& r : time_ranges) {
     require(r.allFinite() && r.x() < r.y(),
             "swath split: a time range must be finite with start < end (s)");
@@ -73,13 +79,56 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
   // Direction of travel of each frame (horizontal), from its sonar position to the next one's.
   std::vector<Eigen::Vector2d> pos(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) pos[i] = dataset.T_world_sonar(i).translation().head<2>();
+  // Jumps: a step more than ten times the median step (the idealised lawnmower that jumps from
+  // one line to the next, or a gap in the log) ends a run; curvature is measured within runs.
+  std::vector<double> steps;
+  for (int i = 0; i + 1 < n; ++i) steps.push_back((pos[i + 1] - pos[i]).norm());
+  std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
+  const double jump = 10.0 * steps[steps.size() / 2];
+  // Turning frames: the track's direction over the metre before a frame and over the metre after
+  // it differ by more than 1 m / straight_radius (the angle an arc of that radius turns through
+  // in 1 m).
+  constexpr double kBaseline = 1.0;  // m
+  std::vector<char> turning(static_cast<std::size_t>(n), 0);
+  std::vector<double> along(static_cast<std::size_t>(n), 0.0);  // track length within a piece
+  for (int a = 0; a < n;) {
+    int b = a;  // [a, b]: frames without a jump between them
+    while (b + 1 < n && (pos[b + 1] - pos[b]).norm() <= jump) {
+      along[b + 1] = along[b] + (pos[b + 1] - pos[b]).norm();
+      ++b;
+    }
+    for (int i = a, lo = a, hi = a; i <= b; ++i) {
+      while (lo < i && along[i] - along[lo + 1] >= kBaseline) ++lo;
+      hi = std::max(hi, i);
+      while (hi < b && along[hi] - along[i] < kBaseline) ++hi;
+      const Eigen::Vector2d before = pos[i] - pos[lo], after = pos[hi] - pos[i];
+      if (before.norm() < 0.5 * kBaseline || after.norm() < 0.5 * kBaseline) continue;  // an end
+      const double angle =
+          std::acos(std::clamp(before.normalized().dot(after.normalized()), -1.0, 1.0));
+      turning[i] = angle > kBaseline / config.straight_radius_m;
+    }
+    a = b + 1;
+    if (a < n) along[a] = 0;
+  }
   const double cos_turn = std::cos(config.turn_threshold_rad);
   int start = 0;
+  bool open = false;
   Eigen::Vector2d heading = Eigen::Vector2d::Zero();  // the current run's direction
   auto close_run = [&](int last) {
-    if (last - start + 1 >= config.min_frames) swaths.emplace_back(start, last);
+    if (open && last - start + 1 >= config.min_frames) swaths.emplace_back(start, last);
+    open = false;
   };
-  for (int i = 0; i + 1 < n; ++i) {
+  for (int i = 0; i < n; ++i) {
+    if (turning[i]) {
+      close_run(i - 1);
+      continue;
+    }
+    if (!open) {
+      open = true;
+      start = i;
+      heading.setZero();
+    }
+    if (i + 1 >= n) break;
     const Eigen::Vector2d step = pos[i + 1] - pos[i];
     if (step.norm() < 1e-9) continue;  // hovering: no direction
     const Eigen::Vector2d dir = step.normalized();
@@ -87,13 +136,22 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
       heading = dir;
       continue;
     }
-    if (dir.dot(heading) < cos_turn) {  // a turn: frame i ends the run
+    if (dir.dot(heading) < cos_turn) {  // a sharp turn or a jump: frame i ends the run
       close_run(i);
-      start = i + 1;
-      heading.setZero();
     }
   }
   close_run(n - 1);
+  // Legs across the lines: much shorter than the lines themselves.
+  auto run_length = [&](const std::pair<int, int>& r) {
+    return (pos[r.second] - pos[r.first]).norm();
+  };
+  double longest = 0;
+  for (const auto& r : swaths) longest = std::max(longest, run_length(r));
+  swaths.erase(std::remove_if(swaths.begin(), swaths.end(),
+                              [&](const std::pair<int, int>& r) {
+                                return run_length(r) < config.min_length_fraction * longest;
+                              }),
+               swaths.end());
   require(!swaths.empty(),
           fmt::format("field mapping: no straight run of at least {} frames in the survey "
                       "(turn threshold {:.1f}°): give swath time ranges, or lower min_frames",

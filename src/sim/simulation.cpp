@@ -110,13 +110,24 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
     }
   }
   if (type == "lawnmower") {
-    yaml::check_keys(n, {"type", "x", "y", "z", "line_spacing", "spacing", "period"}, file, ctx);
+    yaml::check_keys(
+        n,
+        {"type", "x", "y", "z", "line_spacing", "spacing", "heading_deg", "turn_radius", "period"},
+        file, ctx);
     const auto x = yaml::get_vector(n, "x", 2, file, ctx);
     const auto y = yaml::get_vector(n, "y", 2, file, ctx);
+    LawnmowerConfig c;
+    c.x0 = x[0];
+    c.x1 = x[1];
+    c.y0 = y[0];
+    c.y1 = y[1];
+    c.z = yaml::get_double(n, "z", file, ctx);
+    c.line_spacing = yaml::get_double(n, "line_spacing", file, ctx);
+    c.spacing = yaml::get_double(n, "spacing", file, ctx);
+    c.heading = yaml::get_double(n, "heading_deg", 0.0, file, ctx) * kDeg;
+    c.turn_radius = yaml::get_double(n, "turn_radius", 0.0, file, ctx);
     try {
-      return lawnmower(x[0], x[1], y[0], y[1], yaml::get_double(n, "z", file, ctx),
-                       yaml::get_double(n, "line_spacing", file, ctx),
-                       yaml::get_double(n, "spacing", file, ctx), t0, period);
+      return lawnmower(c, t0, period);
     } catch (const Error& e) {
       throw Error(yaml::where(file, n, ctx) + ": " + e.what());
     }
@@ -221,11 +232,11 @@ SimulationSetup load_simulation_setup(const std::string& path) {
 
   const YAML::Node tr = root["trajectory"];
   if (!tr) throw Error(path + ": required key 'trajectory' is missing");
-  yaml::check_keys(
-      tr,
-      {"period", "segments", "type", "start", "end", "spacing", "rpy_deg", "center", "radius",
-       "count", "start_deg", "sweep_deg", "x", "y", "z", "line_spacing", "file"},
-      path, "trajectory");
+  yaml::check_keys(tr,
+                   {"period", "segments", "type", "start", "end", "spacing", "rpy_deg", "center",
+                    "radius", "count", "start_deg", "sweep_deg", "x", "y", "z", "line_spacing",
+                    "heading_deg", "turn_radius", "file"},
+                   path, "trajectory");
   const double period = yaml::get_double(tr, "period", 0.1, path, "trajectory");
   require_positive(period, "trajectory.period", "s");
   std::vector<std::pair<YAML::Node, std::string>> segs;

@@ -28,7 +28,13 @@ struct SwathSplitConfig {
   // A new swath starts where the direction of travel turns by more than this from the current
   // swath's (the turns of a lawnmower), rad.
   double turn_threshold_rad = 30.0 * 3.14159265358979323846 / 180.0;
-  int min_frames = 10;  // shorter runs (turns) belong to no swath
+  // Where the track bends tighter than this radius of curvature (measured over 1 m of track
+  // either side of a frame) the vehicle is turning: those frames belong to no swath, m.
+  double straight_radius_m = 20.0;
+  int min_frames = 10;  // shorter runs belong to no swath
+  // Straight runs shorter than this fraction of the survey's longest run (the legs across the
+  // lines inside wide turns) belong to no swath.
+  double min_length_fraction = 0.25;
   // Alternatively, explicit swaths as [t0, t1] time ranges (s); when set, turns are not searched.
   std::vector<Eigen::Vector2d> time_ranges;
 

@@ -20,9 +20,28 @@ Trajectory straight_pass(const Eigen::Vector3d& start, const Eigen::Vector3d& en
 Trajectory orbit(const Eigen::Vector3d& center, double radius, int count, double start_angle,
                  double sweep, double t0, double period);
 
-// Back-and-forth lines along x over [x0, x1] at y = y0, y0 + line_spacing, ... <= y1, height z,
-// one frame every `spacing` metres, vehicle heading along each line.
-Trajectory lawnmower(double x0, double x1, double y0, double y1, double z, double line_spacing,
-                     double spacing, double t0, double period);
+// A lawnmower survey: back-and-forth lines covering a rectangle, the way an AUV flies one.
+// The rectangle is given in the survey's own frame (lines along its x over [x0, x1], one every
+// `line_spacing` metres in y from y0 to y1) and then turned by `heading` about +z through its
+// centre, so the lines run along any heading. The vehicle heads along each line (yaw = heading,
+// +π on return lines) at height z, one frame every `spacing` metres.
+//
+// Turns: with turn_radius 0 the vehicle jumps from one line's end to the next line's start (no
+// frames in between, the idealised survey). With turn_radius R > 0 it turns outside the rectangle
+// as a vehicle does — a quarter circle of radius R, a straight leg across the lines of
+// line_spacing − 2R, another quarter circle — recording frames all along at the same spacing, its
+// yaw following the track. R must be at most line_spacing / 2.
+struct LawnmowerConfig {
+  double x0 = 0, x1 = 0, y0 = 0, y1 = 0;  // m, the rectangle in the survey frame
+  double z = 0;                           // m, vehicle height (world)
+  double line_spacing = 0;                // m, between lines (> 0)
+  double spacing = 0;                     // m, between frames along the track (> 0)
+  double heading = 0;                     // rad, direction of the lines about +z (0: along +x)
+  double turn_radius = 0;                 // m, 0: jump between lines
+  void validate() const;                  // throws Error naming the parameter
+};
+
+// Frames are `period` seconds apart starting at t0.
+Trajectory lawnmower(const LawnmowerConfig& config, double t0, double period);
 
 }  // namespace sonar3d
