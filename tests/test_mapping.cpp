@@ -409,7 +409,7 @@ sensor:
   T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
 simulation: {elevation_step_deg: 0.1}
 objects:
-  - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3}
+  - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3, kind: terrain}
   - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}, reflectivity: 0.8}
   - {name: pipe, primitive: {type: cylinder, radius: 0.15, height: 5}, pose: {translation: [3, 2.0, 0.05], rpy_deg: [0, 90, 20]}, reflectivity: 0.8}
   - {name: rock, primitive: {type: sphere, radius: 0.3}, pose: {translation: [4.5, 3.2, -0.1]}, reflectivity: 0.6}
@@ -616,6 +616,16 @@ TEST(MappingCli, SimulatedDeadReckoningDriftIsReducedAndMeasured) {
   }
   EXPECT_GT(before, 0.1);
   EXPECT_LT(after, 0.6 * before);
+  // The structures against their CAD, as logged and corrected; the seabed (terrain) unscored.
+  ASSERT_TRUE(summary.contains("structures")) << summary.dump();
+  ASSERT_EQ(summary["structures"].size(), 3u);
+  for (const auto& s : summary["structures"]) {
+    SCOPED_TRACE(s.dump());
+    EXPECT_NE(s["name"], "seabed");
+    EXPECT_GT(s["after"]["points"].get<int>(), 50);
+    EXPECT_GT(s["after"]["coverage"].get<double>(), 0.05);
+    EXPECT_LT(s["after"]["median_error_m"].get<double>(), 0.05);
+  }
   fs::remove_all(dir);
 }
 

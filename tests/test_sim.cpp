@@ -345,6 +345,58 @@ noise: {model: stripes, scale: 0.5}
   EXPECT_NEAR(ds.spec.range_of_bin(peak_row), 2.2, 0.05);
 }
 
+// Pipelines laid between two seabed points, sunk by a fraction of their diameter; the seabed and
+// the pipeline keep their kind in the dataset's truth.
+TEST(SceneFile, PipelinesAndObjectKinds) {
+  const fs::path dir = temp_dir("pipeline");
+  std::ofstream(dir / "scene.yaml") << R"(
+sensor: {preset: mb2250, r_min: 1, r_max: 4, range_bins: 40, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [8, 6], cell: 0.1, relief: 0.1, rocks: 0, trenches: 0}}
+  - {name: pipe, pipeline: {from: [-3, -1, 0.1], to: [3, 2, 0.1], radius: 0.2, burial: 0.5}}
+  - {name: slab, primitive: {type: box, size: [1, 1, 0.2]}, kind: terrain}
+trajectory: {type: straight, start: [0, 0, 2], end: [0.1, 0, 2], spacing: 0.05}
+)";
+  const SimulationSetup setup = load_simulation_setup((dir / "scene.yaml").string());
+  ASSERT_EQ(setup.scene.objects.size(), 3u);
+  EXPECT_EQ(setup.scene.objects[0].kind, ObjectKind::Terrain);
+  EXPECT_EQ(setup.scene.objects[1].kind, ObjectKind::Pipeline);
+  EXPECT_EQ(setup.scene.objects[2].kind, ObjectKind::Terrain);
+  // Half buried: the axis on the seabed line, the top 0.2 m above it, the bottom 0.2 m below.
+  const auto box = setup.scene.objects[1].mesh_world.bounding_box();
+  EXPECT_NEAR(box.max().z(), 0.1 + 0.2, 1e-4);
+  EXPECT_NEAR(box.min().z(), 0.1 - 0.2, 1e-4);
+  const Eigen::Vector3f dir_xy = Eigen::Vector3f(6, 3, 0).normalized();
+  float lo = 1e9f, hi = -1e9f;
+  for (const auto& v : setup.scene.objects[1].mesh_world.vertices) {
+    const float along = (v - Eigen::Vector3f(-3, -1, 0.1f)).dot(dir_xy);
+    lo = std::min(lo, along);
+    hi = std::max(hi, along);
+  }
+  EXPECT_NEAR(lo, 0.0, 1e-3);
+  EXPECT_NEAR(hi, std::sqrt(45.0), 1e-3);
+  simulate_dataset(setup, dir / "ds", false);
+  const auto truth = read_truth(dir / "ds");
+  ASSERT_EQ(truth.size(), 3u);
+  EXPECT_EQ(truth[0].kind, ObjectKind::Terrain);
+  EXPECT_EQ(truth[1].kind, ObjectKind::Pipeline);
+  // Bad pipelines name the problem.
+  auto check = [&](const std::string& object, const std::string& needle) {
+    std::ofstream(dir / "bad.yaml", std::ios::trunc)
+        << "sensor: {preset: sim-10deg}\nobjects: [" << object
+        << "]\ntrajectory: {type: straight, start: [0,0,0], end: [0,0,0.1], spacing: 0.05}\n";
+    expect_error([&] { load_simulation_setup((dir / "bad.yaml").string()); }, needle);
+  };
+  check("{name: p, pipeline: {from: [0,0,0], to: [0,0,0], radius: 0.1}}", "distinct");
+  check("{name: p, pipeline: {from: [0,0,0], to: [1,0,0], radius: 0.1, burial: 1}}", "burial");
+  check("{name: p, pipeline: {from: [0,0,0], to: [1,0,0], radius: -1}}", "radius");
+  check(
+      "{name: p, pipeline: {from: [0,0,0], to: [1,0,0], radius: 0.1}, pose: {translation: "
+      "[1,0,0]}}",
+      "no 'pose'");
+  check("{name: p, reference: sphere, kind: rock}", "kind");
+}
+
 TEST(SceneFile, BadScenesNameTheProblem) {
   const fs::path dir = temp_dir("badscene");
   auto check = [&](const std::string& text, const std::string& needle) {

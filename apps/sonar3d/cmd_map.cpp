@@ -83,6 +83,14 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
         }
         fmt::print("\n");
       }
+      for (const StructureEval& e : r.structures) {  // simulated site: against the CAD
+        fmt::print(
+            "  {} {}: median {:.1f} → {:.1f} cm, coverage {:.0f} → {:.0f} %, outliers "
+            "{:.0f} → {:.0f} % (as logged → corrected)\n",
+            to_string(e.kind), e.name, 100 * e.before.median_error, 100 * e.after.median_error,
+            100 * e.before.coverage, 100 * e.after.coverage, 100 * e.before.outliers,
+            100 * e.after.outliers);
+      }
       fmt::print("  carving {:.1f} s, registration {:.2f} s, total {:.1f} s\n", r.seconds_carving,
                  r.seconds_registration, r.seconds_total);
       return 0;

@@ -20,6 +20,7 @@
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/eval/metrics.hpp"
 
 namespace sonar3d::python {
 
@@ -221,6 +222,9 @@ inline std::string fields_repr(const py::object& self) {
 
 // A mesh from a Mesh object, a (vertices, triangles) pair or a file path.
 TriangleMesh to_mesh(const py::object& o);
+
+// An EvalResult as a dict (errors in metres, fractions in [0, 1]); shared by eval and mapping.
+py::dict result_dict(const EvalResult& r);
 
 void bind_core(py::module_& m);
 void bind_io(py::module_& m);

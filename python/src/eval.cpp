@@ -10,8 +10,6 @@ namespace sonar3d::python {
 
 using namespace pybind11::literals;
 
-namespace {
-
 py::dict result_dict(const EvalResult& r) {
   py::dict d;
   d["num_points"] = r.num_points;
@@ -31,6 +29,8 @@ py::dict result_dict(const EvalResult& r) {
   d["histogram"] = adopt(std::move(counts), {nc});
   return d;
 }
+
+namespace {
 
 PointCloud cloud_from(const carray<float>& points) {
   PointCloud c;

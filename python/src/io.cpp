@@ -18,6 +18,7 @@ py::dict object_dict(const SceneObject& o) {
   d["name"] = o.name;
   d["mesh"] = o.mesh_world;
   d["reflectivity"] = o.reflectivity;
+  d["kind"] = to_string(o.kind);
   return d;
 }
 

@@ -133,6 +133,16 @@ void bind_mapping(py::module_& m) {
         d["ties"] = r.ties;
         d["merged_points"] = r.merged_points;
         d["seconds"] = r.seconds_total;
+        py::list structures;  // simulated sites: each structure against its CAD
+        for (const StructureEval& e : r.structures) {
+          py::dict s;
+          s["name"] = e.name;
+          s["kind"] = to_string(e.kind);
+          s["before"] = result_dict(e.before);
+          s["after"] = result_dict(e.after);
+          structures.append(s);
+        }
+        d["structures"] = structures;
         return d;
       },
       "dataset"_a, "output"_a, "cell_m"_a = 0.02, "voxel_size"_a = 0.02,
@@ -140,7 +150,8 @@ void bind_mapping(py::module_& m) {
       "progress"_a = py::none(),
       "Field mapping (sec. 6.2; `sonar3d map`): writes `output` (swath maps, ties, corrected "
       "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz), ties, "
-      "merged_points, seconds}.");
+      "merged_points, seconds, structures: simulated sites' structures and pipelines scored "
+      "against their CAD as logged (before) and corrected (after)}.");
 }
 
 }  // namespace sonar3d::python

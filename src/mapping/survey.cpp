@@ -13,7 +13,9 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/sim/simulation.hpp"
 
 namespace sonar3d {
 
@@ -303,6 +305,24 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   write_elevation_png((tmp / "merged_uncorrected.png").string(),
                       elevation_map_from_points(logged, map_cfg));
 
+  // Simulated site: the structures against their CAD, as logged and corrected.
+  if (fs::exists(dataset.truth_dir() / "scene.yaml")) {
+    const std::vector<SceneObject> objects = read_truth(dataset.root);
+    const EvalConfig eval_cfg;
+    const std::vector<ObjectEval> before = evaluate_structures(logged, objects, eval_cfg);
+    const std::vector<ObjectEval> after = evaluate_structures(merged, objects, eval_cfg);
+    for (std::size_t k = 0; k < after.size(); ++k) {
+      StructureEval e;
+      e.name = after[k].name;
+      for (const SceneObject& o : objects) {
+        if (o.name == e.name) e.kind = o.kind;
+      }
+      e.before = before[k].result;
+      e.after = after[k].result;
+      result.structures.push_back(e);
+    }
+  }
+
   // 5. The record.
   nlohmann::json ties = nlohmann::json::array();
   for (std::size_t k = 0; k < result.ties.size(); ++k) {
@@ -335,8 +355,22 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     }
     swaths.push_back(j);
   }
+  nlohmann::json structures = nlohmann::json::array();
+  auto scores = [](const EvalResult& r) {
+    return nlohmann::json{{"points", r.num_points},
+                          {"median_error_m", r.median_error},
+                          {"mean_error_m", r.mean_error},
+                          {"coverage", r.coverage},
+                          {"outliers", r.outliers}};
+  };
+  for (const StructureEval& e : result.structures) {
+    structures.push_back({{"name", e.name},
+                          {"kind", to_string(e.kind)},
+                          {"before", scores(e.before)},
+                          {"after", scores(e.after)}});
+  }
   result.seconds_total = seconds_since(t_start);
-  const nlohmann::json summary = {
+  nlohmann::json summary = {
       {"dataset", dataset.root.string()},
       {"method", config.method == SwathAdjustMethod::Global ? "global" : "consecutive"},
       {"cell_m", config.cell_m},
@@ -349,6 +383,11 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
        {{"carving", result.seconds_carving},
         {"registration", result.seconds_registration},
         {"total", result.seconds_total}}}};
+  if (!result.structures.empty()) {
+    summary["structures"] = structures;
+    summary["structure_eval"] = {{"coverage_radius_m", EvalConfig().coverage_radius},
+                                 {"outlier_radius_m", EvalConfig().outlier_radius}};
+  }
   write_text_file((tmp / "summary.json").string(), summary.dump(2) + "\n");
   out.commit();
   return result;

@@ -19,7 +19,8 @@ void StripeNoiseConfig::validate() const {
 NoiseImages stripe_noise_images(const SonarSpec& spec, const StripeNoiseConfig& c) {
   spec.validate();
   c.validate();
-  NoiseImages out{SonarImage(spec.range_bins, spec.beams()), SonarImage(spec.range_bins, spec.beams())};
+  NoiseImages out{SonarImage(spec.range_bins, spec.beams()),
+                  SonarImage(spec.range_bins, spec.beams())};
   const double lo = spec.fov_min(), hi = spec.fov_max();
   const double sigma = c.width_deg * M_PI / 180.0;
   std::vector<double> fade(spec.beams(), 0.0);
@@ -66,8 +67,8 @@ void NoiseEstimator::add(const SonarImage& frame) {
     m2_.assign(frame.data.size(), 0.0);
   } else if (frame.rows != rows_ || frame.cols != cols_) {
     throw Error("noise estimation: frame " + std::to_string(n_) + " is " +
-                std::to_string(frame.rows) + "×" + std::to_string(frame.cols) +
-                ", the first was " + std::to_string(rows_) + "×" + std::to_string(cols_));
+                std::to_string(frame.rows) + "×" + std::to_string(frame.cols) + ", the first was " +
+                std::to_string(rows_) + "×" + std::to_string(cols_));
   }
   ++n_;
   // Welford: numerically stable running mean and sum of squared deviations.

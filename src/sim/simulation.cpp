@@ -76,6 +76,34 @@ TriangleMesh load_primitive(const YAML::Node& n, const std::string& file, const 
               "' (sphere, box, cylinder, plane, terrain)");
 }
 
+// A pipeline laid from `from` to `to` (world points on the seabed, m), a cylinder of `radius`
+// sunk by `burial` of its diameter below the line joining them (0: lying on it, 0.5: half
+// buried).
+TriangleMesh load_pipeline(const YAML::Node& n, const std::string& file, const std::string& ctx) {
+  yaml::check_keys(n, {"from", "to", "radius", "burial"}, file, ctx);
+  const auto a = yaml::get_vector(n, "from", 3, file, ctx);
+  const auto b = yaml::get_vector(n, "to", 3, file, ctx);
+  const double r = yaml::get_double(n, "radius", file, ctx);
+  const double burial = yaml::get_double(n, "burial", 0.5, file, ctx);
+  require_positive(r, (ctx + ".radius").c_str(), "m");
+  if (!(burial >= 0 && burial < 1)) {
+    throw Error(yaml::where(file, n["burial"], ctx + ".burial") +
+                ": must lie in [0, 1) (the buried fraction of the diameter)");
+  }
+  const Eigen::Vector3d from(a[0], a[1], a[2]), to(b[0], b[1], b[2]);
+  const double length = (to - from).norm();
+  if (!(length > 1e-6) || !std::isfinite(length)) {
+    throw Error(yaml::where(file, n, ctx) + ": 'from' and 'to' must be distinct finite points");
+  }
+  TriangleMesh m = make_cylinder(r, length);  // along +z from the origin
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), (to - from) / length).matrix();
+  T.translation() = from + Eigen::Vector3d(0, 0, r - burial * 2 * r);
+  m.transform(T);
+  return m;
+}
+
 Trajectory load_segment(const YAML::Node& n, const std::string& file, const std::string& ctx,
                         double t0, double period, const fs::path& base) {
   const std::string type = yaml::get_string(n, "type", "", file, ctx);
@@ -188,14 +216,21 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   for (std::size_t i = 0; i < objs.size(); ++i) {
     const YAML::Node o = objs[i];
     const std::string ctx = "objects[" + std::to_string(i) + "]";
-    yaml::check_keys(o, {"name", "reference", "mesh", "primitive", "pose", "scale", "reflectivity"},
+    yaml::check_keys(o,
+                     {"name", "reference", "mesh", "primitive", "pipeline", "pose", "scale",
+                      "reflectivity", "kind"},
                      path, ctx);
     SceneObject obj;
     obj.name = yaml::get_string(o, "name", "object" + std::to_string(i), path, ctx);
-    const int sources = (o["reference"] ? 1 : 0) + (o["mesh"] ? 1 : 0) + (o["primitive"] ? 1 : 0);
+    const int sources = (o["reference"] ? 1 : 0) + (o["mesh"] ? 1 : 0) + (o["primitive"] ? 1 : 0) +
+                        (o["pipeline"] ? 1 : 0);
     if (sources != 1) {
       throw Error(yaml::where(path, o, ctx) +
-                  ": give exactly one of 'reference', 'mesh' or 'primitive'");
+                  ": give exactly one of 'reference', 'mesh', 'primitive' or 'pipeline'");
+    }
+    if (o["pipeline"] && (o["pose"] || o["scale"])) {
+      throw Error(yaml::where(path, o, ctx) +
+                  ": a pipeline is placed by its 'from' and 'to' points: no 'pose' or 'scale'");
     }
     try {
       if (o["reference"]) {
@@ -204,8 +239,17 @@ SimulationSetup load_simulation_setup(const std::string& path) {
         fs::path mp = yaml::get_string(o, "mesh", "", path, ctx);
         if (mp.is_relative()) mp = base / mp;
         obj.mesh_world = load_mesh(mp.string());
+      } else if (o["pipeline"]) {
+        obj.mesh_world = load_pipeline(o["pipeline"], path, ctx + ".pipeline");
+        obj.kind = ObjectKind::Pipeline;
       } else {
         obj.mesh_world = load_primitive(o["primitive"], path, ctx + ".primitive");
+        if (yaml::get_string(o["primitive"], "type", "", path, ctx + ".primitive") == "terrain") {
+          obj.kind = ObjectKind::Terrain;
+        }
+      }
+      if (o["kind"]) {  // e.g. a seabed from a mesh file
+        obj.kind = object_kind_from_string(yaml::get_string(o, "kind", "", path, ctx));
       }
     } catch (const Error& e) {
       const std::string msg = e.what();
@@ -402,7 +446,8 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
     save_mesh((truth / file).string(), o.mesh_world);
     y << YAML::BeginMap << YAML::Key << "name" << YAML::Value << o.name;
     y << YAML::Key << "mesh" << YAML::Value << file;
-    y << YAML::Key << "reflectivity" << YAML::Value << o.reflectivity << YAML::EndMap;
+    y << YAML::Key << "reflectivity" << YAML::Value << o.reflectivity;
+    y << YAML::Key << "kind" << YAML::Value << to_string(o.kind) << YAML::EndMap;
   }
   y << YAML::EndSeq << YAML::EndMap;
   write_text_file((truth / "scene.yaml").string(), std::string(y.c_str()) + "\n");
@@ -432,6 +477,11 @@ std::vector<SceneObject> read_truth(const fs::path& dir) {
     SceneObject o;
     o.name = yaml::get_string(objs[i], "name", "", file, ctx);
     o.reflectivity = yaml::get_double(objs[i], "reflectivity", 0.5, file, ctx);
+    try {  // datasets written before kinds existed: structures
+      o.kind = object_kind_from_string(yaml::get_string(objs[i], "kind", "structure", file, ctx));
+    } catch (const Error& e) {
+      throw Error(yaml::where(file, objs[i], ctx + ".kind") + ": " + e.what());
+    }
     o.mesh_world =
         load_mesh((dir / "truth" / yaml::get_string(objs[i], "mesh", "", file, ctx)).string());
     out.push_back(std::move(o));

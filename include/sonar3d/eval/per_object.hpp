@@ -20,4 +20,12 @@ std::vector<ObjectEval> evaluate_objects(const PointCloud& cloud,
                                          const std::vector<SceneObject>& objects,
                                          const EvalConfig& config);
 
+// The structures and pipelines of a site (terrain is not scored), each on the points near it —
+// within its bounding box grown by `margin_m` — after every such point has been attributed to the
+// nearest object, so the seabed a structure stands on is not counted as its outliers. One entry
+// per scored object, in scene order. Throws Error on a negative margin.
+std::vector<ObjectEval> evaluate_structures(const PointCloud& cloud,
+                                            const std::vector<SceneObject>& objects,
+                                            const EvalConfig& config, double margin_m = 0.5);
+
 }  // namespace sonar3d

@@ -13,9 +13,11 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recon/carve.hpp"
+#include "sonar3d/sim/scene.hpp"
 
 namespace sonar3d {
 
@@ -68,8 +70,17 @@ struct SwathInfo {
   Eigen::Vector3d true_offset = Eigen::Vector3d::Zero();
 };
 
+// Simulated datasets with truth/scene.yaml: a structure or pipeline scored against its CAD in
+// the merged cloud as logged (before) and corrected (after), thesis sec. 4.5.2.1 metrics.
+struct StructureEval {
+  std::string name;
+  ObjectKind kind = ObjectKind::Structure;
+  EvalResult before, after;
+};
+
 struct MapSurveyResult {
   std::vector<SwathInfo> swaths;
+  std::vector<StructureEval> structures;  // empty without ground truth
   std::vector<SwathTie> ties;
   SwathAdjustment adjustment;
   std::size_t merged_points = 0;
@@ -90,7 +101,9 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
 //   merged_uncorrected.png                  the field as logged, for comparison
 //   summary.json                      swaths, offsets, ties, timings; with truth/navigation.tum
 //                                     (simulated drift) each swath's offset error before and
-//                                     after the correction
+//                                     after the correction; with truth/scene.yaml each
+//                                     structure's and pipeline's median error, coverage and
+//                                     outliers against its CAD before and after
 // Progress: one bar over the frames.
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
                            const std::filesystem::path& out_dir, bool progress = true);

@@ -8,10 +8,18 @@
 
 namespace sonar3d {
 
+// What an object is on a site; evaluation scores structures and pipelines against their CAD and
+// treats terrain as the background they stand on.
+enum class ObjectKind { Structure, Pipeline, Terrain };
+const char* to_string(ObjectKind kind);
+// "structure", "pipeline" or "terrain"; throws Error otherwise.
+ObjectKind object_kind_from_string(const std::string& s);
+
 struct SceneObject {
   std::string name;
-  TriangleMesh mesh_world;   // already transformed into the world frame
+  TriangleMesh mesh_world;    // already transformed into the world frame
   double reflectivity = 0.5;  // μ in [0, 1]
+  ObjectKind kind = ObjectKind::Structure;
 };
 
 struct Scene {
