@@ -37,9 +37,13 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "half-width of the searched swath shifts, metres")
       ->capture_default_str();
   cmd->add_option("--method", o->method,
-                  "consecutive (the thesis: each swath against the previous) or global (every "
-                  "overlapping pair, one robust adjustment)")
-      ->check(CLI::IsMember({"consecutive", "global"}))
+                  "consecutive (the thesis: each swath against the previous), global (every "
+                  "overlapping pair, one robust adjustment of swath offsets) or drift (every "
+                  "overlapping pair piece by piece, a drift rate per swath as well)")
+      ->check(CLI::IsMember({"consecutive", "global", "drift"}))
+      ->capture_default_str();
+  cmd->add_option("--piece", o->cfg.piece_m,
+                  "drift method: length of the swath pieces registered, metres")
       ->capture_default_str();
   cmd->add_option("--turn-deg", o->turn_deg,
                   "a new swath starts where the track turns by more than this, degrees")
@@ -51,8 +55,7 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
       MapSurveyConfig cfg = o->cfg;
-      cfg.method =
-          o->method == "consecutive" ? SwathAdjustMethod::Consecutive : SwathAdjustMethod::Global;
+      cfg.method = swath_adjust_method_from_string(o->method);
       cfg.registration.num_threads = cfg.carve.num_threads;
       cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
       if (!o->roi.empty()) {
@@ -77,16 +80,22 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
         fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m",
                    s, w.first_frame, w.last_frame, w.points, w.offset.x(), w.offset.y(),
                    w.offset.z());
-        if (w.has_truth) {  // simulated drift: how far from the exact correction
-          fmt::print(" (horizontal error vs truth {:.3f} m, uncorrected {:.3f} m)",
-                     (w.offset - w.true_offset).head<2>().norm(), w.true_offset.head<2>().norm());
+        if (cfg.method == SwathAdjustMethod::Drift) {
+          fmt::print(", drift E {:+.2f} N {:+.2f} cm/min", 6000 * w.rate.x(), 6000 * w.rate.y());
+        }
+        if (w.has_truth) {  // simulated drift: the navigation error left, mean over the swath
+          fmt::print(
+              " (navigation error within the map {:.3f} → {:.3f} m, absolute {:.3f} → "
+              "{:.3f} m)",
+              w.internal_error_before.x(), w.internal_error_after.x(), w.error_before.x(),
+              w.error_after.x());
         }
         fmt::print("\n");
       }
       for (const StructureEval& e : r.structures) {  // simulated site: against the CAD
         fmt::print(
             "  {} {}: median {:.1f} → {:.1f} cm, coverage {:.0f} → {:.0f} %, outliers "
-            "{:.0f} → {:.0f} % (as logged → corrected)\n",
+            "{:.0f} → {:.0f} % (as logged → corrected, each placed in the world)\n",
             to_string(e.kind), e.name, 100 * e.before.median_error, 100 * e.after.median_error,
             100 * e.before.coverage, 100 * e.after.coverage, 100 * e.before.outliers,
             100 * e.after.outliers);

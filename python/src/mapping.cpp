@@ -111,11 +111,7 @@ void bind_mapping(py::module_& m) {
         cfg.cell_m = cell_m;
         cfg.carve.voxel_size = voxel_size;
         cfg.registration = registration;
-        if (method != "global" && method != "consecutive") {
-          throw Error("method must be 'global' or 'consecutive', got '" + method + "'");
-        }
-        cfg.method =
-            method == "global" ? SwathAdjustMethod::Global : SwathAdjustMethod::Consecutive;
+        cfg.method = swath_adjust_method_from_string(method);
         if (!region.is_none()) {
           const auto t = region.cast<py::sequence>();
           if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");

@@ -4,6 +4,7 @@
 
 #include <fmt/core.h>
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -29,7 +30,116 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 
 nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
+// A swath's track: positions along its straight line (from its first frame, along the direction
+// to its last) with their times, to tell when the vehicle passed over a point of its cloud.
+struct SwathTrack {
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero(), dir = Eigen::Vector2d::UnitX();
+  std::vector<double> u, t;  // along-track position (non-decreasing), time
+
+  double along(const Eigen::Vector2d& xy) const { return (xy - origin).dot(dir); }
+  double length() const { return u.back() - u.front(); }
+  double time_at(double along_m) const {
+    if (along_m <= u.front()) return t.front();
+    if (along_m >= u.back()) return t.back();
+    const std::size_t k = static_cast<std::size_t>(std::upper_bound(u.begin(), u.end(), along_m) -
+                                                   u.begin());  // 1 ≤ k < size
+    const double span = u[k] - u[k - 1];
+    const double w = span > 0 ? (along_m - u[k - 1]) / span : 0.0;
+    return t[k - 1] + w * (t[k] - t[k - 1]);
+  }
+};
+
+// Least squares xy_true ≈ M·xy + b and z_true ≈ z + dz over corresponding positions.
+MapAlignment fit_alignment(const std::vector<Eigen::Vector3d>& nav,
+                           const std::vector<Eigen::Vector3d>& truth) {
+  MapAlignment a;
+  if (nav.size() < 3) return a;
+  Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+  Eigen::Matrix<double, 3, 2> AtB = Eigen::Matrix<double, 3, 2>::Zero();
+  double dz = 0;
+  for (std::size_t i = 0; i < nav.size(); ++i) {
+    const Eigen::Vector3d row(nav[i].x(), nav[i].y(), 1.0);
+    AtA += row * row.transpose();
+    AtB += row * truth[i].head<2>().transpose();
+    dz += truth[i].z() - nav[i].z();
+  }
+  // A survey along one line leaves the fit singular: then a shift only.
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(AtA);
+  if (lu.rank() == 3) {
+    const Eigen::Matrix<double, 3, 2> X = lu.solve(AtB);
+    a.M = X.topRows<2>().transpose();
+    a.b = X.row(2).transpose();
+  } else {
+    Eigen::Vector2d shift = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < nav.size(); ++i) shift += (truth[i] - nav[i]).head<2>();
+    a.b = shift / static_cast<double>(nav.size());
+  }
+  a.dz = dz / static_cast<double>(nav.size());
+  return a;
+}
+
+SwathTrack make_track(const Dataset& dataset, int first, int last) {
+  SwathTrack tr;
+  tr.origin = dataset.T_world_sonar(first).translation().head<2>();
+  const Eigen::Vector2d end = dataset.T_world_sonar(last).translation().head<2>();
+  if ((end - tr.origin).norm() > 1e-9) tr.dir = (end - tr.origin).normalized();
+  for (int i = first; i <= last; ++i) {
+    const double a = tr.along(dataset.T_world_sonar(i).translation().head<2>());
+    tr.u.push_back(tr.u.empty() ? a : std::max(a, tr.u.back()));
+    tr.t.push_back(dataset.frames[i].timestamp);
+  }
+  return tr;
+}
+
+// A piece of a swath for the drift method: its map and when the vehicle was at its middle.
+struct SwathPiece {
+  ElevationMap map;
+  double time = 0;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+};
+
+std::vector<SwathPiece> cut_pieces(const PointCloud& cloud, const SwathTrack& track, double piece_m,
+                                   const ElevationMapConfig& map_cfg) {
+  const int count = std::max(1, static_cast<int>(std::lround(track.length() / piece_m)));
+  const double len = std::max(track.length(), 1e-9) / count;
+  std::vector<PointCloud> parts(static_cast<std::size_t>(count));
+  for (const Eigen::Vector3f& p : cloud.points) {
+    const double a = track.along(p.head<2>().cast<double>()) - track.u.front();
+    const int k = std::clamp(static_cast<int>(std::floor(a / len)), 0, count - 1);
+    parts[k].points.push_back(p);
+  }
+  std::vector<SwathPiece> out;
+  for (int k = 0; k < count; ++k) {
+    if (parts[k].empty()) continue;
+    const double mid = track.u.front() + (k + 0.5) * len;
+    out.push_back({elevation_map_from_points(parts[k], map_cfg), track.time_at(mid),
+                   track.origin + track.dir * mid});
+  }
+  return out;
+}
+
 }  // namespace
+
+const char* to_string(SwathAdjustMethod method) {
+  switch (method) {
+    case SwathAdjustMethod::Consecutive:
+      return "consecutive";
+    case SwathAdjustMethod::Drift:
+      return "drift";
+    case SwathAdjustMethod::Global:
+      break;
+  }
+  return "global";
+}
+
+SwathAdjustMethod swath_adjust_method_from_string(const std::string& name) {
+  for (SwathAdjustMethod m :
+       {SwathAdjustMethod::Consecutive, SwathAdjustMethod::Global, SwathAdjustMethod::Drift}) {
+    if (name == to_string(m)) return m;
+  }
+  throw Error("unknown swath adjustment method '" + printable(name) +
+              "' (consecutive, global, drift)");
+}
 
 void SwathSplitConfig::validate() const {
   require(std::isfinite(turn_threshold_rad) && turn_threshold_rad > 0 &&
@@ -51,6 +161,7 @@ void MapSurveyConfig::validate() const {
   split.validate();
   carve.validate();
   require_positive(cell_m, "cell_m", "m");
+  require_positive(piece_m, "piece_m", "m");
   registration.validate();
   adjustment.validate();
 }
@@ -179,6 +290,8 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   fs::create_directories(tmp / "swaths");
   MapSurveyResult result;
   std::vector<ElevationMap> maps;
+  std::vector<SwathTrack> tracks;
+  std::vector<std::vector<SwathPiece>> pieces;  // the drift method's
   std::size_t total_frames = 0;
   for (const auto& r : ranges) total_frames += static_cast<std::size_t>(r.second - r.first + 1);
   Progress bar("map: carving swaths", total_frames, progress);
@@ -207,6 +320,10 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                                         "no point: is the seabed within the sonar's range?",
                                         s, info.first_frame, info.last_frame));
     ElevationMap map = elevation_map_from_points(cloud, map_cfg);
+    tracks.push_back(make_track(dataset, info.first_frame, info.last_frame));
+    if (config.method == SwathAdjustMethod::Drift) {
+      pieces.push_back(cut_pieces(cloud, tracks.back(), config.piece_m, map_cfg));
+    }
     info.points = cloud.size();
     info.map_cells = map.num_valid();
     const std::string stem = fmt::format("swaths/swath_{:02d}", s);
@@ -226,6 +343,24 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     for (int b = a + 1; b < num_swaths; ++b) {
       if (config.method == SwathAdjustMethod::Consecutive && b != a + 1) continue;
       if (!maps_may_overlap(maps[a], maps[b], config.registration.search_m)) continue;
+      if (config.method == SwathAdjustMethod::Drift) {
+        // Each piece of b against the whole of a, timed where each swath passed over it.
+        for (const SwathPiece& piece : pieces[b]) {
+          if (!maps_may_overlap(maps[a], piece.map, config.registration.search_m)) continue;
+          SwathTie tie;
+          try {
+            tie = register_elevation_maps(maps[a], piece.map, config.registration);
+          } catch (const Error&) {
+            continue;  // too little overlap: no tie
+          }
+          tie.reference = a;
+          tie.moving = b;
+          tie.time_moving = piece.time;
+          tie.time_reference = tracks[a].time_at(tracks[a].along(piece.centre));
+          result.ties.push_back(tie);
+        }
+        continue;
+      }
       SwathTie tie;
       try {
         tie = register_elevation_maps(maps[a], maps[b], config.registration);
@@ -240,11 +375,35 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       result.ties.push_back(tie);
     }
   }
-  result.adjustment = config.method == SwathAdjustMethod::Consecutive
-                          ? accumulate_consecutive(num_swaths, result.ties)
-                          : adjust_swaths(num_swaths, result.ties, config.adjustment);
+  if (config.method == SwathAdjustMethod::Drift) {
+    std::vector<SwathTiming> timing;
+    for (int s = 0; s < num_swaths; ++s) {
+      SwathTiming w;
+      w.t0 = result.swaths[s].t0;
+      w.t1 = result.swaths[s].t1;
+      w.speed_mps = w.t1 > w.t0 ? tracks[s].length() / (w.t1 - w.t0) : 0.0;
+      if (s + 1 < num_swaths) {  // the track length of the turn to the next swath
+        for (int i = result.swaths[s].last_frame; i < result.swaths[s + 1].first_frame; ++i) {
+          w.gap_to_next_m +=
+              (dataset.T_world_sonar(i + 1).translation() - dataset.T_world_sonar(i).translation())
+                  .head<2>()
+                  .norm();
+        }
+      }
+      timing.push_back(w);
+    }
+    result.adjustment = adjust_swaths_drift(timing, result.ties, config.adjustment);
+  } else if (config.method == SwathAdjustMethod::Consecutive) {
+    result.adjustment = accumulate_consecutive(num_swaths, result.ties);
+  } else {
+    result.adjustment = adjust_swaths(num_swaths, result.ties, config.adjustment);
+  }
   result.seconds_registration = seconds_since(t_reg);
-  for (int s = 0; s < num_swaths; ++s) result.swaths[s].offset = result.adjustment.offsets[s];
+  const SwathAdjustment& adj = result.adjustment;
+  for (int s = 0; s < num_swaths; ++s) {
+    result.swaths[s].offset = adj.correction(s, result.swaths[s].t0);
+    if (static_cast<std::size_t>(s) < adj.rates.size()) result.swaths[s].rate = adj.rates[s];
+  }
 
   // Simulated drift: the exact corrections, from the true trajectory the simulator kept.
   const fs::path truth_nav = dataset.truth_dir() / "navigation.tum";
@@ -260,9 +419,50 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       }
       err[s] = sum / static_cast<double>(w.last_frame - w.first_frame + 1);
     }
+    // Per frame: the navigation's error before and after correction, relative to the error
+    // where swath 0 starts (the gauge every method shares).
+    const double t_gauge = result.swaths[0].t0;
+    const Eigen::Vector3d e0 = truth.interpolate(t_gauge).translation() -
+                               dataset.navigation.interpolate(t_gauge).translation();
     for (int s = 0; s < num_swaths; ++s) {
-      result.swaths[s].has_truth = true;
-      result.swaths[s].true_offset = err[s] - err[0];
+      SwathInfo& w = result.swaths[s];
+      w.has_truth = true;
+      w.true_offset = err[s] - err[0];
+      for (int i = w.first_frame; i <= w.last_frame; ++i) {
+        const double t = dataset.frames[i].timestamp;
+        const Eigen::Vector3d e = truth.interpolate(t).translation() -
+                                  dataset.navigation.interpolate(t).translation() - e0;
+        const Eigen::Vector3d left = e - adj.correction(s, t);
+        w.error_before += Eigen::Vector2d(e.head<2>().norm(), std::abs(e.z()));
+        w.error_after += Eigen::Vector2d(left.head<2>().norm(), std::abs(left.z()));
+      }
+      w.error_before /= static_cast<double>(w.last_frame - w.first_frame + 1);
+      w.error_after /= static_cast<double>(w.last_frame - w.first_frame + 1);
+    }
+    // The map's placement in the world, as logged and corrected, and the errors within it.
+    std::vector<Eigen::Vector3d> logged_p, corrected_p, true_p;
+    for (int s = 0; s < num_swaths; ++s) {
+      for (int i = result.swaths[s].first_frame; i <= result.swaths[s].last_frame; ++i) {
+        const double t = dataset.frames[i].timestamp;
+        logged_p.push_back(dataset.navigation.interpolate(t).translation());
+        corrected_p.push_back(logged_p.back() + adj.correction(s, t));
+        true_p.push_back(truth.interpolate(t).translation());
+      }
+    }
+    result.has_alignment = true;
+    result.alignment_before = fit_alignment(logged_p, true_p);
+    result.alignment_after = fit_alignment(corrected_p, true_p);
+    std::size_t k = 0;
+    for (int s = 0; s < num_swaths; ++s) {
+      SwathInfo& w = result.swaths[s];
+      for (int i = w.first_frame; i <= w.last_frame; ++i, ++k) {
+        const Eigen::Vector3d b = result.alignment_before.apply(logged_p[k]) - true_p[k];
+        const Eigen::Vector3d a = result.alignment_after.apply(corrected_p[k]) - true_p[k];
+        w.internal_error_before += Eigen::Vector2d(b.head<2>().norm(), std::abs(b.z()));
+        w.internal_error_after += Eigen::Vector2d(a.head<2>().norm(), std::abs(a.z()));
+      }
+      w.internal_error_before /= static_cast<double>(w.last_frame - w.first_frame + 1);
+      w.internal_error_after /= static_cast<double>(w.last_frame - w.first_frame + 1);
     }
   }
 
@@ -270,15 +470,15 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   // between swaths, held before the first and after the last.
   auto offset_at = [&](double t) -> Eigen::Vector3d {
     const auto& sw = result.swaths;
-    if (t <= sw.front().t1) return sw.front().offset;
+    if (t <= sw.front().t0) return adj.correction(0, sw.front().t0);
     for (int s = 0; s + 1 < num_swaths; ++s) {
-      if (t <= sw[s].t1) return sw[s].offset;
+      if (t <= sw[s].t1) return adj.correction(s, t);
       if (t < sw[s + 1].t0) {
         const double w = (t - sw[s].t1) / std::max(1e-12, sw[s + 1].t0 - sw[s].t1);
-        return (1 - w) * sw[s].offset + w * sw[s + 1].offset;
+        return (1 - w) * adj.correction(s, sw[s].t1) + w * adj.correction(s + 1, sw[s + 1].t0);
       }
     }
-    return sw.back().offset;
+    return adj.correction(num_swaths - 1, std::min(t, sw.back().t1));
   };
   Trajectory corrected = dataset.navigation;
   for (std::size_t k = 0; k < corrected.size(); ++k) {
@@ -291,10 +491,11 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   PointCloud logged;
   for (int s = 0; s < num_swaths; ++s) {
     const PointCloud c = read_ply((tmp / fmt::format("swaths/swath_{:02d}.ply", s)).string());
-    const Eigen::Vector3f o = result.swaths[s].offset.cast<float>();
     for (const Eigen::Vector3f& p : c.points) {
+      // The correction at the time the vehicle passed over the point (constant but for drift).
+      const double t = tracks[s].time_at(tracks[s].along(p.head<2>().cast<double>()));
       logged.points.push_back(p);
-      merged.points.push_back(p + o);
+      merged.points.push_back(p + adj.correction(s, t).cast<float>());
     }
   }
   result.merged_points = merged.size();
@@ -309,8 +510,20 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   if (fs::exists(dataset.truth_dir() / "scene.yaml")) {
     const std::vector<SceneObject> objects = read_truth(dataset.root);
     const EvalConfig eval_cfg;
-    const std::vector<ObjectEval> before = evaluate_structures(logged, objects, eval_cfg);
-    const std::vector<ObjectEval> after = evaluate_structures(merged, objects, eval_cfg);
+    // Each map placed in the world first (when the true navigation tells how).
+    auto placed = [&](const PointCloud& c, const MapAlignment& a) {
+      if (!result.has_alignment) return c;
+      PointCloud out;
+      out.points.reserve(c.size());
+      for (const Eigen::Vector3f& p : c.points) {
+        out.points.push_back(a.apply(p.cast<double>()).cast<float>());
+      }
+      return out;
+    };
+    const std::vector<ObjectEval> before =
+        evaluate_structures(placed(logged, result.alignment_before), objects, eval_cfg);
+    const std::vector<ObjectEval> after =
+        evaluate_structures(placed(merged, result.alignment_after), objects, eval_cfg);
     for (std::size_t k = 0; k < after.size(); ++k) {
       StructureEval e;
       e.name = after[k].name;
@@ -327,15 +540,20 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   nlohmann::json ties = nlohmann::json::array();
   for (std::size_t k = 0; k < result.ties.size(); ++k) {
     const SwathTie& t = result.ties[k];
-    ties.push_back({{"reference", t.reference},
-                    {"moving", t.moving},
-                    {"shift_m", vec3(t.t)},
-                    {"score_m", t.score_m},
-                    {"overlap_cells", t.overlap_cells},
-                    {"confidence", t.confidence},
-                    {"used", static_cast<bool>(result.adjustment.tie_used[k])},
-                    {"residual_m", result.adjustment.tie_residual_m[k]},
-                    {"seconds", t.seconds}});
+    nlohmann::json j = {{"reference", t.reference},
+                        {"moving", t.moving},
+                        {"shift_m", vec3(t.t)},
+                        {"score_m", t.score_m},
+                        {"overlap_cells", t.overlap_cells},
+                        {"confidence", t.confidence},
+                        {"used", static_cast<bool>(result.adjustment.tie_used[k])},
+                        {"residual_m", result.adjustment.tie_residual_m[k]},
+                        {"seconds", t.seconds}};
+    if (std::isfinite(t.time_moving)) {  // the drift method's pieces: where they were measured
+      j["time_reference_s"] = t.time_reference;
+      j["time_moving_s"] = t.time_moving;
+    }
+    ties.push_back(j);
   }
   write_text_file((tmp / "ties.json").string(), ties.dump(2) + "\n");
   nlohmann::json swaths = nlohmann::json::array();
@@ -346,12 +564,15 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                         {"map_cells", s.map_cells},
                         {"offset_m", vec3(s.offset)},
                         {"seconds", s.seconds}};
+    if (config.method == SwathAdjustMethod::Drift) j["rate_mps"] = {s.rate.x(), s.rate.y()};
     if (s.has_truth) {
-      // Before: the drift left as logged; after: what the correction leaves (horizontal, up).
-      const Eigen::Vector3d after = s.offset - s.true_offset;
+      // Before: the drift left as logged; after: what the correction leaves (horizontal, up),
+      // means over the swath's frames.
       j["true_offset_m"] = vec3(s.true_offset);
-      j["error_before_m"] = {s.true_offset.head<2>().norm(), std::abs(s.true_offset.z())};
-      j["error_after_m"] = {after.head<2>().norm(), std::abs(after.z())};
+      j["error_before_m"] = {s.error_before.x(), s.error_before.y()};
+      j["error_after_m"] = {s.error_after.x(), s.error_after.y()};
+      j["internal_error_before_m"] = {s.internal_error_before.x(), s.internal_error_before.y()};
+      j["internal_error_after_m"] = {s.internal_error_after.x(), s.internal_error_after.y()};
     }
     swaths.push_back(j);
   }
@@ -370,19 +591,26 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                           {"after", scores(e.after)}});
   }
   result.seconds_total = seconds_since(t_start);
-  nlohmann::json summary = {
-      {"dataset", dataset.root.string()},
-      {"method", config.method == SwathAdjustMethod::Global ? "global" : "consecutive"},
-      {"cell_m", config.cell_m},
-      {"voxel_m", config.carve.voxel_size},
-      {"search_m", config.registration.search_m},
-      {"swaths", swaths},
-      {"ties", ties},
-      {"merged_points", result.merged_points},
-      {"seconds",
-       {{"carving", result.seconds_carving},
-        {"registration", result.seconds_registration},
-        {"total", result.seconds_total}}}};
+  nlohmann::json summary = {{"dataset", dataset.root.string()},
+                            {"method", to_string(config.method)},
+                            {"cell_m", config.cell_m},
+                            {"voxel_m", config.carve.voxel_size},
+                            {"search_m", config.registration.search_m},
+                            {"swaths", swaths},
+                            {"ties", ties},
+                            {"merged_points", result.merged_points},
+                            {"seconds",
+                             {{"carving", result.seconds_carving},
+                              {"registration", result.seconds_registration},
+                              {"total", result.seconds_total}}}};
+  if (result.has_alignment) {
+    auto alignment = [](const MapAlignment& a) {
+      return nlohmann::json{{"matrix", {{a.M(0, 0), a.M(0, 1)}, {a.M(1, 0), a.M(1, 1)}}},
+                            {"shift_m", {a.b.x(), a.b.y(), a.dz}}};
+    };
+    summary["alignment"] = {{"before", alignment(result.alignment_before)},
+                            {"after", alignment(result.alignment_after)}};
+  }
   if (!result.structures.empty()) {
     summary["structures"] = structures;
     summary["structure_eval"] = {{"coverage_radius_m", EvalConfig().coverage_radius},

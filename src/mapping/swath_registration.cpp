@@ -172,6 +172,16 @@ void SwathAdjustmentConfig::validate() const {
   require_positive(loss_scale_m, "loss_scale_m", "m");
   require(min_confidence >= 0 && min_confidence <= 1, "min_confidence must be within [0, 1]");
   require(max_iterations >= 1, "max_iterations must be >= 1");
+  require(std::isfinite(nav_drift_fraction) && nav_drift_fraction > 0 && nav_drift_fraction < 1,
+          "nav_drift_fraction must be within (0, 1)");
+}
+
+Eigen::Vector3d SwathAdjustment::correction(int s, double t) const {
+  Eigen::Vector3d c = offsets.at(static_cast<std::size_t>(s));
+  if (static_cast<std::size_t>(s) < rates.size()) {
+    c.head<2>() += rates[s] * (t - rate_t0[s]);
+  }
+  return c;
 }
 
 bool maps_may_overlap(const ElevationMap& a, const ElevationMap& b, double search_m) {
@@ -423,6 +433,131 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
   out.final_cost = summary.final_cost;
   for (const SwathTie& t : ties) {
     out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - t.t).norm());
+  }
+  return out;
+}
+
+namespace {
+
+constexpr double kTieSigma = 0.02;  // m: a tie's residual is measured in map cells of 2 cm
+
+// √w · (c_B(t_B) − c_A(t_A) − t) / σ, c(t) = o + (r, 0)·dt.
+struct DriftTieResidual {
+  Eigen::Vector3d t;
+  double sqrt_w, dt_a, dt_b;
+  template <typename T>
+  bool operator()(const T* o_a, const T* r_a, const T* o_b, const T* r_b, T* res) const {
+    for (int k = 0; k < 3; ++k) {
+      T cb = o_b[k], ca = o_a[k];
+      if (k < 2) {
+        cb += r_b[k] * T(dt_b);
+        ca += r_a[k] * T(dt_a);
+      }
+      res[k] = T(sqrt_w / kTieSigma) * (cb - ca - T(t[k]));
+    }
+    return true;
+  }
+};
+
+// Continuity across the turn from A's end (dt_end after its t0) to B's start: c_B(t0_B) −
+// c_A(t1_A).
+struct ContinuityResidual {
+  double dt_end, sigma_h, sigma_v;
+  template <typename T>
+  bool operator()(const T* o_a, const T* r_a, const T* o_b, T* res) const {
+    for (int k = 0; k < 3; ++k) {
+      T end_a = o_a[k];
+      if (k < 2) end_a += r_a[k] * T(dt_end);
+      res[k] = (o_b[k] - end_a) / T(k < 2 ? sigma_h : sigma_v);
+    }
+    return true;
+  }
+};
+
+struct RatePrior {
+  double sigma;
+  template <typename T>
+  bool operator()(const T* r, T* res) const {
+    res[0] = r[0] / T(sigma);
+    res[1] = r[1] / T(sigma);
+    return true;
+  }
+};
+
+}  // namespace
+
+SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
+                                    const std::vector<SwathTie>& ties,
+                                    const SwathAdjustmentConfig& config) {
+  config.validate();
+  const int n = static_cast<int>(swaths.size());
+  for (int i = 0; i < n; ++i) {
+    const SwathTiming& w = swaths[i];
+    require(std::isfinite(w.t0) && std::isfinite(w.t1) && w.t1 >= w.t0 &&
+                std::isfinite(w.speed_mps) && w.speed_mps >= 0 && std::isfinite(w.gap_to_next_m) &&
+                w.gap_to_next_m >= 0,
+            "swath adjustment: swath " + std::to_string(i) +
+                " has a bad time span, speed or turn length");
+  }
+  for (const SwathTie& t : ties) {
+    require(std::isfinite(t.time_reference) && std::isfinite(t.time_moving),
+            "swath adjustment: the drift method needs each tie's times (swaths " +
+                std::to_string(t.reference) + " and " + std::to_string(t.moving) + ")");
+  }
+  // Constant offsets first: the connectivity check and the initial guess.
+  SwathAdjustment out = adjust_swaths(n, ties, config, 0);
+  out.rates.assign(static_cast<std::size_t>(n), Eigen::Vector2d::Zero());
+  for (const SwathTiming& w : swaths) out.rate_t0.push_back(w.t0);
+  out.offsets[0].setZero();
+
+  ceres::Problem problem;
+  for (int i = 0; i < n; ++i) {
+    problem.AddParameterBlock(out.offsets[i].data(), 3);
+    problem.AddParameterBlock(out.rates[i].data(), 2);
+    // Rates near 0: the navigation drifts by f of the distance travelled.
+    const double sigma_rate = std::max(1e-4, config.nav_drift_fraction * swaths[i].speed_mps);
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<RatePrior, 2, 2>(new RatePrior{sigma_rate}), nullptr,
+        out.rates[i].data());
+  }
+  problem.SetParameterBlockConstant(out.offsets[0].data());  // the gauge: c_0(t0_0) = 0
+  for (std::size_t k = 0; k < ties.size(); ++k) {
+    if (!out.tie_used[k]) continue;
+    const SwathTie& t = ties[k];
+    auto* cost =
+        new ceres::AutoDiffCostFunction<DriftTieResidual, 3, 3, 2, 3, 2>(new DriftTieResidual{
+            t.t, std::sqrt(t.confidence), t.time_reference - swaths[t.reference].t0,
+            t.time_moving - swaths[t.moving].t0});
+    problem.AddResidualBlock(cost, new ceres::CauchyLoss(config.loss_scale_m / kTieSigma),
+                             out.offsets[t.reference].data(), out.rates[t.reference].data(),
+                             out.offsets[t.moving].data(), out.rates[t.moving].data());
+  }
+  for (int i = 0; i + 1 < n; ++i) {
+    const double sigma_h = std::max(0.01, config.nav_drift_fraction * swaths[i].gap_to_next_m);
+    auto* cost = new ceres::AutoDiffCostFunction<ContinuityResidual, 3, 3, 2, 3>(
+        new ContinuityResidual{swaths[i].t1 - swaths[i].t0, sigma_h, 0.01});
+    problem.AddResidualBlock(cost, nullptr, out.offsets[i].data(), out.rates[i].data(),
+                             out.offsets[i + 1].data());
+  }
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;  // 5 unknowns per swath: small problems
+  if (n > 100 && (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
+                  ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE))) {
+    options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  }
+  options.max_num_iterations = config.max_iterations;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  require(summary.IsSolutionUsable(), "swath adjustment: the solver failed: " + summary.message);
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.final_cost = summary.final_cost;
+  out.tie_residual_m.clear();
+  for (const SwathTie& t : ties) {
+    out.tie_residual_m.push_back((out.correction(t.moving, t.time_moving) -
+                                  out.correction(t.reference, t.time_reference) - t.t)
+                                     .norm());
   }
   return out;
 }

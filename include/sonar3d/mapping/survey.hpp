@@ -23,8 +23,13 @@ namespace sonar3d {
 
 enum class SwathAdjustMethod {
   Consecutive,  // the thesis: each swath against the previous one, offsets accumulated
-  Global        // every overlapping pair, one robust least-squares adjustment
+  Global,       // every overlapping pair, one robust least-squares adjustment
+  Drift         // every overlapping pair, piece by piece: a drift rate per swath as well
 };
+
+const char* to_string(SwathAdjustMethod method);  // "consecutive", "global", "drift"
+// Throws Error naming the choices.
+SwathAdjustMethod swath_adjust_method_from_string(const std::string& name);
 
 struct SwathSplitConfig {
   // A new swath starts where the direction of travel turns by more than this from the current
@@ -54,6 +59,9 @@ struct MapSurveyConfig {
   SwathRegistrationConfig registration;
   SwathAdjustmentConfig adjustment;
   SwathAdjustMethod method = SwathAdjustMethod::Global;
+  // The drift method registers each swath in pieces of this length along its track against the
+  // swaths it overlaps, m.
+  double piece_m = 10.0;
 
   void validate() const;
 };
@@ -62,16 +70,41 @@ struct SwathInfo {
   int first_frame = 0, last_frame = 0;  // inclusive, dataset frame indices
   double t0 = 0, t1 = 0;                // time span, s
   std::size_t points = 0, map_cells = 0;
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the correction, m
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the correction at t0, m
+  Eigen::Vector2d rate = Eigen::Vector2d::Zero();    // its horizontal drift rate (drift), m/s
   double seconds = 0;                                // carving + mapping
   // Simulated datasets with truth/navigation.tum: the correction that would be exact (the mean
-  // over the swath's frames of true − logged position, relative to swath 0's).
+  // over the swath's frames of true − logged position, relative to swath 0's), and the mean
+  // over its frames of the navigation's error (true − logged − correction, relative to the error
+  // where swath 0 starts — the gauge), horizontal and vertical, before and after correction.
   bool has_truth = false;
   Eigen::Vector3d true_offset = Eigen::Vector3d::Zero();
+  Eigen::Vector2d error_before = Eigen::Vector2d::Zero(), error_after = Eigen::Vector2d::Zero();
+  // The same after the map's placement in the world (MapAlignment) is taken out: the error
+  // within the map, which registration between swaths can see and correct.
+  Eigen::Vector2d internal_error_before = Eigen::Vector2d::Zero();
+  Eigen::Vector2d internal_error_after = Eigen::Vector2d::Zero();
+};
+
+// How a whole map sits in the world: a stretch, shear, turn and shift of (x, y) and a height
+// offset — what a DVL scale error, a steady velocity bias, a heading bias, a depth sensor offset
+// and the start position do to every swath alike, leaving the swaths agreeing with each other.
+// No registration between swaths can observe it (the thesis' neither); with a simulated truth it
+// is fitted (least squares over the swaths' frames) and taken out before the map's internal
+// errors are scored.
+struct MapAlignment {
+  Eigen::Matrix2d M = Eigen::Matrix2d::Identity();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+  double dz = 0;
+  Eigen::Vector3d apply(const Eigen::Vector3d& p) const {
+    const Eigen::Vector2d xy = M * p.head<2>() + b;
+    return {xy.x(), xy.y(), p.z() + dz};
+  }
 };
 
 // Simulated datasets with truth/scene.yaml: a structure or pipeline scored against its CAD in
-// the merged cloud as logged (before) and corrected (after), thesis sec. 4.5.2.1 metrics.
+// the merged cloud as logged (before) and corrected (after), each aligned to the world first
+// (MapAlignment), thesis sec. 4.5.2.1 metrics.
 struct StructureEval {
   std::string name;
   ObjectKind kind = ObjectKind::Structure;
@@ -81,6 +114,9 @@ struct StructureEval {
 struct MapSurveyResult {
   std::vector<SwathInfo> swaths;
   std::vector<StructureEval> structures;  // empty without ground truth
+  // With truth/navigation.tum: the map's placement, as logged and corrected.
+  bool has_alignment = false;
+  MapAlignment alignment_before, alignment_after;
   std::vector<SwathTie> ties;
   SwathAdjustment adjustment;
   std::size_t merged_points = 0;

@@ -7,6 +7,7 @@
 // A registration of a moving map B against a reference map A returns the translation
 // t = (dx, dy, dz) that moves B onto A: A(x, y) ≈ B(x − dx, y − dy) + dz.
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,10 @@ struct SwathTie {
   // overlap_full_cells).
   double confidence = 0;
   double seconds = 0;
+  // Where the tie was measured along each swath, as navigation times (s): set by the field
+  // mapping's drift method, which registers pieces of swaths; NaN otherwise.
+  double time_reference = std::numeric_limits<double>::quiet_NaN();
+  double time_moving = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Sec. 6.2.2.1: every integer cell shift (i, j) in [−S, S]² (S = search_m / cell size) is scored
@@ -67,16 +72,27 @@ struct SwathAdjustmentConfig {
   double loss_scale_m = 0.05;
   double min_confidence = 0.05;  // ties below this confidence are left out
   int max_iterations = 100;
+  // The drift method's priors: the navigation drifts by about this fraction of the distance
+  // travelled (the thesis: about 1 %). Sets how far a swath's drift rate may stray from 0 and how
+  // much the correction may change across a turn.
+  double nav_drift_fraction = 0.01;
 
   void validate() const;
 };
 
 struct SwathAdjustment {
   std::vector<Eigen::Vector3d> offsets;  // per swath (dx, dy, dz) to add to its positions, m
-  std::vector<double> tie_residual_m;    // per tie, |o_B − o_A − t| at the solution
-  std::vector<bool> tie_used;            // per tie: confident enough to take part
+  // The drift method: per swath a horizontal drift rate r (m/s) from the time rate_t0: the
+  // correction at time t is offsets + (r, 0)·(t − rate_t0). Zero for the other methods.
+  std::vector<Eigen::Vector2d> rates;
+  std::vector<double> rate_t0;
+  std::vector<double> tie_residual_m;  // per tie, |o_B − o_A − t| at the solution
+  std::vector<bool> tie_used;          // per tie: confident enough to take part
   int iterations = 0;
   double final_cost = 0;
+
+  // The correction of swath s at time t (s), m.
+  Eigen::Vector3d correction(int s, double t) const;
 };
 
 // The thesis' method: each swath registered to the previous one, offsets accumulated along the
@@ -89,6 +105,23 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
 // the fixed one are an error naming them.
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
                               const SwathAdjustmentConfig& config, int fixed_swath = 0);
+
+// Beyond the thesis and its consecutive registration: the drift of dead reckoning within each
+// swath. A swath's correction varies linearly in time, c_s(t) = o_s + (r_s, 0)·(t − t0_s), and
+// ties measured between pieces of swaths at times (t_A, t_B) (SwathTie::time_reference,
+// time_moving) give the residual √w · (c_B(t_B) − c_A(t_A) − t) / 2 cm under a Cauchy loss.
+// Priors from the navigation's drift fraction f: the correction is continuous across each turn
+// within max(1 cm, f · the turn's length), and each drift rate stays within f · the swath's
+// speed of 0. The gauge: the navigation is exact where swath 0 starts (c_0(t0_0) = 0). The
+// constant-offset adjustment (adjust_swaths) gives the initial guess.
+struct SwathTiming {
+  double t0 = 0, t1 = 0;     // the swath's time span, s
+  double speed_mps = 0;      // its mean speed over ground, m/s
+  double gap_to_next_m = 0;  // track length of the turn to the next swath, m
+};
+SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
+                                    const std::vector<SwathTie>& ties,
+                                    const SwathAdjustmentConfig& config);
 
 // A copy of `map` with its origin moved by (dx, dy) and heights by dz.
 ElevationMap shifted(const ElevationMap& map, const Eigen::Vector3d& t);
