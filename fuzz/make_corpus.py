@@ -74,6 +74,16 @@ objects:
 trajectory: {type: tum, file: traj.tum}
 """ + SEP + "0 -3 0 0 0 0 0 1\n0.1 -3 0 0.1 0 0 0 1\n")
 
+w('scene', 'field_pipeline_turns', """seed: 2
+navigation_error: {velocity_scale: 0.01, bias_walk: 0.00005, heading_bias_deg: 0.2, depth_offset: 0.05}
+sensor: {preset: mb2250, r_min: 1, r_max: 4, range_bins: 20, beams: 16, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [4, 3], cell: 0.2, relief: 0.1, rocks: 2, trenches: 1}}
+  - {name: pipe, pipeline: {from: [-1, -1, 0], to: [1, 1, 0], radius: 0.1, burial: 0.5}, reflectivity: 0.7}
+  - {name: slab, primitive: {type: box, size: [0.5, 0.5, 0.1]}, kind: terrain}
+trajectory: {type: lawnmower, x: [-1, 1], y: [-1, 1], z: 3, line_spacing: 1, spacing: 0.2, heading_deg: 30, turn_radius: 0.5}
+""")
+
 for f in os.listdir('data/sweeps'):
     w('sweep', f.replace('.yaml', ''), open('data/sweeps/' + f).read())
 
