@@ -14,6 +14,7 @@
 #include <random>
 #include <tuple>
 
+#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/dataset.hpp"
@@ -26,6 +27,7 @@
 
 namespace fs = std::filesystem;
 using sonar3d::ElevationMap;
+using sonar3d::read_text_file;
 using sonar3d::SwathTie;
 
 namespace {
@@ -653,6 +655,52 @@ TEST(DeadReckoning, DriftsLikeAVehicle) {
   } catch (const sonar3d::Error& e) {
     EXPECT_NE(std::string(e.what()).find("velocity_scale"), std::string::npos) << e.what();
   }
+}
+
+// Under mpirun the swaths are carved on two ranks and rank 0 writes the same map as one process
+// does; a failure on the ranks is one error from rank 0, no hang, no output.
+TEST(MappingCli, TwoMpiRanksCarveTheSwaths) {
+  if (std::system("command -v mpirun > /dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "mpirun not installed";
+  }
+  const fs::path dir = temp_dir() / "mpi";
+  fs::create_directories(dir);
+  { std::ofstream(dir / "field.yaml") << kFieldScene; }
+  CliRun r = run_cli(
+      dir, "simulate " + (dir / "field.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string args = " --roi -1 -1 -0.6 7 6 0.8 --search 0.3 -q";
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "one").string() + args);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string mpirun =
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "OMPI_MCA_btl_vader_single_copy_mechanism=none timeout 300 mpirun --oversubscribe "
+      "--bind-to none -np 2 ";
+  const std::string log = (dir / "mpi.log").string();
+  int rc = std::system((mpirun + SONAR3D_CLI + " map " + (dir / "ds").string() + " -o " +
+                        (dir / "two").string() + args + " > " + log + " 2>&1")
+                           .c_str());
+  ASSERT_EQ(WEXITSTATUS(rc), 0) << read_text_file(log);
+  EXPECT_NE(read_text_file(log).find("carved on 2 ranks"), std::string::npos)
+      << read_text_file(log);
+  std::ifstream fa(dir / "one/summary.json"), fb(dir / "two/summary.json");
+  const nlohmann::json a = nlohmann::json::parse(fa), b = nlohmann::json::parse(fb);
+  ASSERT_EQ(a["swaths"].size(), 4u);
+  EXPECT_EQ(a["merged_points"], b["merged_points"]);
+  for (std::size_t s = 0; s < 4; ++s)
+    EXPECT_EQ(a["swaths"][s]["offset_m"], b["swaths"][s]["offset_m"]);
+  EXPECT_EQ(read_text_file((dir / "one/merged.ply").string()),
+            read_text_file((dir / "two/merged.ply").string()));
+  // A region with nothing in it: every rank fails; one error, exit 1, nothing written.
+  rc = std::system((mpirun + SONAR3D_CLI + " map " + (dir / "ds").string() + " -o " +
+                    (dir / "none").string() + " --roi 50 50 50 51 51 51 -q > " + log + " 2>&1")
+                       .c_str());
+  EXPECT_NE(WEXITSTATUS(rc), 0);
+  EXPECT_NE(WEXITSTATUS(rc), 124) << "timed out: a rank hung";
+  EXPECT_NE(read_text_file(log).find("reconstructs to no point"), std::string::npos)
+      << read_text_file(log);
+  EXPECT_FALSE(fs::exists(dir / "none"));
+  fs::remove_all(dir);
 }
 
 // Dead-reckoned navigation with a wandering DVL bias: the error within the map (after the map's

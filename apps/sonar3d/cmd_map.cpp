@@ -13,7 +13,8 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto* cmd = app.add_subcommand(
       "map",
       "Map a field survey (thesis sec. 6.2): split it into swaths at the turns, carve and map each "
-      "swath, register the swath elevation maps (eq. 6.1-6.2), correct the navigation and merge.");
+      "swath, register the swath elevation maps (eq. 6.1-6.2), correct the navigation and merge. "
+      "Under `mpirun -np N` the swaths are carved on the ranks and rank 0 does the rest.");
   struct Opts {
     std::string dataset, output, method = "global";
     MapSurveyConfig cfg;
@@ -69,12 +70,15 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
       for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
         cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
       }
+      MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
       const Dataset ds = read_dataset(o->dataset);
-      const MapSurveyResult r = map_survey(ds, cfg, o->output, !g.quiet);
+      const MapSurveyResult r = map_survey(ds, cfg, o->output, !g.quiet, &mpi);
+      if (mpi.rank() != 0) return 0;  // rank 0 reports
       std::size_t used = 0;
       for (bool u : r.adjustment.tie_used) used += u;
-      fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method)\n",
-                 r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method);
+      fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method){}\n",
+                 r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method,
+                 mpi.size() > 1 ? fmt::format(", carved on {} ranks", mpi.size()) : "");
       for (std::size_t s = 0; s < r.swaths.size(); ++s) {
         const SwathInfo& w = r.swaths[s];
         fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m",

@@ -38,7 +38,7 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       opt.mpi_rank = mpi.rank();
       opt.mpi_size = mpi.size();
       const PlanSummary s = run_sweep(sweep, opt);
-      mpi.gather_points(sweep, opt.out_dir);
+      gather_points(mpi, sweep, opt.out_dir);
       if (mpi.rank() == 0) {
         const std::size_t ok = write_sweep_results(sweep, opt.out_dir);
         fmt::print(

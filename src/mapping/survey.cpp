@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
@@ -29,6 +31,74 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 }
 
 nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+// Swath clouds between MPI ranks: [error length u32, error][count u32] then per swath
+// [index i32, seconds f64, points u64, xyz f32 × 3n, has intensity u8, intensity f32 × n].
+template <typename T>
+void put(std::string& b, const T& v) {
+  b.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+template <typename T>
+T take(const std::string& b, std::size_t& at) {
+  require(at + sizeof(T) <= b.size(), "field mapping: a rank's swath message is truncated");
+  T v;
+  std::memcpy(&v, b.data() + at, sizeof(T));
+  at += sizeof(T);
+  return v;
+}
+
+std::string pack_swaths(const std::string& error, const std::vector<int>& mine,
+                        const std::vector<PointCloud>& clouds, const std::vector<double>& seconds) {
+  std::string b;
+  put(b, static_cast<std::uint32_t>(error.size()));
+  b += error;
+  put(b, static_cast<std::uint32_t>(error.empty() ? mine.size() : 0));
+  if (!error.empty()) return b;
+  for (const int s : mine) {
+    const PointCloud& c = clouds[s];
+    put(b, static_cast<std::int32_t>(s));
+    put(b, seconds[s]);
+    put(b, static_cast<std::uint64_t>(c.size()));
+    b.append(reinterpret_cast<const char*>(c.points.data()), c.size() * 3 * sizeof(float));
+    put(b, static_cast<std::uint8_t>(c.has_intensity()));
+    if (c.has_intensity()) {
+      b.append(reinterpret_cast<const char*>(c.intensity.data()), c.size() * sizeof(float));
+    }
+  }
+  return b;
+}
+
+// Returns the sending rank's error, if any.
+std::string unpack_swaths(const std::string& b, std::vector<PointCloud>& clouds,
+                          std::vector<double>& seconds) {
+  std::size_t at = 0;
+  const auto error_len = take<std::uint32_t>(b, at);
+  require(at + error_len <= b.size(), "field mapping: a rank's swath message is truncated");
+  const std::string error = b.substr(at, error_len);
+  at += error_len;
+  const auto count = take<std::uint32_t>(b, at);
+  for (std::uint32_t k = 0; k < count; ++k) {
+    const auto s = take<std::int32_t>(b, at);
+    require(s >= 0 && static_cast<std::size_t>(s) < clouds.size(),
+            "field mapping: a rank sent an unknown swath");
+    seconds[s] = take<double>(b, at);
+    const auto n = take<std::uint64_t>(b, at);
+    require(n <= (b.size() - at) / (3 * sizeof(float)),
+            "field mapping: a rank's swath message is truncated");
+    PointCloud& c = clouds[s];
+    c.points.resize(n);
+    std::memcpy(c.points.data(), b.data() + at, n * 3 * sizeof(float));
+    at += n * 3 * sizeof(float);
+    if (take<std::uint8_t>(b, at)) {
+      require(n <= (b.size() - at) / sizeof(float),
+              "field mapping: a rank's swath message is truncated");
+      c.intensity.resize(n);
+      std::memcpy(c.intensity.data(), b.data() + at, n * sizeof(float));
+      at += n * sizeof(float);
+    }
+  }
+  return error;
+}
 
 // A swath's track: positions along its straight line (from its first frame, along the direction
 // to its last) with their times, to tell when the vehicle passed over a point of its cloud.
@@ -273,7 +343,7 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
 }
 
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
-                           const fs::path& out_dir, bool progress) {
+                           const fs::path& out_dir, bool progress, const MpiSession* mpi) {
   config.validate();
   const auto t_start = std::chrono::steady_clock::now();
   require(!fs::exists(out_dir), "field mapping: '" + out_dir.string() +
@@ -285,6 +355,59 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                                std::to_string(ranges[0].second) +
                                "): registration needs at least two overlapping swaths");
 
+  const int rank = mpi ? mpi->rank() : 0, ranks = mpi ? mpi->size() : 1;
+  std::size_t total_frames = 0;
+  for (const auto& r : ranges) total_frames += static_cast<std::size_t>(r.second - r.first + 1);
+  Progress bar("map: carving swaths", total_frames, progress && rank == 0);
+  // Carving one swath: the cost of field mapping, the part spread over MPI ranks.
+  auto carve_swath = [&](int s) {
+    Carver carver(dataset.spec, config.carve, dataset.noise);
+    for (int i = ranges[s].first; i <= ranges[s].second; ++i) {
+      carver.integrate(dataset.load_frame(i), dataset.T_world_sonar(i),
+                       "frame " + std::to_string(dataset.frames[i].index));
+      bar.add();
+    }
+    PointCloud cloud = carver.finalize();
+    require(!cloud.empty(), fmt::format("field mapping: swath {} (frames {}–{}) reconstructs to "
+                                        "no point: is the seabed within the sonar's range?",
+                                        s, ranges[s].first, ranges[s].second));
+    return cloud;
+  };
+  // Under MPI: rank r carves the swaths s ≡ r (mod ranks) and sends their clouds to rank 0, which
+  // does everything else (registration needs every swath) and alone writes the output.
+  std::vector<PointCloud> carved(static_cast<std::size_t>(num_swaths));
+  std::vector<double> carve_seconds(static_cast<std::size_t>(num_swaths), 0.0);
+  const auto t_carve = std::chrono::steady_clock::now();
+  if (ranks > 1) {
+    std::string error;
+    std::vector<int> mine;
+    try {
+      for (int s = rank; s < num_swaths; s += ranks) {
+        const auto t0 = std::chrono::steady_clock::now();
+        carved[s] = carve_swath(s);
+        carve_seconds[s] = seconds_since(t0);
+        mine.push_back(s);
+      }
+    } catch (const Error& e) {
+      error = e.what();  // reported by rank 0 after the exchange: the others must not hang
+    }
+    const std::vector<std::string> all =
+        mpi->gather_to_root(pack_swaths(error, mine, carved, carve_seconds));
+    if (rank != 0) {
+      if (!error.empty()) throw Error(error);
+      return MapSurveyResult{};
+    }
+    for (std::size_t r = 0; r < all.size(); ++r) {
+      if (r == 0) continue;  // rank 0's own clouds are already here
+      const std::string e = unpack_swaths(all[r], carved, carve_seconds);
+      if (error.empty() && !e.empty()) error = e;
+    }
+    if (!error.empty()) throw Error(error);
+    for (int s = 0; s < num_swaths; ++s) {  // the other ranks' frames, done
+      if (s % ranks != 0) bar.add(static_cast<std::size_t>(ranges[s].second - ranges[s].first + 1));
+    }
+  }
+
   AtomicPath out(out_dir);
   const fs::path tmp = out.temp();
   fs::create_directories(tmp / "swaths");
@@ -292,13 +415,9 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   std::vector<ElevationMap> maps;
   std::vector<SwathTrack> tracks;
   std::vector<std::vector<SwathPiece>> pieces;  // the drift method's
-  std::size_t total_frames = 0;
-  for (const auto& r : ranges) total_frames += static_cast<std::size_t>(r.second - r.first + 1);
-  Progress bar("map: carving swaths", total_frames, progress);
   ElevationMapConfig map_cfg;
   map_cfg.cell_m = config.cell_m;
   // 1. Each swath on its own: carve, map, write, let go of the carver (memory follows a swath).
-  const auto t_carve = std::chrono::steady_clock::now();
   for (int s = 0; s < num_swaths; ++s) {
     const auto t0 = std::chrono::steady_clock::now();
     SwathInfo info;
@@ -306,19 +425,9 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     info.last_frame = ranges[s].second;
     info.t0 = dataset.frames[info.first_frame].timestamp;
     info.t1 = dataset.frames[info.last_frame].timestamp;
-    PointCloud cloud;
-    {
-      Carver carver(dataset.spec, config.carve, dataset.noise);
-      for (int i = info.first_frame; i <= info.last_frame; ++i) {
-        carver.integrate(dataset.load_frame(i), dataset.T_world_sonar(i),
-                         "frame " + std::to_string(dataset.frames[i].index));
-        bar.add();
-      }
-      cloud = carver.finalize();
-    }
-    require(!cloud.empty(), fmt::format("field mapping: swath {} (frames {}–{}) reconstructs to "
-                                        "no point: is the seabed within the sonar's range?",
-                                        s, info.first_frame, info.last_frame));
+    // One process: carved here, one swath in memory at a time; MPI: carved by its rank.
+    const PointCloud cloud = ranks > 1 ? std::move(carved[s]) : carve_swath(s);
+    carved[s] = PointCloud{};
     ElevationMap map = elevation_map_from_points(cloud, map_cfg);
     tracks.push_back(make_track(dataset, info.first_frame, info.last_frame));
     if (config.method == SwathAdjustMethod::Drift) {
@@ -330,7 +439,7 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     write_ply((tmp / (stem + ".ply")).string(), cloud);
     write_elevation_geotiff((tmp / (stem + ".tif")).string(), map);
     write_elevation_png((tmp / (stem + ".png")).string(), map);
-    info.seconds = seconds_since(t0);
+    info.seconds = seconds_since(t0) + carve_seconds[s];
     result.swaths.push_back(info);
     maps.push_back(std::move(map));
   }

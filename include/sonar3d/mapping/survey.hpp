@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/mpi.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
@@ -141,7 +142,13 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
 //                                     structure's and pipeline's median error, coverage and
 //                                     outliers against its CAD before and after
 // Progress: one bar over the frames.
+//
+// With an MPI session of several ranks (`mpirun -np N sonar3d map ...`), rank r carves the swaths
+// s ≡ r (mod N) and sends their clouds to rank 0, which registers, merges and alone writes
+// `out_dir` (the ranks need not share a file system, but each reads the dataset); the other
+// ranks return an empty result. Rank 0 then holds every swath's cloud at once.
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
-                           const std::filesystem::path& out_dir, bool progress = true);
+                           const std::filesystem::path& out_dir, bool progress = true,
+                           const MpiSession* mpi = nullptr);
 
 }  // namespace sonar3d
