@@ -105,10 +105,11 @@ void bind_mapping(py::module_& m) {
   m.def(
       "map_survey",
       [](const Dataset& dataset, const std::string& output, double cell_m, double voxel_size,
-         const SwathRegistrationConfig& registration, const std::string& method,
+         const SwathRegistrationConfig& registration, const std::string& method, double piece_m,
          const py::object& region, const py::object& progress) {
         MapSurveyConfig cfg;
         cfg.cell_m = cell_m;
+        cfg.piece_m = piece_m;
         cfg.carve.voxel_size = voxel_size;
         cfg.registration = registration;
         cfg.method = swath_adjust_method_from_string(method);
@@ -122,10 +123,14 @@ void bind_mapping(py::module_& m) {
         ProgressArg p(progress);
         const MapSurveyResult r =
             p.run([&] { return map_survey(dataset, cfg, output, p.terminal()); });
-        py::list offsets;
-        for (const SwathInfo& s : r.swaths) offsets.append(s.offset);
+        py::list offsets, rates;
+        for (const SwathInfo& s : r.swaths) {
+          offsets.append(s.offset);
+          rates.append(s.rate);
+        }
         py::dict d;
         d["offsets"] = offsets;
+        d["rates"] = rates;
         d["ties"] = r.ties;
         d["merged_points"] = r.merged_points;
         d["seconds"] = r.seconds_total;
@@ -141,11 +146,14 @@ void bind_mapping(py::module_& m) {
         d["structures"] = structures;
         return d;
       },
-      "dataset"_a, "output"_a, "cell_m"_a = 0.02, "voxel_size"_a = 0.02,
-      "registration"_a = SwathRegistrationConfig(), "method"_a = "global", "region"_a = py::none(),
-      "progress"_a = py::none(),
+      "dataset"_a, "output"_a, "cell_m"_a = MapSurveyConfig().cell_m,
+      "voxel_size"_a = MapSurveyConfig().carve.voxel_size,
+      "registration"_a = SwathRegistrationConfig(), "method"_a = "global",
+      "piece_m"_a = MapSurveyConfig().piece_m, "region"_a = py::none(), "progress"_a = py::none(),
       "Field mapping (sec. 6.2; `sonar3d map`): writes `output` (swath maps, ties, corrected "
-      "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz), ties, "
+      "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz) at the "
+      "swath's "
+      "start, rates: per-swath horizontal drift rates (m/s, method 'drift'), ties, "
       "merged_points, seconds, structures: simulated sites' structures and pipelines scored "
       "against their CAD as logged (before) and corrected (after)}.");
 }

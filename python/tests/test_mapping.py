@@ -51,3 +51,37 @@ def test_registration_recovers_a_known_shift():
     assert tie.confidence > 0.5
     with pytest.raises(AttributeError):
         sonar3d.SwathRegistrationConfig(serach_m=0.2)  # a misspelt keyword is an error
+
+
+FIELD = """seed: 3
+navigation_error: {velocity_scale: 0.02, heading_bias_deg: 0.3, bias_walk: 0.002}
+sensor: {fov_deg: 80, beams: 160, r_min: 1.0, r_max: 4.0, range_bins: 150,
+         vertical_aperture_deg: 1, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, kind: terrain}
+  - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}}
+  - {name: pipe, pipeline: {from: [3, 2, 0.013], to: [7, 3.5, 0.013], radius: 0.15, burial: 0.3}}
+  - {name: rock, primitive: {type: sphere, radius: 0.3}, pose: {translation: [4.5, 3.2, -0.1]}}
+trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5, spacing: 0.04, period: 0.1}
+"""
+
+
+def test_map_survey_with_the_drift_method(tmp_path):
+    (tmp_path / "field.yaml").write_text(FIELD)
+    sonar3d.simulate(str(tmp_path / "field.yaml"), str(tmp_path / "ds"))
+    ds = sonar3d.read_dataset(str(tmp_path / "ds"))
+    reg = sonar3d.SwathRegistrationConfig()
+    reg.search_m = 0.3
+    r = sonar3d.map_survey(ds, str(tmp_path / "map"), registration=reg, method="drift",
+                           piece_m=2.0, region=((-1, -1, -0.6), (7, 6, 0.8)))
+    assert len(r["offsets"]) == 4 and len(r["rates"]) == 4
+    assert np.allclose(r["offsets"][0], 0.0)  # the gauge: exact where swath 0 starts
+    assert any(np.linalg.norm(rate) > 0 for rate in r["rates"])
+    kinds = {s["name"]: s["kind"] for s in r["structures"]}
+    assert kinds == {"box": "structure", "pipe": "pipeline", "rock": "structure"}
+    for s in r["structures"]:
+        assert s["after"]["median_error"] < 0.05
+    assert (tmp_path / "map" / "summary.json").exists()
+    with pytest.raises(sonar3d.Error, match="consecutive, global, drift"):
+        sonar3d.map_survey(ds, str(tmp_path / "map2"), method="sideways")
