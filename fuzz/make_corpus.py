@@ -84,6 +84,9 @@ objects:
 trajectory: {type: lawnmower, x: [-1, 1], y: [-1, 1], z: 3, line_spacing: 1, spacing: 0.2, heading_deg: 30, turn_radius: 0.5}
 """)
 
+w('colmap', 'two_cameras', '# c\n1 OPENCV 640 480 500 505 320.5 240.5 -0.1 0.01 0.001 -0.001\n2 SIMPLE_RADIAL 100 80 90 50.5 40.5 0.01' + SEP + '# i\n1 0.7071 0 0.7071 0 1 2 3 1 a b.png\n10.5 3 -1 4 5 6\n2 1 0 0 0 0 0 0 2 c.jpg\n\n')
+w('colmap', 'full_opencv', '1 FULL_OPENCV 1280 960 900 905 641.8 479.4 -0.12 0.03 0.0008 -0.0005 -0.002 0 0 0' + SEP + '5 0.5 -0.5 0.5 -0.5 2 3 -1 1 frame.png\n\n')
+
 for f in os.listdir('data/sweeps'):
     w('sweep', f.replace('.yaml', ''), open('data/sweeps/' + f).read())
 
