@@ -8,8 +8,11 @@
 #include <random>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/video/camera.hpp"
 #include "sonar3d/video/colmap.hpp"
+#include "sonar3d/video/render.hpp"
+#include "sonar3d/video/texture.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -198,4 +201,122 @@ TEST(Colmap, BadModelsNameFileAndLine) {
   check(good_cam, "-1 1 0 0 0 0 0 0 1 a.png\n\n", "IMAGE_ID");
   fs::remove(dir / "images.txt");
   expect_error([&] { read_colmap_text(dir); }, "images.txt");
+}
+
+namespace {
+
+// A blue wall 4 m in front of a camera at the origin (looking along world +z), a red plate 2 m
+// in front, half a metre across; 200 × 150 pixels.
+struct WallScene {
+  Scene scene;
+  CameraIntrinsics camera;
+  WallScene() {
+    SceneObject wall;
+    wall.name = "wall";
+    wall.mesh_world = make_plane(8.0, 8.0);
+    wall.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 4)));
+    wall.color = {0.1f, 0.2f, 0.9f};
+    SceneObject plate;
+    plate.name = "plate";
+    plate.mesh_world = make_box(0.5, 0.5, 0.1);
+    plate.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 2)));
+    plate.color = {0.9f, 0.1f, 0.1f};
+    scene.objects = {wall, plate};
+    camera.width = 200;
+    camera.height = 150;
+    camera.fx = camera.fy = 150;
+    camera.cx = 99.5;
+    camera.cy = 74.5;
+  }
+};
+
+PointCloud grid(double half, double z, double step) {
+  PointCloud c;
+  for (double x = -half; x <= half + 1e-9; x += step) {
+    for (double y = -half; y <= half + 1e-9; y += step) {
+      c.points.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+// The simulated camera sees the plate in front of the wall, in their colours, with the range of
+// each pixel; light falls off with range through the water.
+TEST(CameraRender, SeesObjectsInTheirColours) {
+  WallScene w;
+  CameraRenderConfig cfg;
+  cfg.ambient = 1.0;  // flat lighting, no water: the albedo itself
+  cfg.attenuation_per_m = 0.0;
+  const RgbImage img = CameraRenderer(w.scene, cfg).render(w.camera, Eigen::Isometry3d::Identity());
+  // Centre: the plate's front face at 1.95 m; a corner: the wall at 4 m along its ray.
+  EXPECT_NEAR((img.at(100, 75) - Eigen::Vector3f(0.9f, 0.1f, 0.1f)).norm(), 0, 1e-6);
+  EXPECT_NEAR(img.range_m[75 * 200 + 100], 1.95, 0.01);
+  EXPECT_NEAR((img.at(5, 5) - Eigen::Vector3f(0.1f, 0.2f, 0.9f)).norm(), 0, 1e-6);
+  const auto ray = unproject(w.camera, {5, 5});
+  EXPECT_NEAR(img.range_m[5 * 200 + 5], 4.0 / ray->z(), 0.01);
+  // With water, the wall is darker than the plate relative to their albedo: exp(−2·c·r).
+  cfg.attenuation_per_m = 0.2;
+  cfg.ambient = 1.0;
+  const RgbImage dim = CameraRenderer(w.scene, cfg).render(w.camera, Eigen::Isometry3d::Identity());
+  EXPECT_NEAR(dim.at(100, 75).x() / 0.9f, std::exp(-2 * 0.2 * 1.95), 0.01);
+  EXPECT_NEAR(dim.at(5, 5).z() / 0.9f, std::exp(-2 * 0.2 * 4.0 / ray->z()), 0.01);
+  cfg.ambient = 2;
+  expect_error([&] { CameraRenderer(w.scene, cfg); }, "ambient");
+}
+
+// A textured scene in front of a simulated camera gets its colours back; the part of the wall
+// hidden behind the plate, and what lies outside the picture, get none.
+TEST(Texture, ColoursBackAndNoneWhereHidden) {
+  WallScene w;
+  CameraRenderConfig cfg;
+  cfg.ambient = 1.0;
+  cfg.attenuation_per_m = 0.0;
+  const RgbImage img = CameraRenderer(w.scene, cfg).render(w.camera, Eigen::Isometry3d::Identity());
+  PointCloud cloud = grid(3.0, 4.0, 0.02);  // the wall, beyond the picture at its sides
+  const std::size_t wall_points = cloud.size();
+  const PointCloud plate = grid(0.24, 1.95, 0.02);  // the plate's front face
+  cloud.points.insert(cloud.points.end(), plate.points.begin(), plate.points.end());
+  TextureConfig tc;
+  tc.point_spacing_m = 0.02;
+  const TexturedCloud t =
+      texture_cloud(cloud, {CameraView{w.camera, Eigen::Isometry3d::Identity(), &img}}, tc);
+  // The plate's shadow on the wall: its 0.25 m half-width at 1.95 m seen at 4 m.
+  const double shadow = 0.25 * 4.0 / 1.95;
+  // The picture's edge at 4 m: u = ±100 px → x = ±100·4/150.
+  const double edge = 99.5 * 4.0 / 150;
+  std::size_t hidden = 0, seen = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    const bool on_wall = i < wall_points;
+    const double m = std::max(std::abs(p.x()), std::abs(p.y()));
+    if (on_wall && m < shadow - 0.05) {
+      EXPECT_EQ(t.views[i], 0u) << "hidden wall point " << p.transpose() << " took a colour";
+      ++hidden;
+    } else if (on_wall && m > shadow + 0.05 && std::abs(p.x()) < edge - 0.05 &&
+               std::abs(p.y()) < 74.5 * 4.0 / 150 - 0.05) {
+      ASSERT_EQ(t.views[i], 1u) << p.transpose();
+      EXPECT_NEAR((t.color[i] - Eigen::Vector3f(0.1f, 0.2f, 0.9f)).norm(), 0, 1e-4);
+      ++seen;
+    } else if (!on_wall && m < 0.2) {
+      ASSERT_EQ(t.views[i], 1u) << p.transpose();
+      EXPECT_NEAR((t.color[i] - Eigen::Vector3f(0.9f, 0.1f, 0.1f)).norm(), 0, 1e-4);
+      ++seen;
+    } else if (on_wall && std::abs(p.x()) > edge + 0.05) {
+      EXPECT_EQ(t.views[i], 0u) << "outside the picture: " << p.transpose();
+    }
+  }
+  EXPECT_GT(hidden, 500u);
+  EXPECT_GT(seen, 5000u);
+  // Bad input: an image that is not the camera's.
+  RgbImage small = img;
+  small.width = 10;
+  expect_error(
+      [&] {
+        texture_cloud(cloud, {CameraView{w.camera, Eigen::Isometry3d::Identity(), &small}}, tc);
+      },
+      "size");
+  tc.point_spacing_m = 0;
+  expect_error([&] { texture_cloud(cloud, {}, tc); }, "point_spacing_m");
 }

@@ -218,7 +218,7 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     const std::string ctx = "objects[" + std::to_string(i) + "]";
     yaml::check_keys(o,
                      {"name", "reference", "mesh", "primitive", "pipeline", "pose", "scale",
-                      "reflectivity", "kind"},
+                      "reflectivity", "kind", "color"},
                      path, ctx);
     SceneObject obj;
     obj.name = yaml::get_string(o, "name", "object" + std::to_string(i), path, ctx);
@@ -263,6 +263,16 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     if (!(obj.reflectivity >= 0 && obj.reflectivity <= 1)) {
       throw Error(yaml::where(path, o["reflectivity"], ctx + ".reflectivity") +
                   ": must lie in [0, 1]");
+    }
+    if (o["color"]) {
+      const auto c = yaml::get_vector(o, "color", 3, path, ctx);
+      for (double v : c) {
+        if (!(v >= 0 && v <= 1)) {
+          throw Error(yaml::where(path, o["color"], ctx + ".color") +
+                      ": each of r, g, b must lie in [0, 1]");
+        }
+      }
+      obj.color = Eigen::Vector3d(c[0], c[1], c[2]).cast<float>();
     }
     for (const auto& other : setup.scene.objects) {
       if (other.name == obj.name) {
@@ -447,7 +457,9 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
     y << YAML::BeginMap << YAML::Key << "name" << YAML::Value << o.name;
     y << YAML::Key << "mesh" << YAML::Value << file;
     y << YAML::Key << "reflectivity" << YAML::Value << o.reflectivity;
-    y << YAML::Key << "kind" << YAML::Value << to_string(o.kind) << YAML::EndMap;
+    y << YAML::Key << "kind" << YAML::Value << to_string(o.kind);
+    y << YAML::Key << "color" << YAML::Value << YAML::Flow << YAML::BeginSeq << o.color.x()
+      << o.color.y() << o.color.z() << YAML::EndSeq << YAML::EndMap;
   }
   y << YAML::EndSeq << YAML::EndMap;
   write_text_file((truth / "scene.yaml").string(), std::string(y.c_str()) + "\n");
@@ -481,6 +493,10 @@ std::vector<SceneObject> read_truth(const fs::path& dir) {
       o.kind = object_kind_from_string(yaml::get_string(objs[i], "kind", "structure", file, ctx));
     } catch (const Error& e) {
       throw Error(yaml::where(file, objs[i], ctx + ".kind") + ": " + e.what());
+    }
+    if (objs[i]["color"]) {
+      const auto c = yaml::get_vector(objs[i], "color", 3, file, ctx);
+      o.color = Eigen::Vector3d(c[0], c[1], c[2]).cast<float>().cwiseMax(0.0f).cwiseMin(1.0f);
     }
     o.mesh_world =
         load_mesh((dir / "truth" / yaml::get_string(objs[i], "mesh", "", file, ctx)).string());

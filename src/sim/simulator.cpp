@@ -50,42 +50,8 @@ Simulator::Simulator(const Scene& scene, const SonarSpec& spec, const SimulatorC
     if (!(obj.reflectivity >= 0.0 && obj.reflectivity <= 1.0)) {
       throw Error("object '" + obj.name + "': reflectivity must lie in [0, 1]");
     }
-    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                          RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                                          obj.mesh_world.vertices.size()));
-    for (std::size_t i = 0; i < obj.mesh_world.vertices.size(); ++i) {
-      const auto& p = obj.mesh_world.vertices[i];
-      if (!p.allFinite()) {
-        rtcReleaseGeometry(geom);
-        throw Error("object '" + obj.name + "': vertex " + std::to_string(i) + " is not finite");
-      }
-      // Embree builds its bounds in float and asserts on coordinates beyond ~1e18.
-      if (p.cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
-        rtcReleaseGeometry(geom);
-        throw Error("object '" + obj.name + "': vertex " + std::to_string(i) +
-                    " lies more than 1e7 m from the origin (check the mesh's unit and pose)");
-      }
-      std::memcpy(v + 3 * i, p.data(), 3 * sizeof(float));
-    }
-    auto* idx = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                3 * sizeof(unsigned), obj.mesh_world.triangles.size()));
-    const auto nv = static_cast<int>(obj.mesh_world.vertices.size());
-    for (std::size_t i = 0; i < obj.mesh_world.triangles.size(); ++i) {
-      const auto& t = obj.mesh_world.triangles[i];
-      if ((t.array() < 0).any() || (t.array() >= nv).any()) {
-        rtcReleaseGeometry(geom);
-        throw Error("object '" + obj.name + "': triangle " + std::to_string(i) +
-                    " indexes a vertex that does not exist");
-      }
-      idx[3 * i] = t[0];
-      idx[3 * i + 1] = t[1];
-      idx[3 * i + 2] = t[2];
-    }
-    rtcCommitGeometry(geom);
-    const unsigned id = rtcAttachGeometry(impl_->scene, geom);
-    rtcReleaseGeometry(geom);
+    const unsigned id =
+        detail::attach_mesh(impl_->scene, obj.mesh_world, "object '" + obj.name + "'");
     if (impl_->reflectivity.size() <= id) impl_->reflectivity.resize(id + 1, 0.0f);
     impl_->reflectivity[id] = static_cast<float>(obj.reflectivity);
   }

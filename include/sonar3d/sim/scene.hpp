@@ -20,6 +20,8 @@ struct SceneObject {
   TriangleMesh mesh_world;    // already transformed into the world frame
   double reflectivity = 0.5;  // μ in [0, 1]
   ObjectKind kind = ObjectKind::Structure;
+  // What a camera sees (video mapping): linear RGB albedo, each in [0, 1].
+  Eigen::Vector3f color = Eigen::Vector3f::Constant(0.6f);
 };
 
 struct Scene {

@@ -1,0 +1,41 @@
+#pragma once
+// Video mapping onto a sonar point cloud (thesis sec. 6.4): every camera frame projected onto the
+// points it sees, colours averaged over frames. Visibility comes from the cloud itself: each
+// frame's points are splatted into a depth buffer (squares of the cloud's spacing), and a point
+// further than the nearest depth at its pixel by more than a tolerance is hidden and takes no
+// colour from that frame. (The thesis ray-traced an octree, which let colour leak behind
+// surfaces.)
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/video/camera.hpp"
+#include "sonar3d/video/render.hpp"
+
+namespace sonar3d {
+
+struct CameraView {
+  CameraIntrinsics camera;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  const RgbImage* image = nullptr;  // its size must match the camera's
+};
+
+struct TextureConfig {
+  double point_spacing_m = 0.01;    // the cloud's spacing (its voxel size): the splat size
+  double depth_tolerance_m = 0.03;  // visible when within this of the nearest depth at its pixel
+  double max_range_m = 30.0;        // farther points take no colour (water: nothing to see)
+  int max_splat_px = 16;            // cap on a splat's half-width, pixels
+  void validate() const;            // throws Error naming the field
+};
+
+struct TexturedCloud {
+  std::vector<Eigen::Vector3f> color;  // per point: mean over the frames that saw it; 0 if none
+  std::vector<std::uint32_t> views;    // per point: how many frames saw it (0: no colour)
+  std::size_t coloured() const;        // points with at least one view
+};
+
+TexturedCloud texture_cloud(const PointCloud& cloud, const std::vector<CameraView>& views,
+                            const TextureConfig& config = {});
+
+}  // namespace sonar3d
