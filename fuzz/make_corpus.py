@@ -132,3 +132,34 @@ w('pickle', 'wrong_shape', pickle.dumps({"ImagingSonar": np.zeros((3, 6), np.flo
 w('navcsv', 'enu_deg', b'\x00' + b"time,x,y,z,roll,pitch,yaw\n# c\n0,0,0,-1,0,0,90\n0.5,1,0,-1,1,2,91\n1.0,2,0,-1,0,0,92\n")
 w('navcsv', 'ned_rad_extra', b'\x03' + b"t, north, east, depth, roll, pitch, yaw, speed\n0,0,0,1,0,0,1.57,1\n1,1,1,1,0.01,0,1.6,1\n")
 w('navcsv', 'tum', b'\x04' + b"# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071068 0.7071068\n")
+
+# ARIS recordings (fuzz_aris): first byte = options, then the file (published ARIS layout:
+# 1024-byte file header, frames of a 1024-byte header + samples × beams bytes).
+def aris(frames=2, samples=4, ping=1, nav=True, cut=0):
+    beams = {1: 48, 3: 96, 6: 64, 9: 128}[ping]
+    fh = bytearray(1024)
+    struct.pack_into('<II', fh, 0, 0x05464444, frames)
+    struct.pack_into('<I', fh, 16, beams)
+    struct.pack_into('<I', fh, 24, samples)
+    out = bytes(fh)
+    for k in range(frames):
+        h = bytearray(1024)
+        struct.pack_into('<IQI', h, 0, k, 1700000000000000 + 100000 * k, 0x05464444)
+        struct.pack_into('<Q', h, 20, 1700000000000000 + 100000 * k + 7)
+        if nav:
+            struct.pack_into('<f', h, 128, 2.5)
+            struct.pack_into('<fffff', h, 136, 1.0, 0, -2.0, 0, 45.0 + k)
+            struct.pack_into('<dd', h, 172, 47.6 + 1e-6 * k, -122.3)
+        struct.pack_into('<I', h, 436, ping)
+        struct.pack_into('<I', h, 452, 20)
+        struct.pack_into('<f', h, 464, 1500.0)
+        struct.pack_into('<I', h, 468, samples)
+        struct.pack_into('<I', h, 476, 1600)
+        struct.pack_into('<I', h, 484, 1 if ping in (6, 9) else 0)
+        struct.pack_into('<I', h, 516, 1)
+        out += bytes(h) + bytes((i * 7 + k) % 256 for i in range(samples * beams))
+    return out[:len(out) - cut] if cut else out
+w('aris', 'header_nav', b'\x01' + aris())
+w('aris', 'static_96', b'\x00' + aris(frames=3, samples=2, ping=3, nav=False))
+w('aris', 'aris3000_64_cut', b'\x02' + aris(frames=3, samples=3, ping=6, cut=100))
+w('aris', 'aris3000_128_sonar_clock', b'\x05' + aris(frames=1, samples=2, ping=9))
