@@ -163,3 +163,38 @@ w('aris', 'header_nav', b'\x01' + aris())
 w('aris', 'static_96', b'\x00' + aris(frames=3, samples=2, ping=3, nav=False))
 w('aris', 'aris3000_64_cut', b'\x02' + aris(frames=3, samples=3, ping=6, cut=100))
 w('aris', 'aris3000_128_sonar_clock', b'\x05' + aris(frames=1, samples=2, ping=9))
+
+# ROS bags (fuzz_rosbag) and messages (fuzz_rosmsg): a 2-frame dataset (4 beams × 8 range bins)
+# exported by `sonar3d export rosbag` (ROS 2 and --ros1), so the seeds are what the importer
+# reads; needs a built CLI ($SONAR3D, else build/bin/sonar3d). fuzz_rosmsg's seeds are the
+# messages of the ROS 2 bag (CDR) and a hand-built ROS 1 PoseStamped.
+import shutil, sqlite3, subprocess, tempfile
+cli = os.environ.get('SONAR3D', 'build/bin/sonar3d')
+if os.path.exists(cli):
+    tmp = tempfile.mkdtemp()
+    ds = f'{tmp}/ds'
+    os.makedirs(f'{ds}/frames')
+    open(f'{ds}/sonar.yaml', 'w').write(sonar)
+    open(f'{ds}/frames.csv', 'w').write("index,timestamp,file\n0,10,frames/000000.png\n1,10.5,frames/000001.png\n")
+    open(f'{ds}/navigation.tum', 'w').write(nav)
+    for k in range(2):
+        open(f'{ds}/frames/{k:06d}.png', 'wb').write(png16(4, 8, 1000 + 500 * k))
+    subprocess.run([cli, 'export', 'rosbag', ds, '-o', f'{tmp}/b2', '-q'], check=True)
+    subprocess.run([cli, 'export', 'rosbag', '--ros1', ds, '-o', f'{tmp}/b1.bag', '-q'], check=True)
+    db = open(f'{tmp}/b2/b2_0.db3', 'rb').read()
+    b1 = open(f'{tmp}/b1.bag', 'rb').read()
+    w('rosbag', 'ros2_nav', b'\x00' + db)
+    w('rosbag', 'ros2_static', b'\x02' + db)
+    w('rosbag', 'ros1_nav', b'\x01' + b1)
+    w('rosbag', 'ros1_static_drop', b'\x07' + b1)
+    con = sqlite3.connect(f'{tmp}/b2/b2_0.db3')
+    sel = {'/sonar3d/image': 0, '/sonar3d/odom': 2 << 1, '/tf_static': 5 << 1}
+    for name, tid in con.execute('SELECT name, id FROM topics'):
+        blob = con.execute('SELECT data FROM messages WHERE topic_id=? LIMIT 1', (tid,)).fetchone()[0]
+        w('rosmsg', 'cdr' + name.replace('/', '_'), bytes([sel[name]]) + blob)
+    con.close()
+    shutil.rmtree(tmp)
+    pose1 = struct.pack('<III', 1, 10, 0) + struct.pack('<I', 3) + b'map' + struct.pack('<7d', 1, 2, 3, 0, 0, 0, 1)
+    w('rosmsg', 'ros1_pose_stamped', bytes([1 | (3 << 1)]) + pose1)
+else:
+    print(f'make_corpus: {cli} not built: rosbag and rosmsg seeds left as they are')

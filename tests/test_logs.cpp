@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 
 #include "sonar3d/core/error.hpp"
@@ -18,6 +19,8 @@
 #include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/navigation.hpp"
+#include "sonar3d/io/ros_msgs.hpp"
+#include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
 #include "test_support.hpp"
@@ -523,4 +526,473 @@ TEST(ArisCli, ImportAndReconstruct) {
     d.push_back(std::abs((q.cast<double>() - centre).norm() - 0.5));
   std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
   EXPECT_LT(d[d.size() / 2], 0.08) << "median distance of the carved points to the sphere";
+}
+
+// ------------------------------------------------------------------------------------ ROS bags
+
+namespace {
+
+// A simulated pass written as a dataset with `bits` = 8, 16 or 32 (float TIFF), and its frames
+// read back.
+struct PassDataset {
+  SimulatedPass pass;
+  std::vector<SonarImage> frames;
+};
+
+PassDataset pass_dataset(const fs::path& dir, int bits, int frames = 5) {
+  SonarSpec spec;
+  spec.name = "sim";
+  spec.set_uniform_bearings(30 * kDeg, 40);
+  spec.r_min = 1.0;
+  spec.r_max = 3.0;
+  spec.range_bins = 90;
+  spec.vertical_aperture_rad = 12 * kDeg;
+  PassDataset d{simulate_pass(spec, frames), {}};
+  SimulatedPass& p = d.pass;
+  if (bits == 16) {
+    p.spec.bit_depth = 16;
+    p.spec.intensity_scale = 1.0 / 65535.0;
+  }
+  {
+    DatasetWriter w(
+        dir, p.spec,
+        bits == 32 ? DatasetWriter::ImageFormat::Tiff : DatasetWriter::ImageFormat::Png);
+    for (std::size_t k = 0; k < p.images.size(); ++k) {
+      SonarImage img = p.images[k];
+      if (bits != 8) {
+        for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] *= 0.37f + 0.001f * (i % 7);
+      }
+      img.timestamp = p.times[k];
+      w.add_frame(img);
+    }
+    w.set_navigation(p.nav);
+    w.commit();
+  }
+  const Dataset ds = read_dataset(dir);
+  for (std::size_t k = 0; k < ds.size(); ++k) d.frames.push_back(ds.load_frame(k));
+  return d;
+}
+
+void expect_same_dataset(const fs::path& imported, const PassDataset& d, bool tiff = false) {
+  const Dataset ds = read_dataset(imported);
+  const SimulatedPass& p = d.pass;
+  ASSERT_EQ(ds.size(), d.frames.size());
+  EXPECT_EQ(ds.spec.range_bins, p.spec.range_bins);
+  ASSERT_EQ(ds.spec.beams(), p.spec.beams());
+  for (int j = 0; j < p.spec.beams(); ++j) {
+    EXPECT_NEAR(ds.spec.bearings_rad[j], p.spec.bearings_rad[j], 1e-9);
+  }
+  EXPECT_NEAR(ds.spec.r_min, p.spec.r_min, 1e-6);
+  EXPECT_NEAR(ds.spec.r_max, p.spec.r_max, 1e-6);
+  EXPECT_NEAR(ds.spec.vertical_aperture_rad, p.spec.vertical_aperture_rad, 1e-6);
+  if (!tiff) {
+    EXPECT_EQ(ds.spec.bit_depth, p.spec.bit_depth);
+  }
+  for (std::size_t k = 0; k < ds.size(); ++k) {
+    const SonarImage img = ds.load_frame(k);
+    ASSERT_EQ(img.data.size(), d.frames[k].data.size());
+    EXPECT_EQ(std::memcmp(img.data.data(), d.frames[k].data.data(), img.data.size() * 4), 0)
+        << "frame " << k << " is not bit-identical";
+    EXPECT_NEAR(ds.frames[k].timestamp, p.times[k], 1e-6);
+    EXPECT_LT((ds.T_world_sonar(k).translation() - p.T_world_sonar[k].translation()).norm(), 1e-6)
+        << "frame " << k;
+    EXPECT_LT((ds.T_world_sonar(k).linear() - p.T_world_sonar[k].linear()).norm(), 1e-6);
+  }
+}
+
+}  // namespace
+
+TEST(RosMessages, EveryMessageRoundTripsOnBothWires) {
+  for (RosWire wire : {RosWire::Cdr, RosWire::Ros1}) {
+    RosSonarImage m;
+    m.stamp = RosTime::from_seconds(1700000000.125);
+    m.frame_id = "oculus";
+    m.frequency = 1.2e6f;
+    m.sound_speed = 1500;
+    m.tx_beamwidths = {0.3f, 0.3f};
+    m.rx_beamwidths = {0.01f, 0.01f};
+    m.beam_directions = {Eigen::Vector3d(0, 0.1, 0.99), Eigen::Vector3d(0, -0.1, 0.99)};
+    m.ranges = {1.0f, 1.5f, 2.0f};
+    m.dtype = kRosDtypeUint16;
+    m.beam_count = 2;
+    m.data = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    const auto bytes = encode_sonar_image(m, wire);
+    const RosSonarImage r = decode_sonar_image(bytes.data(), bytes.size(), wire, "x");
+    EXPECT_EQ(r.stamp.ns(), m.stamp.ns());
+    EXPECT_EQ(r.frame_id, "oculus");
+    EXPECT_EQ(r.tx_beamwidths, m.tx_beamwidths);
+    EXPECT_EQ(r.beam_directions, m.beam_directions);
+    EXPECT_EQ(r.ranges, m.ranges);
+    EXPECT_EQ(r.data, m.data);
+    EXPECT_EQ(r.dtype, kRosDtypeUint16);
+    // Every truncation is one Error naming the message, never a crash or a wild allocation.
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      expect_error([&] { decode_sonar_image(bytes.data(), n, wire, "msg 7"); }, "msg 7: byte");
+    }
+    RosPose pose;
+    pose.stamp = RosTime::from_seconds(12.5);
+    pose.frame_id = "map";
+    pose.child_frame_id = "base_link";
+    pose.position = Eigen::Vector3d(1, 2, 3);
+    pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+    for (const auto& [type, b] :
+         {std::make_pair(std::string("nav_msgs/msg/Odometry"), encode_odometry(pose, wire)),
+          std::make_pair(std::string("geometry_msgs/PoseStamped"),
+                         encode_pose_stamped(pose, wire))}) {
+      const RosPose q = decode_pose(type, b.data(), b.size(), wire, "p");
+      EXPECT_EQ(q.position, pose.position);
+      EXPECT_NEAR(q.orientation.angularDistance(pose.orientation), 0, 1e-12);
+      EXPECT_EQ(q.stamp.ns(), 12500000000LL);
+    }
+    RosTransform t;
+    t.parent = "base_link";
+    t.child = "sonar";
+    t.translation = Eigen::Vector3d(0.1, 0.2, 0.3);
+    const auto tb = encode_tf({t, t}, wire);
+    const auto ts = decode_tf(tb.data(), tb.size(), wire, "tf");
+    ASSERT_EQ(ts.size(), 2u);
+    EXPECT_EQ(ts[1].child, "sonar");
+    EXPECT_EQ(ts[1].translation, t.translation);
+  }
+}
+
+TEST(RosMessages, HostileCountsAndEncodingsAreNamed) {
+  RosSonarImage m;
+  m.ranges = {1.0f};
+  auto b = encode_sonar_image(m, RosWire::Cdr);
+  // The beam_directions count (after header, ping_info) claims 2^32 − 1 entries.
+  std::vector<std::uint8_t> bad = b;
+  const std::size_t at = 4 + 8 + 4 + 4 + 4 + 4 + 4;  // stamp, frame_id "" (len 1 + pad), …
+  (void)at;
+  RosTransform t;
+  auto tf = encode_tf({t}, RosWire::Cdr);
+  tf[4] = tf[5] = tf[6] = tf[7] = 0xff;
+  expect_error([&] { decode_tf(tf.data(), tf.size(), RosWire::Cdr, "tf 3"); },
+               "claims 4294967295 elements");
+  bad[1] = 0x00;  // big-endian CDR
+  expect_error([&] { decode_sonar_image(bad.data(), bad.size(), RosWire::Cdr, "m"); },
+               "big-endian CDR");
+  bad[0] = 0x07;
+  expect_error([&] { decode_sonar_image(bad.data(), bad.size(), RosWire::Cdr, "m"); },
+               "unknown CDR encapsulation");
+  RosPose pose;
+  pose.orientation.coeffs() << 0, 0, 0, 2;
+  auto pb = encode_pose_stamped(pose, RosWire::Cdr);
+  expect_error(
+      [&] {
+        decode_pose("geometry_msgs/PoseStamped", pb.data(), pb.size(), RosWire::Cdr, "nav 2");
+      },
+      "not a unit quaternion");
+  expect_error([&] { decode_pose("std_msgs/String", pb.data(), pb.size(), RosWire::Cdr, "n"); },
+               "not a navigation message");
+}
+
+class RosbagRoundTrip : public ::testing::TestWithParam<std::tuple<RosWire, int>> {};
+
+TEST_P(RosbagRoundTrip, SimulatedDatasetSurvivesExportAndImport) {
+  const auto [wire, bits] = GetParam();
+  const fs::path root =
+      temp_dir(std::string(wire == RosWire::Cdr ? "ros2_" : "ros1_") + std::to_string(bits));
+  const PassDataset d = pass_dataset(root / "sim", bits);
+  RosbagExportConfig ec;
+  ec.wire = wire;
+  const fs::path bag = root / (wire == RosWire::Cdr ? "bag" : "sim.bag");
+  const RosbagExportResult er = export_rosbag(root / "sim", bag, ec);
+  EXPECT_EQ(er.frames, d.frames.size());
+  EXPECT_EQ(er.navigation_samples, d.pass.nav.size());
+  if (wire == RosWire::Cdr) {
+    EXPECT_TRUE(fs::exists(bag / "metadata.yaml"));
+    EXPECT_TRUE(fs::exists(bag / "bag_0.db3"));
+  }
+  const std::unique_ptr<BagReader> reader = BagReader::open(bag);
+  ASSERT_NE(reader->find("/sonar3d/image"), nullptr);
+  EXPECT_EQ(reader->find("/sonar3d/image")->messages, d.frames.size());
+  EXPECT_EQ(ros_type_name(reader->find("/sonar3d/image")->type),
+            "marine_acoustic_msgs/ProjectedSonarImage");
+
+  RosbagImportConfig ic;
+  ic.sonar_topic = "/sonar3d/image";
+  ic.nav_topic = "/sonar3d/odom";
+  const RosbagImportResult r = import_rosbag(bag, root / "ds", ic);
+  EXPECT_EQ(r.frames, d.frames.size());
+  EXPECT_EQ(r.mounting_source, "/tf_static: base_link -> sonar");
+  expect_same_dataset(root / "ds", d, bits == 32);
+}
+
+INSTANTIATE_TEST_SUITE_P(Wires, RosbagRoundTrip,
+                         ::testing::Combine(::testing::Values(RosWire::Cdr, RosWire::Ros1),
+                                            ::testing::Values(8, 16, 32)));
+
+TEST(RosbagImport, PredecessorPackageImageTopicAndPoseStamped) {
+  const fs::path root = temp_dir("rosbag_variants");
+  const PassDataset d = pass_dataset(root / "sim", 16, 4);
+  const SimulatedPass& p = d.pass;
+  // acoustic_msgs/ProjectedSonarImage, navigation as PoseStamped, mounting given on the command
+  // line.
+  RosbagExportConfig ec;
+  ec.message_package = "acoustic_msgs";
+  export_rosbag(root / "sim", root / "old", ec);
+  {
+    // Rewrite the navigation as PoseStamped into a second bag with the same sonar messages.
+    const auto reader = BagReader::open(root / "old");
+    std::vector<BagOutMessage> msgs;
+    reader->read("/sonar3d/image",
+                 [&](std::int64_t t, const std::uint8_t* b, std::size_t n, const std::string&) {
+                   msgs.push_back({0, t, std::vector<std::uint8_t>(b, b + n)});
+                 });
+    for (std::size_t k = 0; k < p.nav.size(); ++k) {
+      RosPose pose;
+      pose.stamp = RosTime::from_seconds(p.nav.times[k]);
+      pose.frame_id = "map";
+      pose.position = p.nav.poses[k].translation();
+      pose.orientation = Eigen::Quaterniond(p.nav.poses[k].linear());
+      msgs.push_back({1, pose.stamp.ns(), encode_pose_stamped(pose, RosWire::Cdr)});
+    }
+    // sensor_msgs/Image of the same frames (16-bit, rows = range bins).
+    for (std::size_t k = 0; k < d.frames.size(); ++k) {
+      RosImage im;
+      im.stamp = RosTime::from_seconds(p.times[k]);
+      im.frame_id = "sonar_flu";
+      im.height = static_cast<std::uint32_t>(d.frames[k].rows);
+      im.width = static_cast<std::uint32_t>(d.frames[k].cols);
+      im.encoding = "mono16";
+      im.step = im.width * 2;
+      for (float v : d.frames[k].data) {
+        const auto q = static_cast<std::uint16_t>(std::lround(v * 65535.0));
+        im.data.push_back(static_cast<std::uint8_t>(q & 0xff));
+        im.data.push_back(static_cast<std::uint8_t>(q >> 8));
+      }
+      msgs.push_back({2, im.stamp.ns(), encode_image(im, RosWire::Cdr)});
+    }
+    write_bag(root / "posestamped", RosWire::Cdr,
+              {{"/sonar", "acoustic_msgs/msg/ProjectedSonarImage"},
+               {"/pose", "geometry_msgs/msg/PoseStamped"},
+               {"/image", "sensor_msgs/msg/Image"}},
+              msgs);
+  }
+  RosbagImportConfig ic;
+  ic.sonar_topic = "/sonar";
+  ic.nav_topic = "/pose";
+  ic.T_vehicle_sonar = p.spec.T_vehicle_sonar;
+  const RosbagImportResult r = import_rosbag(root / "posestamped", root / "ds", ic);
+  EXPECT_EQ(r.sonar_type, "acoustic_msgs/msg/ProjectedSonarImage");
+  EXPECT_EQ(r.mounting_source, "--mount");
+  expect_same_dataset(root / "ds", d);
+
+  // sensor_msgs/Image needs the sonar description; with it the frames are the same.
+  ic.sonar_topic = "/image";
+  expect_error([&] { import_rosbag(root / "posestamped", root / "ds_img", ic); },
+               "give its description (--sonar");
+  EXPECT_FALSE(fs::exists(root / "ds_img"));
+  ic.sonar_description = root / "sim" / "sonar.yaml";
+  import_rosbag(root / "posestamped", root / "ds_img", ic);
+  expect_same_dataset(root / "ds_img", d);
+}
+
+namespace {
+
+struct BagFixture : ::testing::Test {
+  fs::path root;
+  PassDataset d;
+  void SetUp() override {
+    root = temp_dir("rosbag_bad");
+    d = pass_dataset(root / "sim", 8, 3);
+    export_rosbag(root / "sim", root / "bag", {});
+    RosbagExportConfig e1;
+    e1.wire = RosWire::Ros1;
+    export_rosbag(root / "sim", root / "sim.bag", e1);
+  }
+  RosbagImportConfig cfg() const {
+    RosbagImportConfig c;
+    c.sonar_topic = "/sonar3d/image";
+    c.nav_topic = "/sonar3d/odom";
+    return c;
+  }
+  void expect_bad(const fs::path& bag, const RosbagImportConfig& c,
+                  std::initializer_list<std::string> needles) {
+    try {
+      import_rosbag(bag, root / "out", c);
+      ADD_FAILURE() << "expected an error";
+    } catch (const Error& e) {
+      for (const auto& n : needles)
+        EXPECT_NE(std::string(e.what()).find(n), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(root / "out"));
+  }
+  // A copy of the ROS 2 bag whose sonar messages are replaced by `mutate(bytes)`.
+  fs::path mutated_ros2(const std::string& name,
+                        const std::function<void(std::vector<std::uint8_t>&)>& mutate) {
+    const auto reader = BagReader::open(root / "bag");
+    std::vector<BagOutTopic> topics;
+    std::vector<BagOutMessage> msgs;
+    int k = 0;
+    for (const auto& t : reader->topics()) {
+      topics.push_back({t.name, t.type, t.name == "/tf_static"});
+      reader->read(t.name,
+                   [&](std::int64_t ts, const std::uint8_t* b, std::size_t n, const std::string&) {
+                     std::vector<std::uint8_t> bytes(b, b + n);
+                     if (t.name == "/sonar3d/image") mutate(bytes);
+                     msgs.push_back({k, ts, bytes});
+                   });
+      ++k;
+    }
+    write_bag(root / name, RosWire::Cdr, topics, msgs);
+    return root / name;
+  }
+};
+
+}  // namespace
+
+TEST_F(BagFixture, MissingAndWronglyTypedTopics) {
+  RosbagImportConfig c = cfg();
+  c.sonar_topic = "/nope";
+  expect_bad(root / "bag", c, {"no topic '/nope'", "/sonar3d/image (marine_acoustic_msgs"});
+  c = cfg();
+  c.sonar_topic = "/sonar3d/odom";
+  expect_bad(root / "bag", c, {"'/sonar3d/odom' is of type nav_msgs/msg/Odometry"});
+  c = cfg();
+  c.nav_topic = "/sonar3d/image";
+  expect_bad(root / "sim.bag", c, {"is of type marine_acoustic_msgs/ProjectedSonarImage"});
+  c = cfg();
+  c.nav_topic = "";
+  expect_error([&] { import_rosbag(root / "bag", root / "out", c); }, "--nav-topic");
+  c.static_sonar = true;
+  EXPECT_EQ(import_rosbag(root / "bag", root / "static", c).frames, 3u);
+}
+
+TEST_F(BagFixture, TruncatedAndCorruptMessages) {
+  const fs::path cut =
+      mutated_ros2("cut", [](std::vector<std::uint8_t>& b) { b.resize(b.size() / 2); });
+  expect_bad(cut, cfg(), {"cut_0.db3: /sonar3d/image message 0", ": byte ", "left"});
+  const fs::path dtype = mutated_ros2("dtype", [](std::vector<std::uint8_t>& b) {
+    // image.dtype sits before beam_count and the data sequence at the end.
+    const std::size_t n = b.size();
+    const std::size_t data_len = 90 * 40;
+    b[n - data_len - 4 - 4 - 4] = 9;  // float64
+  });
+  expect_bad(dtype, cfg(), {"message 0", "image.dtype 9 (float64) is not read"});
+  const fs::path huge = mutated_ros2("huge", [](std::vector<std::uint8_t>& b) {
+    const std::size_t n = b.size();
+    const std::size_t data_len = 90 * 40;
+    std::uint32_t c = 0xfffffff0u;
+    std::memcpy(&b[n - data_len - 4], &c, 4);
+  });
+  expect_bad(huge, cfg(), {"image.data claims 4294967280 elements"});
+}
+
+TEST_F(BagFixture, BrokenRos2Storage) {
+  // Not a database, a truncated database, a metadata.yaml pointing outside, MCAP, compression.
+  fs::create_directories(root / "garbage");
+  write_all(root / "garbage/x.db3", std::string(5000, 'x'));
+  expect_bad(root / "garbage", cfg(), {"x.db3", "not an sqlite3 database"});
+  fs::create_directories(root / "trunc");
+  const std::string db = read_all(root / "bag/bag_0.db3");
+  write_all(root / "trunc/t.db3", db.substr(0, db.size() / 3));
+  expect_bad(root / "trunc", cfg(), {"t.db3"});
+  fs::copy(root / "bag", root / "escape", fs::copy_options::recursive);
+  std::string meta = read_all(root / "escape/metadata.yaml");
+  meta.replace(meta.find("    - bag_0.db3"), 15, "    - ../bag/bag_0.db3");
+  write_all(root / "escape/metadata.yaml", meta);
+  expect_bad(root / "escape", cfg(), {"metadata.yaml", "is not a file name inside the bag"});
+  std::string m2 = read_all(root / "bag/metadata.yaml");
+  fs::copy(root / "bag", root / "mcap", fs::copy_options::recursive);
+  write_all(root / "mcap/metadata.yaml",
+            std::string(m2).replace(m2.find("storage_identifier: sqlite3"), 27,
+                                    "storage_identifier: mcap"));
+  expect_bad(root / "mcap", cfg(), {"storage 'mcap' is not read", "ros2 bag convert"});
+  fs::copy(root / "bag", root / "zstd", fs::copy_options::recursive);
+  write_all(
+      root / "zstd/metadata.yaml",
+      std::string(m2).replace(m2.find("compression_format: \"\""), 22, "compression_format: zstd"));
+  expect_bad(root / "zstd", cfg(), {"compressed bags ('zstd')"});
+  expect_bad(root / "does-not-exist", cfg(), {"does not exist"});
+}
+
+TEST_F(BagFixture, BrokenRos1Files) {
+  const std::string good = read_all(root / "sim.bag");
+  write_all(root / "cut.bag", good.substr(0, good.size() - 100));
+  expect_bad(root / "cut.bag", cfg(), {"cut.bag (offset", "truncated"});
+  std::string b = good;
+  b[8] = '1';  // "#ROSBAG V1.0"
+  write_all(root / "v1.bag", b);
+  expect_bad(root / "v1.bag", cfg(), {"other than 2.0"});
+  // The first chunk claims 3 GB uncompressed.
+  b = good;
+  const std::size_t at = b.find("size=", 13 + 4096);
+  ASSERT_NE(at, std::string::npos);
+  poke<std::uint32_t>(b, at + 5, 3000000000u);
+  write_all(root / "big.bag", b);
+  expect_bad(root / "big.bag", cfg(), {"claims 3000000000 bytes uncompressed"});
+  b = good;
+  const std::size_t comp = b.find("compression=none");
+  b.replace(comp + 12, 4, "bz2\0", 4);
+  b[comp - 4] = static_cast<char>(b[comp - 4] - 0);  // same length: "bz2\0" keeps the field size
+  write_all(root / "bz2.bag", b);
+  expect_bad(root / "bz2.bag", cfg(), {"chunk compression"});
+}
+
+TEST(RosbagCli, ExportImportAndReconstruct) {
+  const fs::path root = temp_dir("rosbag_cli");
+  SonarSpec spec = aris_spec_1800();
+  const SimulatedPass p = simulate_pass(spec, 41);
+  {
+    DatasetWriter w(root / "sim", p.spec);
+    for (std::size_t k = 0; k < p.images.size(); ++k) {
+      SonarImage img = p.images[k];
+      img.timestamp = p.times[k];
+      w.add_frame(img);
+    }
+    w.set_navigation(p.nav);
+    w.commit();
+  }
+  const fs::path log = root / "log.txt";
+  ASSERT_EQ(
+      run_cli("export rosbag " + (root / "sim").string() + " -o " + (root / "bag").string() + " -q",
+              log),
+      0)
+      << read_all(log);
+  EXPECT_NE(read_all(log).find("exported 41 frames and 41 navigation samples"), std::string::npos)
+      << read_all(log);
+  // Never over anything: an existing output is refused.
+  EXPECT_EQ(
+      run_cli("export rosbag " + (root / "sim").string() + " -o " + (root / "bag").string(), log),
+      1);
+  EXPECT_NE(read_all(log).find("exists"), std::string::npos);
+  ASSERT_EQ(run_cli("export rosbag --ros1 " + (root / "sim").string() + " -o " +
+                        (root / "sim.bag").string() + " -q",
+                    log),
+            0)
+      << read_all(log);
+  for (const std::string bag : {"bag", "sim.bag"}) {
+    ASSERT_EQ(run_cli("import rosbag " + (root / bag).string() +
+                          " --sonar-topic /sonar3d/image "
+                          "--nav-topic /sonar3d/odom -o " +
+                          (root / ("ds_" + bag)).string() + " -q",
+                      log),
+              0)
+        << read_all(log);
+    EXPECT_NE(read_all(log).find("imported 41 frames"), std::string::npos) << read_all(log);
+    EXPECT_NE(read_all(log).find("mounting: /tf_static: base_link -> sonar"), std::string::npos)
+        << read_all(log);
+  }
+  EXPECT_EQ(
+      run_cli("import rosbag " + (root / "bag").string() +
+                  " --sonar-topic /x --nav-topic /sonar3d/odom -o " + (root / "ds_x").string(),
+              log),
+      1);
+  EXPECT_NE(read_all(log).find("sonar3d: error: " + (root / "bag").string() + ": no topic '/x'"),
+            std::string::npos)
+      << read_all(log);
+  const fs::path ply = root / "cloud.ply";
+  ASSERT_EQ(run_cli("reconstruct " + (root / "ds_bag").string() + " --voxel-size 0.03 -o " +
+                        ply.string() + " -q",
+                    log),
+            0)
+      << read_all(log);
+  PointCloud cloud = read_ply(ply.string());
+  ASSERT_GT(cloud.size(), 50u);
+  std::vector<double> dist;
+  for (const auto& q : cloud.points) dist.push_back(std::abs(q.cast<double>().norm() - 0.5));
+  std::nth_element(dist.begin(), dist.begin() + dist.size() / 2, dist.end());
+  EXPECT_LT(dist[dist.size() / 2], 0.08) << "median distance of the carved points to the sphere";
 }

@@ -5,6 +5,7 @@
 #include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
+#include "sonar3d/io/rosbag.hpp"
 
 namespace sonar3d::cli {
 namespace {
@@ -248,6 +249,85 @@ void add_import_aris(CLI::App& parent, const GlobalOptions& g, Runner& run) {
   });
 }
 
+void add_import_rosbag(CLI::App& parent, const GlobalOptions& g, Runner& run) {
+  auto* cmd = parent.add_subcommand(
+      "rosbag",
+      "Import a ROS 2 bag (directory with metadata.yaml and .db3 files, or a .db3) or a ROS 1 "
+      "bag (v2.0 .bag): marine_acoustic_msgs/ProjectedSonarImage (or acoustic_msgs/…) or "
+      "sensor_msgs/Image + --sonar, navigation from nav_msgs/Odometry or "
+      "geometry_msgs/PoseStamped(WithCovarianceStamped), mounting from --mount or /tf_static. "
+      "See docs/import.md.");
+  auto bag = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto mount = std::make_shared<std::string>();
+  auto sonar = std::make_shared<std::string>();
+  auto aperture = std::make_shared<double>(0.0);
+  auto cfg = std::make_shared<RosbagImportConfig>();
+  auto overwrite = std::make_shared<bool>(false);
+  cmd->add_option("bag", *bag, "ROS 2 bag directory or .db3 file, or ROS 1 .bag file")
+      ->required()
+      ->check(CLI::ExistingPath);
+  cmd->add_option("-o,--output", *out,
+                  "dataset directory to write (must not exist, be empty, or be a sonar3d dataset "
+                  "with --overwrite)")
+      ->required();
+  add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
+  cmd->add_option("--sonar-topic", cfg->sonar_topic,
+                  "topic of ProjectedSonarImage or sensor_msgs/Image messages")
+      ->required();
+  cmd->add_option("--nav-topic", cfg->nav_topic,
+                  "topic of nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                  "PoseWithCovarianceStamped (T_world_vehicle)");
+  cmd->add_flag("--static", cfg->static_sonar, "a fixed sonar: no navigation, identity poses");
+  cmd->add_option("--tf-topic", cfg->tf_topic, "static transforms (tf2_msgs/TFMessage)")
+      ->capture_default_str();
+  cmd->add_option("--base-frame", cfg->base_frame,
+                  "vehicle frame of the mounting (default: the Odometry child_frame_id, else the "
+                  "root of the static transforms above the sonar frame)");
+  cmd->add_option("--mount", *mount,
+                  "T_vehicle_sonar as x,y,z,roll,pitch,yaw (m, degrees; our FLU sonar frame), "
+                  "instead of /tf_static");
+  cmd->add_option("--sonar", *sonar,
+                  "sensor YAML (sonar.yaml fields): required for sensor_msgs/Image; supplies the "
+                  "vertical aperture and beam pattern a ProjectedSonarImage lacks")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--vertical-aperture-deg", *aperture,
+                  "full vertical aperture (default: the messages' tx_beamwidths, or --sonar)");
+  cmd->add_option("--time-offset", cfg->time_offset,
+                  "seconds added to sonar stamps to reach the navigation clock")
+      ->capture_default_str();
+  cmd->add_flag("--drop-outside", cfg->drop_outside,
+                "drop (and count) frames outside the navigation span instead of failing");
+  cmd->callback([&g, &run, bag, out, mount, sonar, aperture, cfg, overwrite] {
+    run = [&g, bag, out, mount, sonar, aperture, cfg, overwrite] {
+      if (!mount->empty()) cfg->T_vehicle_sonar = parse_mounting(*mount);
+      cfg->sonar_description = *sonar;
+      cfg->vertical_aperture_rad = *aperture * M_PI / 180;
+      OutputPolicy policy;
+      policy.overwrite = *overwrite;
+      policy.on_note = print_note;
+      policy.sources = {*bag};
+      if (!sonar->empty()) policy.sources.push_back(*sonar);
+      OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      const RosbagImportResult r = import_rosbag(*bag, dest.staging(), *cfg, !g.quiet);
+      dest.commit();
+      for (const auto& w : r.warnings) fmt::print(stderr, "sonar3d: warning: {}: {}\n", *bag, w);
+      fmt::print("imported {} frames ({} × {}, {}) from {} {} to {}", r.frames, r.spec.range_bins,
+                 r.spec.beams(), r.sonar_type, r.format, *bag, *out);
+      if (r.navigation_samples) {
+        fmt::print("; {} navigation samples ({})", r.navigation_samples, r.nav_type);
+      }
+      if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
+      fmt::print("\nmounting: {}\n", r.mounting_source);
+      fmt::print("sonar: {:.4f}–{:.4f} m, bearings {:.3f}° … {:.3f}°, {:.2f}° vertical\n",
+                 r.spec.r_min, r.spec.r_max, r.spec.bearings_rad.front() * 180 / M_PI,
+                 r.spec.bearings_rad.back() * 180 / M_PI,
+                 r.spec.vertical_aperture_rad * 180 / M_PI);
+      return 0;
+    };
+  });
+}
+
 }  // namespace
 
 void add_import(CLI::App& app, const GlobalOptions& g, Runner& run) {
@@ -255,11 +335,12 @@ void add_import(CLI::App& app, const GlobalOptions& g, Runner& run) {
       app.add_subcommand("import",
                          "Convert recordings into a sonar3d dataset: 'holoocean' (HoloOcean/neusis "
                          "pickles), 'frames' (images + timestamps + a navigation log), 'aris' "
-                         "(Sound Metrics ARIS files), 'rosbag' (ROS 2 bags).");
+                         "(Sound Metrics ARIS files), 'rosbag' (ROS 1 and ROS 2 bags).");
   cmd->require_subcommand(1);
   add_import_holoocean(*cmd, g, run);
   add_import_frames(*cmd, g, run);
   add_import_aris(*cmd, g, run);
+  add_import_rosbag(*cmd, g, run);
 }
 
 }  // namespace sonar3d::cli

@@ -1,0 +1,27 @@
+#pragma once
+// Internal to src/io: the two bag storages behind BagReader and the writers used by
+// export_rosbag.
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sonar3d/io/rosbag.hpp"
+
+namespace sonar3d::bag {
+
+std::unique_ptr<BagReader> open_ros2(const std::filesystem::path& bag);
+std::unique_ptr<BagReader> open_ros1(const std::filesystem::path& bag);
+
+using OutMessage = BagOutMessage;
+using OutTopic = BagOutTopic;
+
+// ROS 2: `dir` (must not exist) gets metadata.yaml and <name>_0.db3.
+void write_ros2(const std::filesystem::path& dir, const std::string& name,
+                const std::vector<OutTopic>& topics, const std::vector<OutMessage>& messages);
+// ROS 1: a v2.0 .bag file with one uncompressed chunk per ~1 MB, connection and chunk info
+// records and an index.
+void write_ros1(const std::filesystem::path& file, const std::vector<OutTopic>& topics,
+                const std::vector<OutMessage>& messages);
+
+}  // namespace sonar3d::bag
