@@ -15,6 +15,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <climits>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -156,26 +158,50 @@ class Ros1Bag : public BagReader {
 
   void read(const std::string& topic, const Visitor& fn) const override {
     if (!find(topic)) throw Error("no topic '" + topic + "' in the bag");
-    struct Item {
-      std::int64_t t;
-      std::vector<std::uint8_t> data;
-      std::string where;
+    Ros1Bag& self = const_cast<Ros1Bag&>(*this);
+    // Messages of one topic usually come in time order: then they stream straight from the map
+    // (or the current chunk) to `fn`. Otherwise they are copied and sorted first.
+    auto time_of = [](const Record& r, const std::string& where) {
+      const auto time = field<std::uint64_t>(r.fields, "time", where);
+      return static_cast<std::int64_t>(time & 0xffffffffu) * 1000000000LL +
+             static_cast<std::int64_t>(time >> 32);
     };
-    std::vector<Item> items;
-    std::size_t number = 0;
-    const_cast<Ros1Bag*>(this)->scan([&](const Record& r, const std::string& where) {
-      if (r.op != kMsgData) return;
+    auto of_topic = [&](const Record& r, const std::string& where) {
+      if (r.op != kMsgData) return false;
       const auto id = field<std::uint32_t>(r.fields, "conn", where);
       const auto it = conns_.find(id);
       if (it == conns_.end()) {
         throw Error(where + ": a message of connection " + std::to_string(id) +
                     " comes before (or without) its connection record");
       }
-      if (it->second.topic != topic) return;
-      const auto time = field<std::uint64_t>(r.fields, "time", where);
-      const std::int64_t ns = static_cast<std::int64_t>(time & 0xffffffffu) * 1000000000LL +
-                              static_cast<std::int64_t>(time >> 32);
-      items.push_back({ns, std::vector<std::uint8_t>(r.data, r.data + r.size),
+      return it->second.topic == topic;
+    };
+    bool sorted = true;
+    std::int64_t last = INT64_MIN;
+    self.scan([&](const Record& r, const std::string& where) {
+      if (!of_topic(r, where)) return;
+      const std::int64_t t = time_of(r, where);
+      sorted = sorted && t >= last;
+      last = t;
+    });
+    std::size_t number = 0;
+    if (sorted) {
+      self.scan([&](const Record& r, const std::string& where) {
+        if (!of_topic(r, where)) return;
+        fn(time_of(r, where), r.data, r.size,
+           where + ": " + topic + " message " + std::to_string(number++));
+      });
+      return;
+    }
+    struct Item {
+      std::int64_t t;
+      std::vector<std::uint8_t> data;
+      std::string where;
+    };
+    std::vector<Item> items;
+    self.scan([&](const Record& r, const std::string& where) {
+      if (!of_topic(r, where)) return;
+      items.push_back({time_of(r, where), std::vector<std::uint8_t>(r.data, r.data + r.size),
                        where + ": " + topic + " message " + std::to_string(number++)});
     });
     std::stable_sort(items.begin(), items.end(),
