@@ -112,10 +112,16 @@ void write_bag(const fs::path& path, RosWire wire, const std::vector<BagOutTopic
                   std::to_string(topics.size()));
     }
   }
+  std::size_t k = 0;
+  const bag::NextMessage next = [&](BagOutMessage& m) {
+    if (k == messages.size()) return false;
+    m = messages[k++];
+    return true;
+  };
   if (wire == RosWire::Cdr) {
-    bag::write_ros2(path, path.filename().string(), topics, messages);
+    bag::write_ros2(path, path.filename().string(), topics, next);
   } else {
-    bag::write_ros1(path, topics, messages);
+    bag::write_ros1(path, topics, next);
   }
 }
 
@@ -557,31 +563,17 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
       {config.sonar_topic, type(config.message_package, "ProjectedSonarImage"), false},
       {config.nav_topic, type("nav_msgs", "Odometry"), false},
       {"/tf_static", type("tf2_msgs", "TFMessage"), true}};
-  std::vector<BagOutMessage> msgs;
-
   // The mounting: base_frame -> sonar_frame, in the message's frame convention.
   Eigen::Isometry3d Rm = Eigen::Isometry3d::Identity();
   Rm.linear() = R_msg_flu().transpose();
   const Eigen::Isometry3d T_base_msg = spec.T_vehicle_sonar * Rm;
   RosTransform tf;
-  tf.stamp = RosTime::from_seconds(ds.frames.front().timestamp);
+  tf.stamp = RosTime::from_seconds(std::min(
+      ds.frames.front().timestamp, ds.navigation.empty() ? INFINITY : ds.navigation.times.front()));
   tf.parent = config.base_frame;
   tf.child = config.sonar_frame;
   tf.translation = T_base_msg.translation();
   tf.rotation = Eigen::Quaterniond(T_base_msg.linear());
-  msgs.push_back({2, tf.stamp.ns(), encode_tf({tf}, config.wire)});
-
-  RosbagExportResult res;
-  for (std::size_t k = 0; k < ds.navigation.size(); ++k) {
-    RosPose p;
-    p.stamp = RosTime::from_seconds(ds.navigation.times[k]);
-    p.frame_id = config.world_frame;
-    p.child_frame_id = config.base_frame;
-    p.position = ds.navigation.poses[k].translation();
-    p.orientation = Eigen::Quaterniond(ds.navigation.poses[k].linear());
-    msgs.push_back({1, p.stamp.ns(), encode_odometry(p, config.wire)});
-    ++res.navigation_samples;
-  }
 
   const std::string ext = fs::path(ds.frames.front().file).extension().string();
   const bool tiff = ext == ".tif" || ext == ".tiff";
@@ -596,13 +588,41 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
     m.tx_beamwidths.push_back(static_cast<float>(spec.vertical_aperture_rad));
     m.rx_beamwidths.push_back(static_cast<float>(spec.beam_edge_high(j) - spec.beam_edge_low(j)));
   }
-  for (int i = 0; i < spec.range_bins; ++i)
+  for (int i = 0; i < spec.range_bins; ++i) {
     m.ranges.push_back(static_cast<float>(spec.range_of_bin(i)));
+  }
   const std::size_t size = dtype_size(m.dtype);
+
+  // Messages in time order, made one at a time (a dataset may be larger than memory): the static
+  // transform first, then navigation samples and frames merged by stamp.
+  RosbagExportResult res;
   Progress bar("export", ds.size(), progress);
-  for (std::size_t k = 0; k < ds.size(); ++k) {
-    const SonarImage img = ds.load_frame(k);
-    m.stamp = RosTime::from_seconds(ds.frames[k].timestamp);
+  bool tf_sent = false;
+  std::size_t nav_k = 0, frame_k = 0;
+  const bag::NextMessage next = [&](BagOutMessage& out_msg) {
+    if (!tf_sent) {
+      tf_sent = true;
+      out_msg = {2, tf.stamp.ns(), encode_tf({tf}, config.wire)};
+      return true;
+    }
+    const bool have_nav = nav_k < ds.navigation.size();
+    const bool have_frame = frame_k < ds.size();
+    if (!have_nav && !have_frame) return false;
+    if (have_nav && (!have_frame || RosTime::from_seconds(ds.navigation.times[nav_k]).ns() <=
+                                        RosTime::from_seconds(ds.frames[frame_k].timestamp).ns())) {
+      RosPose p;
+      p.stamp = RosTime::from_seconds(ds.navigation.times[nav_k]);
+      p.frame_id = config.world_frame;
+      p.child_frame_id = config.base_frame;
+      p.position = ds.navigation.poses[nav_k].translation();
+      p.orientation = Eigen::Quaterniond(ds.navigation.poses[nav_k].linear());
+      out_msg = {1, p.stamp.ns(), encode_odometry(p, config.wire)};
+      ++nav_k;
+      ++res.navigation_samples;
+      return true;
+    }
+    const SonarImage img = ds.load_frame(frame_k);
+    m.stamp = RosTime::from_seconds(ds.frames[frame_k].timestamp);
     m.data.assign(img.data.size() * size, 0);
     for (std::size_t i = 0; i < img.data.size(); ++i) {
       if (tiff) {
@@ -615,20 +635,19 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
         if (size == 2) m.data[i * size + 1] = static_cast<std::uint8_t>(q >> 8);
       }
     }
-    msgs.push_back({0, m.stamp.ns(), encode_sonar_image(m, config.wire)});
+    out_msg = {0, m.stamp.ns(), encode_sonar_image(m, config.wire)};
+    ++frame_k;
     ++res.frames;
     bar.add();
-  }
-  bar.finish();
-  std::stable_sort(msgs.begin(), msgs.end(), [](const BagOutMessage& a, const BagOutMessage& b) {
-    return a.time_ns < b.time_ns;
-  });
+    return true;
+  };
   AtomicPath atomic(out);
   if (ros2) {
-    bag::write_ros2(atomic.temp(), out.filename().string(), topics, msgs);
+    bag::write_ros2(atomic.temp(), out.filename().string(), topics, next);
   } else {
-    bag::write_ros1(atomic.temp(), topics, msgs);
+    bag::write_ros1(atomic.temp(), topics, next);
   }
+  bar.finish();
   atomic.commit();
   return res;
 }

@@ -425,10 +425,16 @@ std::string md5(const std::string& type) {
 std::unique_ptr<BagReader> open_ros1(const fs::path& bag) { return std::make_unique<Ros1Bag>(bag); }
 
 void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
-                const std::vector<OutMessage>& messages) {
-  std::vector<std::uint8_t> out(kMagic, kMagic + kMagicLen);
-  const std::size_t header_at = out.size();
-  // Bag header: patched at the end; padded to 4096 bytes as rosbag does.
+                const NextMessage& next) {
+  std::ofstream f(file, std::ios::binary | std::ios::trunc);
+  if (!f) throw Error(file.string() + ": cannot create the bag");
+  std::uint64_t written = 0;
+  auto emit = [&](const std::vector<std::uint8_t>& b) {
+    f.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+    written += b.size();
+  };
+  emit(std::vector<std::uint8_t>(kMagic, kMagic + kMagicLen));
+  // Bag header: rewritten at the end; padded to 4096 bytes as rosbag does.
   auto bag_header = [&](std::uint64_t index_pos, std::uint32_t conns, std::uint32_t chunks) {
     std::vector<std::uint8_t> h;
     put_field_t<std::uint8_t>(h, "op", kBagHeader);
@@ -440,10 +446,7 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
     put_record(rec, h, pad.data(), pad.size());
     return rec;
   };
-  {
-    const auto rec = bag_header(0, 0, 0);
-    out.insert(out.end(), rec.begin(), rec.end());
-  }
+  emit(bag_header(0, 0, 0));
   auto connection_record = [&](std::uint32_t id, std::vector<std::uint8_t>& dst) {
     const OutTopic& t = topics[id];
     const std::string type = ros_type_name(t.type);
@@ -467,14 +470,17 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
   };
   std::vector<ChunkInfo> infos;
   std::vector<bool> declared(topics.size(), false);
-  std::size_t k = 0;
-  while (k < messages.size()) {
+  OutMessage m;
+  bool more = next(m);
+  while (more) {
     // One chunk of up to ~768 KB of records, uncompressed.
     std::vector<std::uint8_t> chunk;
-    ChunkInfo info{out.size(), messages[k].time_ns, messages[k].time_ns, {}};
+    ChunkInfo info{written, m.time_ns, m.time_ns, {}};
     std::map<std::uint32_t, std::vector<std::pair<std::uint64_t, std::uint32_t>>> index;
-    while (k < messages.size() && (chunk.empty() || chunk.size() < (768u << 10))) {
-      const OutMessage& m = messages[k++];
+    while (more && (chunk.empty() || chunk.size() < (768u << 10))) {
+      if (m.topic < 0 || static_cast<std::size_t>(m.topic) >= topics.size()) {
+        throw Error(file.string() + ": a message names topic " + std::to_string(m.topic));
+      }
       const auto id = static_cast<std::uint32_t>(m.topic);
       if (!declared[id]) {
         connection_record(id, chunk);
@@ -489,14 +495,16 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
       info.start = std::min(info.start, m.time_ns);
       info.end = std::max(info.end, m.time_ns);
       ++info.counts[id];
+      more = next(m);
     }
-    std::vector<std::uint8_t> h;
+    std::vector<std::uint8_t> h, rec;
     put_field_t<std::uint8_t>(h, "op", kChunk);
     put_field(h, "compression", std::string("none"));
     put_field_t<std::uint32_t>(h, "size", static_cast<std::uint32_t>(chunk.size()));
-    put_record(out, h, chunk.data(), chunk.size());
+    put_record(rec, h, chunk.data(), chunk.size());
+    emit(rec);
     for (const auto& [id, entries] : index) {
-      std::vector<std::uint8_t> ih, d;
+      std::vector<std::uint8_t> ih, d, irec;
       put_field_t<std::uint8_t>(ih, "op", kIndexData);
       put_field_t<std::uint32_t>(ih, "ver", 1);
       put_field_t<std::uint32_t>(ih, "conn", id);
@@ -505,15 +513,17 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
         bin::append<std::uint64_t>(d, t);
         bin::append<std::uint32_t>(d, off);
       }
-      put_record(out, ih, d.data(), d.size());
+      put_record(irec, ih, d.data(), d.size());
+      emit(irec);
     }
     infos.push_back(info);
   }
-  const std::uint64_t index_pos = out.size();
+  const std::uint64_t index_pos = written;
   std::uint32_t conns = 0;
+  std::vector<std::uint8_t> tail;
   for (std::uint32_t id = 0; id < topics.size(); ++id) {
     if (!declared[id]) continue;
-    connection_record(id, out);
+    connection_record(id, tail);
     ++conns;
   }
   for (const ChunkInfo& c : infos) {
@@ -528,12 +538,12 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
       bin::append<std::uint32_t>(d, id);
       bin::append<std::uint32_t>(d, n);
     }
-    put_record(out, h, d.data(), d.size());
+    put_record(tail, h, d.data(), d.size());
   }
+  emit(tail);
   const auto rec = bag_header(index_pos, conns, static_cast<std::uint32_t>(infos.size()));
-  std::copy(rec.begin(), rec.end(), out.begin() + static_cast<std::ptrdiff_t>(header_at));
-  std::ofstream f(file, std::ios::binary | std::ios::trunc);
-  f.write(reinterpret_cast<const char*>(out.data()), static_cast<std::streamsize>(out.size()));
+  f.seekp(static_cast<std::streamoff>(kMagicLen));
+  f.write(reinterpret_cast<const char*>(rec.data()), static_cast<std::streamsize>(rec.size()));
   f.flush();
   if (!f) throw Error(file.string() + ": write failed");
 }

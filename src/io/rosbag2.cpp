@@ -251,7 +251,10 @@ std::string yaml_quote(const std::string& s) {
 std::unique_ptr<BagReader> open_ros2(const fs::path& bag) { return std::make_unique<Ros2Bag>(bag); }
 
 void write_ros2(const fs::path& dir, const std::string& name, const std::vector<OutTopic>& topics,
-                const std::vector<OutMessage>& messages) {
+                const NextMessage& next) {
+  std::int64_t t0 = 0, t1 = 0;
+  std::size_t total = 0;
+  std::vector<std::size_t> counts(topics.size(), 0);
   fs::create_directories(dir);
   const std::string dbname = (name.empty() ? std::string("bag") : name) + "_0.db3";
   const fs::path file = dir / dbname;
@@ -293,28 +296,29 @@ void write_ros2(const fs::path& dir, const std::string& name, const std::vector<
                            &st.s, nullptr) != SQLITE_OK) {
       throw Error(file.string() + ": " + sql_error(d.db));
     }
-    for (const OutMessage& m : messages) {
+    OutMessage m;
+    while (next(m)) {
+      if (m.topic < 0 || static_cast<std::size_t>(m.topic) >= topics.size()) {
+        throw Error(file.string() + ": a message names topic " + std::to_string(m.topic));
+      }
       sqlite3_bind_int64(st.s, 1, m.topic + 1);
       sqlite3_bind_int64(st.s, 2, m.time_ns);
       sqlite3_bind_blob(st.s, 3, m.data.data(), static_cast<int>(m.data.size()), SQLITE_STATIC);
       if (sqlite3_step(st.s) != SQLITE_DONE) throw Error(file.string() + ": " + sql_error(d.db));
       sqlite3_reset(st.s);
+      if (total == 0 || m.time_ns < t0) t0 = m.time_ns;
+      if (total == 0 || m.time_ns > t1) t1 = m.time_ns;
+      ++counts[m.topic];
+      ++total;
     }
     exec(d.db, file, "COMMIT;");
-  }
-  std::int64_t t0 = 0, t1 = 0;
-  std::vector<std::size_t> counts(topics.size(), 0);
-  for (std::size_t k = 0; k < messages.size(); ++k) {
-    if (k == 0 || messages[k].time_ns < t0) t0 = messages[k].time_ns;
-    if (k == 0 || messages[k].time_ns > t1) t1 = messages[k].time_ns;
-    ++counts[messages[k].topic];
   }
   std::ostringstream y;
   y << "# written by sonar3d export rosbag\n"
     << "rosbag2_bagfile_information:\n  version: 5\n  storage_identifier: sqlite3\n"
     << "  duration:\n    nanoseconds: " << (t1 - t0) << "\n"
     << "  starting_time:\n    nanoseconds_since_epoch: " << t0 << "\n"
-    << "  message_count: " << messages.size() << "\n  topics_with_message_count:\n";
+    << "  message_count: " << total << "\n  topics_with_message_count:\n";
   for (std::size_t k = 0; k < topics.size(); ++k) {
     y << "    - topic_metadata:\n        name: " << topics[k].name
       << "\n        type: " << topics[k].type
@@ -324,8 +328,8 @@ void write_ros2(const fs::path& dir, const std::string& name, const std::vector<
   y << "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - "
     << dbname << "\n  files:\n    - path: " << dbname
     << "\n      starting_time:\n        nanoseconds_since_epoch: " << t0
-    << "\n      duration:\n        nanoseconds: " << (t1 - t0)
-    << "\n      message_count: " << messages.size() << "\n";
+    << "\n      duration:\n        nanoseconds: " << (t1 - t0) << "\n      message_count: " << total
+    << "\n";
   std::ofstream f(dir / "metadata.yaml");
   f << y.str();
   f.flush();
