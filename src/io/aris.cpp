@@ -517,6 +517,10 @@ ArisImportResult import_aris(const fs::path& file, const fs::path& out,
                     " s cannot each carry a navigation sample");
       }
       const Eigen::Vector2d en = enu_from_geodetic(h.latitude, h.longitude, lat0, lon0);
+      if (en.cwiseAbs().maxCoeff() > limits::kMaxCoordinate) {
+        throw Error(where + ": its fix is " + fmt(en.norm()) + " m from frame 0's, beyond " +
+                    fmt(limits::kMaxCoordinate) + " m");
+      }
       // NED position (north, east, depth) and attitude, as vehicle_pose_from_nav takes them.
       nav.push_back(times[i],
                     vehicle_pose_from_nav(Eigen::Vector3d(en.y(), en.x(), h.depth), h.roll * kDeg,

@@ -139,6 +139,20 @@ const BagTopic* BagReader::find(const std::string& topic) const {
   return nullptr;
 }
 
+bool BagReader::read_first(const std::string& topic, const Visitor& fn) const {
+  struct Stop {};  // ends the walk over the topic after its first message
+  bool got = false;
+  try {
+    read(topic, [&](std::int64_t t, const std::uint8_t* p, std::size_t n, const std::string& w) {
+      fn(t, p, n, w);
+      got = true;
+      throw Stop{};
+    });
+  } catch (const Stop&) {
+  }
+  return got;
+}
+
 std::unique_ptr<BagReader> BagReader::open(const fs::path& bag) {
   std::error_code ec;
   if (!fs::exists(bag, ec)) throw Error("bag '" + bag.string() + "' does not exist");
@@ -327,19 +341,27 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
     res.navigation_samples = nav.size();
   }
 
-  // The sonar's frame: from its first message.
+  // The sonar's frame and, for ProjectedSonarImage, the sensor description: from its first
+  // message.
   std::string sonar_frame;
-  bool have_first = false;
-  bag->read(sonar->name,
-            [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
-              if (have_first) return;
-              if (projected) {
-                sonar_frame = decode_sonar_image(p, n, wire, where).frame_id;
-              } else {
-                sonar_frame = decode_image(p, n, wire, where).frame_id;
-              }
-              have_first = true;
-            });
+  SonarSpec spec;
+  bool reversed = false;
+  std::size_t sample_size = 0;
+  bool is_float = false, big_endian = false;
+  const bool have_first = bag->read_first(
+      sonar->name,
+      [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
+        if (!projected) {
+          sonar_frame = decode_image(p, n, wire, where).frame_id;
+          return;
+        }
+        const RosSonarImage m = decode_sonar_image(p, n, wire, where);
+        sonar_frame = m.frame_id;
+        spec = sonar_spec_from_message(m, where, &reversed);
+        sample_size = dtype_size(m.dtype);
+        is_float = m.dtype == kRosDtypeFloat32;
+        big_endian = m.is_bigendian;
+      });
   if (!have_first) throw Error(src + ": topic '" + sonar->name + "' holds no message");
 
   // Mounting: --mount, else the static transforms from the vehicle frame to the sonar frame.
@@ -380,20 +402,7 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   }
 
   // The sensor description.
-  SonarSpec spec;
-  bool reversed = false;
-  std::size_t sample_size = 0;
-  bool is_float = false, big_endian = false;
   if (projected) {
-    bag->read(sonar->name,
-              [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
-                if (sample_size) return;
-                const RosSonarImage m = decode_sonar_image(p, n, wire, where);
-                spec = sonar_spec_from_message(m, where, &reversed);
-                sample_size = dtype_size(m.dtype);
-                is_float = m.dtype == kRosDtypeFloat32;
-                big_endian = m.is_bigendian;
-              });
     if (described) {
       if (spec.vertical_aperture_rad == 0)
         spec.vertical_aperture_rad = described->vertical_aperture_rad;

@@ -410,9 +410,12 @@ std::string definition(const std::string& type) {
   return "";
 }
 
-// MD5 sums of the standard types (ROS 1's genmsg values); "*" (any) for the rest.
+// MD5 sums of the types we write (ROS 1's genmsg values, as the packages' generated code states
+// them; a sum covers the definition, not the package name, so both ProjectedSonarImage packages
+// share one); "*" (any) for the rest.
 std::string md5(const std::string& type) {
   const std::string t = ros_type_name(type);
+  if (t.find("/ProjectedSonarImage") != std::string::npos) return "c72fc8e29ab227a547720a36666022fd";
   if (t == "nav_msgs/Odometry") return "cd5e73d190d741a2f92e81eda573aca7";
   if (t == "tf2_msgs/TFMessage") return "94810edda583a504dfda3829e70d7eec";
   if (t == "geometry_msgs/PoseStamped") return "d3812c3cbc69362b77dc0b19b345f8f5";

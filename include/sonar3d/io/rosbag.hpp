@@ -42,6 +42,8 @@ class BagReader {
   using Visitor =
       std::function<void(std::int64_t, const std::uint8_t*, std::size_t, const std::string&)>;
   virtual void read(const std::string& topic, const Visitor& fn) const = 0;
+  // Calls fn for the first message of `topic` only (in time order); false when it has none.
+  bool read_first(const std::string& topic, const Visitor& fn) const;
   const BagTopic* find(const std::string& topic) const;
 };
 
