@@ -719,6 +719,32 @@ TEST_P(RosbagRoundTrip, SimulatedDatasetSurvivesExportAndImport) {
   expect_same_dataset(root / "ds", d, bits == 32);
 }
 
+TEST(RosbagCompressed, Ros1ChunksInBz2AndLz4) {
+  const fs::path root = temp_dir("ros1_compressed");
+  const PassDataset d = pass_dataset(root / "sim", 16, 4);
+  for (const std::string c : {"bz2", "lz4"}) {
+    RosbagExportConfig ec;
+    ec.wire = RosWire::Ros1;
+    ec.ros1_compression = c;
+    export_rosbag(root / "sim", root / (c + ".bag"), ec);
+    const std::string bytes = read_all(root / (c + ".bag"));
+    EXPECT_NE(bytes.find("compression=" + c), std::string::npos);
+    RosbagImportConfig ic;
+    ic.sonar_topic = "/sonar3d/image";
+    ic.nav_topic = "/sonar3d/odom";
+    import_rosbag(root / (c + ".bag"), root / ("ds_" + c), ic);
+    expect_same_dataset(root / ("ds_" + c), d);
+    // A corrupted compressed chunk is one error naming the offset.
+    std::string bad = bytes;
+    const std::size_t at = bad.find("compression=" + c);
+    for (std::size_t k = 0; k < 64; ++k) bad[at + 400 + k] = static_cast<char>(k * 37);
+    write_all(root / ("bad_" + c + ".bag"), bad);
+    expect_error([&] { import_rosbag(root / ("bad_" + c + ".bag"), root / "out", ic); },
+                 "chunk does not decompress");
+    EXPECT_FALSE(fs::exists(root / "out"));
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Wires, RosbagRoundTrip,
                          ::testing::Combine(::testing::Values(RosWire::Cdr, RosWire::Ros1),
                                             ::testing::Values(8, 16, 32)));

@@ -23,6 +23,10 @@ void add_export(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->check(CLI::ExistingDirectory);
   bag->add_option("-o,--output", *out, "bag to write (must not exist)")->required();
   bag->add_flag("--ros1", *ros1, "write a ROS 1 bag (v2.0) instead of a ROS 2 bag");
+  bag->add_option("--compression", cfg->ros1_compression,
+                  "ROS 1 chunk compression: none, bz2 or lz4")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "bz2", "lz4"}));
   bag->add_option("--sonar-topic", cfg->sonar_topic)->capture_default_str();
   bag->add_option("--nav-topic", cfg->nav_topic)->capture_default_str();
   bag->add_option("--package", cfg->message_package,

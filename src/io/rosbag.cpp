@@ -105,7 +105,7 @@ void samples_to_image(const std::uint8_t* p, std::size_t size, bool big_endian, 
 }  // namespace
 
 void write_bag(const fs::path& path, RosWire wire, const std::vector<BagOutTopic>& topics,
-               const std::vector<BagOutMessage>& messages) {
+               const std::vector<BagOutMessage>& messages, const std::string& ros1_compression) {
   for (const auto& m : messages) {
     if (m.topic < 0 || static_cast<std::size_t>(m.topic) >= topics.size()) {
       throw Error("write_bag: a message names topic " + std::to_string(m.topic) + " of " +
@@ -121,7 +121,7 @@ void write_bag(const fs::path& path, RosWire wire, const std::vector<BagOutTopic
   if (wire == RosWire::Cdr) {
     bag::write_ros2(path, path.filename().string(), topics, next);
   } else {
-    bag::write_ros1(path, topics, next);
+    bag::write_ros1(path, topics, next, ros1_compression);
   }
 }
 
@@ -654,7 +654,7 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
   if (ros2) {
     bag::write_ros2(atomic.temp(), out.filename().string(), topics, next);
   } else {
-    bag::write_ros1(atomic.temp(), topics, next);
+    bag::write_ros1(atomic.temp(), topics, next, config.ros1_compression);
   }
   bar.finish();
   atomic.commit();

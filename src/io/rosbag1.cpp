@@ -415,7 +415,8 @@ std::string definition(const std::string& type) {
 // share one); "*" (any) for the rest.
 std::string md5(const std::string& type) {
   const std::string t = ros_type_name(type);
-  if (t.find("/ProjectedSonarImage") != std::string::npos) return "c72fc8e29ab227a547720a36666022fd";
+  if (t.find("/ProjectedSonarImage") != std::string::npos)
+    return "c72fc8e29ab227a547720a36666022fd";
   if (t == "nav_msgs/Odometry") return "cd5e73d190d741a2f92e81eda573aca7";
   if (t == "tf2_msgs/TFMessage") return "94810edda583a504dfda3829e70d7eec";
   if (t == "geometry_msgs/PoseStamped") return "d3812c3cbc69362b77dc0b19b345f8f5";
@@ -423,12 +424,41 @@ std::string md5(const std::string& type) {
   return "*";
 }
 
+// A chunk's records compressed as rosbag does (bz2 block size 9; lz4 frame format).
+std::vector<std::uint8_t> compress(const std::string& how, const std::vector<std::uint8_t>& in,
+                                   const fs::path& file) {
+  if (how == "none") return in;
+  std::vector<std::uint8_t> out;
+  if (how == "bz2") {
+    unsigned int n = static_cast<unsigned int>(in.size() + in.size() / 100 + 600);
+    out.resize(n);
+    const int rc =
+        BZ2_bzBuffToBuffCompress(reinterpret_cast<char*>(out.data()), &n,
+                                 const_cast<char*>(reinterpret_cast<const char*>(in.data())),
+                                 static_cast<unsigned int>(in.size()), 9, 0, 0);
+    if (rc != BZ_OK)
+      throw Error(file.string() + ": bzip2 compression failed (" + std::to_string(rc) + ")");
+    out.resize(n);
+    return out;
+  }
+  out.resize(LZ4F_compressFrameBound(in.size(), nullptr));
+  const std::size_t n = LZ4F_compressFrame(out.data(), out.size(), in.data(), in.size(), nullptr);
+  if (LZ4F_isError(n)) {
+    throw Error(file.string() + ": lz4 compression failed (" + LZ4F_getErrorName(n) + ")");
+  }
+  out.resize(n);
+  return out;
+}
+
 }  // namespace
 
 std::unique_ptr<BagReader> open_ros1(const fs::path& bag) { return std::make_unique<Ros1Bag>(bag); }
 
-void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
-                const NextMessage& next) {
+void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics, const NextMessage& next,
+                const std::string& compression) {
+  if (compression != "none" && compression != "bz2" && compression != "lz4") {
+    throw Error("ROS 1 chunk compression '" + compression + "' (none, bz2 or lz4)");
+  }
   std::ofstream f(file, std::ios::binary | std::ios::trunc);
   if (!f) throw Error(file.string() + ": cannot create the bag");
   std::uint64_t written = 0;
@@ -502,9 +532,10 @@ void write_ros1(const fs::path& file, const std::vector<OutTopic>& topics,
     }
     std::vector<std::uint8_t> h, rec;
     put_field_t<std::uint8_t>(h, "op", kChunk);
-    put_field(h, "compression", std::string("none"));
+    put_field(h, "compression", compression);
     put_field_t<std::uint32_t>(h, "size", static_cast<std::uint32_t>(chunk.size()));
-    put_record(rec, h, chunk.data(), chunk.size());
+    const std::vector<std::uint8_t> packed = compress(compression, chunk, file);
+    put_record(rec, h, packed.data(), packed.size());
     emit(rec);
     for (const auto& [id, entries] : index) {
       std::vector<std::uint8_t> ih, d, irec;

@@ -24,9 +24,9 @@ using NextMessage = std::function<bool(OutMessage&)>;
 // ROS 2: `dir` (must not exist) gets metadata.yaml and <name>_0.db3.
 void write_ros2(const std::filesystem::path& dir, const std::string& name,
                 const std::vector<OutTopic>& topics, const NextMessage& next);
-// ROS 1: a v2.0 .bag file with one uncompressed chunk per ~1 MB, connection and chunk info
-// records and an index.
+// ROS 1: a v2.0 .bag file with one chunk per ~768 KB (compression none, bz2 or lz4), connection and
+// chunk info records and an index.
 void write_ros1(const std::filesystem::path& file, const std::vector<OutTopic>& topics,
-                const NextMessage& next);
+                const NextMessage& next, const std::string& compression = "none");
 
 }  // namespace sonar3d::bag

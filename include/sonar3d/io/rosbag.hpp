@@ -90,6 +90,7 @@ struct RosbagExportConfig {
   std::string nav_topic = "/sonar3d/odom";
   std::string message_package = "marine_acoustic_msgs";  // or "acoustic_msgs"
   std::string world_frame = "map", base_frame = "base_link", sonar_frame = "sonar";
+  std::string ros1_compression = "none";  // ROS 1 chunks: none, bz2 or lz4 (as rosbag --bz2/--lz4)
 };
 
 struct RosbagExportResult {
@@ -118,7 +119,8 @@ struct BagOutMessage {
 // (uncompressed chunks, connection/chunk-info records, index). `path` must not exist; not
 // atomic (export_rosbag writes under a temporary name).
 void write_bag(const std::filesystem::path& path, RosWire wire,
-               const std::vector<BagOutTopic>& topics, const std::vector<BagOutMessage>& messages);
+               const std::vector<BagOutTopic>& topics, const std::vector<BagOutMessage>& messages,
+               const std::string& ros1_compression = "none");
 
 // The rotation from our FLU sonar frame to the ProjectedSonarImage frame (z forward, x up,
 // y starboard): p_msg = R · p_flu.
