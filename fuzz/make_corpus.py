@@ -181,6 +181,9 @@ if os.path.exists(cli):
         open(f'{ds}/frames/{k:06d}.png', 'wb').write(png16(4, 8, 1000 + 500 * k))
     subprocess.run([cli, 'export', 'rosbag', ds, '-o', f'{tmp}/b2', '-q'], check=True)
     subprocess.run([cli, 'export', 'rosbag', '--ros1', ds, '-o', f'{tmp}/b1.bag', '-q'], check=True)
+    for c in ('bz2', 'lz4'):
+        subprocess.run([cli, 'export', 'rosbag', '--ros1', '--compression', c, ds, '-o', f'{tmp}/{c}.bag', '-q'], check=True)
+        w('rosbag', f'ros1_{c}', b'\x01' + open(f'{tmp}/{c}.bag', 'rb').read())
     db = open(f'{tmp}/b2/b2_0.db3', 'rb').read()
     b1 = open(f'{tmp}/b1.bag', 'rb').read()
     w('rosbag', 'ros2_nav', b'\x00' + db)
