@@ -449,8 +449,17 @@ TEST_F(ArisFixture, HeaderNavigationMissingInOneFrame) {
     poke<double>(b, frame_at(k) + 180, -122.0);
   }
   write_all(root / "nav.aris", b);
-  import_aris(root / "nav.aris", root / "navok");
+  EXPECT_TRUE(import_aris(root / "nav.aris", root / "navok").warnings.empty());
   EXPECT_EQ(read_dataset(root / "navok").size(), 3u);
+  {
+    // Platform attitude all zero but the sonar's compass turning: said, not guessed.
+    std::string c = b;
+    poke<float>(c, frame_at(1) + 160, 45.0f);
+    write_all(root / "compass.aris", c);
+    const ArisImportResult r = import_aris(root / "compass.aris", root / "compass");
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_NE(r.warnings[0].find("compass"), std::string::npos);
+  }
   poke<double>(b, frame_at(1) + 172, 0.0);
   poke<double>(b, frame_at(1) + 180, 0.0);
   ArisImportConfig cfg;

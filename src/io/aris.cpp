@@ -527,6 +527,19 @@ ArisImportResult import_aris(const fs::path& file, const fs::path& out,
                                           h.pitch * kDeg, h.heading * kDeg, NavConvention::Ned));
     }
     nav.validate(file.string() + " (frame headers)");
+    const auto zero_attitude = [](const ArisFrameHeader& h) {
+      return h.heading == 0 && h.pitch == 0 && h.roll == 0;
+    };
+    const auto compass = [](const ArisFrameHeader& h) {
+      return h.compass_heading != 0 || h.compass_pitch != 0 || h.compass_roll != 0;
+    };
+    if (std::all_of(headers.begin(), headers.end(), zero_attitude) &&
+        std::any_of(headers.begin(), headers.end(), compass)) {
+      res.warnings.push_back(
+          "the platform Heading/Pitch/Roll of every frame header are 0 while the sonar's compass "
+          "reports an attitude: the poses use the platform fields (level, heading north); give a "
+          "navigation file (--nav) if the vehicle turned");
+    }
   } else {
     nav.push_back(times.front(), Eigen::Isometry3d::Identity());
     if (times.back() > times.front()) nav.push_back(times.back(), Eigen::Isometry3d::Identity());
