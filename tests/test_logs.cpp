@@ -304,7 +304,9 @@ struct ArisFixture : ::testing::Test {
   std::string good;  // bytes of a valid 3-frame file
   const std::size_t frame_bytes = 1024 + 48 * 120;
   void SetUp() override {
-    root = temp_dir("aris_bad");
+    // One directory per test: ctest runs the tests of a fixture side by side.
+    root = temp_dir(std::string("aris_bad_") +
+                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
     SimulatedPass p;
     p.spec = aris_spec_1800();
     std::vector<ArisWriteFrame> frames;
@@ -830,7 +832,8 @@ struct BagFixture : ::testing::Test {
   fs::path root;
   PassDataset d;
   void SetUp() override {
-    root = temp_dir("rosbag_bad");
+    root = temp_dir(std::string("rosbag_bad_") +
+                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
     d = pass_dataset(root / "sim", 8, 3);
     export_rosbag(root / "sim", root / "bag", {});
     RosbagExportConfig e1;
