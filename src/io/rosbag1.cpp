@@ -101,7 +101,8 @@ struct Record {
 class Ros1Bag : public BagReader {
  public:
   explicit Ros1Bag(const fs::path& path) : path_(path) {
-    // Mapped, not read: a bag can be many GB and we touch each byte once per scan.
+    // Mapped, not read: a bag can be many GB and we touch each byte once per scan. The mapping
+    // is a member with its own destructor, so a constructor that throws (any bad bag) unmaps.
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) throw Error("cannot open ROS 1 bag '" + path.string() + "'");
     struct stat st {};
@@ -109,16 +110,19 @@ class Ros1Bag : public BagReader {
       ::close(fd);
       throw Error("cannot read ROS 1 bag '" + path.string() + "': not a regular file");
     }
-    size_ = static_cast<std::size_t>(st.st_size);
-    if (size_ > 0) {
-      void* m = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    const auto size = static_cast<std::size_t>(st.st_size);
+    if (size > 0) {
+      void* m = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
       if (m == MAP_FAILED) {
         ::close(fd);
         throw Error("cannot map ROS 1 bag '" + path.string() + "'");
       }
-      map_ = static_cast<const std::uint8_t*>(m);
+      mapping_.p = static_cast<const std::uint8_t*>(m);
+      mapping_.n = size;
     }
     ::close(fd);
+    map_ = mapping_.p;
+    size_ = mapping_.n;
     if (size_ < kMagicLen || std::memcmp(map_, kMagic, kMagicLen) != 0) {
       throw Error(path.string() + ": not a ROS 1 bag v2.0 (no '#ROSBAG V2.0' line at offset 0)");
     }
@@ -146,9 +150,6 @@ class Ros1Bag : public BagReader {
       }
       t->messages += counts[id];
     }
-  }
-  ~Ros1Bag() override {
-    if (map_) ::munmap(const_cast<std::uint8_t*>(map_), size_);
   }
   Ros1Bag(const Ros1Bag&) = delete;
   Ros1Bag& operator=(const Ros1Bag&) = delete;
@@ -326,7 +327,18 @@ class Ros1Bag : public BagReader {
     throw Error(where + ": chunk compression '" + printable(comp) + "' (none, bz2, lz4 are read)");
   }
 
+  struct Mapping {
+    const std::uint8_t* p = nullptr;
+    std::size_t n = 0;
+    Mapping() = default;
+    Mapping(const Mapping&) = delete;
+    Mapping& operator=(const Mapping&) = delete;
+    ~Mapping() {
+      if (p) ::munmap(const_cast<std::uint8_t*>(p), n);
+    }
+  };
   fs::path path_;
+  Mapping mapping_;
   const std::uint8_t* map_ = nullptr;
   std::size_t size_ = 0;
   std::map<std::uint32_t, Connection> conns_;
