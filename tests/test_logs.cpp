@@ -826,6 +826,56 @@ TEST(RosbagImport, PredecessorPackageImageTopicAndPoseStamped) {
   expect_same_dataset(root / "ds_img", d);
 }
 
+TEST(RosbagImport, SplitRos2BagReadsItsFilesInOrder) {
+  // `ros2 bag record --max-bag-size` splits a recording over several .db3 files listed in
+  // metadata.yaml; topic ids may differ between the files.
+  const fs::path root = temp_dir("rosbag_split");
+  const PassDataset d = pass_dataset(root / "sim", 16, 6);
+  export_rosbag(root / "sim", root / "whole", {});
+  const auto reader = BagReader::open(root / "whole");
+  std::vector<BagOutMessage> first, second;
+  std::vector<BagOutTopic> topics;
+  for (const auto& t : reader->topics()) {
+    topics.push_back({t.name, t.type, t.name == "/tf_static"});
+  }
+  for (std::size_t k = 0; k < topics.size(); ++k) {
+    std::size_t n = 0;
+    reader->read(topics[k].name,
+                 [&](std::int64_t ts, const std::uint8_t* b, std::size_t size, const std::string&) {
+                   // Topic ids of the second file are reversed.
+                   BagOutMessage m{static_cast<int>(k), ts, std::vector<std::uint8_t>(b, b + size)};
+                   if (topics[k].name == "/tf_static" || n++ < 3) {
+                     first.push_back(m);
+                   } else {
+                     m.topic = static_cast<int>(topics.size() - 1 - k);
+                     second.push_back(m);
+                   }
+                 });
+  }
+  std::vector<BagOutTopic> reversed(topics.rbegin(), topics.rend());
+  write_bag(root / "p0", RosWire::Cdr, topics, first);
+  write_bag(root / "p1", RosWire::Cdr, reversed, second);
+  fs::create_directories(root / "split");
+  fs::copy_file(root / "p0/p0_0.db3", root / "split/split_0.db3");
+  fs::copy_file(root / "p1/p1_0.db3", root / "split/split_1.db3");
+  std::string meta = read_all(root / "whole/metadata.yaml");
+  const std::size_t at = meta.find("  relative_file_paths:");
+  ASSERT_NE(at, std::string::npos);
+  meta = meta.substr(0, at) + "  relative_file_paths:\n    - split_0.db3\n    - split_1.db3\n";
+  write_all(root / "split/metadata.yaml", meta);
+  const auto split = BagReader::open(root / "split");
+  EXPECT_EQ(split->find("/sonar3d/image")->messages, 6u);
+  RosbagImportConfig ic;
+  ic.sonar_topic = "/sonar3d/image";
+  ic.nav_topic = "/sonar3d/odom";
+  import_rosbag(root / "split", root / "ds", ic);
+  expect_same_dataset(root / "ds", d);
+  // A file the metadata names but that is missing: one error naming it.
+  fs::remove(root / "split/split_1.db3");
+  expect_error([&] { import_rosbag(root / "split", root / "ds2", ic); }, "split_1.db3");
+  EXPECT_FALSE(fs::exists(root / "ds2"));
+}
+
 namespace {
 
 struct BagFixture : ::testing::Test {
