@@ -12,6 +12,12 @@ find_package(fmt REQUIRED)
 # adjustment's robust least squares (libceres-dev, a config package).
 find_package(GDAL REQUIRED)
 find_package(Ceres REQUIRED)
+# ROS 2 bags are sqlite3 databases (libsqlite3-dev; CMake's FindSQLite3 gives SQLite::SQLite3).
+find_package(SQLite3 REQUIRED)
+# ROS 1 bag chunks are bz2 or lz4 compressed (libbz2-dev, liblz4-dev).
+find_package(BZip2 REQUIRED)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(LZ4 REQUIRED IMPORTED_TARGET liblz4)
 
 # OpenVDB (the carving map, .vdb export): Debian ships only a find module, not a config package.
 # Its headers need Boost (libboost-iostreams-dev). The module forces BUILD_SHARED_LIBS ON as a side

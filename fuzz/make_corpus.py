@@ -145,3 +145,72 @@ w('pickle', 'wrong_shape', pickle.dumps({"ImagingSonar": np.zeros((3, 6), np.flo
 w('navcsv', 'enu_deg', b'\x00' + b"time,x,y,z,roll,pitch,yaw\n# c\n0,0,0,-1,0,0,90\n0.5,1,0,-1,1,2,91\n1.0,2,0,-1,0,0,92\n")
 w('navcsv', 'ned_rad_extra', b'\x03' + b"t, north, east, depth, roll, pitch, yaw, speed\n0,0,0,1,0,0,1.57,1\n1,1,1,1,0.01,0,1.6,1\n")
 w('navcsv', 'tum', b'\x04' + b"# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071068 0.7071068\n")
+
+# ARIS recordings (fuzz_aris): first byte = options, then the file (published ARIS layout:
+# 1024-byte file header, frames of a 1024-byte header + samples × beams bytes).
+def aris(frames=2, samples=4, ping=1, nav=True, cut=0):
+    beams = {1: 48, 3: 96, 6: 64, 9: 128}[ping]
+    fh = bytearray(1024)
+    struct.pack_into('<II', fh, 0, 0x05464444, frames)
+    struct.pack_into('<I', fh, 16, beams)
+    struct.pack_into('<I', fh, 24, samples)
+    out = bytes(fh)
+    for k in range(frames):
+        h = bytearray(1024)
+        struct.pack_into('<IQI', h, 0, k, 1700000000000000 + 100000 * k, 0x05464444)
+        struct.pack_into('<Q', h, 20, 1700000000000000 + 100000 * k + 7)
+        if nav:
+            struct.pack_into('<f', h, 128, 2.5)
+            struct.pack_into('<fffff', h, 136, 1.0, 0, -2.0, 0, 45.0 + k)
+            struct.pack_into('<dd', h, 172, 47.6 + 1e-6 * k, -122.3)
+        struct.pack_into('<I', h, 436, ping)
+        struct.pack_into('<I', h, 452, 20)
+        struct.pack_into('<f', h, 464, 1500.0)
+        struct.pack_into('<I', h, 468, samples)
+        struct.pack_into('<I', h, 476, 1600)
+        struct.pack_into('<I', h, 484, 1 if ping in (6, 9) else 0)
+        struct.pack_into('<I', h, 516, 1)
+        out += bytes(h) + bytes((i * 7 + k) % 256 for i in range(samples * beams))
+    return out[:len(out) - cut] if cut else out
+w('aris', 'header_nav', b'\x01' + aris())
+w('aris', 'static_96', b'\x00' + aris(frames=3, samples=2, ping=3, nav=False))
+w('aris', 'aris3000_64_cut', b'\x02' + aris(frames=3, samples=3, ping=6, cut=100))
+w('aris', 'aris3000_128_sonar_clock', b'\x05' + aris(frames=1, samples=2, ping=9))
+
+# ROS bags (fuzz_rosbag) and messages (fuzz_rosmsg): a 2-frame dataset (4 beams × 8 range bins)
+# exported by `sonar3d export rosbag` (ROS 2 and --ros1), so the seeds are what the importer
+# reads; needs a built CLI ($SONAR3D, else build/bin/sonar3d). fuzz_rosmsg's seeds are the
+# messages of the ROS 2 bag (CDR) and a hand-built ROS 1 PoseStamped.
+import shutil, sqlite3, subprocess, tempfile
+cli = os.environ.get('SONAR3D', 'build/bin/sonar3d')
+if os.path.exists(cli):
+    tmp = tempfile.mkdtemp()
+    ds = f'{tmp}/ds'
+    os.makedirs(f'{ds}/frames')
+    open(f'{ds}/sonar.yaml', 'w').write(sonar)
+    open(f'{ds}/frames.csv', 'w').write("index,timestamp,file\n0,10,frames/000000.png\n1,10.5,frames/000001.png\n")
+    open(f'{ds}/navigation.tum', 'w').write(nav)
+    for k in range(2):
+        open(f'{ds}/frames/{k:06d}.png', 'wb').write(png16(4, 8, 1000 + 500 * k))
+    subprocess.run([cli, 'export', 'rosbag', ds, '-o', f'{tmp}/b2', '-q'], check=True)
+    subprocess.run([cli, 'export', 'rosbag', '--ros1', ds, '-o', f'{tmp}/b1.bag', '-q'], check=True)
+    for c in ('bz2', 'lz4'):
+        subprocess.run([cli, 'export', 'rosbag', '--ros1', '--compression', c, ds, '-o', f'{tmp}/{c}.bag', '-q'], check=True)
+        w('rosbag', f'ros1_{c}', b'\x01' + open(f'{tmp}/{c}.bag', 'rb').read())
+    db = open(f'{tmp}/b2/b2_0.db3', 'rb').read()
+    b1 = open(f'{tmp}/b1.bag', 'rb').read()
+    w('rosbag', 'ros2_nav', b'\x00' + db)
+    w('rosbag', 'ros2_static', b'\x02' + db)
+    w('rosbag', 'ros1_nav', b'\x01' + b1)
+    w('rosbag', 'ros1_static_drop', b'\x07' + b1)
+    con = sqlite3.connect(f'{tmp}/b2/b2_0.db3')
+    sel = {'/sonar3d/image': 0, '/sonar3d/odom': 2 << 1, '/tf_static': 5 << 1}
+    for name, tid in con.execute('SELECT name, id FROM topics'):
+        blob = con.execute('SELECT data FROM messages WHERE topic_id=? LIMIT 1', (tid,)).fetchone()[0]
+        w('rosmsg', 'cdr' + name.replace('/', '_'), bytes([sel[name]]) + blob)
+    con.close()
+    shutil.rmtree(tmp)
+    pose1 = struct.pack('<III', 1, 10, 0) + struct.pack('<I', 3) + b'map' + struct.pack('<7d', 1, 2, 3, 0, 0, 0, 1)
+    w('rosmsg', 'ros1_pose_stamped', bytes([1 | (3 << 1)]) + pose1)
+else:
+    print(f'make_corpus: {cli} not built: rosbag and rosmsg seeds left as they are')

@@ -3,7 +3,7 @@
 # per target: name, seconds, executions, result. Used for the table in docs/fuzzing.md.
 # Usage: fuzz/run_campaign.sh BUILD_DIR SECONDS [targets...]
 build=$1; secs=$2; shift 2
-targets=${*:-dataset scene sweep ply mesh holoocean_config pickle navcsv}
+targets=${*:-dataset scene sweep ply mesh holoocean_config pickle navcsv aris rosmsg rosbag}
 root=$(cd "$(dirname "$0")/.." && pwd)
 for t in $targets; do
   mkdir -p "$build/corpus/$t" && cp -n "$root/fuzz/corpus/$t/"* "$build/corpus/$t/"

@@ -32,6 +32,7 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_import(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_export(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_report(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_elevation(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_register(CLI::App& app, const GlobalOptions& g, Runner& run);

@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   add_reconstruct(app, g, run);
   add_plan(app, g, run);
   add_import(app, g, run);
+  add_export(app, g, run);
   add_report(app, g, run);
   add_elevation(app, g, run);
   add_register(app, g, run);

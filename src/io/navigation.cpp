@@ -239,6 +239,25 @@ std::vector<FrameTime> read_frame_times(const std::string& path) {
   return out;
 }
 
+bool frame_inside_navigation(const Trajectory& nav, double t, bool drop_outside,
+                             const std::string& what) {
+  constexpr double kTol = 1e-6;  // s, as Trajectory::interpolate
+  if (nav.empty()) throw Error(what + ": the navigation holds no pose");
+  if (t >= nav.times.front() - kTol && t <= nav.times.back() + kTol) return true;
+  if (drop_outside) return false;
+  throw Error(what + " at t = " + fmt_time(t) + " s (navigation clock) is outside the " +
+              "navigation span [" + fmt_time(nav.times.front()) + ", " +
+              fmt_time(nav.times.back()) +
+              "] s; poses are not extrapolated (drop such frames "
+              "with --drop-outside, or shift the clock with --time-offset)");
+}
+
+Error no_frame_inside_navigation(const Trajectory& nav, const std::string& source) {
+  return Error("no frame of '" + source + "' lies inside the navigation span [" +
+               fmt_time(nav.times.front()) + ", " + fmt_time(nav.times.back()) +
+               "] s: check the clocks (--time-offset)");
+}
+
 void FrameImportConfig::validate() const {
   if (images_dir.empty()) throw Error("frames import: 'images_dir' is not set");
   if (times_csv.empty()) throw Error("frames import: 'times_csv' is not set");
@@ -265,22 +284,15 @@ FrameImportResult import_frames(const FrameImportConfig& config, const fs::path&
   res.navigation_samples = nav.size();
   DatasetWriter writer(out, config.spec,
                        tiff ? DatasetWriter::ImageFormat::Tiff : DatasetWriter::ImageFormat::Png);
-  constexpr double kTol = 1e-6;  // s, as Trajectory::interpolate
   Progress bar("import", times.size(), progress);
   for (const FrameTime& ft : times) {
     const double t = ft.timestamp + config.time_offset;
-    if (t < nav.times.front() - kTol || t > nav.times.back() + kTol) {
-      if (config.drop_outside) {
-        ++res.dropped;
-        bar.add();
-        continue;
-      }
-      throw Error(config.times_csv.string() + ":" + std::to_string(ft.line) + ": frame '" +
-                  ft.file + "' at t = " + fmt_time(t) + " s (navigation clock) is outside the " +
-                  "navigation span [" + fmt_time(nav.times.front()) + ", " +
-                  fmt_time(nav.times.back()) +
-                  "] s; poses are not extrapolated (drop such frames "
-                  "with --drop-outside, or shift the clock with --time-offset)");
+    if (!frame_inside_navigation(nav, t, config.drop_outside,
+                                 config.times_csv.string() + ":" + std::to_string(ft.line) +
+                                     ": frame '" + ft.file + "'")) {
+      ++res.dropped;
+      bar.add();
+      continue;
     }
     SonarImage img = read_sonar_image((config.images_dir / ft.file).string(), config.spec);
     img.timestamp = t;
@@ -291,11 +303,7 @@ FrameImportResult import_frames(const FrameImportConfig& config, const fs::path&
     bar.add();
   }
   bar.finish();
-  if (res.frames == 0) {
-    throw Error("no frame of '" + config.times_csv.string() +
-                "' lies inside the navigation span [" + fmt_time(nav.times.front()) + ", " +
-                fmt_time(nav.times.back()) + "] s: check the clocks (--time-offset)");
-  }
+  if (res.frames == 0) throw no_frame_inside_navigation(nav, config.times_csv.string());
   writer.set_navigation(nav);
   writer.commit();
   return res;

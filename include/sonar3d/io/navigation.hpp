@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/error.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
 
@@ -52,6 +53,17 @@ Trajectory read_navigation(const std::string& path, const NavCsvConfig& csv = {}
 // (as in docs/formats.md, optionally starting from `preset:`), either at the top level or under
 // `sensor:` (so a dataset's own sonar.yaml works). T_vehicle_sonar is the mounting.
 SonarSpec read_sonar_description(const std::string& path);
+
+// The timing rule shared by every import that puts frames onto a navigation log (frames, aris,
+// rosbag): a frame at time t (navigation clock) gets a pose only inside the navigation span
+// [front, back] (1 µs tolerance, as Trajectory::interpolate); poses are never extrapolated.
+// Returns true inside; outside, returns false when `drop_outside` (the caller drops and counts
+// the frame), else throws Error "<what> at t = … s (navigation clock) is outside the navigation
+// span […] s; …" with the advice of the import commands.
+bool frame_inside_navigation(const Trajectory& nav, double t, bool drop_outside,
+                             const std::string& what);
+// The Error of an import whose frames all fell outside the navigation span: names `source`.
+Error no_frame_inside_navigation(const Trajectory& nav, const std::string& source);
 
 struct FrameTime {
   double timestamp = 0;  // s, on the frame clock

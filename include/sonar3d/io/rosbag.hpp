@@ -1,0 +1,129 @@
+#pragma once
+// ROS bags to datasets and back (docs/import.md, "ROS bags"):
+//   - ROS 2 bags: a directory with metadata.yaml and sqlite3 .db3 files (or one .db3 file), CDR
+//     messages, read with libsqlite3;
+//   - ROS 1 bags (format 2.0, .bag), read by hand from the documented format.
+// Sonar topics: marine_acoustic_msgs/ProjectedSonarImage or its predecessor
+// acoustic_msgs/ProjectedSonarImage (sensor description from the message), or sensor_msgs/Image
+// plus a sensor description file. Navigation: nav_msgs/Odometry, geometry_msgs/PoseStamped,
+// geometry_msgs/PoseWithCovarianceStamped (T_world_vehicle). Mounting: --mount, or the static
+// transform (tf2_msgs/TFMessage on /tf_static) from the vehicle frame to the sonar's frame_id.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/sonar_spec.hpp"
+#include "sonar3d/io/ros_msgs.hpp"
+
+namespace sonar3d {
+
+struct BagTopic {
+  std::string name;
+  std::string type;  // as the bag names it (ROS 2: pkg/msg/Name, ROS 1: pkg/Name)
+  std::size_t messages = 0;
+};
+
+// A bag opened for reading: its topics and their messages in time order. Errors name the file.
+class BagReader {
+ public:
+  virtual ~BagReader() = default;
+  // ROS 2 (a bag directory, or a .db3 file) or ROS 1 (.bag, by its "#ROSBAG V2.0" line).
+  static std::unique_ptr<BagReader> open(const std::filesystem::path& bag);
+  virtual const std::vector<BagTopic>& topics() const = 0;
+  virtual RosWire wire() const = 0;
+  virtual std::string format() const = 0;  // "ROS 2 (sqlite3)" | "ROS 1 (v2.0)"
+  // Calls fn(receive time ns, bytes, size, where) for each message of `topic` in time order;
+  // `where` names the file, topic and message number for errors.
+  using Visitor =
+      std::function<void(std::int64_t, const std::uint8_t*, std::size_t, const std::string&)>;
+  virtual void read(const std::string& topic, const Visitor& fn) const = 0;
+  // Calls fn for the first message of `topic` only (in time order); false when it has none.
+  bool read_first(const std::string& topic, const Visitor& fn) const;
+  const BagTopic* find(const std::string& topic) const;
+};
+
+struct RosbagImportConfig {
+  std::string sonar_topic;    // required
+  std::string nav_topic;      // "" only with static_sonar
+  bool static_sonar = false;  // no navigation: T_world_vehicle = identity
+  std::string tf_topic = "/tf_static";
+  // The vehicle frame the mounting is expressed in; "" = the Odometry child_frame_id when the
+  // navigation has one, else the root of the static transform tree above the sonar frame.
+  std::string base_frame;
+  std::optional<Eigen::Isometry3d> T_vehicle_sonar;  // --mount: overrides the static transforms
+  // Sensor description (sonar.yaml fields): required for sensor_msgs/Image; for
+  // ProjectedSonarImage it supplies what the message lacks (vertical aperture, beam pattern).
+  std::filesystem::path sonar_description;
+  double vertical_aperture_rad = 0;  // overrides the message's tx_beamwidths and the description
+  double time_offset = 0;            // s added to sonar stamps to reach the navigation clock
+  bool drop_outside = false;
+  void validate() const;
+};
+
+struct RosbagImportResult {
+  std::string format;
+  std::string sonar_type, nav_type;
+  SonarSpec spec;
+  std::size_t frames = 0, dropped = 0, navigation_samples = 0;
+  std::string mounting_source;  // "--mount", "identity", "/tf_static: base_link -> sonar"
+  std::vector<std::string> warnings;
+};
+
+RosbagImportResult import_rosbag(const std::filesystem::path& bag, const std::filesystem::path& out,
+                                 const RosbagImportConfig& config, bool progress = false);
+
+// Our sensor description of a ProjectedSonarImage (bearings from beam_directions, range bins
+// from the uniformly spaced ranges, vertical aperture from tx_beamwidths, intensity encoding
+// from dtype). `reversed` is set when the beams come by decreasing bearing (columns are then
+// flipped). Throws Error naming `where`.
+SonarSpec sonar_spec_from_message(const RosSonarImage& m, const std::string& where,
+                                  bool* reversed = nullptr);
+
+struct RosbagExportConfig {
+  RosWire wire = RosWire::Cdr;  // Cdr: ROS 2 sqlite3 bag directory; Ros1: ROS 1 .bag file
+  std::string sonar_topic = "/sonar3d/image";
+  std::string nav_topic = "/sonar3d/odom";
+  std::string message_package = "marine_acoustic_msgs";  // or "acoustic_msgs"
+  std::string world_frame = "map", base_frame = "base_link", sonar_frame = "sonar";
+  std::string ros1_compression = "none";  // ROS 1 chunks: none, bz2 or lz4 (as rosbag --bz2/--lz4)
+};
+
+struct RosbagExportResult {
+  std::size_t frames = 0, navigation_samples = 0;
+};
+
+// Writes a dataset as a bag: one ProjectedSonarImage per frame (dtype from the dataset's
+// encoding: 8-bit → uint8, 16-bit → uint16, TIFF → float32), the navigation as nav_msgs/Odometry,
+// the mounting as a static transform base_frame → sonar_frame on /tf_static. Written under a
+// temporary name and renamed into place; `out` must not exist.
+RosbagExportResult export_rosbag(const std::filesystem::path& dataset,
+                                 const std::filesystem::path& out,
+                                 const RosbagExportConfig& config = {}, bool progress = false);
+
+// Writing bags of any messages (used by export_rosbag; tests and fuzz seeds build bags with it).
+struct BagOutTopic {
+  std::string name, type;  // type in the bag's naming: ROS 2 pkg/msg/Name, ROS 1 pkg/Name
+  bool latched = false;    // transient-local (ROS 2) / latching (ROS 1), as /tf_static needs
+};
+struct BagOutMessage {
+  int topic = 0;  // index into the topics
+  std::int64_t time_ns = 0;
+  std::vector<std::uint8_t> data;  // serialised for the bag's wire
+};
+// Cdr: a ROS 2 bag directory `path` (metadata.yaml, <name>_0.db3); Ros1: a v2.0 .bag file
+// (uncompressed chunks, connection/chunk-info records, index). `path` must not exist; not
+// atomic (export_rosbag writes under a temporary name).
+void write_bag(const std::filesystem::path& path, RosWire wire,
+               const std::vector<BagOutTopic>& topics, const std::vector<BagOutMessage>& messages,
+               const std::string& ros1_compression = "none");
+
+// The rotation from our FLU sonar frame to the ProjectedSonarImage frame (z forward, x up,
+// y starboard): p_msg = R · p_flu.
+Eigen::Matrix3d R_msg_flu();
+
+}  // namespace sonar3d

@@ -1,0 +1,664 @@
+#include "sonar3d/io/rosbag.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "rosbag_internal.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/navigation.hpp"
+
+namespace fs = std::filesystem;
+
+namespace sonar3d {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+bool is_sonar_image_type(const std::string& t) {
+  const std::string n = ros_type_name(t);
+  return n == "marine_acoustic_msgs/ProjectedSonarImage" ||
+         n == "acoustic_msgs/ProjectedSonarImage";
+}
+bool is_image_type(const std::string& t) { return ros_type_name(t) == "sensor_msgs/Image"; }
+bool is_nav_type(const std::string& t) {
+  const std::string n = ros_type_name(t);
+  return n == "nav_msgs/Odometry" || n == "geometry_msgs/PoseStamped" ||
+         n == "geometry_msgs/PoseWithCovarianceStamped";
+}
+
+std::string fmt(double v) {
+  std::ostringstream os;
+  os.precision(10);
+  os << v;
+  return os.str();
+}
+
+std::string topic_list(const BagReader& r) {
+  std::string s;
+  std::size_t k = 0;
+  for (const auto& t : r.topics()) {
+    if (k++ == 12) {
+      s += ", …";
+      break;
+    }
+    s += (s.empty() ? "" : ", ") + t.name + " (" + t.type + ")";
+  }
+  return s.empty() ? "none" : s;
+}
+
+Eigen::Isometry3d iso(const Eigen::Vector3d& t, const Eigen::Quaterniond& q) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = q.normalized().toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+std::size_t dtype_size(std::uint32_t dtype) {
+  switch (dtype) {
+    case kRosDtypeUint8:
+      return 1;
+    case kRosDtypeUint16:
+      return 2;
+    case kRosDtypeFloat32:
+      return 4;
+  }
+  return 0;
+}
+
+const char* dtype_name(std::uint32_t dtype) {
+  static const char* kNames[] = {"uint8", "int8",   "uint16", "int16",   "uint32",
+                                 "int32", "uint64", "int64",  "float32", "float64"};
+  return dtype < 10 ? kNames[dtype] : "unknown";
+}
+
+// Decodes the samples of a range-major image (rows × cols of `size`-byte values) into linear
+// intensities value · scale (float32 values as they are).
+void samples_to_image(const std::uint8_t* p, std::size_t size, bool big_endian, bool is_float,
+                      double scale, bool reversed, SonarImage& img) {
+  const int cols = img.cols;
+  for (int i = 0; i < img.rows; ++i) {
+    for (int j = 0; j < cols; ++j) {
+      const std::uint8_t* q = p + (static_cast<std::size_t>(i) * cols + j) * size;
+      std::uint8_t b[4];
+      for (std::size_t k = 0; k < size; ++k) b[k] = big_endian ? q[size - 1 - k] : q[k];
+      float v;
+      if (is_float) {
+        std::memcpy(&v, b, 4);
+      } else if (size == 1) {
+        v = static_cast<float>(b[0] * scale);
+      } else {
+        v = static_cast<float>((b[0] | (b[1] << 8)) * scale);
+      }
+      img.at(i, reversed ? cols - 1 - j : j) = v;
+    }
+  }
+}
+
+}  // namespace
+
+void write_bag(const fs::path& path, RosWire wire, const std::vector<BagOutTopic>& topics,
+               const std::vector<BagOutMessage>& messages, const std::string& ros1_compression) {
+  for (const auto& m : messages) {
+    if (m.topic < 0 || static_cast<std::size_t>(m.topic) >= topics.size()) {
+      throw Error("write_bag: a message names topic " + std::to_string(m.topic) + " of " +
+                  std::to_string(topics.size()));
+    }
+  }
+  std::size_t k = 0;
+  const bag::NextMessage next = [&](BagOutMessage& m) {
+    if (k == messages.size()) return false;
+    m = messages[k++];
+    return true;
+  };
+  if (wire == RosWire::Cdr) {
+    bag::write_ros2(path, path.filename().string(), topics, next);
+  } else {
+    bag::write_ros1(path, topics, next, ros1_compression);
+  }
+}
+
+Eigen::Matrix3d R_msg_flu() {
+  Eigen::Matrix3d R;
+  // msg x = up (flu z), msg y = starboard (−flu y), msg z = forward (flu x)
+  R << 0, 0, 1, 0, -1, 0, 1, 0, 0;
+  return R;
+}
+
+const BagTopic* BagReader::find(const std::string& topic) const {
+  for (const auto& t : topics()) {
+    if (t.name == topic) return &t;
+  }
+  return nullptr;
+}
+
+bool BagReader::read_first(const std::string& topic, const Visitor& fn) const {
+  struct Stop {};  // ends the walk over the topic after its first message
+  bool got = false;
+  try {
+    read(topic, [&](std::int64_t t, const std::uint8_t* p, std::size_t n, const std::string& w) {
+      fn(t, p, n, w);
+      got = true;
+      throw Stop{};
+    });
+  } catch (const Stop&) {
+  }
+  return got;
+}
+
+std::unique_ptr<BagReader> BagReader::open(const fs::path& bag) {
+  std::error_code ec;
+  if (!fs::exists(bag, ec)) throw Error("bag '" + bag.string() + "' does not exist");
+  if (fs::is_regular_file(bag, ec)) {
+    std::ifstream f(bag, std::ios::binary);
+    char magic[13] = {};
+    f.read(magic, 13);
+    if (f.gcount() == 13 && std::memcmp(magic, "#ROSBAG V2.0\n", 13) == 0) {
+      return bag::open_ros1(bag);
+    }
+    if (f.gcount() >= 8 && std::memcmp(magic, "#ROSBAG ", 8) == 0) {
+      throw Error(bag.string() + ": a ROS 1 bag of a format other than 2.0 ('" +
+                  printable(std::string(magic, 12)) + "'); migrate it with `rosbag fix`");
+    }
+    if (f.gcount() >= 8 && std::memcmp(magic, "\x89MCAP", 5) == 0) {
+      throw Error(bag.string() + ": an MCAP file; convert it with `ros2 bag convert` to sqlite3");
+    }
+  }
+  return bag::open_ros2(bag);
+}
+
+void RosbagImportConfig::validate() const {
+  if (sonar_topic.empty()) throw Error("rosbag import: the sonar topic is not set");
+  if (nav_topic.empty() && !static_sonar) {
+    throw Error(
+        "rosbag import: give the navigation topic (--nav-topic), or --static for a fixed "
+        "sonar");
+  }
+  if (!std::isfinite(time_offset)) throw Error("rosbag import: 'time_offset' must be finite");
+  if (vertical_aperture_rad != 0 &&
+      !(vertical_aperture_rad >= limits::kMinApertureDeg * kDeg && vertical_aperture_rad < M_PI)) {
+    throw Error("rosbag import: the vertical aperture must be in (0°, 180°)");
+  }
+  if (T_vehicle_sonar && !is_rigid(*T_vehicle_sonar)) {
+    throw Error("rosbag import: the mounting is not a rigid transform");
+  }
+}
+
+SonarSpec sonar_spec_from_message(const RosSonarImage& m, const std::string& where,
+                                  bool* reversed) {
+  const std::size_t beams = m.beam_directions.size();
+  const std::size_t bins = m.ranges.size();
+  if (beams == 0 || beams > static_cast<std::size_t>(limits::kMaxBeams)) {
+    throw Error(where + ": " + std::to_string(beams) + " beam directions, outside [1, " +
+                std::to_string(limits::kMaxBeams) + "]");
+  }
+  if (bins < 2 || bins > static_cast<std::size_t>(limits::kMaxRangeBins)) {
+    throw Error(where + ": " + std::to_string(bins) + " ranges, outside [2, " +
+                std::to_string(limits::kMaxRangeBins) + "] (the range spacing needs two)");
+  }
+  if (m.beam_count != beams) {
+    throw Error(where + ": image.beam_count is " + std::to_string(m.beam_count) +
+                " but there are " + std::to_string(beams) + " beam directions");
+  }
+  const std::size_t size = dtype_size(m.dtype);
+  if (size == 0) {
+    throw Error(where + ": image.dtype " + std::to_string(m.dtype) + " (" + dtype_name(m.dtype) +
+                ") is not read; uint8, uint16 and float32 are");
+  }
+  if (m.data.size() != beams * bins * size) {
+    throw Error(where + ": image.data holds " + std::to_string(m.data.size()) + " bytes, not " +
+                std::to_string(bins) + " ranges × " + std::to_string(beams) + " beams × " +
+                std::to_string(size) + " bytes");
+  }
+  SonarSpec s;
+  s.name = "rosbag";
+  std::vector<double> phi(beams);
+  for (std::size_t j = 0; j < beams; ++j) {
+    const Eigen::Vector3d& d = m.beam_directions[j];
+    if (d.norm() < 1e-9) throw Error(where + ": beam direction " + std::to_string(j) + " is zero");
+    phi[j] = std::atan2(-d.y(), d.z());  // message frame: z forward, y starboard
+  }
+  bool rev = beams > 1 && phi[1] < phi[0];
+  if (rev) std::reverse(phi.begin(), phi.end());
+  for (std::size_t j = 1; j < beams; ++j) {
+    if (!(phi[j] > phi[j - 1])) {
+      throw Error(where + ": beam bearings are not monotonic at beam " + std::to_string(j) + " (" +
+                  fmt(phi[j - 1] / kDeg) + "°, " + fmt(phi[j] / kDeg) + "°)");
+    }
+  }
+  if (reversed) *reversed = rev;
+  s.bearings_rad = phi;
+  const double r0 = m.ranges.front(), r1 = m.ranges.back();
+  const double dr = (r1 - r0) / static_cast<double>(bins - 1);
+  if (!std::isfinite(dr) || !(dr > 0)) {
+    throw Error(where + ": ranges must increase (first " + fmt(r0) + " m, last " + fmt(r1) + " m)");
+  }
+  for (std::size_t i = 0; i < bins; ++i) {
+    const double want = r0 + dr * static_cast<double>(i);
+    if (!(std::abs(m.ranges[i] - want) <= 1e-3 * dr + 4e-7 * std::abs(want))) {
+      throw Error(where + ": range bin " + std::to_string(i) + " is at " + fmt(m.ranges[i]) +
+                  " m, not " + fmt(want) + " m: a dataset needs uniformly spaced range bins");
+    }
+  }
+  s.r_min = r0 - dr / 2;
+  s.r_max = s.r_min + dr * static_cast<double>(bins);
+  s.range_bins = static_cast<int>(bins);
+  if (s.r_min < 0) throw Error(where + ": the first range bin starts below 0 m");
+  if (s.r_max > limits::kMaxRange) {
+    throw Error(where + ": ranges reach " + fmt(s.r_max) + " m, beyond " + fmt(limits::kMaxRange) +
+                " m");
+  }
+  s.vertical_aperture_rad = 0;  // unknown unless tx_beamwidths says
+  if (!m.tx_beamwidths.empty()) {
+    const double a = m.tx_beamwidths.front();
+    if (std::isfinite(a) && a > 0 && a < M_PI) s.vertical_aperture_rad = a;
+  }
+  s.beam_pattern.kind = BeamPattern::Kind::Sinc;
+  if (m.dtype == kRosDtypeUint8) {
+    s.bit_depth = 8;
+    s.intensity_scale = 1.0 / 255.0;
+  } else {
+    s.bit_depth = 16;
+    s.intensity_scale = 1.0 / 65535.0;
+  }
+  return s;
+}
+
+RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
+                                 const RosbagImportConfig& config, bool progress) {
+  config.validate();
+  const std::unique_ptr<BagReader> bag = BagReader::open(bag_path);
+  RosbagImportResult res;
+  res.format = bag->format();
+  const RosWire wire = bag->wire();
+  const std::string src = bag_path.string();
+
+  const BagTopic* sonar = bag->find(config.sonar_topic);
+  if (!sonar) {
+    throw Error(src + ": no topic '" + config.sonar_topic + "'; the bag holds " + topic_list(*bag));
+  }
+  const bool projected = is_sonar_image_type(sonar->type);
+  if (!projected && !is_image_type(sonar->type)) {
+    throw Error(src + ": topic '" + sonar->name + "' is of type " + sonar->type +
+                ", not marine_acoustic_msgs/ProjectedSonarImage (or acoustic_msgs/…) or "
+                "sensor_msgs/Image");
+  }
+  res.sonar_type = sonar->type;
+  if (!projected && config.sonar_description.empty()) {
+    throw Error(src + ": topic '" + sonar->name +
+                "' carries sensor_msgs/Image, which says "
+                "nothing of the sonar: give its description (--sonar FILE.yaml)");
+  }
+  std::optional<SonarSpec> described;
+  if (!config.sonar_description.empty()) {
+    described = read_sonar_description(config.sonar_description.string());
+  }
+
+  // Navigation: T_world_vehicle from the header stamps.
+  Trajectory nav;
+  std::string body_frame;
+  if (!config.static_sonar) {
+    const BagTopic* navt = bag->find(config.nav_topic);
+    if (!navt) {
+      throw Error(src + ": no topic '" + config.nav_topic + "'; the bag holds " + topic_list(*bag));
+    }
+    if (!is_nav_type(navt->type)) {
+      throw Error(src + ": topic '" + navt->name + "' is of type " + navt->type +
+                  ", not nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                  "geometry_msgs/PoseWithCovarianceStamped");
+    }
+    res.nav_type = navt->type;
+    std::vector<std::pair<double, Eigen::Isometry3d>> samples;
+    bag->read(navt->name,
+              [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
+                const RosPose m = decode_pose(navt->type, p, n, wire, where);
+                if (body_frame.empty()) body_frame = m.child_frame_id;
+                if (std::abs(m.position.maxCoeff()) > limits::kMaxCoordinate ||
+                    std::abs(m.position.minCoeff()) > limits::kMaxCoordinate) {
+                  throw Error(where + ": position beyond " + fmt(limits::kMaxCoordinate) + " m");
+                }
+                samples.emplace_back(m.stamp.seconds(), iso(m.position, m.orientation));
+              });
+    std::stable_sort(samples.begin(), samples.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& s : samples) {
+      if (!nav.empty() && s.first <= nav.times.back()) {
+        res.warnings.push_back("navigation sample at " + fmt(s.first) +
+                               " s repeats a header stamp: kept the first");
+        continue;
+      }
+      nav.push_back(s.first, s.second);
+    }
+    if (nav.empty()) throw Error(src + ": topic '" + navt->name + "' holds no message");
+    nav.validate(src + ": " + navt->name);
+    res.navigation_samples = nav.size();
+  }
+
+  // The sonar's frame and, for ProjectedSonarImage, the sensor description: from its first
+  // message.
+  std::string sonar_frame;
+  SonarSpec spec;
+  bool reversed = false;
+  std::size_t sample_size = 0;
+  bool is_float = false, big_endian = false;
+  const bool have_first = bag->read_first(
+      sonar->name,
+      [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
+        if (!projected) {
+          sonar_frame = decode_image(p, n, wire, where).frame_id;
+          return;
+        }
+        const RosSonarImage m = decode_sonar_image(p, n, wire, where);
+        sonar_frame = m.frame_id;
+        spec = sonar_spec_from_message(m, where, &reversed);
+        sample_size = dtype_size(m.dtype);
+        is_float = m.dtype == kRosDtypeFloat32;
+        big_endian = m.is_bigendian;
+      });
+  if (!have_first) throw Error(src + ": topic '" + sonar->name + "' holds no message");
+
+  // Mounting: --mount, else the static transforms from the vehicle frame to the sonar frame.
+  Eigen::Isometry3d T_vehicle_frame = Eigen::Isometry3d::Identity();
+  res.mounting_source = "identity (no static transform)";
+  if (config.T_vehicle_sonar) {
+    res.mounting_source = "--mount";
+  } else if (const BagTopic* tf = bag->find(config.tf_topic)) {
+    if (ros_type_name(tf->type) != "tf2_msgs/TFMessage") {
+      throw Error(src + ": topic '" + tf->name + "' is of type " + tf->type +
+                  ", not tf2_msgs/TFMessage");
+    }
+    std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent_of;  // child -> ...
+    bag->read(tf->name,
+              [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
+                for (const RosTransform& t : decode_tf(p, n, wire, where)) {
+                  parent_of[t.child] = {t.parent, iso(t.translation, t.rotation)};
+                }
+              });
+    const std::string base = !config.base_frame.empty() ? config.base_frame : body_frame;
+    std::string frame = sonar_frame, chain = sonar_frame;
+    int depth = 0;
+    while (frame != base) {
+      const auto it = parent_of.find(frame);
+      if (it == parent_of.end()) break;
+      if (++depth > 64)
+        throw Error(src + ": the static transforms above '" + sonar_frame + "' form a cycle");
+      T_vehicle_frame = it->second.second * T_vehicle_frame;
+      frame = it->second.first;
+      chain = frame + " -> " + chain;
+    }
+    if (!base.empty() && frame != base) {
+      throw Error(src + ": no static transform chain on " + tf->name + " from '" + base +
+                  "' to the sonar frame '" + sonar_frame + "' (reached '" + frame +
+                  "'); give the mounting with --mount or the vehicle frame with --base-frame");
+    }
+    if (depth > 0) res.mounting_source = tf->name + ": " + chain;
+  }
+
+  // The sensor description.
+  if (projected) {
+    if (described) {
+      if (spec.vertical_aperture_rad == 0)
+        spec.vertical_aperture_rad = described->vertical_aperture_rad;
+      spec.beam_pattern = described->beam_pattern;
+      spec.name = described->name;
+      if (!is_float && described->bit_depth == spec.bit_depth) {
+        spec.intensity_scale = described->intensity_scale;
+      }
+    }
+  } else {
+    spec = *described;
+  }
+  if (config.vertical_aperture_rad > 0) spec.vertical_aperture_rad = config.vertical_aperture_rad;
+  if (!(spec.vertical_aperture_rad > 0)) {
+    throw Error(src + ": the messages of '" + sonar->name +
+                "' give no vertical aperture "
+                "(ping_info.tx_beamwidths is empty): give --vertical-aperture-deg or --sonar");
+  }
+  if (config.T_vehicle_sonar) {
+    spec.T_vehicle_sonar = *config.T_vehicle_sonar;
+  } else if (projected) {
+    // The message frame is z forward, x up: our FLU sonar frame is that frame rotated.
+    Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
+    R.linear() = R_msg_flu();
+    spec.T_vehicle_sonar = T_vehicle_frame * R;
+  } else if (res.mounting_source.rfind("identity", 0) != 0) {
+    spec.T_vehicle_sonar = T_vehicle_frame;
+  }
+  spec.validate();
+  res.spec = spec;
+  if (config.static_sonar) {
+    // A fixed sonar: identity vehicle poses over every stamp (filled in below).
+  }
+
+  const bool tiff = is_float || (!projected && spec.bit_depth != 8 && spec.bit_depth != 16);
+  std::unique_ptr<DatasetWriter> writer;
+  Progress bar("import", sonar->messages, progress);
+  SonarImage img(spec.range_bins, spec.beams());
+  double last_t = -INFINITY, first_t = 0;
+  std::vector<double> stamps;
+  bag->read(sonar->name, [&](std::int64_t, const std::uint8_t* p, std::size_t n,
+                             const std::string& where) {
+    double t = 0;
+    if (projected) {
+      const RosSonarImage m = decode_sonar_image(p, n, wire, where);
+      if (m.beam_directions.size() != static_cast<std::size_t>(spec.beams()) ||
+          m.ranges.size() != static_cast<std::size_t>(spec.range_bins) ||
+          dtype_size(m.dtype) != sample_size || m.is_bigendian != big_endian) {
+        throw Error(where + ": the image changes size or encoding (" +
+                    std::to_string(m.ranges.size()) + " ranges × " +
+                    std::to_string(m.beam_directions.size()) + " beams, " + dtype_name(m.dtype) +
+                    "; the first message has " + std::to_string(spec.range_bins) + " × " +
+                    std::to_string(spec.beams()) + "); a dataset holds one sensor geometry");
+      }
+      bool rev = false;
+      const SonarSpec si = sonar_spec_from_message(m, where, &rev);
+      const double tol = 1e-5 * spec.r_max;
+      if (std::abs(si.r_min - spec.r_min) > tol || std::abs(si.r_max - spec.r_max) > tol ||
+          rev != reversed) {
+        throw Error(where + ": the range window or beam order changes (" + fmt(si.r_min) + "–" +
+                    fmt(si.r_max) + " m; the first message has " + fmt(spec.r_min) + "–" +
+                    fmt(spec.r_max) + " m)");
+      }
+      for (int j = 0; j < spec.beams(); ++j) {
+        if (std::abs(si.bearings_rad[j] - spec.bearings_rad[j]) > 1e-6) {
+          throw Error(where + ": beam " + std::to_string(j) + " moves to " +
+                      fmt(si.bearings_rad[j] / kDeg) + "°; a dataset holds one bearing table");
+        }
+      }
+      samples_to_image(m.data.data(), sample_size, m.is_bigendian, is_float, spec.intensity_scale,
+                       reversed, img);
+      t = m.stamp.seconds();
+    } else {
+      const RosImage m = decode_image(p, n, wire, where);
+      std::size_t size = 0;
+      if (m.encoding == "mono8" || m.encoding == "8UC1") size = 1;
+      if (m.encoding == "mono16" || m.encoding == "16UC1") size = 2;
+      if (m.encoding == "32FC1") size = 4;
+      if (size == 0) {
+        throw Error(where + ": encoding '" + printable(m.encoding) +
+                    "' is not read (mono8, mono16, 32FC1 are)");
+      }
+      if ((size == 1 && spec.bit_depth != 8) || (size == 2 && spec.bit_depth != 16)) {
+        throw Error(where + ": a " + m.encoding + " image but the sonar description declares " +
+                    std::to_string(spec.bit_depth) + "-bit intensities");
+      }
+      if (m.height != static_cast<std::uint32_t>(spec.range_bins) ||
+          m.width != static_cast<std::uint32_t>(spec.beams())) {
+        throw Error(where + ": a " + std::to_string(m.height) + "×" + std::to_string(m.width) +
+                    " image but the sonar description has " + std::to_string(spec.range_bins) +
+                    " range bins × " + std::to_string(spec.beams()) + " beams");
+      }
+      if (m.step != m.width * size || m.data.size() != std::size_t(m.step) * m.height) {
+        throw Error(where + ": step " + std::to_string(m.step) + " and " +
+                    std::to_string(m.data.size()) + " data bytes do not match " +
+                    std::to_string(m.height) + " rows of " + std::to_string(m.width) + " × " +
+                    std::to_string(size) + " bytes");
+      }
+      if (size == 4 && !tiff) {
+        throw Error(where +
+                    ": a 32FC1 image needs a float description (bit depth 32 is not a "
+                    "PNG encoding)");
+      }
+      samples_to_image(m.data.data(), size, m.is_bigendian != 0, size == 4, spec.intensity_scale,
+                       false, img);
+      t = m.stamp.seconds();
+    }
+    t += config.time_offset;
+    for (float v : img.data) {
+      if (!std::isfinite(v)) throw Error(where + ": a non-finite intensity");
+    }
+    if (t < last_t) {
+      throw Error(where + ": header stamp " + fmt(t) + " s goes backwards (previous " +
+                  fmt(last_t) + " s)");
+    }
+    if (!config.static_sonar && !frame_inside_navigation(nav, t, config.drop_outside, where)) {
+      ++res.dropped;
+      bar.add();
+      return;
+    }
+    if (!writer) {
+      writer = std::make_unique<DatasetWriter>(
+          out, spec, tiff ? DatasetWriter::ImageFormat::Tiff : DatasetWriter::ImageFormat::Png);
+      first_t = t;
+    }
+    img.timestamp = t;
+    writer->add_frame(img);
+    stamps.push_back(t);
+    last_t = t;
+    ++res.frames;
+    bar.add();
+  });
+  bar.finish();
+  if (res.frames == 0) {
+    if (!config.static_sonar) throw no_frame_inside_navigation(nav, src + ": " + sonar->name);
+    throw Error(src + ": topic '" + sonar->name + "' holds no frame");
+  }
+  if (config.static_sonar) {
+    nav = Trajectory();
+    nav.push_back(first_t, Eigen::Isometry3d::Identity());
+    if (last_t > first_t) nav.push_back(last_t, Eigen::Isometry3d::Identity());
+  }
+  writer->set_navigation(nav);
+  writer->commit();
+  return res;
+}
+
+RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
+                                 const RosbagExportConfig& config, bool progress) {
+  const Dataset ds = read_dataset(dataset);
+  if (ds.size() == 0) throw Error(dataset.string() + ": the dataset holds no frame");
+  std::error_code ec;
+  if (fs::exists(out, ec) || fs::is_symlink(out, ec)) {
+    throw Error("'" + out.string() + "' exists; `export rosbag` writes a new bag only");
+  }
+  if (config.message_package != "marine_acoustic_msgs" &&
+      config.message_package != "acoustic_msgs") {
+    throw Error("unknown message package '" + config.message_package +
+                "' (marine_acoustic_msgs or acoustic_msgs)");
+  }
+  const SonarSpec& spec = ds.spec;
+  const bool ros2 = config.wire == RosWire::Cdr;
+  auto type = [&](const std::string& pkg, const std::string& name) {
+    return ros2 ? pkg + "/msg/" + name : pkg + "/" + name;
+  };
+  std::vector<BagOutTopic> topics = {
+      {config.sonar_topic, type(config.message_package, "ProjectedSonarImage"), false},
+      {config.nav_topic, type("nav_msgs", "Odometry"), false},
+      {"/tf_static", type("tf2_msgs", "TFMessage"), true}};
+  // The mounting: base_frame -> sonar_frame, in the message's frame convention.
+  Eigen::Isometry3d Rm = Eigen::Isometry3d::Identity();
+  Rm.linear() = R_msg_flu().transpose();
+  const Eigen::Isometry3d T_base_msg = spec.T_vehicle_sonar * Rm;
+  RosTransform tf;
+  tf.stamp = RosTime::from_seconds(std::min(
+      ds.frames.front().timestamp, ds.navigation.empty() ? INFINITY : ds.navigation.times.front()));
+  tf.parent = config.base_frame;
+  tf.child = config.sonar_frame;
+  tf.translation = T_base_msg.translation();
+  tf.rotation = Eigen::Quaterniond(T_base_msg.linear());
+
+  const std::string ext = fs::path(ds.frames.front().file).extension().string();
+  const bool tiff = ext == ".tif" || ext == ".tiff";
+  RosSonarImage m;
+  m.frame_id = config.sonar_frame;
+  m.sound_speed = 0;  // not known to a dataset
+  m.dtype = tiff ? kRosDtypeFloat32 : spec.bit_depth == 8 ? kRosDtypeUint8 : kRosDtypeUint16;
+  m.beam_count = static_cast<std::uint32_t>(spec.beams());
+  for (int j = 0; j < spec.beams(); ++j) {
+    const double phi = spec.bearings_rad[j];
+    m.beam_directions.push_back(R_msg_flu() * Eigen::Vector3d(std::cos(phi), std::sin(phi), 0));
+    m.tx_beamwidths.push_back(static_cast<float>(spec.vertical_aperture_rad));
+    m.rx_beamwidths.push_back(static_cast<float>(spec.beam_edge_high(j) - spec.beam_edge_low(j)));
+  }
+  for (int i = 0; i < spec.range_bins; ++i) {
+    m.ranges.push_back(static_cast<float>(spec.range_of_bin(i)));
+  }
+  const std::size_t size = dtype_size(m.dtype);
+
+  // Messages in time order, made one at a time (a dataset may be larger than memory): the static
+  // transform first, then navigation samples and frames merged by stamp.
+  RosbagExportResult res;
+  Progress bar("export", ds.size(), progress);
+  bool tf_sent = false;
+  std::size_t nav_k = 0, frame_k = 0;
+  const bag::NextMessage next = [&](BagOutMessage& out_msg) {
+    if (!tf_sent) {
+      tf_sent = true;
+      out_msg = {2, tf.stamp.ns(), encode_tf({tf}, config.wire)};
+      return true;
+    }
+    const bool have_nav = nav_k < ds.navigation.size();
+    const bool have_frame = frame_k < ds.size();
+    if (!have_nav && !have_frame) return false;
+    if (have_nav && (!have_frame || RosTime::from_seconds(ds.navigation.times[nav_k]).ns() <=
+                                        RosTime::from_seconds(ds.frames[frame_k].timestamp).ns())) {
+      RosPose p;
+      p.stamp = RosTime::from_seconds(ds.navigation.times[nav_k]);
+      p.frame_id = config.world_frame;
+      p.child_frame_id = config.base_frame;
+      p.position = ds.navigation.poses[nav_k].translation();
+      p.orientation = Eigen::Quaterniond(ds.navigation.poses[nav_k].linear());
+      out_msg = {1, p.stamp.ns(), encode_odometry(p, config.wire)};
+      ++nav_k;
+      ++res.navigation_samples;
+      return true;
+    }
+    const SonarImage img = ds.load_frame(frame_k);
+    m.stamp = RosTime::from_seconds(ds.frames[frame_k].timestamp);
+    m.data.assign(img.data.size() * size, 0);
+    for (std::size_t i = 0; i < img.data.size(); ++i) {
+      if (tiff) {
+        std::memcpy(&m.data[i * 4], &img.data[i], 4);
+      } else {
+        // The stored integer the dataset's frame holds (exact: it was read as value · scale).
+        const double v = std::round(img.data[i] / spec.intensity_scale);
+        const auto q = static_cast<std::uint32_t>(std::clamp(v, 0.0, spec.max_intensity_value()));
+        m.data[i * size] = static_cast<std::uint8_t>(q & 0xff);
+        if (size == 2) m.data[i * size + 1] = static_cast<std::uint8_t>(q >> 8);
+      }
+    }
+    out_msg = {0, m.stamp.ns(), encode_sonar_image(m, config.wire)};
+    ++frame_k;
+    ++res.frames;
+    bar.add();
+    return true;
+  };
+  AtomicPath atomic(out);
+  if (ros2) {
+    bag::write_ros2(atomic.temp(), out.filename().string(), topics, next);
+  } else {
+    bag::write_ros1(atomic.temp(), topics, next, config.ros1_compression);
+  }
+  bar.finish();
+  atomic.commit();
+  return res;
+}
+
+}  // namespace sonar3d
