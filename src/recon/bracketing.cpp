@@ -181,7 +181,7 @@ std::string PassExtension::message() const {
   os.precision(2);
   os << std::fixed << "pass " << pass + 1 << " (frames " << first_frame << "–" << last_frame
      << ") stops short at its " << (upper ? "upper" : "lower") << " end: it goes " << past_surface
-     << " m past the surface it saw, the elevation above it needs 2·r·tan(A_v/2) = " << rule
+     << " m past the surface it saw, the elevation beyond it needs 2·r·tan(A_v/2) = " << rule
      << " m (r = " << range << " m): extend it by " << (lower_bound ? "at least " : "") << extend
      << " m " << (upper ? "upward" : "downward") << " (direction " << direction.x() << ", "
      << direction.y() << ", " << direction.z()
