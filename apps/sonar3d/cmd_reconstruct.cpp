@@ -58,6 +58,11 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
                                        bc.min_bracket, br.kept, br.points)
                          : std::string());
   for (const auto& w : br.warnings()) fmt::print("warning: {}\n", w);
+  if (!br.extensions.empty() && bc.min_bracket == 0) {
+    fmt::print(
+        "  note: --min-bracket 0.5 drops the points no frame saw from the other side of their "
+        "elevation (measured: docs/carving.md, \"Elevation bracketing\")\n");
+  }
   return br;
 }
 
@@ -130,6 +135,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const Dataset ds = read_dataset(o.dataset);
   Carver carver(ds.spec, cfg, ds.noise);
   integrate_dataset(carver, ds, !g.quiet);
+  const std::size_t integrate_peak = peak_rss_bytes();  // before finalize's occlusion resolution
   PointCloud cloud;
   {
     Progress bar("occlusions", ds.size(), cfg.resolve_occlusions && !g.quiet);
@@ -162,10 +168,10 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   fmt::print(
       "carved {} frames into {} candidates, {} points after occlusion resolution -> {}\n"
       "  integrate {:.1f} ms/frame, occlusion resolution {:.1f} ms/frame, map {:.1f} MB, "
-      "frame summaries {:.1f} MB, peak RSS {:.0f} MB\n",
+      "frame summaries {:.1f} MB, peak RSS {:.0f} MB ({:.0f} MB while integrating)\n",
       st.frames, st.candidates, st.points, o.output, 1e3 * st.integrate_seconds / n,
       1e3 * st.occlusion_seconds / n, st.map_bytes / 1e6, st.frame_bytes / 1e6,
-      peak_rss_bytes() / 1e6);
+      peak_rss_bytes() / 1e6, integrate_peak / 1e6);
   if (st.min_observations_used < cfg.min_observations) {
     fmt::print(
         "  note: a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need {} "
@@ -184,6 +190,10 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     j["min_observations_used"] = st.min_observations_used;
     j["views_per_scatterer"] = st.views_per_scatterer;
     j["peak_rss_bytes"] = peak_rss_bytes();
+    j["integrate_peak_rss_bytes"] = integrate_peak;
+    j["leaves"] = st.leaves;
+    j["candidate_voxels"] = st.candidate_voxels;
+    j["occlusion_bytes"] = st.occlusion_bytes;
     j["voxel_size"] = cfg.voxel_size;
     j["bracketing"] = nlohmann::json::parse(br.to_json());
     write_text_file(o.json, j.dump(2) + "\n");

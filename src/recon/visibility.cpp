@@ -166,6 +166,11 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
 
+  // A frame's hits are buffered up to kMaxHits per list and thread (16 MB); past that, the
+  // blocks from the first one that did not fit are projected again after the depth grid is
+  // complete (a wide sonar over a large structure can put tens of millions of candidates in one
+  // frame's footprint). Flags are ORed, so a hit tested twice changes nothing.
+  constexpr std::size_t kMaxHits = std::size_t{1} << 20;
   auto process_frame = [&](const FrameReturns& fr) {
     Scratch& sc = scratch.local();
     if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
@@ -174,14 +179,19 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     sc.empty_hits.clear();
     const detail::FrameFootprint fp(g, fr);
     const double r_min2 = g.r_min * g.r_min, r_max2 = g.r_max * g.r_max;
-    for (std::size_t bi = 0; bi < nb; ++bi) {
-      const detail::CandidateBlock& b = blocks[bi];
+    auto interval = [&](double t) {
+      return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
+    };
+    auto skip_block = [&](const detail::CandidateBlock& b) {
       const Eigen::Vector3d c_sonar = fp.to_sonar(b.centre_world);
-      if (config.refute_free
-              ? fp.classify(c_sonar, b.radius, b.radius).region == detail::Region::Outside
-              : fp.no_return_possible(c_sonar, b.radius)) {
-        continue;
-      }
+      return config.refute_free
+                 ? fp.classify(c_sonar, b.radius, b.radius).region == detail::Region::Outside
+                 : fp.no_return_possible(c_sonar, b.radius);
+    };
+    // Projects the candidates of block bi; on_return(hit, theta, phi, r, rho) for those in a
+    // return pixel, on_empty(hit) for those in an empty pixel of the footprint.
+    auto visit_block = [&](std::size_t bi, auto&& on_return, auto&& on_empty) {
+      const detail::CandidateBlock& b = blocks[bi];
       for (int w = 0; w < 8; ++w) {
         for (std::uint64_t bits = b.mask[w]; bits; bits &= bits - 1) {
           const auto bit = static_cast<std::uint32_t>(w * 64 + __builtin_ctzll(bits));
@@ -196,40 +206,66 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
           const int j = g.beam(phi);
           const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
           const double theta = g.elevation(s);
-          auto interval = [&](double t) {
-            return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
-          };
           const int k = interval(theta);
           const Hit hit{static_cast<std::uint32_t>(bi), bit, static_cast<std::uint32_t>(j * K + k),
                         i};
           if (!fr.has_return(i, j)) {  // the frame saw nothing here
-            if (config.refute_free) sc.empty_hits.push_back(hit);
+            on_empty(hit);
             continue;
           }
-          const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
-          // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular footprint
-          // covers, for everything at a longer range.
-          const double a = h / r, bw = h / rho;
-          const int k0 = interval(theta - a), k1 = interval(theta + a);
-          const int j0 = g.beam(std::max(phi - bw, g.fov_min));
-          const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
-          const auto bin16 = static_cast<std::uint16_t>(i);
-          for (int jj = j0; jj <= j1; ++jj) {
-            std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
-            for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
-          }
-          sc.hits.push_back(hit);
+          on_return(hit, theta, phi, r, std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9));
         }
       }
+    };
+    std::size_t overflow_from = nb;  // first block whose hits were not all buffered
+    for (std::size_t bi = 0; bi < nb; ++bi) {
+      if (skip_block(blocks[bi])) continue;
+      visit_block(
+          bi,
+          [&](const Hit& hit, double theta, double phi, double r, double rho) {
+            // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular
+            // footprint covers, for everything at a longer range.
+            const double a = h / r, bw = h / rho;
+            const int k0 = interval(theta - a), k1 = interval(theta + a);
+            const int j0 = g.beam(std::max(phi - bw, g.fov_min));
+            const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
+            const auto bin16 = static_cast<std::uint16_t>(hit.bin);
+            for (int jj = j0; jj <= j1; ++jj) {
+              std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
+              for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
+            }
+            if (overflow_from < nb) return;
+            if (sc.hits.size() < kMaxHits) {
+              sc.hits.push_back(hit);
+            } else {
+              overflow_from = bi;
+            }
+          },
+          [&](const Hit& hit) {
+            if (!config.refute_free || overflow_from < nb) return;
+            if (sc.empty_hits.size() < kMaxHits) {
+              sc.empty_hits.push_back(hit);
+            } else {
+              overflow_from = bi;
+            }
+          });
     }
     // Fig. 4.8: keep the front scatterers, those no nearer candidate shadows.
-    for (const Hit& hit : sc.hits) {
+    auto test_return = [&](const Hit& hit) {
       if (hit.bin <= sc.depth[hit.cell] + tol) flag(observed.get(), hit);
-    }
+    };
     // refute_free: nothing the frame returned lies nearer on this candidate's own line of sight,
     // yet its pixel is empty: free space, not a shadow.
-    for (const Hit& hit : sc.empty_hits) {
-      if (hit.bin < sc.depth[hit.cell]) flag(refuted.get(), hit);
+    auto test_empty = [&](const Hit& hit) {
+      if (config.refute_free && hit.bin < sc.depth[hit.cell]) flag(refuted.get(), hit);
+    };
+    for (const Hit& hit : sc.hits) test_return(hit);
+    for (const Hit& hit : sc.empty_hits) test_empty(hit);
+    for (std::size_t bi = overflow_from; bi < nb; ++bi) {
+      if (skip_block(blocks[bi])) continue;
+      visit_block(
+          bi, [&](const Hit& hit, double, double, double, double) { test_return(hit); },
+          test_empty);
     }
     if (progress) progress->add();
   };
