@@ -50,13 +50,14 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
   const BracketReport br = assess_bracketing(cloud, T, ds.spec, bc, roi);
   fmt::print(
       "  elevation bracketing: median {:.2f} over the points; {:.1f} % of the observed region "
-      "(samples every {:.2f} m{}) bracketed below {:.2f}, {:.1f} % never{}\n",
+      "(samples every {:.2f} m{}) bracketed below {:.2f}, {:.1f} % never{} ({:.1f} s)\n",
       br.median_bracket, 100.0 * br.unbracketed_share, br.sample_step,
       roi ? " over --roi" : " over the points' box", bc.bracketed_level,
       100.0 * br.never_bracketed_share,
       bc.min_bracket > 0 ? fmt::format("; --min-bracket {:.2f} kept {} of {} points",
                                        bc.min_bracket, br.kept, br.points)
-                         : std::string());
+                         : std::string(),
+      br.seconds);
   for (const auto& w : br.warnings()) fmt::print("warning: {}\n", w);
   if (!br.extensions.empty() && bc.min_bracket == 0) {
     fmt::print(

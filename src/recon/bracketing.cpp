@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -210,6 +211,7 @@ std::string BracketReport::to_json() const {
                    region->max().x(), region->max().y(), region->max().z()};
   }
   j["sweeping_passes"] = passes;
+  j["seconds"] = seconds;
   nlohmann::ordered_json ext = nlohmann::ordered_json::array();
   for (const auto& e : extensions) {
     nlohmann::ordered_json x;
@@ -283,6 +285,7 @@ BracketReport assess_bracketing(PointCloud& cloud,
                                 const std::optional<Eigen::AlignedBox3d>& region) {
   config.validate();
   spec.validate();
+  const auto t0 = std::chrono::steady_clock::now();
   BracketReport rep;
   rep.points = cloud.size();
   const WedgeTester wt(spec);
@@ -444,6 +447,7 @@ BracketReport assess_bracketing(PointCloud& cloud,
     }
   });
   rep.kept = cloud.size();
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return rep;
 }
 

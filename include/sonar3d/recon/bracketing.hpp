@@ -78,6 +78,7 @@ struct BracketReport {
   std::optional<Eigen::AlignedBox3d> region;  // what the shares were measured over
   std::size_t passes = 0;                     // passes that sweep the elevation
   std::vector<PassExtension> extensions;      // passes that stop short
+  double seconds = 0;                         // wall time of assess_bracketing()
   std::vector<std::string> warnings() const;  // one line per extension
   std::string to_json() const;                // a JSON object
 };
