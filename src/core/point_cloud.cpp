@@ -234,6 +234,15 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
   PointCloud cloud;
   cloud.points.resize(vertex_count);
   if (ii >= 0) cloud.intensity.resize(vertex_count);
+  // Point clouds (not meshes) keep their other vertex scalars as named properties.
+  std::vector<int> extra;
+  if (!faces) {
+    for (int k = 0; k < static_cast<int>(props.size()); ++k) {
+      if (k == ix || k == iy || k == iz || k == ii) continue;
+      extra.push_back(k);
+      cloud.properties.push_back({props[k].name, std::vector<float>(vertex_count)});
+    }
+  }
   std::vector<double> vals(props.size());
   auto store = [&](unsigned long long v) {
     for (std::size_t k = 0; k < vals.size(); ++k) {
@@ -247,6 +256,9 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
       throw Error(path + ": vertex " + std::to_string(v) + " has a coordinate beyond float range");
     }
     if (ii >= 0) cloud.intensity[v] = static_cast<float>(vals[ii]);
+    for (std::size_t e = 0; e < extra.size(); ++e) {
+      cloud.properties[e].values[v] = static_cast<float>(vals[extra[e]]);
+    }
   };
   if (format == "ascii") {
     // One line per element item; every line holds exactly its properties' values.
@@ -368,6 +380,13 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
   if (cloud.has_intensity() && cloud.intensity.size() != cloud.points.size()) {
     throw Error("cannot write '" + path + "': intensity count differs from point count");
   }
+  for (const auto& p : cloud.properties) {
+    const bool name_ok = !p.name.empty() && p.name.find_first_of(" \t\r\n") == std::string::npos;
+    if (!name_ok || p.values.size() != cloud.points.size()) {
+      throw Error("cannot write '" + path + "': property '" + printable(p.name) +
+                  "' has no valid name or not one value per point");
+    }
+  }
   AtomicPath out(path);
   {
     std::ofstream f(out.temp(), std::ios::binary);
@@ -376,13 +395,15 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
       << " 1.0\ncomment sonar3d point cloud, world frame, metres\nelement vertex " << cloud.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n";
     if (cloud.has_intensity()) f << "property float intensity\n";
+    for (const auto& p : cloud.properties) f << "property float " << p.name << "\n";
     f << "end_header\n";
     if (format == PlyFormat::Binary) {
       std::vector<float> rec;
-      rec.reserve(cloud.size() * 4);
+      rec.reserve(cloud.size() * (4 + cloud.properties.size()));
       for (std::size_t i = 0; i < cloud.size(); ++i) {
         rec.insert(rec.end(), cloud.points[i].data(), cloud.points[i].data() + 3);
         if (cloud.has_intensity()) rec.push_back(cloud.intensity[i]);
+        for (const auto& p : cloud.properties) rec.push_back(p.values[i]);
       }
       f.write(reinterpret_cast<const char*>(rec.data()),
               static_cast<std::streamsize>(rec.size() * sizeof(float)));
@@ -392,6 +413,7 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
         const auto& p = cloud.points[i];
         f << p.x() << ' ' << p.y() << ' ' << p.z();
         if (cloud.has_intensity()) f << ' ' << cloud.intensity[i];
+        for (const auto& pr : cloud.properties) f << ' ' << pr.values[i];
         f << '\n';
       }
     }

@@ -1,5 +1,6 @@
 #pragma once
-// A point cloud in one frame (normally world) with an optional per-point intensity.
+// A point cloud in one frame (normally world) with an optional per-point intensity and optional
+// named per-point scalars (e.g. the reconstruction's elevation bracketing, recon/bracketing.hpp).
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
@@ -7,9 +8,23 @@
 
 namespace sonar3d {
 
+// A named per-point scalar, written as a PLY vertex property `float <name>`.
+struct PointProperty {
+  std::string name;
+  std::vector<float> values;  // one per point
+};
+
 struct PointCloud {
   std::vector<Eigen::Vector3f> points;
-  std::vector<float> intensity;  // empty, or one per point
+  std::vector<float> intensity;           // empty, or one per point
+  std::vector<PointProperty> properties;  // extra per-point scalars, each one per point
+
+  // The property named `name`, or nullptr.
+  const PointProperty* property(const std::string& name) const {
+    for (const auto& p : properties)
+      if (p.name == name) return &p;
+    return nullptr;
+  }
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }
@@ -18,9 +33,9 @@ struct PointCloud {
 
 enum class PlyFormat { Binary, Ascii };
 
-// PLY with x y z [intensity] vertex properties (float or double). Reading accepts ascii and
-// binary_little_endian; extra vertex properties are skipped. Errors name the file and the
-// header line or vertex at fault.
+// PLY with x y z [intensity] [properties...] vertex properties (float or double). Reading
+// accepts ascii and binary_little_endian; extra vertex properties are read into `properties`.
+// Errors name the file and the header line or vertex at fault.
 PointCloud read_ply(const std::string& path);
 // The same, also returning the faces' vertex index lists (element `face`, list property
 // `vertex_indices` or `vertex_index`); every index is checked against the vertex count. Used to
