@@ -13,6 +13,7 @@ PACKAGES=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev  # PNG/TIFF IO, filters
   libgdal-dev          # GeoTIFF elevation maps
   libceres-dev         # robust least squares: swath adjustment
+  libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-pytest pybind11-dev  # the Python module and its tests
