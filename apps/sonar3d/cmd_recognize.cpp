@@ -42,7 +42,7 @@ void check_replaceable(const fs::path& path, bool overwrite, const std::string& 
 }
 
 // MAP: a cloud (.ply), a map directory (merged.ply), or a dataset (reconstructed by carving).
-PointCloud read_scene(const fs::path& map, bool progress, std::string* what) {
+PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, std::string* what) {
   if (fs::is_regular_file(map)) {
     *what = "cloud";
     return read_ply(map.string());
@@ -56,6 +56,7 @@ PointCloud read_scene(const fs::path& map, bool progress, std::string* what) {
     const Dataset ds = read_dataset(map);
     ReconstructOptions o;
     o.progress = progress;
+    o.carve.voxel_size = voxel_size;
     return reconstruct_dataset(ds, o).cloud;
   }
   throw Error("'" + map.string() +
@@ -75,6 +76,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
     std::string map, catalogue, output, mesh, method = "2d";
     RecognitionConfig cfg;
     bool overwrite = false, no_icp = false;
+    double voxel_size = 0.02;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
@@ -99,6 +101,12 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--ring-width", o->cfg.descriptor.ring_width_m, "descriptor ring width, m")
       ->capture_default_str();
   cmd->add_option("--bin", o->cfg.descriptor.bin_m, "histogram depth resolution, m")
+      ->capture_default_str();
+  cmd->add_option("--min-valid-fraction", o->cfg.descriptor.min_valid_fraction,
+                  "score a patch only when each ring has at least this fraction of its cells "
+                  "observed")
+      ->capture_default_str();
+  cmd->add_option("--voxel-size", o->voxel_size, "when MAP is a dataset: carving voxel edge, m")
       ->capture_default_str();
   cmd->add_option("--yaw-step-deg", o->cfg.search.yaw_step_deg, "4D search yaw step, degrees")
       ->capture_default_str();
@@ -137,7 +145,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                                              m.expected, cfg.sampling));
       }
       std::string what;
-      const PointCloud scene = read_scene(o->map, !g.quiet, &what);
+      const PointCloud scene = read_scene(o->map, o->voxel_size, !g.quiet, &what);
       fmt::print("scene: {} ({} points); catalogue: {} models\n", what, scene.size(),
                  models.size());
       const RecognitionResult r = recognize_2d(scene, models, cfg, !g.quiet);

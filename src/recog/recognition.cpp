@@ -178,6 +178,10 @@ void RecognitionConfig::validate() const {
   require(max_rejections >= 1 && max_rejections <= 100, "max_rejections must lie in [1, 100]");
   require_non_negative(removal_margin_m, "removal_margin_m", "m");
   require_non_negative(ground_clearance_m, "ground_clearance_m", "m");
+  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
+          "max_buried_fraction must lie in [0, 1]");
+  require(max_tilt_deg >= 0 && max_tilt_deg <= 180, "max_tilt_deg must lie in [0, 180]");
+  require_non_negative(max_icp_shift_m, "max_icp_shift_m", "m");
   require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
 }
 
@@ -330,6 +334,18 @@ void mark_placed(const ModelTemplate& m, const Eigen::Isometry3d& T, const Eleva
       }
     }
   }
+}
+
+// Fraction of the model's height below the ground (0 when the ground is unknown).
+double buried_fraction(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
+  if (!std::isfinite(ground_z)) return 0.0;
+  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
+  return (ground_z - base) / std::max(1e-6, m.height());
+}
+
+// Angle between the model's z axis and the world's, degrees.
+double tilt_deg(const Eigen::Isometry3d& T) {
+  return std::acos(std::clamp(T.linear()(2, 2), -1.0, 1.0)) / kDeg;
 }
 
 // Support (beyond the thesis, whose decision is a residual threshold): the model's relief cells
@@ -509,15 +525,24 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         p.residual_4d = structure_residual(local, *m, s4.T_world_model);
         p.T_world_model = s4.T_world_model;
         p.residual = p.residual_4d;
-        if (config.run_icp && local.size() >= 6) {
+        const double buried_4d = buried_fraction(*m, s4.T_world_model, s_4d.ground_z);
+        if (buried_4d > config.max_buried_fraction) {
+          rec.reason = "more of the model below the seabed than max_buried_fraction";
+        } else if (config.run_icp && local.size() >= 6) {
           // Step 2: trimmed ICP for the full 6D pose.
           try {
             const ModelIndex index(m->points, m->normals);
             const IcpResult icp = trimmed_icp(index, local, s4.T_world_model, config.icp);
             p.icp_iterations = icp.iterations;
-            const Residual r = structure_residual(local, *m, icp.T_world_model);
-            p.T_world_model = icp.T_world_model;
-            p.residual = r;
+            const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
+                                          0.5 * (m->base_z + m->top_z));
+            const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
+            if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
+                shift <= config.max_icp_shift_m) {
+              p.T_world_model = icp.T_world_model;
+              p.residual = structure_residual(local, *m, icp.T_world_model);
+              p.icp_kept = true;
+            }
           } catch (const Error&) {
             // No scene point near the model: keep the 4D placement (judged below).
           }
@@ -525,7 +550,12 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         const Support sup =
             support_of(*m, p.T_world_model, fine, removed_fine, config.support_tol_m);
         p.support = sup.support;
-        if (sup.observed < config.min_observed) {
+        if (!rec.reason.empty()) {
+          // rejected above
+        } else if (buried_fraction(*m, p.T_world_model, sup.ground_z) >
+                   config.max_buried_fraction) {
+          rec.reason = "more of the model below the seabed than max_buried_fraction";
+        } else if (sup.observed < config.min_observed) {
           rec.reason = "too little of the model's relief observed (or none above the ground)";
         } else if (!(p.residual.median_m <= config.max_residual_median_m)) {
           rec.reason = "residual median above max_residual_median_m";
@@ -632,6 +662,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                     {"step1_residual_median_m", num(p.residual_4d.median_m)},
                     {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
                     {"icp_iterations", p.icp_iterations},
+                    {"icp_kept", p.icp_kept},
                     {"seconds_scan", p.seconds_scan},
                     {"seconds_registration", p.seconds_registration},
                     {"seconds", p.seconds}});
@@ -653,6 +684,9 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
     if (!s.accepted && s.scan.found) {
       e["residual_median_m"] = num(s.placement.residual.median_m);
       const Eigen::Vector3d t = s.placement.T_world_model.translation();
+      e["step1_translation"] = {s.placement.T_world_model_4d.translation().x(),
+                                s.placement.T_world_model_4d.translation().y(),
+                                s.placement.T_world_model_4d.translation().z()};
       e["translation"] = {t.x(), t.y(), t.z()};
       e["rpy_deg"] = rpy_deg(s.placement.T_world_model);
       e["support"] = s.placement.support;

@@ -10,7 +10,7 @@ namespace sonar3d {
 
 struct TrimmedIcpConfig {
   int max_iterations = 60;
-  double max_distance_m = 0.25;          // correspondences farther than this are never used, m
+  double max_distance_m = 0.15;          // correspondences farther than this are never used, m
   double keep_fraction = 0.8;            // trimming: the closest fraction of correspondences kept
   bool point_to_plane = true;            // residual along the model normal (else point to point)
   double converged_m = 1e-5;             // stop when an update moves points less than this, m

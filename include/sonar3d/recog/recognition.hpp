@@ -80,14 +80,24 @@ struct RecognitionConfig {
   bool run_icp = true;
   // Acceptance of a placement ("found"):
   // Descriptor score (norm of the ring EMDs) at most this times the model's height: the EMDs
-  // scale with the heights moved.
-  double max_relative_score = 0.3;
+  // scale with the heights moved. A loose filter: occlusion shadows beside tall structures raise
+  // the true patch's score (a 2.5 m pillar surveyed from 4 m scored 0.71 × its height), so the
+  // decision rests on the registration (residual, support).
+  double max_relative_score = 1.0;
   double max_residual_median_m = 0.05;  // structure residual median at most, m
   // Fraction of the model's observed relief cells (footprint cells > 10 cm above the local
   // ground) where the map agrees with the placed model within support_tol_m.
   double min_support = 0.6;
   double support_tol_m = 0.06;
-  double min_observed = 0.3;      // fraction of the relief cells that must hold scene data
+  double min_observed = 0.3;  // fraction of the relief cells that must hold scene data
+  // At most this fraction of the model's height may lie below the local seabed (half-buried
+  // structures are found; a sphere sunk to a cap looks like any rock).
+  double max_buried_fraction = 0.5;
+  // Trimmed ICP corrects small pitch and roll offsets (sec. 6.3.2.5): a result tilting the model
+  // more than this from upright, or moving it farther than max_icp_shift_m from the 4D placement,
+  // has slid onto something else (a tank laid along a pipeline); the 4D placement is kept.
+  double max_tilt_deg = 10;
+  double max_icp_shift_m = 0.2;
   int max_instances = 20;         // per model whose count is not given
   int max_rejections = 3;         // rejected candidates per model before giving up
   double removal_margin_m = 0.1;  // area removed around a placed model's footprint
@@ -111,6 +121,7 @@ struct Placement {
   Residual residual_4d;
   double rms_4d_m = 0;
   int icp_iterations = 0;
+  bool icp_kept = false;  // whether the ICP result was kept (see max_tilt_deg)
   double seconds_scan = 0, seconds_registration = 0, seconds = 0;
 };
 
