@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,8 @@
 #include <random>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recog/descriptor.hpp"
 #include "sonar3d/recog/icp.hpp"
@@ -398,4 +401,127 @@ TEST(RecogPipeline, BadInputsGiveClearErrors) {
   bad = test_config();
   bad.recog_cell_m = 0.01;
   test::expect_error([&] { recognize_2d(small, {pillar}, bad); }, "recog_cell_m");
+}
+
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out;
+};
+
+CliRun run_cli(const fs::path& dir, const std::string& args) {
+  const std::string log = (dir / "cli.log").string();
+  const int rc =
+      std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
+  std::ifstream in(log);
+  return {WEXITSTATUS(rc),
+          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>())};
+}
+
+// A 10 × 8 m seabed with relief and rocks, a pillar (yaw 30°) and a tank, surveyed by a
+// downward-looking MB2250-like sonar 4 m up on four East-West lines 2 m apart.
+constexpr const char* kScene = R"(seed: 4
+sensor:
+  preset: mb2250
+  r_min: 1.0
+  r_max: 6.0
+  range_bins: 250
+  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [10, 8], cell: 0.05, relief: 0.15, wavelength: 6, trenches: 0, rocks: 8, seed: 4}, reflectivity: 0.3}
+  - {name: pillar, reference: pillar, pose: {translation: [-1.5, 0.5, -0.05], rpy_deg: [0, 0, 30]}, reflectivity: 0.8}
+  - {name: tank, reference: tank, pose: {translation: [2.2, -1.0, -0.05]}, reflectivity: 0.8}
+trajectory: {type: lawnmower, x: [-4, 4], y: [-3, 3], z: 4.0, line_spacing: 2.0, spacing: 0.04, period: 0.1}
+)";
+
+}  // namespace
+
+// End to end: simulate, carve (MAP = the dataset), recognise. Both structures at their true poses;
+// the riser of the catalogue, absent from the scene, is not reported; the outputs are complete
+// and replaced only with --overwrite.
+TEST(RecogCli, SimulatedSceneStructuresFoundAtTheirTruePoses) {
+  const fs::path dir = test::temp_dir("cli");
+  { std::ofstream(dir / "scene.yaml") << kScene; }
+  {
+    std::ofstream(dir / "cat.yaml") << R"(models:
+  - {name: pillar, reference: pillar, symmetry: "180", expected: 1}
+  - {name: tank, reference: tank, symmetry: full}
+  - {name: riser, reference: riser}
+)";
+  }
+  CliRun r = run_cli(
+      dir, "simulate " + (dir / "scene.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string args = "recognize " + (dir / "ds").string() + " --catalogue " +
+                           (dir / "cat.yaml").string() + " -o " + (dir / "p.json").string() + " -q";
+  r = run_cli(dir, args);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream f(dir / "p.json");
+  const nlohmann::json j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["format"], "sonar3d-placements");
+  ASSERT_EQ(j["placements"].size(), 2u) << j.dump(1);
+  for (const auto& p : j["placements"]) {
+    const std::string model = p["model"];
+    ASSERT_TRUE(model == "pillar" || model == "tank") << model;
+    const Eigen::Vector2d truth =
+        model == "pillar" ? Eigen::Vector2d(-1.5, 0.5) : Eigen::Vector2d(2.2, -1.0);
+    const Eigen::Vector2d found(p["translation"][0], p["translation"][1]);
+    EXPECT_LT((found - truth).norm(), 0.04) << model;
+    EXPECT_NEAR(p["translation"][2].get<double>(), -0.05, 0.04) << model;
+    if (model == "pillar") {  // square: yaw modulo 90°
+      EXPECT_LT(yaw_error_deg(p["rpy_deg"][2].get<double>() * kDeg, 30 * kDeg, M_PI / 2), 3.0);
+    }
+    EXPECT_LT(p["residual_median_m"].get<double>(), 0.03) << model;
+  }
+  EXPECT_TRUE(fs::exists(dir / "p.ply"));
+  const TriangleMesh placed = load_mesh((dir / "p.ply").string());
+  EXPECT_EQ(placed.triangles.size(), make_reference_object("pillar").triangles.size() +
+                                         make_reference_object("tank").triangles.size());
+  // An existing output is not replaced without --overwrite, and never when sonar3d did not
+  // write it.
+  r = run_cli(dir, args);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--overwrite"), std::string::npos) << r.out;
+  { std::ofstream(dir / "mine.json") << "{\"mine\": 1}\n"; }
+  r = run_cli(dir, "recognize " + (dir / "ds").string() + " --catalogue " +
+                       (dir / "cat.yaml").string() + " -o " + (dir / "mine.json").string() +
+                       " --overwrite -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("not written by sonar3d"), std::string::npos) << r.out;
+  std::ifstream mine(dir / "mine.json");
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(mine)), std::istreambuf_iterator<char>()),
+            "{\"mine\": 1}\n");
+}
+
+TEST(RecogCli, BadInputsGiveOneClearLine) {
+  const fs::path dir = test::temp_dir("cli_bad");
+  // A small cloud: a 1.5 m square of seabed.
+  PointCloud cloud;
+  for (int i = 0; i < 75; ++i) {
+    for (int k = 0; k < 75; ++k) cloud.points.emplace_back(0.02 * i, 0.02 * k, 0.0f);
+  }
+  write_ply((dir / "small.ply").string(), cloud);
+  { std::ofstream(dir / "empty.yaml") << "models: []\n"; }
+  { std::ofstream(dir / "big.yaml") << "models:\n  - {name: pillar, reference: pillar}\n"; }
+  { std::ofstream(dir / "broken.stl") << "solid nothing\nthis is not an stl\n"; }
+  { std::ofstream(dir / "mesh.yaml") << "models:\n  - {name: part, mesh: broken.stl}\n"; }
+  const std::string small = (dir / "small.ply").string();
+  const struct {
+    std::string catalogue, needle;
+  } cases[] = {{"empty.yaml", "the catalogue is empty"},
+               {"big.yaml", "larger than the map"},
+               {"mesh.yaml", "broken.stl"}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.catalogue);
+    const CliRun r =
+        run_cli(dir, "recognize " + small + " --catalogue " + (dir / c.catalogue).string() +
+                         " -o " + (dir / "p.json").string() + " -q");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.out.find(c.needle), std::string::npos) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_FALSE(fs::exists(dir / "p.json"));
+    EXPECT_FALSE(fs::exists(dir / "p.ply"));
+  }
 }

@@ -146,9 +146,9 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       }
       std::string what;
       const PointCloud scene = read_scene(o->map, o->voxel_size, !g.quiet, &what);
+      const RecognitionResult r = recognize_2d(scene, models, cfg, !g.quiet);
       fmt::print("scene: {} ({} points); catalogue: {} models\n", what, scene.size(),
                  models.size());
-      const RecognitionResult r = recognize_2d(scene, models, cfg, !g.quiet);
       // Mesh first, JSON last: a placements file always has its mesh beside it.
       save_mesh(mesh_path.string(), placed_models_mesh(models, r.placements));
       write_text_file(json_path.string(), placements_json(r, o->map, o->catalogue, cfg));
