@@ -132,3 +132,8 @@ w('pickle', 'wrong_shape', pickle.dumps({"ImagingSonar": np.zeros((3, 6), np.flo
 w('navcsv', 'enu_deg', b'\x00' + b"time,x,y,z,roll,pitch,yaw\n# c\n0,0,0,-1,0,0,90\n0.5,1,0,-1,1,2,91\n1.0,2,0,-1,0,0,92\n")
 w('navcsv', 'ned_rad_extra', b'\x03' + b"t, north, east, depth, roll, pitch, yaw, speed\n0,0,0,1,0,0,1.57,1\n1,1,1,1,0.01,0,1.6,1\n")
 w('navcsv', 'tum', b'\x04' + b"# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071068 0.7071068\n")
+
+# Recognition catalogues (fuzz_catalogue).
+w('catalogue', 'field', "models:\n  - {name: riser, reference: riser, symmetry: none}\n  - {name: tank, reference: tank, symmetry: full, expected: 1}\n  - {name: pillar, reference: pillar, symmetry: \"180\", scale: 1.1}\n")
+w('catalogue', 'block', "models:\n  - name: panel\n    mesh: meshes/bop_panel.dae\n    symmetry: \"180\"\n    expected: 2\n  - name: sphere\n    reference: sphere\n    symmetry: full\n    scale: 0.5\n")
+w('catalogue', 'empty', "models: []\n")

@@ -394,21 +394,26 @@ Support support_of(const ModelTemplate& m, const Eigen::Isometry3d& T, const Ele
   std::nth_element(ring.begin(), mid, ring.end());
   const double ground = *mid;
   out.ground_z = ground;
-  std::size_t relief = 0, seen = 0, agree = 0;
+  // Each relief cell weighs its height above the ground: the tall parts identify a structure
+  // (a riser's buoyancies, a pillar's column), and a model whose tall parts fall where the map
+  // has no data (an occlusion shadow, the sonar's blind range) is not confirmed by a matching
+  // footing alone.
+  double relief = 0, seen = 0, agree = 0;
   for (int r = 0; r < v.rows; ++r) {
     for (int c = 0; c < v.cols; ++c) {
       const float zm = v.at(r, c);
       if (!fp[v.index(r, c)] || !(zm > ground + relief_m)) continue;
-      ++relief;
+      const double w = zm - ground;
+      relief += w;
       const float zs = scene_at(r, c);
       if (zs != zs) continue;
-      ++seen;
-      agree += std::abs(zs - zm) <= tol;
+      seen += w;
+      if (std::abs(zs - zm) <= tol) agree += w;
     }
   }
   if (relief == 0) return out;
-  out.support = seen ? static_cast<double>(agree) / seen : 0.0;
-  out.observed = static_cast<double>(seen) / relief;
+  out.support = seen > 0 ? agree / seen : 0.0;
+  out.observed = seen / relief;
   return out;
 }
 

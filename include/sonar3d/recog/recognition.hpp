@@ -84,12 +84,17 @@ struct RecognitionConfig {
   // the true patch's score (a 2.5 m pillar surveyed from 4 m scored 0.71 × its height), so the
   // decision rests on the registration (residual, support).
   double max_relative_score = 1.0;
-  double max_residual_median_m = 0.05;  // structure residual median at most, m
-  // Fraction of the model's observed relief cells (footprint cells > 10 cm above the local
-  // ground) where the map agrees with the placed model within support_tol_m.
-  double min_support = 0.6;
+  // Structure residual median at most this, m: a sanity bound only. Carved thin parts (tubes,
+  // buoyancies) leave 5-7 cm at the true pose, while a model pressed into flat seabed leaves under
+  // 1 cm: the residual does not tell right from wrong, the support does (docs/recognition.md).
+  double max_residual_median_m = 0.1;
+  // Support: over the model's relief cells (footprint cells > 10 cm above the local ground), each
+  // weighing its height above the ground, the fraction of the observed weight where the map
+  // agrees with the placed model within support_tol_m (min_support); and the fraction of the
+  // weight observed at all (min_observed).
+  double min_support = 0.5;
   double support_tol_m = 0.06;
-  double min_observed = 0.3;  // fraction of the relief cells that must hold scene data
+  double min_observed = 0.5;
   // At most this fraction of the model's height may lie below the local seabed (half-buried
   // structures are found; a sphere sunk to a cap looks like any rock).
   double max_buried_fraction = 0.5;
