@@ -2,9 +2,9 @@
 //   bench_recognition SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--label TEXT]
 // MAP: a cloud (.ply) or a map directory (merged.ply) made from the scene's simulated survey.
 // Scene objects are matched to placements by name (a catalogue model named like the object) and
-// position (centres within --match-m, default 0.75 m). Prints one Markdown row per truth object and per false
-// detection: pose error (cm, degrees, yaw modulo the object's own rotational symmetry), the
-// residual median/mean after the 4D search and after ICP (Table 6.1), the same metric at the
+// position (centres within --match-m, default 0.75 m). Prints one Markdown row per truth object and
+// per false detection: pose error (cm, degrees, yaw modulo the object's own rotational symmetry),
+// the residual median/mean after the 4D search and after ICP (Table 6.1), the same metric at the
 // true pose (what the reconstruction itself leaves), then precision, recall, time and peak memory.
 #include <yaml-cpp/yaml.h>
 
@@ -57,8 +57,9 @@ double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T.linear()(1, 0), 
 
 int main(int argc, char** argv) {
   if (argc < 4) {
-    std::fprintf(stderr, "usage: %s SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--label TEXT] [--match-m M]\n",
-                 argv[0]);
+    std::fprintf(
+        stderr, "usage: %s SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--label TEXT] [--match-m M]\n",
+        argv[0]);
     return 2;
   }
   try {
@@ -104,7 +105,8 @@ int main(int argc, char** argv) {
                 label.c_str(), cloud.size(), models.size(), r.placements.size(), seconds,
                 peak_rss_mb());
     std::printf(
-        "| object | found | position error cm | yaw error deg | tilt deg | step 1 median (mean) cm | "
+        "| object | found | position error cm | yaw error deg | tilt deg | step 1 median (mean) cm "
+        "| "
         "step 2 median (mean) cm | at true pose median (mean) cm | support | time s |\n"
         "|---|---|---|---|---|---|---|---|---|---|\n");
     int tp = 0, fp = 0;
@@ -142,12 +144,13 @@ int main(int argc, char** argv) {
       const Placement& p = r.placements[best];
       const double period = yaw_period(t.name);
       const double yaw_err =
-          period > 0 ? std::abs(std::remainder(yaw_of(p.T_world_model) - yaw_of(t.T), period)) *
-                           180 / M_PI
-                     : std::nan("");
+          period > 0
+              ? std::abs(std::remainder(yaw_of(p.T_world_model) - yaw_of(t.T), period)) * 180 / M_PI
+              : std::nan("");
       const double tilt =
-          std::acos(std::clamp((p.T_world_model.linear().col(2)).dot(t.T.linear().col(2)), -1.0,
-                               1.0)) * 180 / M_PI;
+          std::acos(
+              std::clamp((p.T_world_model.linear().col(2)).dot(t.T.linear().col(2)), -1.0, 1.0)) *
+          180 / M_PI;
       std::printf(
           "| %s | yes | %.1f | %.1f | %.1f | %.1f (%.1f) | %.1f (%.1f) | %.1f (%.1f) | %.2f | %.2f "
           "|\n",
@@ -161,11 +164,12 @@ int main(int argc, char** argv) {
       ++fp;
       const Placement& p = r.placements[k];
       const Eigen::Vector3d t = p.T_world_model.translation();
-      std::printf("| %s (false) | at (%.2f, %.2f, %.2f) | | | | %.1f (%.1f) | %.1f (%.1f) | | %.2f "
-                  "| %.2f |\n",
-                  p.model.c_str(), t.x(), t.y(), t.z(), 100 * p.residual_4d.median_m,
-                  100 * p.residual_4d.mean_m, 100 * p.residual.median_m, 100 * p.residual.mean_m,
-                  p.support, p.seconds);
+      std::printf(
+          "| %s (false) | at (%.2f, %.2f, %.2f) | | | | %.1f (%.1f) | %.1f (%.1f) | | %.2f "
+          "| %.2f |\n",
+          p.model.c_str(), t.x(), t.y(), t.z(), 100 * p.residual_4d.median_m,
+          100 * p.residual_4d.mean_m, 100 * p.residual.median_m, 100 * p.residual.mean_m, p.support,
+          p.seconds);
     }
     int n_truth = 0;
     for (const Truth& t : truth) n_truth += model_of(t.name) != nullptr;

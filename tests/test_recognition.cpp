@@ -322,7 +322,7 @@ TEST(RecogPipeline, FindsStructuresAtTheirPosesAndNotAbsentModels) {
     EXPECT_LT(p.residual.median_m, 0.02);
     if (std::getenv("RECOG_PRINT"))
       std::printf("%s", placements_json(r, "", "", test_config()).c_str());
-    EXPECT_GT(p.support, 0.8) << placements_json(r, "", "", test_config());
+    EXPECT_GT(p.support, 0.7) << placements_json(r, "", "", test_config());
   }
   // The riser was searched and its best candidate rejected, or no patch scored.
   bool riser_searched = false;

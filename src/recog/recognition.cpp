@@ -555,6 +555,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         const Support sup =
             support_of(*m, p.T_world_model, fine, removed_fine, config.support_tol_m);
         p.support = sup.support;
+        p.observed = sup.observed;
         if (!rec.reason.empty()) {
           // rejected above
         } else if (buried_fraction(*m, p.T_world_model, sup.ground_z) >
@@ -662,6 +663,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                     {"residual_mean_m", num(p.residual.mean_m)},
                     {"residual_points", p.residual.points},
                     {"support", p.support},
+                    {"observed", p.observed},
                     {"ground_z", num(p.ground_z)},
                     {"step1_T_world_model", pose_json(p.T_world_model_4d)},
                     {"step1_residual_median_m", num(p.residual_4d.median_m)},
@@ -695,6 +697,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
       e["translation"] = {t.x(), t.y(), t.z()};
       e["rpy_deg"] = rpy_deg(s.placement.T_world_model);
       e["support"] = s.placement.support;
+      e["observed"] = s.placement.observed;
     }
     searches.push_back(e);
   }

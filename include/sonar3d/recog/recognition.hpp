@@ -92,9 +92,9 @@ struct RecognitionConfig {
   // weighing its height above the ground, the fraction of the observed weight where the map
   // agrees with the placed model within support_tol_m (min_support); and the fraction of the
   // weight observed at all (min_observed).
-  double min_support = 0.5;
+  double min_support = 0.35;
   double support_tol_m = 0.06;
-  double min_observed = 0.5;
+  double min_observed = 0.15;
   // At most this fraction of the model's height may lie below the local seabed (half-buried
   // structures are found; a sphere sunk to a cap looks like any rock).
   double max_buried_fraction = 0.5;
@@ -120,6 +120,7 @@ struct Placement {
   double score_m = 0;  // descriptor score of the winning patch
   Residual residual;   // after the last step
   double support = 0;
+  double observed = 0;  // height-weighted fraction of the relief observed
   double ground_z = 0;  // local seabed height around the footprint (world z), m
   // Step 1 (4D search) alone, for Table 6.1.
   Eigen::Isometry3d T_world_model_4d = Eigen::Isometry3d::Identity();
