@@ -152,6 +152,8 @@ std::vector<double> yaw_range(Symmetry s, double step) {
 void Search4dConfig::validate() const {
   require(yaw_step_deg > 0 && yaw_step_deg <= 180, "4D search yaw_step_deg must lie in (0, 180]");
   require_non_negative(search_m, "4D search search_m", "m");
+  require(search_radius_fraction >= 0 && search_radius_fraction <= 2,
+          "4D search search_radius_fraction must lie in [0, 2]");
   require_non_negative(refine_cell_m, "4D search refine_cell_m", "m");
   require(refine_yaw_step_deg > 0 && refine_yaw_step_deg <= yaw_step_deg,
           "4D search refine_yaw_step_deg must lie in (0, yaw_step_deg]");
@@ -193,8 +195,9 @@ Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,
   const auto start = Clock::now();
   const double step = config.yaw_step_deg * kDeg;
   const std::vector<double> yaws = yaw_range(model.symmetry, step);
-  const double search =
-      config.search_m > 0 ? config.search_m : std::sqrt(0.5) * period_m + 2 * scene.cell_m;
+  const double search = config.search_m > 0 ? config.search_m
+                                             : std::sqrt(0.5) * period_m + 2 * scene.cell_m +
+                                                   config.search_radius_fraction * model.radius_m;
   Search4dResult out;
   YawTrial best = best_yaw(model, scene, center_xy, yaws, search, config, false);
   out.yaws_tried = static_cast<int>(yaws.size());

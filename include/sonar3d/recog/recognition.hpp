@@ -25,8 +25,12 @@ namespace sonar3d {
 struct Search4dConfig {
   double yaw_step_deg = 5;  // the thesis' 5° steps
   // Half-width of the searched shifts around the patch centre, m; 0: √2/2·T_NE + 2 cells (the
-  // farthest the structure's centre can be from the nearest patch centre, eq. 6.8, plus slack).
+  // farthest the structure's centre can be from the nearest patch centre, eq. 6.8, plus slack)
+  // + search_radius_fraction · r_model. Beyond the thesis: the winning patch is sometimes
+  // centred on a part of the structure (a riser's buoyancy, 0.8 m from its centre), which the
+  // thesis' window cannot reach.
   double search_m = 0;
+  double search_radius_fraction = 0.5;
   // Second pass at this finer cell size around the winner (yaw ± one step, every
   // refine_yaw_step_deg; shifts ± 1.5 coarse cells, sub-cell); 0: none.
   double refine_cell_m = 0.02;
