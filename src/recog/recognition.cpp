@@ -2,14 +2,17 @@
 // acceptance, area removal.
 #include "sonar3d/recog/recognition.hpp"
 
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
@@ -111,7 +114,6 @@ YawTrial best_yaw(const ModelTemplate& model, const ElevationMap& scene,
       scene.origin_xy.x() + std::round((center.x() - scene.origin_xy.x()) / c) * c,
       scene.origin_xy.y() + std::round((center.y() - scene.origin_xy.y()) / c) * c);
   const ElevationMap ref = crop(scene, {}, snapped, tv.background_radius_m + search_m + 2 * c);
-  (void)ring;
   std::vector<YawTrial> trials(yaws.size());
   tbb::parallel_for(std::size_t(0), yaws.size(), [&](std::size_t k) {
     trials[k].yaw = yaws[k];
@@ -196,8 +198,8 @@ Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,
   const double step = config.yaw_step_deg * kDeg;
   const std::vector<double> yaws = yaw_range(model.symmetry, step);
   const double search = config.search_m > 0 ? config.search_m
-                                             : std::sqrt(0.5) * period_m + 2 * scene.cell_m +
-                                                   config.search_radius_fraction * model.radius_m;
+                                            : std::sqrt(0.5) * period_m + 2 * scene.cell_m +
+                                                  config.search_radius_fraction * model.radius_m;
   Search4dResult out;
   YawTrial best = best_yaw(model, scene, center_xy, yaws, search, config, false);
   out.yaws_tried = static_cast<int>(yaws.size());
@@ -429,6 +431,11 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
   require(!models_in.empty(), "recognition: the catalogue is empty: give at least one CAD model");
   require(!scene_world.empty(), "recognition: the scene cloud is empty");
   const auto start = Clock::now();
+  std::optional<tbb::global_control> threads;
+  if (config.num_threads > 0) {
+    threads.emplace(tbb::global_control::max_allowed_parallelism,
+                    static_cast<std::size_t>(config.num_threads));
+  }
   RecognitionResult out;
   out.scene_points = scene_world.size();
 
@@ -479,6 +486,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     const RingDescriptor model_desc = describe_model(view, vr, vc, layout, config.descriptor);
 
     const int wanted = m->expected >= 0 ? m->expected : config.max_instances;
+    std::unique_ptr<ModelIndex> index;  // the model's KD-tree, built at its first registration
     int found = 0, rejected = 0;
     std::vector<uint8_t> excluded(coarse.z.size(), 0);
     while (found < wanted && rejected < config.max_rejections) {
@@ -499,12 +507,10 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       p.seconds_scan = since(t0);
       const auto t1 = Clock::now();
       // Step 1: exhaustive 4D search (eq. 6.9) about the winning patch.
-      const ElevationMap* fine_ptr = &fine;
       ElevationMap coarse_live = coarse, fine_live;
       for (std::size_t i = 0; i < coarse_live.z.size(); ++i) {
         if (removed_coarse[i]) coarse_live.z[i] = ElevationMap::kNoData;
       }
-      (void)fine_ptr;
       fine_live =
           crop(fine, removed_fine, rec.scan.center_xy, m->radius_m + period + 6 * coarse.cell_m);
       const Search4dResult s4 =
@@ -539,8 +545,8 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         } else if (config.run_icp && local.size() >= 6) {
           // Step 2: trimmed ICP for the full 6D pose.
           try {
-            const ModelIndex index(m->points, m->normals);
-            const IcpResult icp = trimmed_icp(index, local, s4.T_world_model, config.icp);
+            if (!index) index = std::make_unique<ModelIndex>(m->points, m->normals);
+            const IcpResult icp = trimmed_icp(*index, local, s4.T_world_model, config.icp);
             p.icp_iterations = icp.iterations;
             const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
                                           0.5 * (m->base_z + m->top_z));
