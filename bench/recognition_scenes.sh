@@ -53,6 +53,36 @@ scene slope 8 "{rpy_deg: [0, 6, 0]}" \
   "{name: tank, reference: tank, pose: {translation: [2.2, -1.0, -0.28], rpy_deg: [0, 6, 0]}, reflectivity: 0.8}" \
   "{name: pillar, reference: pillar, pose: {translation: [1.8, 1.6, -0.24], rpy_deg: [0, 6, 65]}, reflectivity: 0.8}"
 
+# Marine growth (crude): 34 spheres of 3-8 cm radius scattered on the tops of the three
+# structures of the "three" scene (tank top, pillar footing and column top, riser mudmat).
+python3 - "$WORK" <<'PY'
+import math, random, sys
+work = sys.argv[1]
+random.seed(7)
+base = open(work + '/three.yaml').read()
+lines = []
+def add(x, y, z, r):
+    lines.append("  - {name: growth%d, primitive: {type: sphere, radius: %.3f}, pose: {translation: [%.3f, %.3f, %.3f]}, reflectivity: 0.6}" % (len(lines), r, x, y, z))
+for i in range(8):  # tank at (2.2, -1.0, -0.05), top at z = 1.0
+    a = random.uniform(0, 2 * math.pi); d = random.uniform(0.05, 0.22); r = random.uniform(0.03, 0.07)
+    add(2.2 + d * math.cos(a), -1.0 + d * math.sin(a), -0.05 + 1.0 + r * 0.3, r)
+c, s = math.cos(math.radians(65)), math.sin(math.radians(65))
+for i in range(14):  # pillar at (1.8, 1.6) yaw 65: footing top z = 0.4 outside the column
+    while True:
+        u, v = random.uniform(-0.95, 0.95), random.uniform(-0.95, 0.95)
+        if max(abs(u), abs(v)) > 0.6: break
+    r = random.uniform(0.03, 0.08)
+    add(1.8 + c * u - s * v, 1.6 + s * u + c * v, -0.05 + 0.4 + r * 0.3, r)
+for i in range(4):  # the column top, z = 2.5
+    u, v = random.uniform(-0.25, 0.25), random.uniform(-0.25, 0.25); r = random.uniform(0.03, 0.06)
+    add(1.8 + c * u - s * v, 1.6 + s * u + c * v, -0.05 + 2.5 + r * 0.3, r)
+c, s = math.cos(math.radians(20)), math.sin(math.radians(20))
+for i in range(8):  # riser at (-2, 1) yaw 20: mudmat top z = 0.1
+    u, v = random.uniform(-0.45, 0.45), random.uniform(-0.45, 0.45); r = random.uniform(0.03, 0.06)
+    add(-2 + c * u - s * v, 1 + s * u + c * v, -0.05 + 0.1 + r * 0.3, r)
+open(work + '/growth.yaml', 'w').write(base.replace("trajectory:", "\n".join(lines) + "\ntrajectory:"))
+PY
+
 catalogue cat_exact 1.0
 catalogue cat_small 0.9
 catalogue cat_large 1.1
@@ -81,3 +111,4 @@ run three cat_small "catalogue models 10 % small"
 run three cat_large "catalogue models 10 % large"
 run buried cat_exact "structures 40 % buried"
 run slope cat_exact "6° slope, structures tilted with it"
+run growth cat_exact "marine growth: 34 spheres of 3-8 cm on the tops"
