@@ -105,7 +105,8 @@ int main(int argc, char** argv) {
                 label.c_str(), cloud.size(), models.size(), r.placements.size(), seconds,
                 peak_rss_mb());
     std::printf(
-        "| object | found | position error cm (horizontal) | yaw error deg | tilt deg | step 1 median (mean) cm "
+        "| object | found | position error cm (horizontal) | yaw error deg | tilt deg | step 1 "
+        "median (mean) cm "
         "| "
         "step 2 median (mean) cm | at true pose median (mean) cm | support | time s |\n"
         "|---|---|---|---|---|---|---|---|---|---|\n");
@@ -152,7 +153,8 @@ int main(int argc, char** argv) {
               std::clamp((p.T_world_model.linear().col(2)).dot(t.T.linear().col(2)), -1.0, 1.0)) *
           180 / M_PI;
       std::printf(
-          "| %s | yes | %.1f (%.1f) | %.1f | %.1f | %.1f (%.1f) | %.1f (%.1f) | %.1f (%.1f) | %.2f | %.2f "
+          "| %s | yes | %.1f (%.1f) | %.1f | %.1f | %.1f (%.1f) | %.1f (%.1f) | %.1f (%.1f) | %.2f "
+          "| %.2f "
           "|\n",
           t.name.c_str(), 100 * (p.T_world_model * c - t.T * c).norm(),
           100 * (p.T_world_model * c - t.T * c).head<2>().norm(), yaw_err, tilt,
