@@ -87,7 +87,8 @@ std::string unpack_swaths(const std::string& b, std::vector<PointCloud>& clouds,
             "field mapping: a rank's swath message is truncated");
     PointCloud& c = clouds[s];
     c.points.resize(n);
-    std::memcpy(c.points.data(), b.data() + at, n * 3 * sizeof(float));
+    static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are packed xyz floats");
+    std::memcpy(static_cast<void*>(c.points.data()), b.data() + at, n * 3 * sizeof(float));
     at += n * 3 * sizeof(float);
     if (take<std::uint8_t>(b, at)) {
       require(n <= (b.size() - at) / sizeof(float),
