@@ -1,6 +1,7 @@
 #pragma once
-// A point cloud in one frame (normally world) with an optional per-point intensity.
+// A point cloud in one frame (normally world) with an optional per-point intensity and colour.
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -10,16 +11,21 @@ namespace sonar3d {
 struct PointCloud {
   std::vector<Eigen::Vector3f> points;
   std::vector<float> intensity;  // empty, or one per point
+  // Empty, or one per point: 8-bit sRGB-encoded red, green, blue, as PLY viewers display them
+  // (PLY properties `red green blue`, uchar).
+  std::vector<std::array<std::uint8_t, 3>> color;
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }
   bool has_intensity() const { return !intensity.empty(); }
+  bool has_color() const { return !color.empty(); }
 };
 
 enum class PlyFormat { Binary, Ascii };
 
-// PLY with x y z [intensity] vertex properties (float or double). Reading accepts ascii and
-// binary_little_endian; extra vertex properties are skipped. Errors name the file and the
+// PLY with x y z [intensity] [red green blue] vertex properties (coordinates float or double;
+// colours uchar, or any type holding 0 … 255). Reading accepts ascii and binary_little_endian;
+// extra vertex properties are skipped. Errors name the file and the
 // header line or vertex at fault.
 PointCloud read_ply(const std::string& path);
 // The same, also returning the faces' vertex index lists (element `face`, list property
@@ -28,5 +34,9 @@ PointCloud read_ply(const std::string& path);
 PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint32_t>>* faces);
 void write_ply(const std::string& path, const PointCloud& cloud,
                PlyFormat format = PlyFormat::Binary);  // atomic write
+
+// True when `path` is a PLY file that write_ply() wrote (its header carries write_ply's comment):
+// the outputs sonar3d may replace with --overwrite.
+bool is_sonar3d_ply(const std::string& path);
 
 }  // namespace sonar3d
