@@ -11,8 +11,10 @@
 
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/video/colmap.hpp"
+#include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
 #include "sonar3d/video/texture_files.hpp"
 #include "test_support.hpp"
@@ -278,4 +280,76 @@ TEST(TextureCli, ImagesAreDecodedToLinear) {
   }
   EXPECT_NEAR(srgb_to_linear(0.5f), 0.21404f, 1e-4);  // the sRGB curve's mid-grey
   test::expect_error([&] { read_rgb_image(tmp / "missing.png"); }, "missing.png");
+}
+
+// `--neus`: the same colouring with poses from an IDR/NeuS cameras .npz that numpy wrote
+// (data/video/cameras_neus.npz: three cameras around the origin), the images in name order.
+TEST(TextureCli, NeusCamerasColourTheCloud) {
+  const fs::path tmp = test::temp_dir("texture_neus");
+  const fs::path npz = fs::path(SONAR3D_SOURCE_DIR) / "data/video/cameras_neus.npz";
+  Scene scene;
+  SceneObject seabed, box;
+  seabed.name = "seabed";
+  seabed.mesh_world = make_plane(6, 6);
+  seabed.color = {0.8f, 0.7f, 0.3f};
+  box.name = "box";
+  box.mesh_world = make_box(0.6, 0.6, 0.6);
+  box.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.3)));
+  box.color = {0.9f, 0.1f, 0.1f};
+  scene.objects = {seabed, box};
+  CameraRenderConfig rc;
+  rc.ambient = 1.0;
+  rc.attenuation_per_m = 0.0;
+  const CameraRenderer renderer(scene, rc);
+  const fs::path images = tmp / "image";
+  fs::create_directories(images);
+  const auto cams = read_neus_cameras(npz);
+  ASSERT_EQ(cams.size(), 3u);
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    write_rgb_image(
+        images / ("00" + std::to_string(i) + ".png"),
+        renderer.render(intrinsics_from_K(cams[i].K, 640, 480), cams[i].T_world_camera));
+  }
+  PointCloud cloud;
+  const std::size_t n_seabed = 60000;
+  for (const SceneObject& o : scene.objects) {
+    const auto pts = sample_surface(o.mesh_world, o.name == "seabed" ? n_seabed : 8000, 5);
+    cloud.points.insert(cloud.points.end(), pts.begin(), pts.end());
+  }
+  const fs::path in = tmp / "cloud.ply", out = tmp / "coloured.ply";
+  write_ply(in.string(), cloud);
+  const std::string args = "texture " + in.string() + " --neus " + npz.string() + " --images " +
+                           images.string() + " --point-spacing 0.04 --quiet -o ";
+  CliRun r = run(tmp, args + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("from 3 images"), std::string::npos) << r.out;
+  const PointCloud got = read_ply(out.string());
+  ASSERT_EQ(got.size(), cloud.size());
+  const auto sand = srgb8({0.8f, 0.7f, 0.3f}), red = srgb8({0.9f, 0.1f, 0.1f});
+  const std::array<std::uint8_t, 3> black{0, 0, 0};
+  std::size_t hidden = 0, sand_ok = 0, red_ok = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    const Eigen::Vector3f& p = got.points[i];
+    const double m = std::max(std::abs(p.x()), std::abs(p.y()));
+    if (i < n_seabed && m < 0.25) {
+      EXPECT_EQ(got.color[i], black) << "hidden point " << p.transpose() << " took a colour";
+      ++hidden;
+    } else if (i < n_seabed && m > 0.5 && m < 1.0 && got.color[i] != black) {
+      EXPECT_TRUE(near(got.color[i], sand, 3)) << p.transpose();
+      ++sand_ok;
+    } else if (i >= n_seabed && p.z() > 0.59 && m < 0.25) {
+      EXPECT_TRUE(near(got.color[i], red, 3)) << p.transpose();
+      ++red_ok;
+    }
+  }
+  EXPECT_GT(hidden, 200u);
+  EXPECT_GT(sand_ok, 3000u);  // of ~5000 in the ring 0.5 … 1 m
+  EXPECT_GT(red_ok, 200u);
+  // One image too few for the cameras; --colmap and --neus together.
+  fs::remove(images / "002.png");
+  r = run(tmp, args + (tmp / "x.ply").string());
+  expect_one_line_error(r, "holds 2 images but");
+  r = run(tmp, args + (tmp / "x.ply").string() + " --colmap " + tmp.string());
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "x.ply"));
 }
