@@ -320,34 +320,57 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
   write_ply(in.string(), cloud);
   const std::string args = "texture " + in.string() + " --neus " + npz.string() + " --images " +
                            images.string() + " --point-spacing 0.04 --quiet -o ";
-  CliRun r = run(tmp, args + out.string());
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("from 3 images"), std::string::npos) << r.out;
-  const PointCloud got = read_ply(out.string());
-  ASSERT_EQ(got.size(), cloud.size());
-  const auto sand = srgb8({0.8f, 0.7f, 0.3f}), red = srgb8({0.9f, 0.1f, 0.1f});
-  const std::array<std::uint8_t, 3> black{0, 0, 0};
-  std::size_t hidden = 0, sand_ok = 0, red_ok = 0;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    const Eigen::Vector3f& p = got.points[i];
-    const double m = std::max(std::abs(p.x()), std::abs(p.y()));
-    if (i < n_seabed && m < 0.25) {
-      EXPECT_EQ(got.color[i], black) << "hidden point " << p.transpose() << " took a colour";
-      ++hidden;
-    } else if (i < n_seabed && m > 0.5 && m < 1.0 && got.color[i] != black) {
-      EXPECT_TRUE(near(got.color[i], sand, 3)) << p.transpose();
-      ++sand_ok;
-    } else if (i >= n_seabed && p.z() > 0.59 && m < 0.25) {
-      EXPECT_TRUE(near(got.color[i], red, 3)) << p.transpose();
-      ++red_ok;
+  // A known limit of the splatted depth buffer, measured here: the box's top, seen at 11°
+  // grazing, is hidden by its own splats at the default tolerance (3 cm: a splat 4 cm wide spans
+  // ~20 cm of depth at that angle), so it takes no colour, never a wrong one. A 15 cm tolerance
+  // colours it all but lets colour through to seabed points under the box's edges (measured:
+  // 0 of 925 top points and no leak at 3 cm; 925 and 114 leaks at 15 cm; docs/video.md).
+  const char* kWide = "0.15";
+  std::size_t top_seen[2] = {0, 0}, leaks[2] = {0, 0}, top_total = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    SCOPED_TRACE(pass);
+    CliRun r =
+        run(tmp, args + out.string() +
+                     (pass ? std::string(" --depth-tolerance ") + kWide + " --overwrite" : ""));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("from 3 images"), std::string::npos) << r.out;
+    const PointCloud got = read_ply(out.string());
+    ASSERT_EQ(got.size(), cloud.size());
+    const auto sand = srgb8({0.8f, 0.7f, 0.3f}), red = srgb8({0.9f, 0.1f, 0.1f});
+    const std::array<std::uint8_t, 3> black{0, 0, 0};
+    std::size_t hidden = 0, sand_ok = 0;
+    top_total = 0;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      const Eigen::Vector3f& p = got.points[i];
+      const double m = std::max(std::abs(p.x()), std::abs(p.y()));
+      if (i < n_seabed && m < 0.25) {
+        if (pass == 0) {
+          EXPECT_EQ(got.color[i], black) << "hidden point " << p.transpose() << " took a colour";
+        }
+        leaks[pass] += got.color[i] != black ? 1 : 0;
+        ++hidden;
+      } else if (i < n_seabed && m > 0.5 && m < 1.0 && got.color[i] != black) {
+        EXPECT_TRUE(near(got.color[i], sand, 3)) << p.transpose();
+        ++sand_ok;
+      } else if (i >= n_seabed && p.z() > 0.59 && m < 0.25) {
+        ++top_total;
+        if (got.color[i] == black) continue;
+        EXPECT_TRUE(near(got.color[i], red, 3)) << p.transpose();
+        ++top_seen[pass];
+      }
     }
+    EXPECT_GT(hidden, 200u);
+    EXPECT_GT(sand_ok, 3000u);  // of ~5000 in the ring 0.5 … 1 m
   }
-  EXPECT_GT(hidden, 200u);
-  EXPECT_GT(sand_ok, 3000u);  // of ~5000 in the ring 0.5 … 1 m
-  EXPECT_GT(red_ok, 200u);
+  std::printf(
+      "box top coloured: %zu (3 cm tolerance), %zu (%s) of %zu; leaks under the box: %zu, %zu\n",
+      top_seen[0], top_seen[1], kWide, top_total, leaks[0], leaks[1]);
+  EXPECT_EQ(leaks[0], 0u);
+  EXPECT_GT(top_seen[1], top_total * 9 / 10);
+  EXPECT_GT(leaks[1], 0u);  // the trade-off: when this changes, revisit docs/video.md
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");
-  r = run(tmp, args + (tmp / "x.ply").string());
+  CliRun r = run(tmp, args + (tmp / "x.ply").string());
   expect_one_line_error(r, "holds 2 images but");
   r = run(tmp, args + (tmp / "x.ply").string() + " --colmap " + tmp.string());
   EXPECT_EQ(r.code, 2) << r.err;
