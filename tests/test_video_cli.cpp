@@ -11,6 +11,7 @@
 
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/video/colmap.hpp"
@@ -368,6 +369,38 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
   EXPECT_EQ(leaks[0], 0u);
   EXPECT_GT(top_seen[1], top_total * 9 / 10);
   EXPECT_GT(leaks[1], 0u);  // the trade-off: when this changes, revisit docs/video.md
+  // --mesh: the scene's mesh textured with Embree visibility; the box top, which the point splats
+  // hid at the default tolerance, takes its colour, and the seabed under the box none.
+  {
+    TriangleMesh mesh = seabed.mesh_world;
+    mesh.append(box.mesh_world);
+    save_mesh((tmp / "scene.obj").string(), mesh);
+    const fs::path mesh_out = tmp / "scene_coloured.ply";
+    const CliRun r = run(tmp, "texture " + (tmp / "scene.obj").string() +
+                                  " --mesh --texel 0.04 --neus " + npz.string() + " --images " +
+                                  images.string() + " --quiet -o " + mesh_out.string());
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("vertices from 3 images"), std::string::npos) << r.out;
+    std::vector<std::vector<uint32_t>> faces;
+    const PointCloud v = read_ply_faces(mesh_out.string(), &faces);
+    ASSERT_TRUE(v.has_color());
+    EXPECT_GT(faces.size(), 10000u);
+    const auto red = srgb8({0.9f, 0.1f, 0.1f});
+    std::size_t top = 0, under = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const Eigen::Vector3f& p = v.points[i];
+      const double m = std::max(std::abs(p.x()), std::abs(p.y()));
+      if (std::abs(p.z() - 0.6) < 1e-4 && m < 0.27) {
+        EXPECT_TRUE(near(v.color[i], red, 3)) << p.transpose();
+        ++top;
+      } else if (std::abs(p.z()) < 1e-4 && m < 0.27) {
+        EXPECT_EQ(v.color[i], (std::array<std::uint8_t, 3>{0, 0, 0})) << p.transpose();
+        ++under;
+      }
+    }
+    EXPECT_GT(top, 50u);
+    EXPECT_GT(under, 50u);
+  }
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");
   CliRun r = run(tmp, args + (tmp / "x.ply").string());

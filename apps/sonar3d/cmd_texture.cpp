@@ -53,6 +53,13 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--max-range", job->config.max_range_m,
                   "points farther from a camera take no colour from it, m")
       ->capture_default_str();
+  cmd->add_flag(
+      "--mesh", job->is_mesh,
+      "CLOUD is a mesh (any format Assimp reads, e.g. a registered CAD model): colour its "
+      "vertices, visibility by ray casting the mesh itself; writes a PLY mesh");
+  cmd->add_option("--texel", job->mesh.texel_m,
+                  "with --mesh: subdivide until every edge is at most this long, m (0: as is)")
+      ->capture_default_str();
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
@@ -60,8 +67,12 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
     if (colmap->empty() && neus->empty()) {
       throw CLI::ValidationError("--colmap or --neus", "camera poses are required");
     }
+    if (job->is_mesh && job->drop_uncoloured) {
+      throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
+    }
     run = [&g, job, cloud, colmap, neus, neus_frame, images, output] {
       job->cloud = *cloud;
+      job->mesh.max_range_m = job->config.max_range_m;
       job->colmap_dir = *colmap;
       job->neus_file = *neus;
       job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
@@ -69,8 +80,9 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
       job->output = *output;
       job->progress = !g.quiet;
       const TextureFilesResult r = texture_cloud_files(*job);
-      fmt::print("coloured {} of {} points from {} images; wrote {} points to {}\n", r.coloured,
-                 r.points, r.frames, r.written, job->output.string());
+      const char* what = job->is_mesh ? "vertices" : "points";
+      fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured, r.points,
+                 what, r.frames, r.written, what, job->output.string());
       return 0;
     };
   });

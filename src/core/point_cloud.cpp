@@ -442,7 +442,8 @@ bool is_sonar3d_ply(const std::string& path) {
   f.read(head, sizeof(head) - 1);
   const std::string h(head, static_cast<std::size_t>(f.gcount()));
   return h.rfind("ply\nformat ", 0) == 0 &&
-         h.find("\ncomment sonar3d point cloud, world frame, metres\n") != std::string::npos;
+         (h.find("\ncomment sonar3d point cloud, world frame, metres\n") != std::string::npos ||
+          h.find("\ncomment sonar3d textured mesh, world frame, metres") != std::string::npos);
 }
 
 }  // namespace sonar3d

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
@@ -15,6 +16,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/video/colmap.hpp"
 
 namespace sonar3d {
@@ -208,11 +210,18 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   job.config.validate();
   check_output(job);
   const std::vector<Frame> frames = list_frames(job);
-  PointCloud cloud = read_ply(job.cloud.string());
-  CloudTexturer texturer(cloud, job.config);
+  PointCloud cloud;
+  std::unique_ptr<CloudTexturer> cloud_texturer;
+  std::unique_ptr<MeshTexturer> mesh_texturer;
+  if (job.is_mesh) {
+    mesh_texturer = std::make_unique<MeshTexturer>(load_mesh(job.cloud.string()), job.mesh);
+  } else {
+    cloud = read_ply(job.cloud.string());
+    cloud_texturer = std::make_unique<CloudTexturer>(cloud, job.config);
+  }
   Progress progress("texture", frames.size(), job.progress);
   TextureFilesResult r;
-  r.points = cloud.size();
+  r.points = job.is_mesh ? mesh_texturer->mesh().vertices.size() : cloud.size();
   for (std::size_t f = 0; f < frames.size(); ++f) {
     const Frame& fr = frames[f];
     const RgbImage img = read_rgb_image(fr.file);
@@ -231,12 +240,24 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
                   std::to_string(img.height) + " pixels, but its " + fr.camera_name + " is " +
                   std::to_string(cam.width) + "×" + std::to_string(cam.height));
     }
-    texturer.add(CameraView{cam, fr.T_world_camera, &img}, f);
+    const CameraView view{cam, fr.T_world_camera, &img};
+    if (job.is_mesh) {
+      mesh_texturer->add(view, f);
+    } else {
+      cloud_texturer->add(view, f);
+    }
     ++r.frames;
     progress.add();
   }
   progress.finish();
-  const TexturedCloud t = texturer.result();
+  if (job.is_mesh) {
+    const TexturedMesh tm = mesh_texturer->result();
+    r.coloured = tm.coloured();
+    r.written = tm.mesh.vertices.size();
+    write_textured_mesh_ply(job.output, tm);
+    return r;
+  }
+  const TexturedCloud t = cloud_texturer->result();
   PointCloud out;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const bool seen = t.views[i] > 0;

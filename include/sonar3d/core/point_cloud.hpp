@@ -35,7 +35,8 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
 void write_ply(const std::string& path, const PointCloud& cloud,
                PlyFormat format = PlyFormat::Binary);  // atomic write
 
-// True when `path` is a PLY file that write_ply() wrote (its header carries write_ply's comment):
+// True when `path` is a PLY file that write_ply() (or video's write_textured_mesh_ply()) wrote,
+// by its header comment:
 // the outputs sonar3d may replace with --overwrite.
 bool is_sonar3d_ply(const std::string& path);
 

@@ -13,6 +13,7 @@
 #include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
 #include "sonar3d/video/texture.hpp"
+#include "sonar3d/video/texture_mesh.hpp"
 
 namespace sonar3d {
 
@@ -38,6 +39,10 @@ struct TextureFilesJob {
   std::filesystem::path images_dir;
   std::filesystem::path output;  // PLY with red/green/blue
   TextureConfig config;
+  // `cloud` is a mesh (any format Assimp reads): textured with MeshTexturer (Embree visibility,
+  // subdivided to `mesh.texel_m`), written as a PLY mesh with vertex colours.
+  bool is_mesh = false;
+  MeshTextureConfig mesh;
   bool overwrite = false;        // replace an existing sonar3d point cloud at `output`
   bool drop_uncoloured = false;  // leave out the points no frame saw (else they are black)
   bool progress = true;          // a progress bar on a terminal
