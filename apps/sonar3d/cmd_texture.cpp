@@ -18,7 +18,9 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto cloud = std::make_shared<std::string>(), colmap = std::make_shared<std::string>(),
        images = std::make_shared<std::string>(), output = std::make_shared<std::string>(),
        neus = std::make_shared<std::string>(), neus_frame = std::make_shared<std::string>("world");
-  cmd->add_option("cloud", *cloud, "point cloud to colour (PLY, world frame)")
+  cmd->add_option("cloud", *cloud,
+                  "point cloud to colour (PLY), or with --mesh a mesh (any Assimp format); in the "
+                  "poses' frame")
       ->required()
       ->check(CLI::ExistingFile);
   auto* colmap_opt = cmd->add_option("--colmap", *colmap,
@@ -37,8 +39,10 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "(NeuS's unit-sphere frame, x = (x_world - c)/s by scale_mat)")
       ->check(CLI::IsMember({"world", "normalized"}))
       ->capture_default_str();
-  cmd->add_option("--images", *images,
-                  "directory of the images named in images.txt (8/16-bit: sRGB; float: linear)")
+  cmd->add_option(
+         "--images", *images,
+         "the images: those named in images.txt, or with --neus all of the directory in name order "
+         "(8/16-bit: sRGB; float: linear)")
       ->required()
       ->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--output", *output,
