@@ -206,7 +206,10 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
     if (n == "blue" || n == "diffuse_blue") ib = k;
   }
   if (ix < 0 || iy < 0 || iz < 0) fail("vertex has no x, y, z properties");
-  const bool has_color = ir >= 0 && ig >= 0 && ib >= 0;  // all three, or no colour
+  // A colour only from all three as 8-bit (what PLY tools write); other types (16-bit, float
+  // 0 … 1) are skipped like any extra property, as before colours were read.
+  auto is_u8 = [&](int k) { return props[k].type == "uchar" || props[k].type == "uint8"; };
+  const bool has_color = ir >= 0 && ig >= 0 && ib >= 0 && is_u8(ir) && is_u8(ig) && is_u8(ib);
   const unsigned long long vertex_count = vert.count;
   const unsigned long long data_bytes = file_size - static_cast<unsigned long long>(f.tellg());
   // Sizes are checked against the file before anything is allocated: a binary vertex takes

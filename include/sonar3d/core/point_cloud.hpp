@@ -24,7 +24,7 @@ struct PointCloud {
 enum class PlyFormat { Binary, Ascii };
 
 // PLY with x y z [intensity] [red green blue] vertex properties (coordinates float or double;
-// colours uchar, or any type holding 0 … 255). Reading accepts ascii and binary_little_endian;
+// colours uchar; colours of other types are skipped). Reading accepts ascii and binary_little_endian;
 // extra vertex properties are skipped. Errors name the file and the
 // header line or vertex at fault.
 PointCloud read_ply(const std::string& path);
