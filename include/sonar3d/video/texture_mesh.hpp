@@ -19,8 +19,10 @@ namespace sonar3d {
 struct MeshTextureConfig {
   double texel_m = 0.01;      // subdivide until every edge is at most this long (0: no subdivision)
   double max_range_m = 30.0;  // vertices farther from a camera take no colour from it
-  std::size_t max_vertices = 20'000'000;  // subdivision refused beyond this (memory bound)
-  void validate() const;                  // throws Error naming the field
+  // Subdivision refused beyond this many vertices: ~150 bytes each at the last level (mesh,
+  // midpoint table, colour sums), so the default bounds it near 600 MB.
+  std::size_t max_vertices = 4'000'000;
+  void validate() const;  // throws Error naming the field
 };
 
 // Splits every triangle into four (edge midpoints shared) until no edge exceeds `max_edge_m`.
