@@ -214,3 +214,7 @@ if os.path.exists(cli):
     w('rosmsg', 'ros1_pose_stamped', bytes([1 | (3 << 1)]) + pose1)
 else:
     print(f'make_corpus: {cli} not built: rosbag and rosmsg seeds left as they are')
+# Recognition catalogues (fuzz_catalogue).
+w('catalogue', 'field', "models:\n  - {name: riser, reference: riser, symmetry: none}\n  - {name: tank, reference: tank, symmetry: full, expected: 1}\n  - {name: pillar, reference: pillar, symmetry: \"180\", scale: 1.1}\n")
+w('catalogue', 'block', "models:\n  - name: panel\n    mesh: meshes/bop_panel.dae\n    symmetry: \"180\"\n    expected: 2\n  - name: sphere\n    reference: sphere\n    symmetry: full\n    scale: 0.5\n")
+w('catalogue', 'empty', "models: []\n")

@@ -15,6 +15,7 @@ PACKAGES=(
   libceres-dev         # robust least squares: swath adjustment
   libsqlite3-dev       # ROS 2 bags (sqlite3 storage)
   libbz2-dev liblz4-dev  # ROS 1 bag chunks (bz2, lz4)
+  libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
   zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev

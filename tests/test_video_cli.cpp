@@ -255,12 +255,15 @@ TEST(TextureCli, PlyColourRoundTrips) {
   c.color.clear();
   write_ply((tmp / "plain.ply").string(), c);
   EXPECT_FALSE(read_ply((tmp / "plain.ply").string()).has_color());
-  // Colours of other types than uchar (16-bit, float) are skipped, as before colours were read.
+  // Colours of other types than uchar (16-bit, float) are not a colour: named properties instead.
   std::ofstream(tmp / "bad.ply") << "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
                                     "property float y\nproperty float z\nproperty int red\n"
                                     "property int green\nproperty int blue\nend_header\n"
                                     "0 0 0 1 2 300\n";
-  EXPECT_FALSE(read_ply((tmp / "bad.ply").string()).has_color());
+  const PointCloud int_colours = read_ply((tmp / "bad.ply").string());
+  EXPECT_FALSE(int_colours.has_color());
+  ASSERT_NE(int_colours.property("blue"), nullptr);
+  EXPECT_EQ(int_colours.property("blue")->values[0], 300.0f);
   EXPECT_FALSE(is_sonar3d_ply((tmp / "bad.ply").string()));
 }
 

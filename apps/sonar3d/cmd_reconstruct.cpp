@@ -12,6 +12,7 @@
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/deconvolve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
@@ -24,6 +25,7 @@ struct ReconstructCliOptions {
   std::string dataset, output, vdb, json, method = "carve";
   CarveConfig carve;
   DeconvConfig deconv;
+  BracketConfig bracket;
   std::string beam = "sinc";
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
@@ -36,6 +38,33 @@ Eigen::AlignedBox3d roi_box(const std::vector<double>& v) {
                                 Eigen::Vector3d(v[3], v[4], v[5]));
   validate_region(box, "--roi");
   return box;
+}
+
+// Bracketing (recon/bracketing.hpp): attaches "bracket" and "views" to every point, drops the
+// points below --min-bracket, prints the never-bracketed share and the passes that stop short.
+BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eigen::Isometry3d>& T,
+                     const ReconstructCliOptions& o,
+                     const std::optional<Eigen::AlignedBox3d>& roi) {
+  BracketConfig bc = o.bracket;
+  bc.num_threads = o.carve.num_threads;
+  const BracketReport br = assess_bracketing(cloud, T, ds.spec, bc, roi);
+  fmt::print(
+      "  elevation bracketing: median {:.2f} over the points; {:.1f} % of the observed region "
+      "(samples every {:.2f} m{}) bracketed below {:.2f}, {:.1f} % never{} ({:.1f} s)\n",
+      br.median_bracket, 100.0 * br.unbracketed_share, br.sample_step,
+      roi ? " over --roi" : " over the points' box", bc.bracketed_level,
+      100.0 * br.never_bracketed_share,
+      bc.min_bracket > 0 ? fmt::format("; --min-bracket {:.2f} kept {} of {} points",
+                                       bc.min_bracket, br.kept, br.points)
+                         : std::string(),
+      br.seconds);
+  for (const auto& w : br.warnings()) fmt::print("warning: {}\n", w);
+  if (!br.extensions.empty() && bc.min_bracket == 0) {
+    fmt::print(
+        "  note: --min-bracket 0.5 drops the points no frame saw from the other side of their "
+        "elevation (measured: docs/carving.md, \"Elevation bracketing\")\n");
+  }
+  return br;
 }
 
 // Deconvolution (thesis ch. 5): the library splits the dataset into straight passes, checks them
@@ -58,6 +87,9 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const std::size_t before_roi = cloud.size();
   if (roi) cloud = crop_to_region(cloud, *roi);
   fmt::print("{}", report.to_text());  // per-pass figures, then the warnings (collapsed)
+  std::vector<Eigen::Isometry3d> poses;
+  for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
+  const BracketReport br = assess(cloud, ds, poses, o, roi);
   if (cloud.empty() && !o.allow_empty) {
     if (report.passes.empty()) {
       std::string why;  // the passes' collapsed warnings
@@ -89,6 +121,7 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
     j["points"] = cloud.size();
     j["report"] = report.to_text();
     j["warnings"] = report.warnings;
+    j["bracketing"] = nlohmann::json::parse(br.to_json());
     write_text_file(o.json, j.dump(2) + "\n");
   }
   return 0;
@@ -103,12 +136,22 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const Dataset ds = read_dataset(o.dataset);
   Carver carver(ds.spec, cfg, ds.noise);
   integrate_dataset(carver, ds, !g.quiet);
+  const std::size_t integrate_peak = peak_rss_bytes();  // before finalize's occlusion resolution
   PointCloud cloud;
   {
     Progress bar("occlusions", ds.size(), cfg.resolve_occlusions && !g.quiet);
     cloud = carver.finalize(&bar);
   }
+  std::vector<Eigen::Isometry3d> poses;
+  for (const auto& f : carver.frame_returns()) poses.push_back(f.T_world_sonar);
+  const std::size_t before_bracket = cloud.size();
+  const BracketReport br = assess(cloud, ds, poses, o, cfg.region);
   const CarveStats& st = carver.stats();
+  if (cloud.empty() && before_bracket > 0 && !o.allow_empty) {
+    throw Error("--min-bracket " + std::to_string(o.bracket.min_bracket) + " kept none of the " +
+                std::to_string(before_bracket) +
+                " points; lower it, or pass --allow-empty to write the empty cloud");
+  }
   if (cloud.empty() && !o.allow_empty) {
     if (st.candidates == 0) {
       throw Error("carving found no surface: no return in any of the " + std::to_string(st.frames) +
@@ -126,10 +169,10 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   fmt::print(
       "carved {} frames into {} candidates, {} points after occlusion resolution -> {}\n"
       "  integrate {:.1f} ms/frame, occlusion resolution {:.1f} ms/frame, map {:.1f} MB, "
-      "frame summaries {:.1f} MB, peak RSS {:.0f} MB\n",
+      "frame summaries {:.1f} MB, peak RSS {:.0f} MB ({:.0f} MB while integrating)\n",
       st.frames, st.candidates, st.points, o.output, 1e3 * st.integrate_seconds / n,
       1e3 * st.occlusion_seconds / n, st.map_bytes / 1e6, st.frame_bytes / 1e6,
-      peak_rss_bytes() / 1e6);
+      peak_rss_bytes() / 1e6, integrate_peak / 1e6);
   if (st.min_observations_used < cfg.min_observations) {
     fmt::print(
         "  note: a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need {} "
@@ -148,7 +191,12 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     j["min_observations_used"] = st.min_observations_used;
     j["views_per_scatterer"] = st.views_per_scatterer;
     j["peak_rss_bytes"] = peak_rss_bytes();
+    j["integrate_peak_rss_bytes"] = integrate_peak;
+    j["leaves"] = st.leaves;
+    j["candidate_voxels"] = st.candidate_voxels;
+    j["occlusion_bytes"] = st.occlusion_bytes;
     j["voxel_size"] = cfg.voxel_size;
+    j["bracketing"] = nlohmann::json::parse(br.to_json());
     write_text_file(o.json, j.dump(2) + "\n");
   }
   return 0;
@@ -205,6 +253,12 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "keep candidates bounded by at least this many frames (removes isolated noise "
                   "returns; 1 = off); lowered automatically to the number of frames that see a "
                   "point when the trajectory is sparser")
+      ->capture_default_str();
+  cmd->add_option("--min-bracket", o->bracket.min_bracket,
+                  "drop points whose elevation was bracketed less than this (0-1: 1 = frames saw "
+                  "the point at both edges of the vertical aperture, 0 = from one side only, as "
+                  "beyond the end of a pass; 0 = keep all). Every point carries its bracket and "
+                  "views as PLY properties either way")
       ->capture_default_str();
   cmd->add_flag("--no-occlusion", o->no_occlusion,
                 "skip occlusion resolution (output every carved candidate)");

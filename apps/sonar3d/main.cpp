@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
   add_elevation(app, g, run);
   add_register(app, g, run);
   add_map(app, g, run);
+  add_recognize(app, g, run);
   add_texture(app, g, run);
   try {
     app.parse(argc, argv);

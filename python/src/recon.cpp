@@ -5,6 +5,7 @@
 
 #include "common.hpp"
 #include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/deconvolve.hpp"
 #include "sonar3d/recon/denoise.hpp"
@@ -38,12 +39,17 @@ py::tuple cloud_tuple(PointCloud&& c) {
 struct Reconstruction {
   explicit Reconstruction(ReconstructResult&& r)
       : method(std::move(r.method)), seconds(r.seconds), notes(std::move(r.notes)) {
+    for (auto& p : r.cloud.properties) {
+      const py::ssize_t n = static_cast<py::ssize_t>(p.values.size());
+      properties[py::str(p.name)] = adopt(std::move(p.values), {n});
+    }
     py::tuple t = cloud_tuple(std::move(r.cloud));
     points = t[0];
     intensity = t[1];
     report = py::module_::import("json").attr("loads")(r.report);
   }
   py::object points, intensity, report;
+  py::dict properties;  // name -> (N,) float32: "bracket", "views"
   std::string method;
   double seconds = 0;
   std::string notes;
@@ -102,7 +108,9 @@ void bind_recon(py::module_& m) {
       m, "Reconstruction",
       "What carve(), deconvolve() and reconstruct() return: points (N, 3) float32, world frame; "
       "intensity (N,) float32 (carved reflectivity bound, or deconvolved layer intensity b); "
-      "report (dict: carving statistics, or per-pass deconvolution report); method; seconds; "
+      "report (dict: carving statistics, or per-pass deconvolution report; 'bracketing': "
+      "never-bracketed share, passes that stop short); properties (dict name -> (N,) float32: "
+      "'bracket' in [0, 1], 'views'); method; seconds; "
       "notes (the method's warnings, '; '-separated). Unpacks as points, intensity, report.")
       .def_readonly("points", &Reconstruction::points)
       .def_readonly("intensity", &Reconstruction::intensity)
@@ -110,6 +118,7 @@ void bind_recon(py::module_& m) {
       .def_readonly("method", &Reconstruction::method)
       .def_readonly("seconds", &Reconstruction::seconds)
       .def_readonly("notes", &Reconstruction::notes)
+      .def_readonly("properties", &Reconstruction::properties)
       .def("__iter__",
            [](const Reconstruction& r) {
              return py::iter(py::make_tuple(r.points, r.intensity, r.report));
@@ -140,6 +149,21 @@ void bind_recon(py::module_& m) {
       .def_readwrite("num_threads", &CarveConfig::num_threads)
       .def("__repr__", &fields_repr)
       .def("validate", &CarveConfig::validate);
+
+  py::class_<BracketConfig>(m, "BracketConfig",
+                            "Elevation bracketing of every method's output (recon/bracketing.hpp): "
+                            "min_bracket (drop points bracketed less, 0 = keep all), "
+                            "bracketed_level, end_view_fraction, end_tolerance, region_samples, "
+                            "num_threads.")
+      .def(py::init(&from_kwargs<BracketConfig>))
+      .def_readwrite("min_bracket", &BracketConfig::min_bracket)
+      .def_readwrite("bracketed_level", &BracketConfig::bracketed_level)
+      .def_readwrite("end_view_fraction", &BracketConfig::end_view_fraction)
+      .def_readwrite("end_tolerance", &BracketConfig::end_tolerance)
+      .def_readwrite("region_samples", &BracketConfig::region_samples)
+      .def_readwrite("num_threads", &BracketConfig::num_threads)
+      .def("__repr__", &fields_repr)
+      .def("validate", &BracketConfig::validate);
 
   py::class_<Carver>(m, "Carver",
                      "Online space carving: integrate(image, T_world_sonar) frame by frame, "
@@ -294,22 +318,25 @@ void bind_recon(py::module_& m) {
       "reconstruct",
       [](const Dataset& dataset, const std::string& method, const py::object& carve,
          const py::object& deconv, const py::object& region, int num_threads,
-         const py::object& progress) {
+         const py::object& progress, const py::object& bracket) {
         ReconstructOptions o;
         o.method = method;
         o.region = region_from_py(region);
         if (!carve.is_none()) o.carve = carve.cast<CarveConfig>();
         if (!deconv.is_none()) o.deconv = deconv.cast<DeconvConfig>();
+        if (!bracket.is_none()) o.bracket = bracket.cast<BracketConfig>();
         o.num_threads = num_threads;
         return run_reconstruct(dataset, o, progress);
       },
       "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "deconv"_a = py::none(),
       "region"_a = py::none(), "num_threads"_a = 0, "progress"_a = py::none(),
+      "bracket"_a = py::none(),
       "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...) and "
       "the given CarveConfig / DeconvConfig (default: the library's). region: (min xyz, max xyz) "
       "in the world frame (m) or None; carving maps only inside it, the other methods keep the "
       "points inside it. num_threads > 0 overrides the configs'. Returns a Reconstruction, as "
-      "carve() and deconvolve() do. progress: True (terminal bars) or progress(done, total).");
+      "carve() and deconvolve() do. progress: True (terminal bars) or progress(done, total). "
+      "bracket: BracketConfig (e.g. min_bracket to drop unbracketed ghosts).");
 }
 
 }  // namespace sonar3d::python

@@ -242,6 +242,17 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
   cloud.points.resize(vertex_count);
   if (ii >= 0) cloud.intensity.resize(vertex_count);
   if (has_color) cloud.color.resize(vertex_count);
+  // Point clouds (not meshes) keep their other vertex scalars as named properties (the uchar
+  // colour, when read as one, is not among them).
+  std::vector<int> extra;
+  if (!faces) {
+    for (int k = 0; k < static_cast<int>(props.size()); ++k) {
+      if (k == ix || k == iy || k == iz || k == ii) continue;
+      if (has_color && (k == ir || k == ig || k == ib)) continue;
+      extra.push_back(k);
+      cloud.properties.push_back({props[k].name, std::vector<float>(vertex_count)});
+    }
+  }
   std::vector<double> vals(props.size());
   auto store = [&](unsigned long long v) {
     for (std::size_t k = 0; k < vals.size(); ++k) {
@@ -258,13 +269,11 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
     if (has_color) {
       const int idx[3] = {ir, ig, ib};
       for (int c = 0; c < 3; ++c) {
-        const double x = vals[idx[c]];
-        if (!(x >= 0 && x <= 255)) {
-          throw Error(path + ": vertex " + std::to_string(v) + " colour '" + props[idx[c]].name +
-                      "' is outside 0 … 255");
-        }
-        cloud.color[v][c] = static_cast<std::uint8_t>(std::lround(x));
+        cloud.color[v][c] = static_cast<std::uint8_t>(std::lround(vals[idx[c]]));
       }
+    }
+    for (std::size_t e = 0; e < extra.size(); ++e) {
+      cloud.properties[e].values[v] = static_cast<float>(vals[extra[e]]);
     }
   };
   if (format == "ascii") {
@@ -390,6 +399,16 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
   if (cloud.has_color() && cloud.color.size() != cloud.points.size()) {
     throw Error("cannot write '" + path + "': colour count differs from point count");
   }
+  for (const auto& p : cloud.properties) {
+    const bool name_ok = !p.name.empty() && p.name.find_first_of(" \t\r\n") == std::string::npos;
+    if (!name_ok || p.values.size() != cloud.points.size()) {
+      throw Error("cannot write '" + path + "': property '" + printable(p.name) +
+                  "' has no valid name or not one value per point");
+    }
+    if (cloud.has_color() && (p.name == "red" || p.name == "green" || p.name == "blue")) {
+      throw Error("cannot write '" + path + "': property '" + p.name + "' clashes with the colour");
+    }
+  }
   AtomicPath out(path);
   {
     std::ofstream f(out.temp(), std::ios::binary);
@@ -399,10 +418,12 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
       << "\nproperty float x\nproperty float y\nproperty float z\n";
     if (cloud.has_intensity()) f << "property float intensity\n";
     if (cloud.has_color()) f << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    for (const auto& p : cloud.properties) f << "property float " << p.name << "\n";
     f << "end_header\n";
     if (format == PlyFormat::Binary) {
       std::vector<char> rec;
-      const std::size_t stride = 12 + (cloud.has_intensity() ? 4 : 0) + (cloud.has_color() ? 3 : 0);
+      const std::size_t stride = 12 + (cloud.has_intensity() ? 4 : 0) +
+                                 (cloud.has_color() ? 3 : 0) + 4 * cloud.properties.size();
       rec.resize(cloud.size() * stride);
       char* p = rec.data();
       for (std::size_t i = 0; i < cloud.size(); ++i) {
@@ -416,6 +437,10 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
           std::memcpy(p, cloud.color[i].data(), 3);
           p += 3;
         }
+        for (const auto& pr : cloud.properties) {
+          std::memcpy(p, &pr.values[i], 4);
+          p += 4;
+        }
       }
       f.write(rec.data(), static_cast<std::streamsize>(rec.size()));
     } else {
@@ -428,6 +453,7 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
           f << ' ' << int(cloud.color[i][0]) << ' ' << int(cloud.color[i][1]) << ' '
             << int(cloud.color[i][2]);
         }
+        for (const auto& pr : cloud.properties) f << ' ' << pr.values[i];
         f << '\n';
       }
     }

@@ -352,6 +352,30 @@ struct TieResidual {
 
 }  // namespace
 
+namespace {
+
+// Solves an adjustment problem: dense QR for a few swaths, sparse Cholesky for many when a sparse
+// library is there; silent; the iterations and cost into `out`.
+void solve(ceres::Problem& problem, const SwathAdjustmentConfig& config, int num_swaths,
+           SwathAdjustment& out) {
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  if (num_swaths > 100 && (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
+                           ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE))) {
+    options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  }
+  options.max_num_iterations = config.max_iterations;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  require(summary.IsSolutionUsable(), "swath adjustment: the solver failed: " + summary.message);
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.final_cost = summary.final_cost;
+}
+
+}  // namespace
+
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
                               const SwathAdjustmentConfig& config, int fixed_swath) {
   config.validate();
@@ -417,20 +441,7 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
     problem.AddResidualBlock(cost, new ceres::CauchyLoss(config.loss_scale_m),
                              out.offsets[t.reference].data(), out.offsets[t.moving].data());
   }
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) &&
-      !ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)) {
-    options.linear_solver_type = ceres::DENSE_QR;
-  }
-  options.max_num_iterations = config.max_iterations;
-  options.logging_type = ceres::SILENT;
-  options.minimizer_progress_to_stdout = false;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  require(summary.IsSolutionUsable(), "swath adjustment: the solver failed: " + summary.message);
-  out.iterations = static_cast<int>(summary.iterations.size());
-  out.final_cost = summary.final_cost;
+  solve(problem, config, num_swaths, out);
   for (const SwathTie& t : ties) {
     out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - t.t).norm());
   }
@@ -539,20 +550,7 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
     problem.AddResidualBlock(cost, nullptr, out.offsets[i].data(), out.rates[i].data(),
                              out.offsets[i + 1].data());
   }
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;  // 5 unknowns per swath: small problems
-  if (n > 100 && (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
-                  ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE))) {
-    options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  }
-  options.max_num_iterations = config.max_iterations;
-  options.logging_type = ceres::SILENT;
-  options.minimizer_progress_to_stdout = false;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  require(summary.IsSolutionUsable(), "swath adjustment: the solver failed: " + summary.message);
-  out.iterations = static_cast<int>(summary.iterations.size());
-  out.final_cost = summary.final_cost;
+  solve(problem, config, n, out);
   out.tie_residual_m.clear();
   for (const SwathTie& t : ties) {
     out.tie_residual_m.push_back((out.correction(t.moving, t.time_moving) -

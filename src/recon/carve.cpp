@@ -677,8 +677,8 @@ PointCloud Carver::snapshot() const {
 PointCloud Carver::finalize(Progress* progress) {
   Impl& m = *impl_;
   if (m.frames.empty()) throw Error("carve: nothing to finalize: no frame was integrated");
-  PointCloud candidates = snapshot();
   if (!m.cfg.resolve_occlusions) {
+    PointCloud candidates = snapshot();
     m.stats.points = candidates.size();
     return candidates;
   }
@@ -687,7 +687,79 @@ PointCloud Carver::finalize(Progress* progress) {
   occ.num_threads = m.cfg.num_threads;
   occ.min_intensity = std::max(occ.min_intensity, m.cfg.static_threshold);
   const auto t0 = std::chrono::steady_clock::now();
-  PointCloud out = resolve_occlusions(candidates, m.frames, m.spec, occ, progress);
+  // The candidates stay in the map: each leaf holding some becomes one block (its origin and a
+  // 512-bit mask), so occlusion resolution needs a few hundred bytes per leaf, not a point and a
+  // sort entry per candidate (the never-carved interior of a large structure holds tens of
+  // millions of candidates: docs/carving.md, "Memory").
+  const TreeT& tree = m.grid->tree();
+  openvdb::tree::LeafManager<const TreeT> leaves(tree);
+  const float thr = static_cast<float>(occ.min_intensity);
+  const int min_span = static_cast<int>(std::ceil(m.cfg.min_elevation_span * 2 * kObsScale));
+  const int min_obs = min_observations_used();
+  m.stats.min_observations_used = min_obs;
+  const double vs = m.cfg.voxel_size;
+  std::vector<detail::CandidateBlock> all(leaves.leafCount());
+  std::vector<std::uint8_t> used(leaves.leafCount(), 0);
+  m.arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, leaves.leafCount(), [&](std::size_t l) {
+      const LeafT& leaf = leaves.leaf(l);
+      const SpanLeafT* sl = m.span ? m.span->probeConstLeaf(leaf.origin()) : nullptr;
+      detail::CandidateBlock b;
+      Eigen::AlignedBox3i box;
+      for (auto it = leaf.cbeginValueOn(); it; ++it) {
+        const float v = *it;
+        if (!(v > 0.0f && v > thr && std::isfinite(v))) continue;
+        if (m.span) {
+          if (!sl || !sl->isValueOn(it.pos())) continue;
+          const Observations o = unpack_obs(sl->getValue(it.pos()));
+          if (o.count < min_obs || o.hi - o.lo < min_span) continue;
+        }
+        const openvdb::Index n = it.pos();
+        b.mask[n >> 6] |= std::uint64_t{1} << (n & 63);
+        box.extend(Eigen::Vector3i(static_cast<int>(n >> 6), static_cast<int>((n >> 3) & 7),
+                                   static_cast<int>(n & 7)));
+      }
+      if (box.isEmpty()) return;
+      const Coord o = leaf.origin();
+      b.origin_index = {o.x(), o.y(), o.z()};
+      b.centre_world =
+          (Eigen::Vector3d(o.x(), o.y(), o.z()) + 0.5 * (box.min() + box.max()).cast<double>()) *
+          vs;
+      b.radius = 0.5 * (box.max() - box.min()).cast<double>().norm() * vs + 1e-5;
+      all[l] = b;
+      used[l] = 1;
+    });
+  });
+  std::vector<detail::CandidateBlock> blocks;
+  std::vector<std::size_t> leaf_of;
+  std::size_t candidates = 0;
+  for (std::size_t l = 0; l < all.size(); ++l) {
+    if (!used[l]) continue;
+    for (auto w : all[l].mask) candidates += static_cast<std::size_t>(__builtin_popcountll(w));
+    blocks.push_back(all[l]);
+    leaf_of.push_back(l);
+  }
+  all = {};
+  used = {};
+  m.stats.candidates = candidates;
+  m.stats.occlusion_bytes = blocks.capacity() * sizeof(detail::CandidateBlock) +
+                            blocks.size() * (3 * sizeof(detail::BlockMask) + sizeof(std::size_t));
+  const std::vector<detail::BlockMask> kept =
+      detail::resolve_occlusion_blocks(blocks, m.frames, m.spec, occ, progress);
+  PointCloud out;
+  for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+    const LeafT& leaf = leaves.leaf(leaf_of[bi]);
+    const Coord o = leaf.origin();
+    for (int w = 0; w < 8; ++w) {
+      for (std::uint64_t bits = kept[bi][w]; bits; bits &= bits - 1) {
+        const auto n = static_cast<openvdb::Index>(w * 64 + __builtin_ctzll(bits));
+        out.points.emplace_back(static_cast<float>((o.x() + static_cast<int>(n >> 6)) * vs),
+                                static_cast<float>((o.y() + static_cast<int>((n >> 3) & 7)) * vs),
+                                static_cast<float>((o.z() + static_cast<int>(n & 7)) * vs));
+        out.intensity.push_back(leaf.getValue(n));
+      }
+    }
+  }
   m.stats.occlusion_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   m.stats.points = out.size();
@@ -770,6 +842,13 @@ const CarveStats& Carver::stats() const {
   std::size_t fb = m.frames.capacity() * sizeof(FrameReturns);
   for (const auto& f : m.frames) fb += f.memory_bytes() - sizeof(FrameReturns);
   m.stats.frame_bytes = fb;
+  const TreeT& tree = m.grid->tree();
+  m.stats.active_voxels = static_cast<std::size_t>(tree.activeVoxelCount());
+  m.stats.leaves = static_cast<std::size_t>(tree.leafCount());
+  std::size_t cand = 0;
+  for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf)
+    for (auto it = leaf->cbeginValueOn(); it; ++it) cand += *it > 0.0f;
+  m.stats.candidate_voxels = cand;
   return m.stats;
 }
 

@@ -4,7 +4,9 @@
 // resolution (visibility.cpp); not installed.
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -314,5 +316,25 @@ inline Eigen::AlignedBox3d footprint_bounds_world(const SonarGeometry& g,
   box.max().array() += pad;
   return box;
 }
+
+// Candidates grouped by 8³ voxel block for occlusion resolution (sec. 4.4.5): the carver hands
+// its map's leaves over as they are, without making a point per candidate.
+using BlockMask = std::array<std::uint64_t, 8>;  // bit x << 6 | y << 3 | z of an 8³ block
+struct CandidateBlock {
+  // Index of the block's voxel (0, 0, 0); a voxel's world position is float(index · voxel_size),
+  // as Carver::snapshot() gives it.
+  std::array<int, 3> origin_index{};
+  Eigen::Vector3d centre_world = Eigen::Vector3d::Zero();  // centre of a ball holding them all
+  double radius = 0;                                       // m
+  BlockMask mask{};                                        // the candidates
+};
+// Occlusion resolution of blocks whose candidates lie at (origin_index + (x, y, z))·voxel_size
+// (config.voxel_size); returns per block the mask of the candidates kept (observed in a frame
+// and, with refute_free, never seen as free space). The same rule as resolve_occlusions().
+std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
+                                                const std::vector<FrameReturns>& frames,
+                                                const SonarSpec& spec,
+                                                const OcclusionConfig& config,
+                                                Progress* progress = nullptr);
 
 }  // namespace sonar3d::detail

@@ -7,7 +7,9 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
+#include <memory>
 #include <numeric>
 #include <string>
 
@@ -110,27 +112,14 @@ VoxelKey key_of(const Eigen::Vector3f& p, double inv_size) {
           static_cast<std::int64_t>(std::floor(p.z() * inv_size + 0.5))};
 }
 
-// Candidates grouped in cubes so that a frame skips, in one test, those that cannot lie in one
-// of its return pixels.
-struct Block {
-  Eigen::Vector3d centre_world;
-  double radius = 0;
-  std::size_t begin = 0, end = 0;  // into the sorted candidate index list
-};
-
 struct Hit {
-  std::uint32_t candidate;  // index into the deduplicated candidates
-  std::uint32_t cell;       // beam · K + elevation interval of the candidate's centre
-  std::int32_t bin;         // range bin
+  std::uint32_t block;  // index into the blocks
+  std::uint32_t bit;    // candidate inside the block (x << 6 | y << 3 | z)
+  std::uint32_t cell;   // beam · K + elevation interval of the candidate's centre
+  std::int32_t bin;     // range bin
 };
 
-}  // namespace
-
-PointCloud resolve_occlusions(const PointCloud& candidates_world,
-                              const std::vector<FrameReturns>& frames, const SonarSpec& spec,
-                              const OcclusionConfig& config, Progress* progress) {
-  config.validate();
-  spec.validate();
+void check_frames(const std::vector<FrameReturns>& frames, const SonarSpec& spec) {
   for (std::size_t f = 0; f < frames.size(); ++f) {
     const auto& fr = frames[f];
     if (fr.range_bins != spec.range_bins || fr.beams != spec.beams() ||
@@ -139,6 +128,200 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
                   " was summarized for another sonar (size differs from '" + spec.name + "')");
     }
   }
+}
+
+// The occlusion test (Fig. 4.7–4.8) over candidates grouped in blocks of up to 8³ (a block's
+// candidates are the set bits of its mask; `position(block, bit)` gives a candidate's world
+// position). Returns, per block, the mask of the candidates kept. Memory: the blocks' masks and
+// two flag masks per block (observed, refuted), shared by the frames through atomic ORs, plus one
+// frame's hits per thread: nothing per candidate beyond its bit.
+template <typename Position>
+std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::CandidateBlock>& blocks,
+                                              Position&& position,
+                                              const std::vector<FrameReturns>& frames,
+                                              const SonarSpec& spec, const OcclusionConfig& config,
+                                              Progress* progress) {
+  const detail::SonarGeometry g(spec);
+  const double dtheta = config.elevation_resolution_rad;
+  const int K = std::max(1, static_cast<int>(std::ceil(2 * g.theta3 / dtheta - 1e-9)));
+  const std::size_t cells = static_cast<std::size_t>(g.beams) * K;
+  const double h = config.footprint_radius * config.voxel_size;
+  const int tol = config.range_tolerance_bins;
+  const std::size_t nb = blocks.size();
+  std::unique_ptr<std::atomic<std::uint64_t>[]> observed(new std::atomic<std::uint64_t>[nb * 8]);
+  std::unique_ptr<std::atomic<std::uint64_t>[]> refuted(
+      new std::atomic<std::uint64_t>[config.refute_free ? nb * 8 : 1]);
+  for (std::size_t n = 0; n < nb * 8; ++n) observed[n].store(0, std::memory_order_relaxed);
+  for (std::size_t n = 0; n < (config.refute_free ? nb * 8 : 1); ++n)
+    refuted[n].store(0, std::memory_order_relaxed);
+  auto flag = [](std::atomic<std::uint64_t>* m, const Hit& hit) {
+    m[static_cast<std::size_t>(hit.block) * 8 + (hit.bit >> 6)].fetch_or(
+        std::uint64_t{1} << (hit.bit & 63), std::memory_order_relaxed);
+  };
+
+  struct Scratch {
+    std::vector<std::uint16_t> depth;  // nearest return-pixel candidate bin per (beam, interval)
+    std::vector<Hit> hits;
+    std::vector<Hit> empty_hits;  // candidates in empty pixels (refute_free)
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
+
+  // A frame's hits are buffered up to kMaxHits per list and thread (16 MB); past that, the
+  // blocks from the first one that did not fit are projected again after the depth grid is
+  // complete (a wide sonar over a large structure can put tens of millions of candidates in one
+  // frame's footprint). Flags are ORed, so a hit tested twice changes nothing.
+  constexpr std::size_t kMaxHits = std::size_t{1} << 20;
+  auto process_frame = [&](const FrameReturns& fr) {
+    Scratch& sc = scratch.local();
+    if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
+    std::fill(sc.depth.begin(), sc.depth.end(), std::uint16_t{0xFFFF});
+    sc.hits.clear();
+    sc.empty_hits.clear();
+    const detail::FrameFootprint fp(g, fr);
+    const double r_min2 = g.r_min * g.r_min, r_max2 = g.r_max * g.r_max;
+    auto interval = [&](double t) {
+      return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
+    };
+    auto skip_block = [&](const detail::CandidateBlock& b) {
+      const Eigen::Vector3d c_sonar = fp.to_sonar(b.centre_world);
+      return config.refute_free
+                 ? fp.classify(c_sonar, b.radius, b.radius).region == detail::Region::Outside
+                 : fp.no_return_possible(c_sonar, b.radius);
+    };
+    // Projects the candidates of block bi; on_return(hit, theta, phi, r, rho) for those in a
+    // return pixel, on_empty(hit) for those in an empty pixel of the footprint.
+    auto visit_block = [&](std::size_t bi, auto&& on_return, auto&& on_empty) {
+      const detail::CandidateBlock& b = blocks[bi];
+      for (int w = 0; w < 8; ++w) {
+        for (std::uint64_t bits = b.mask[w]; bits; bits &= bits - 1) {
+          const auto bit = static_cast<std::uint32_t>(w * 64 + __builtin_ctzll(bits));
+          const Eigen::Vector3d p = fp.to_sonar(position(bi, bit));
+          const double r2 = p.squaredNorm();
+          if (r2 < r_min2 || r2 >= r_max2) continue;
+          const double r = std::sqrt(r2);
+          const double s = p.z() / r;
+          if (std::abs(s) > g.sin_theta3) continue;
+          const double phi = detail::fast_atan2(p.y(), p.x());
+          if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
+          const int j = g.beam(phi);
+          const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
+          const double theta = g.elevation(s);
+          const int k = interval(theta);
+          const Hit hit{static_cast<std::uint32_t>(bi), bit, static_cast<std::uint32_t>(j * K + k),
+                        i};
+          if (!fr.has_return(i, j)) {  // the frame saw nothing here
+            on_empty(hit);
+            continue;
+          }
+          on_return(hit, theta, phi, r, std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9));
+        }
+      }
+    };
+    std::size_t overflow_from = nb;  // first block whose hits were not all buffered
+    for (std::size_t bi = 0; bi < nb; ++bi) {
+      if (skip_block(blocks[bi])) continue;
+      visit_block(
+          bi,
+          [&](const Hit& hit, double theta, double phi, double r, double rho) {
+            // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular
+            // footprint covers, for everything at a longer range.
+            const double a = h / r, bw = h / rho;
+            const int k0 = interval(theta - a), k1 = interval(theta + a);
+            const int j0 = g.beam(std::max(phi - bw, g.fov_min));
+            const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
+            const auto bin16 = static_cast<std::uint16_t>(hit.bin);
+            for (int jj = j0; jj <= j1; ++jj) {
+              std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
+              for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
+            }
+            if (overflow_from < nb) return;
+            if (sc.hits.size() < kMaxHits) {
+              sc.hits.push_back(hit);
+            } else {
+              overflow_from = bi;
+            }
+          },
+          [&](const Hit& hit) {
+            if (!config.refute_free || overflow_from < nb) return;
+            if (sc.empty_hits.size() < kMaxHits) {
+              sc.empty_hits.push_back(hit);
+            } else {
+              overflow_from = bi;
+            }
+          });
+    }
+    // Fig. 4.8: keep the front scatterers, those no nearer candidate shadows.
+    auto test_return = [&](const Hit& hit) {
+      if (hit.bin <= sc.depth[hit.cell] + tol) flag(observed.get(), hit);
+    };
+    // refute_free: nothing the frame returned lies nearer on this candidate's own line of sight,
+    // yet its pixel is empty: free space, not a shadow.
+    auto test_empty = [&](const Hit& hit) {
+      if (config.refute_free && hit.bin < sc.depth[hit.cell]) flag(refuted.get(), hit);
+    };
+    for (const Hit& hit : sc.hits) test_return(hit);
+    for (const Hit& hit : sc.empty_hits) test_empty(hit);
+    for (std::size_t bi = overflow_from; bi < nb; ++bi) {
+      if (skip_block(blocks[bi])) continue;
+      visit_block(
+          bi, [&](const Hit& hit, double, double, double, double) { test_return(hit); },
+          test_empty);
+    }
+    if (progress) progress->add();
+  };
+
+  std::unique_ptr<tbb::task_arena> arena = std::make_unique<tbb::task_arena>(
+      config.num_threads > 0 ? config.num_threads : static_cast<int>(tbb::task_arena::automatic));
+  arena->execute([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frames.size(), 1),
+                      [&](const tbb::blocked_range<std::size_t>& rg) {
+                        for (std::size_t f = rg.begin(); f < rg.end(); ++f)
+                          process_frame(frames[f]);
+                      });
+  });
+  std::vector<detail::BlockMask> kept(nb);
+  for (std::size_t bi = 0; bi < nb; ++bi) {
+    for (int w = 0; w < 8; ++w) {
+      std::uint64_t m = observed[bi * 8 + w].load(std::memory_order_relaxed);
+      if (config.refute_free) m &= ~refuted[bi * 8 + w].load(std::memory_order_relaxed);
+      kept[bi][w] = m & blocks[bi].mask[w];
+    }
+  }
+  return kept;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
+                                                const std::vector<FrameReturns>& frames,
+                                                const SonarSpec& spec,
+                                                const OcclusionConfig& config, Progress* progress) {
+  config.validate();
+  spec.validate();
+  check_frames(frames, spec);
+  const double vs = config.voxel_size;
+  return resolve_blocks(
+      blocks,
+      [&](std::size_t bi, std::uint32_t bit) {
+        const std::array<int, 3>& o = blocks[bi].origin_index;
+        auto at = [vs](int i) { return static_cast<double>(static_cast<float>(i * vs)); };
+        return Eigen::Vector3d(at(o[0] + static_cast<int>(bit >> 6)),
+                               at(o[1] + static_cast<int>((bit >> 3) & 7)),
+                               at(o[2] + static_cast<int>(bit & 7)));
+      },
+      frames, spec, config, progress);
+}
+
+}  // namespace detail
+
+PointCloud resolve_occlusions(const PointCloud& candidates_world,
+                              const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                              const OcclusionConfig& config, Progress* progress) {
+  config.validate();
+  spec.validate();
+  check_frames(frames, spec);
   const bool has_i = candidates_world.has_intensity();
   if (has_i && candidates_world.intensity.size() != candidates_world.size()) {
     throw Error("resolve_occlusions: the candidate cloud has " +
@@ -172,134 +355,51 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     return std::tie(a.bx, a.by, a.bz, a.in, a.v, a.idx) <
            std::tie(b.bx, b.by, b.bz, b.in, b.v, b.idx);
   });
-  std::vector<std::uint32_t> cand;  // candidate point indices, block-major, one per voxel
-  std::vector<Block> blocks;
-  cand.reserve(entries.size());
+  // Blocks of the candidates' voxels; a candidate's own position (not its voxel centre) is used.
+  std::vector<detail::CandidateBlock> blocks;
+  std::vector<std::uint32_t> index;  // point index of each (block, bit), block-major
+  std::vector<std::size_t> first;    // per block, its first entry in `index`
   for (std::size_t e = 0; e < entries.size();) {
-    Block b;
-    b.begin = cand.size();
+    detail::CandidateBlock b;
     Eigen::AlignedBox3d box;
+    first.push_back(index.size());
     std::size_t f = e;
     for (; f < entries.size() && entries[f].bx == entries[e].bx && entries[f].by == entries[e].by &&
            entries[f].bz == entries[e].bz;
          ++f) {
       if (f > e && entries[f].in == entries[f - 1].in) continue;  // same voxel: higher bound
-      cand.push_back(entries[f].idx);
+      b.mask[entries[f].in >> 6] |= std::uint64_t{1} << (entries[f].in & 63);
+      index.push_back(entries[f].idx);
       box.extend(candidates_world.points[entries[f].idx].cast<double>());
     }
-    b.end = cand.size();
     b.centre_world = box.center();
     b.radius = 0.5 * box.diagonal().norm() + 1e-6;
     blocks.push_back(b);
     e = f;
   }
   entries = {};
-  std::vector<std::uint32_t> order(cand.size());
-  std::iota(order.begin(), order.end(), 0u);
-
-  const detail::SonarGeometry g(spec);
-  const double dtheta = config.elevation_resolution_rad;
-  const int K = std::max(1, static_cast<int>(std::ceil(2 * g.theta3 / dtheta - 1e-9)));
-  const std::size_t cells = static_cast<std::size_t>(g.beams) * K;
-  const double h = config.footprint_radius * config.voxel_size;
-  const int tol = config.range_tolerance_bins;
-
-  struct Scratch {
-    std::vector<std::uint16_t> depth;  // nearest return-pixel candidate bin per (beam, interval)
-    std::vector<Hit> hits;
-    std::vector<Hit> empty_hits;  // candidates in empty pixels (refute_free)
-    std::vector<std::uint8_t> observed;
-    std::vector<std::uint8_t> refuted;
+  // (block, bit) -> rank among the block's bits -> point index.
+  auto point_index = [&](std::size_t bi, std::uint32_t bit) {
+    std::size_t rank = 0;
+    for (std::uint32_t w = 0; w < (bit >> 6); ++w)
+      rank += static_cast<std::size_t>(__builtin_popcountll(blocks[bi].mask[w]));
+    const std::uint64_t below =
+        (bit & 63) ? (blocks[bi].mask[bit >> 6] & ((std::uint64_t{1} << (bit & 63)) - 1)) : 0;
+    rank += static_cast<std::size_t>(__builtin_popcountll(below));
+    return index[first[bi] + rank];
   };
-  tbb::enumerable_thread_specific<Scratch> scratch;
+  const std::vector<detail::BlockMask> kept_masks = resolve_blocks(
+      blocks,
+      [&](std::size_t bi, std::uint32_t bit) {
+        return candidates_world.points[point_index(bi, bit)].cast<double>();
+      },
+      frames, spec, config, progress);
 
-  auto process_frame = [&](const FrameReturns& fr) {
-    Scratch& sc = scratch.local();
-    if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
-    if (sc.observed.size() != cand.size()) sc.observed.assign(cand.size(), 0);
-    if (config.refute_free && sc.refuted.size() != cand.size()) sc.refuted.assign(cand.size(), 0);
-    std::fill(sc.depth.begin(), sc.depth.end(), std::uint16_t{0xFFFF});
-    sc.hits.clear();
-    sc.empty_hits.clear();
-    const detail::FrameFootprint fp(g, fr);
-    const double r_min2 = g.r_min * g.r_min, r_max2 = g.r_max * g.r_max;
-    for (const Block& b : blocks) {
-      const Eigen::Vector3d c_sonar = fp.to_sonar(b.centre_world);
-      if (config.refute_free
-              ? fp.classify(c_sonar, b.radius, b.radius).region == detail::Region::Outside
-              : fp.no_return_possible(c_sonar, b.radius)) {
-        continue;
-      }
-      for (std::size_t m = b.begin; m < b.end; ++m) {
-        const std::uint32_t c = order[m];
-        const Eigen::Vector3d p = fp.to_sonar(candidates_world.points[cand[c]].cast<double>());
-        const double r2 = p.squaredNorm();
-        if (r2 < r_min2 || r2 >= r_max2) continue;
-        const double r = std::sqrt(r2);
-        const double s = p.z() / r;
-        if (std::abs(s) > g.sin_theta3) continue;
-        const double phi = detail::fast_atan2(p.y(), p.x());
-        if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
-        const int j = g.beam(phi);
-        const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
-        const double theta = g.elevation(s);
-        auto interval = [&](double t) {
-          return std::clamp(static_cast<int>((t + g.theta3) / dtheta), 0, K - 1);
-        };
-        const int k = interval(theta);
-        if (!fr.has_return(i, j)) {  // the frame saw nothing here
-          if (config.refute_free)
-            sc.empty_hits.push_back({c, static_cast<std::uint32_t>(j * K + k), i});
-          continue;
-        }
-        const double rho = std::max(std::sqrt(p.x() * p.x() + p.y() * p.y()), 1e-9);
-        // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular footprint
-        // covers, for everything at a longer range.
-        const double a = h / r, bw = h / rho;
-        const int k0 = interval(theta - a), k1 = interval(theta + a);
-        const int j0 = g.beam(std::max(phi - bw, g.fov_min));
-        const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
-        const auto bin16 = static_cast<std::uint16_t>(i);
-        for (int jj = j0; jj <= j1; ++jj) {
-          std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
-          for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
-        }
-        sc.hits.push_back({c, static_cast<std::uint32_t>(j * K + k), i});
-      }
-    }
-    // Fig. 4.8: keep the front scatterers, those no nearer candidate shadows.
-    for (const Hit& hit : sc.hits) {
-      if (hit.bin <= sc.depth[hit.cell] + tol) sc.observed[hit.candidate] = 1;
-    }
-    // refute_free: nothing the frame returned lies nearer on this candidate's own line of sight,
-    // yet its pixel is empty: free space, not a shadow.
-    for (const Hit& hit : sc.empty_hits) {
-      if (hit.bin < sc.depth[hit.cell]) sc.refuted[hit.candidate] = 1;
-    }
-    if (progress) progress->add();
-  };
-
-  std::unique_ptr<tbb::task_arena> arena = std::make_unique<tbb::task_arena>(
-      config.num_threads > 0 ? config.num_threads : static_cast<int>(tbb::task_arena::automatic));
-  arena->execute([&] {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frames.size(), 1),
-                      [&](const tbb::blocked_range<std::size_t>& rg) {
-                        for (std::size_t f = rg.begin(); f < rg.end(); ++f)
-                          process_frame(frames[f]);
-                      });
-  });
-
-  std::vector<std::uint8_t> observed(cand.size(), 0);
-  for (const Scratch& sc : scratch) {
-    for (std::size_t n = 0; n < sc.observed.size(); ++n) observed[n] |= sc.observed[n];
-  }
-  for (const Scratch& sc : scratch) {
-    for (std::size_t n = 0; n < sc.refuted.size(); ++n)
-      if (sc.refuted[n]) observed[n] = 0;
-  }
   std::vector<std::uint32_t> kept;
-  for (std::size_t n = 0; n < cand.size(); ++n)
-    if (observed[n]) kept.push_back(cand[n]);
+  for (std::size_t bi = 0; bi < blocks.size(); ++bi)
+    for (int w = 0; w < 8; ++w)
+      for (std::uint64_t bits = kept_masks[bi][w]; bits; bits &= bits - 1)
+        kept.push_back(point_index(bi, static_cast<std::uint32_t>(w * 64 + __builtin_ctzll(bits))));
   std::sort(kept.begin(), kept.end());  // input order: deterministic output
   PointCloud out;
   out.points.reserve(kept.size());

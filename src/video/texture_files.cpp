@@ -259,12 +259,16 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   }
   const TexturedCloud t = cloud_texturer->result();
   PointCloud out;
+  for (const auto& pr : cloud.properties) out.properties.push_back({pr.name, {}});
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const bool seen = t.views[i] > 0;
     r.coloured += seen ? 1 : 0;
     if (!seen && job.drop_uncoloured) continue;
     out.points.push_back(cloud.points[i]);
     if (cloud.has_intensity()) out.intensity.push_back(cloud.intensity[i]);
+    for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
+      out.properties[k].values.push_back(cloud.properties[k].values[i]);
+    }
     std::array<std::uint8_t, 3> c{0, 0, 0};
     if (seen) {
       for (int k = 0; k < 3; ++k) {

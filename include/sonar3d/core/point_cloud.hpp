@@ -1,5 +1,7 @@
 #pragma once
-// A point cloud in one frame (normally world) with an optional per-point intensity and colour.
+// A point cloud in one frame (normally world) with an optional per-point intensity, an optional
+// colour and optional named per-point scalars (e.g. the reconstruction's elevation bracketing,
+// recon/bracketing.hpp).
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -8,12 +10,26 @@
 
 namespace sonar3d {
 
+// A named per-point scalar, written as a PLY vertex property `float <name>`.
+struct PointProperty {
+  std::string name;
+  std::vector<float> values;  // one per point
+};
+
 struct PointCloud {
   std::vector<Eigen::Vector3f> points;
-  std::vector<float> intensity;  // empty, or one per point
+  std::vector<float> intensity;           // empty, or one per point
+  std::vector<PointProperty> properties;  // extra per-point scalars, each one per point
   // Empty, or one per point: 8-bit sRGB-encoded red, green, blue, as PLY viewers display them
   // (PLY properties `red green blue`, uchar).
   std::vector<std::array<std::uint8_t, 3>> color;
+
+  // The property named `name`, or nullptr.
+  const PointProperty* property(const std::string& name) const {
+    for (const auto& p : properties)
+      if (p.name == name) return &p;
+    return nullptr;
+  }
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }
@@ -23,10 +39,10 @@ struct PointCloud {
 
 enum class PlyFormat { Binary, Ascii };
 
-// PLY with x y z [intensity] [red green blue] vertex properties (coordinates float or double;
-// colours uchar; colours of other types are skipped). Reading accepts ascii and binary_little_endian;
-// extra vertex properties are skipped. Errors name the file and the
-// header line or vertex at fault.
+// PLY with x y z [intensity] [red green blue] [properties...] vertex properties (coordinates
+// float or double; colours uchar). Reading accepts ascii and binary_little_endian; other vertex
+// properties (also colours of other types than uchar) are read into `properties`. Errors name the
+// file and the header line or vertex at fault.
 PointCloud read_ply(const std::string& path);
 // The same, also returning the faces' vertex index lists (element `face`, list property
 // `vertex_indices` or `vertex_index`); every index is checked against the vertex count. Used to

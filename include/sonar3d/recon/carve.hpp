@@ -85,6 +85,12 @@ struct CarveStats {
   double views_per_scatterer =
       0;  // median frames seeing a mid-range boresight point (0: < 2 frames)
   int min_observations_used = 0;  // the observation filter the last snapshot/finalize applied
+  // Map contents (refreshed by stats()): voxels known (active), of which candidates (value > 0),
+  // and leaves (8³ voxel blocks stored densely).
+  std::size_t active_voxels = 0;
+  std::size_t candidate_voxels = 0;
+  std::size_t leaves = 0;
+  std::size_t occlusion_bytes = 0;  // working memory of the last finalize()'s occlusion resolution
 };
 
 class Carver {

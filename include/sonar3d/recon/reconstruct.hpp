@@ -7,6 +7,7 @@
 
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/deconvolve.hpp"
 
@@ -23,6 +24,10 @@ struct ReconstructOptions {
   // seabed). Carving maps only the voxels inside it (it replaces CarveConfig::region); the other
   // methods reconstruct as usual and keep the points inside it.
   std::optional<Eigen::AlignedBox3d> region;
+  // Every method's points get the properties "bracket" and "views" (recon/bracketing.hpp); the
+  // report gains "bracketing" (never-bracketed share of the region, passes that stop short) and
+  // the notes a warning per short pass. bracket.min_bracket > 0 drops unbracketed points.
+  BracketConfig bracket;
   bool progress = false;  // terminal bars (and a ScopedProgressCallback, core/progress.hpp)
   int num_threads = 0;    // 0 = all cores; overrides the method configs' thread counts
 };
@@ -30,7 +35,9 @@ struct ReconstructOptions {
 // The same result whatever the method (the Python carve(), deconvolve() and reconstruct() all
 // return it).
 struct ReconstructResult {
-  PointCloud cloud;    // world frame; intensity: carved reflectivity bound or deconvolved layer b
+  // world frame; intensity: carved reflectivity bound or deconvolved layer b; properties
+  // "bracket" and "views" (recon/bracketing.hpp)
+  PointCloud cloud;
   std::string method;  // the method that ran
   double seconds = 0;
   std::string notes;  // warnings the method reported (e.g. a pass that is not straight)

@@ -1,0 +1,54 @@
+#pragma once
+// Trimmed ICP (Masuda et al. 1996, as the thesis uses it in sec. 6.3.2.5): the full 6D pose of a
+// model from scene points, each iteration keeping only the closest fraction of correspondences,
+// so that seabed, clutter and marine growth beyond the model do not pull it.
+#include <Eigen/Geometry>
+#include <memory>
+#include <vector>
+
+namespace sonar3d {
+
+struct TrimmedIcpConfig {
+  int max_iterations = 60;
+  double max_distance_m = 0.15;          // correspondences farther than this are never used, m
+  double keep_fraction = 0.8;            // trimming: the closest fraction of correspondences kept
+  bool point_to_plane = true;            // residual along the model normal (else point to point)
+  double converged_m = 1e-5;             // stop when an update moves points less than this, m
+  std::size_t max_scene_points = 30000;  // scene points used (a uniform stride beyond)
+  void validate() const;
+};
+
+struct IcpResult {
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  int iterations = 0;
+  bool converged = false;
+  std::size_t used = 0;  // correspondences kept at the last iteration
+  double rms_m = 0;      // RMS distance of those, m
+};
+
+// Nearest-neighbour index over a model's surface samples (nanoflann KD-tree).
+class ModelIndex {
+ public:
+  ModelIndex(std::vector<Eigen::Vector3f> points, std::vector<Eigen::Vector3f> normals);
+  ~ModelIndex();
+  ModelIndex(const ModelIndex&) = delete;
+  ModelIndex& operator=(const ModelIndex&) = delete;
+  // Nearest sample to p (model frame): its index and squared distance.
+  std::size_t nearest(const Eigen::Vector3f& p, float* dist2) const;
+  const std::vector<Eigen::Vector3f>& points() const;
+  const std::vector<Eigen::Vector3f>& normals() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Registers `model` onto `scene_world` from `T_init`: per iteration, each scene point's nearest
+// model sample (within max_distance), the closest keep_fraction of them kept (trimmed), then the
+// rigid update minimising the point-to-plane (or point-to-point) distances, solved in closed
+// form (linearised rotation, 6×6 normal equations). Throws Error when no correspondence is
+// within max_distance at the start.
+IcpResult trimmed_icp(const ModelIndex& model, const std::vector<Eigen::Vector3f>& scene_world,
+                      const Eigen::Isometry3d& T_init, const TrimmedIcpConfig& config);
+
+}  // namespace sonar3d

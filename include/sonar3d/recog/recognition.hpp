@@ -1,0 +1,171 @@
+#pragma once
+// CAD-model recognition in a reconstructed field and 6D registration (thesis sec. 6.3.2): the
+// 2D elevation-map method. Per model, in decreasing size (sec. 6.3.2.6): scan the field's
+// elevation map for the patch whose ring descriptor is nearest the model's (sec. 6.3.2.3–
+// 6.3.2.4), register the model there by an exhaustive 4D search over (East, North, height, yaw)
+// (eq. 6.9), refine the full 6D pose by trimmed ICP (sec. 6.3.2.5), accept or reject the
+// placement on its residual and support, and remove the placed model's area before the next
+// search.
+//
+// Frames: local ENU world (x East, y North, z up); the thesis' (North, East, Depth) are
+// (y, x, −z). Placements are T_world_model.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/recog/descriptor.hpp"
+#include "sonar3d/recog/icp.hpp"
+#include "sonar3d/recog/model.hpp"
+
+namespace sonar3d {
+
+struct Search4dConfig {
+  double yaw_step_deg = 5;  // the thesis' 5° steps
+  // Half-width of the searched shifts around the patch centre, m; 0: √2/2·T_NE + 2 cells (the
+  // farthest the structure's centre can be from the nearest patch centre, eq. 6.8, plus slack)
+  // + search_radius_fraction · r_model. Beyond the thesis: the winning patch is sometimes
+  // centred on a part of the structure (a riser's buoyancy, 0.8 m from its centre), which the
+  // thesis' window cannot reach.
+  double search_m = 0;
+  double search_radius_fraction = 0.5;
+  // Second pass at this finer cell size around the winner (yaw ± one step, every
+  // refine_yaw_step_deg; shifts ± 1.5 coarse cells, sub-cell); 0: none.
+  double refine_cell_m = 0.02;
+  double refine_yaw_step_deg = 1;
+  // The model's top view compared: its footprint and a ring this many cells wide of its base
+  // height around it (a flat top must not match any flat seabed).
+  int background_ring_cells = 1;
+  void validate() const;
+};
+
+struct Search4dResult {
+  bool found = false;
+  double yaw_rad = 0;
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  double rms_m = 0;  // eq. 6.9 at the winner, divided by √(cells): the RMS height difference
+  std::size_t overlap_cells = 0;
+  int yaws_tried = 0;
+  double seconds = 0;
+};
+
+// Eq. 6.9: for each yaw θ in the symmetry's range, the model's top view is registered onto the
+// scene map around `center_xy` by the swath registration's exhaustive shift search
+// (register_elevation_maps: every cell shift, ζ by the signed median of eq. 6.1); the yaw whose
+// best shift leaves the lowest ||Z_model − Z_map + ζ||_2 (per cell) wins. `removed`: scene cells
+// to ignore (same size as `scene`, or empty). `fine` (may be empty): the scene at
+// refine_cell_m for the second pass.
+Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,
+                         const ElevationMap& fine, const Eigen::Vector2d& center_xy,
+                         double period_m, const Search4dConfig& config);
+
+// What a placement leaves between the scene and the placed mesh (Table 6.1): distances from the
+// scene points that lie over the model (inside its oriented bounding box grown by `margin_m`
+// horizontally, from `above_base_m` over its base to margin_m over its top) to the mesh. The
+// recognition passes only points above the local seabed (RecognitionConfig::ground_clearance_m).
+struct Residual {
+  std::size_t points = 0;
+  double median_m = 0, mean_m = 0;
+};
+Residual structure_residual(const std::vector<Eigen::Vector3f>& scene_world,
+                            const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                            double margin_m = 0.05, double above_base_m = 0.05);
+
+struct RecognitionConfig {
+  double map_cell_m = 0.02;    // the field's elevation map (registration, support), m
+  double recog_cell_m = 0.08;  // Δ_NE of the descriptor scan and the 4D search (the thesis' 8 cm)
+  DescriptorConfig descriptor;
+  ScanConfig scan;
+  Search4dConfig search;
+  TrimmedIcpConfig icp;
+  ModelSamplingConfig sampling;
+  bool run_icp = true;
+  // Acceptance of a placement ("found"):
+  // Descriptor score (norm of the ring EMDs) at most this times the model's height: the EMDs
+  // scale with the heights moved. A loose filter: occlusion shadows beside tall structures raise
+  // the true patch's score (a 2.5 m pillar surveyed from 4 m scored 0.71 × its height), so the
+  // decision rests on the registration (residual, support).
+  double max_relative_score = 1.0;
+  // Structure residual median at most this, m: a sanity bound only. Carved thin parts (tubes,
+  // buoyancies) leave 5-7 cm at the true pose, while a model pressed into flat seabed leaves under
+  // 1 cm: the residual does not tell right from wrong, the support does (docs/recognition.md).
+  double max_residual_median_m = 0.1;
+  // Support: over the model's relief cells (footprint cells > 10 cm above the local ground), each
+  // weighing its height above the ground, the fraction of the observed weight where the map
+  // agrees with the placed model within support_tol_m (min_support); and the fraction of the
+  // weight observed at all (min_observed).
+  double min_support = 0.35;
+  double support_tol_m = 0.06;
+  double min_observed = 0.15;
+  // At most this fraction of the model's height may lie below the local seabed (half-buried
+  // structures are found; a sphere sunk to a cap looks like any rock).
+  double max_buried_fraction = 0.5;
+  // Trimmed ICP corrects small pitch and roll offsets (sec. 6.3.2.5): a result tilting the model
+  // more than this from upright, or moving it farther than max_icp_shift_m from the 4D placement,
+  // has slid onto something else (a tank laid along a pipeline); the 4D placement is kept.
+  double max_tilt_deg = 10;
+  double max_icp_shift_m = 0.2;
+  int max_instances = 20;         // per model whose count is not given
+  int max_rejections = 3;         // rejected candidates per model before giving up
+  double removal_margin_m = 0.1;  // area removed around a placed model's footprint
+  // Scene points used by ICP and the residuals: those higher than the local seabed (median
+  // scene height around the footprint) plus this, m.
+  double ground_clearance_m = 0.05;
+  int num_threads = 0;  // 0 = all cores
+  void validate() const;
+};
+
+struct Placement {
+  std::string model;
+  std::string method = "2d";
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  double score_m = 0;  // descriptor score of the winning patch
+  Residual residual;   // after the last step
+  double support = 0;
+  double observed = 0;  // height-weighted fraction of the relief observed
+  double ground_z = 0;  // local seabed height around the footprint (world z), m
+  // Step 1 (4D search) alone, for Table 6.1.
+  Eigen::Isometry3d T_world_model_4d = Eigen::Isometry3d::Identity();
+  Residual residual_4d;
+  double rms_4d_m = 0;
+  int icp_iterations = 0;
+  bool icp_kept = false;  // whether the ICP result was kept (see max_tilt_deg)
+  double seconds_scan = 0, seconds_registration = 0, seconds = 0;
+};
+
+// Every search, accepted or not, for the log and the measurements.
+struct SearchRecord {
+  std::string model;
+  bool accepted = false;
+  std::string reason;  // why rejected (empty when accepted)
+  ScanResult scan;
+  Placement placement;  // filled when the search went as far as registration
+};
+
+struct RecognitionResult {
+  std::vector<Placement> placements;
+  std::vector<SearchRecord> searches;
+  int map_rows = 0, map_cols = 0;  // the recognition map
+  std::size_t scene_points = 0;
+  double seconds_maps = 0, seconds = 0;
+};
+
+// The whole 2D method on a world-frame cloud. Models larger than the map are an Error naming
+// them; an empty catalogue or cloud is an Error.
+RecognitionResult recognize_2d(const PointCloud& scene_world,
+                               const std::vector<ModelTemplate>& models,
+                               const RecognitionConfig& config, bool progress = false);
+
+// The placed models as one mesh (world frame).
+TriangleMesh placed_models_mesh(const std::vector<ModelTemplate>& models,
+                                const std::vector<Placement>& placements);
+
+// Placements as JSON (docs/recognition.md): per placement the model, T_world_model (4×4,
+// row-major), translation, roll/pitch/yaw in degrees, score, residual median and mean, support,
+// step-1 values, method and times.
+std::string placements_json(const RecognitionResult& result, const std::string& map_source,
+                            const std::string& catalogue_source, const RecognitionConfig& config);
+
+}  // namespace sonar3d

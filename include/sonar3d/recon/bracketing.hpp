@@ -1,0 +1,103 @@
+#pragma once
+// How well a reconstruction knows each point's elevation (beyond the thesis).
+//
+// A sonar return fixes range and bearing but not elevation: the scatterer lies somewhere on an arc
+// across the vertical aperture (thesis sec. 2.2, Fig. 4.4). Carving localises it with the
+// min-filter of eq. 4.6 and the free space of Fig. 4.5, deconvolution with the layer model of
+// eq. 5.25–5.28; both only where frames saw the point from both sides of its elevation — some from
+// above (the point below their image plane, θ < 0) and some from below (θ > 0). Where a pass
+// stops, the space beyond its last frames is seen from one side only and the returns' arcs stay
+// there as ghosts (docs/experiments.md: passes must run 2·r·tan(A_v/2) past the object).
+//
+// For a world point p and the frames whose field of view holds it, with θ_k its elevation in
+// frame k and s_k = sin θ_k / sin θ_3dB in [-1, 1]:
+//   views   = the number of such frames,
+//   bracket = min(max(0, −min_k s_k), max(0, max_k s_k)) in [0, 1]: 1 = seen at both edges of
+//             the aperture, 0 = every frame saw it on the same side (never bracketed).
+// assess_bracketing() attaches both as point properties ("bracket", "views": PLY vertex
+// properties), measures the share of the observed region that is not bracketed, and, for each
+// pass that sweeps the elevation (motion along the sonar's z), says how far it should have
+// continued past the surface it saw (2·r·tan(A_v/2), r the surface's distance from the pass).
+// Only poses and the sensor geometry are used, so it works for every method and trajectory.
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/sonar_spec.hpp"
+
+namespace sonar3d {
+
+class Progress;
+
+struct BracketConfig {
+  // Drop output points whose bracket is below this (0 = keep all). A ghost arc beyond the end of
+  // a pass is seen from one side only; a surface the pass covered is seen from both.
+  double min_bracket = 0.0;
+  // A point (or region sample) counts as bracketed when its bracket is >= this; the summary
+  // reports the share of the observed region below it.
+  double bracketed_level = 0.5;
+  // The pass-end rule: the extreme surface of a pass is the farthest point some frame of the pass
+  // saw at |s| >= end_view_fraction on the other side; ghosts beyond a short pass are seen there
+  // at most from the pass' last frames, so they do not move it far.
+  double end_view_fraction = 0.9;
+  // Warn when a pass stops short of the rule by more than this fraction of 2·r·tan(A_v/2).
+  double end_tolerance = 0.05;
+  // Region samples for the never-bracketed share (a regular grid over the region).
+  int region_samples = 200000;
+  int num_threads = 0;    // 0 = all cores
+  void validate() const;  // throws Error naming the field
+};
+
+// One end of one elevation-sweeping pass that stops short of the rule.
+struct PassExtension {
+  std::size_t pass = 0;                         // index among the dataset's passes
+  std::size_t first_frame = 0, last_frame = 0;  // frame indices (inclusive), recording order
+  bool upper = true;        // true: the end toward the sonar's +z (up for a level sonar)
+  double range = 0;         // m, distance of the extreme surface from the pass axis
+  double rule = 0;          // m, 2·r·tan(A_v/2)
+  double past_surface = 0;  // m, how far the pass went past the extreme surface it saw
+  double extend = 0;        // m, rule − past_surface: how much farther the pass should go
+  // True when the pass ends too close to the surface to tell how far the surface goes (it saw
+  // the surface from beyond at less than end_view_fraction of the aperture): `extend` is then a
+  // lower bound (at least 1.1·r·tan(A_v/2) with the default fraction).
+  bool lower_bound = false;
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();  // world: the way to extend
+  std::string message() const;
+};
+
+struct BracketReport {
+  std::size_t points = 0;                     // points assessed
+  std::size_t kept = 0;                       // after min_bracket
+  std::size_t region_samples = 0;             // samples of the region seen by at least one frame
+  double sample_step = 0;                     // m, spacing of the region samples
+  double unbracketed_share = 0;               // of those: bracket < bracketed_level
+  double never_bracketed_share = 0;           // of those: bracket == 0
+  double median_bracket = 0;                  // over the points (before min_bracket)
+  std::optional<Eigen::AlignedBox3d> region;  // what the shares were measured over
+  std::size_t passes = 0;                     // passes that sweep the elevation
+  std::vector<PassExtension> extensions;      // passes that stop short
+  double seconds = 0;                         // wall time of assess_bracketing()
+  std::vector<std::string> warnings() const;  // one line per extension
+  std::string to_json() const;                // a JSON object
+};
+
+// Bracket and views of arbitrary world points under frames at T_world_sonar (spec's geometry).
+struct PointBracket {
+  float bracket = 0;
+  int views = 0;
+};
+std::vector<PointBracket> bracket_points(const std::vector<Eigen::Vector3f>& points_world,
+                                         const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                                         const SonarSpec& spec, int num_threads = 0);
+
+// Attaches the properties "bracket" and "views" to `cloud` (world frame), drops the points below
+// config.min_bracket, and measures the region (`region`, or the cloud's bounding box) and the
+// passes. Throws Error on an invalid config or spec.
+BracketReport assess_bracketing(PointCloud& cloud,
+                                const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                                const SonarSpec& spec, const BracketConfig& config,
+                                const std::optional<Eigen::AlignedBox3d>& region = std::nullopt);
+
+}  // namespace sonar3d

@@ -1,0 +1,720 @@
+// The 2D recognition method (thesis sec. 6.3.2): scan, 4D search (eq. 6.9), trimmed ICP,
+// acceptance, area removal.
+#include "sonar3d/recog/recognition.hpp"
+
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <optional>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/mapping/swath_registration.hpp"
+
+namespace sonar3d {
+
+namespace {
+constexpr double kDeg = M_PI / 180.0;
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// The block of `map` covering the square of half-width `half_m` about `center` (corners on the
+// map's grid), removed cells as no data.
+ElevationMap crop(const ElevationMap& map, const std::vector<uint8_t>& removed,
+                  const Eigen::Vector2d& center, double half_m) {
+  const double c = map.cell_m;
+  const int c0 =
+      std::max(0, static_cast<int>(std::floor((center.x() - half_m - map.origin_xy.x()) / c)));
+  const int c1 = std::min(
+      map.cols, static_cast<int>(std::ceil((center.x() + half_m - map.origin_xy.x()) / c)));
+  const int r0 =
+      std::max(0, static_cast<int>(std::floor((map.origin_xy.y() - center.y() - half_m) / c)));
+  const int r1 = std::min(
+      map.rows, static_cast<int>(std::ceil((map.origin_xy.y() - center.y() + half_m) / c)));
+  ElevationMap out;
+  out.cell_m = c;
+  if (c1 <= c0 || r1 <= r0) return out;
+  out.rows = r1 - r0;
+  out.cols = c1 - c0;
+  out.origin_xy = {map.origin_xy.x() + c0 * c, map.origin_xy.y() - r0 * c};
+  out.z.resize(static_cast<std::size_t>(out.rows) * out.cols);
+  for (int r = 0; r < out.rows; ++r) {
+    for (int col = 0; col < out.cols; ++col) {
+      const std::size_t i = map.index(r + r0, col + c0);
+      out.at(r, col) = (!removed.empty() && removed[i]) ? ElevationMap::kNoData : map.z[i];
+    }
+  }
+  return out;
+}
+
+struct Fit {
+  double rms = std::numeric_limits<double>::infinity();
+  std::size_t overlap = 0;
+};
+
+// Eq. 6.9 at one placement: ||Z_model + ζ − Z_map|| over the cells defined in both, per cell.
+// The model map's cells moved by (dx, dy) land on the nearest scene cell.
+Fit fit_at(const ElevationMap& scene, const ElevationMap& model_map, const Eigen::Vector3d& t) {
+  Fit f;
+  double sum2 = 0;
+  std::size_t n = 0;
+  for (int r = 0; r < model_map.rows; ++r) {
+    for (int c = 0; c < model_map.cols; ++c) {
+      const float zm = model_map.at(r, c);
+      if (zm != zm) continue;
+      const Eigen::Vector2d p = model_map.cell_center_xy(r, c) + t.head<2>();
+      const int sc = static_cast<int>(std::floor((p.x() - scene.origin_xy.x()) / scene.cell_m));
+      const int sr = static_cast<int>(std::floor((scene.origin_xy.y() - p.y()) / scene.cell_m));
+      if (sr < 0 || sc < 0 || sr >= scene.rows || sc >= scene.cols) continue;
+      const float zs = scene.at(sr, sc);
+      if (zs != zs) continue;
+      const double d = zm + t.z() - zs;
+      sum2 += d * d;
+      ++n;
+    }
+  }
+  if (n > 0) f.rms = std::sqrt(sum2 / static_cast<double>(n));
+  f.overlap = n;
+  return f;
+}
+
+struct YawTrial {
+  double yaw = 0;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  Fit fit;
+};
+
+// One pass of eq. 6.9 over `yaws` at the scene's cell size.
+YawTrial best_yaw(const ModelTemplate& model, const ElevationMap& scene,
+                  const Eigen::Vector2d& center, const std::vector<double>& yaws, double search_m,
+                  const Search4dConfig& config, bool subcell) {
+  const double c = scene.cell_m;
+  TopViewConfig tv;
+  tv.cell_m = c;
+  // A ring of `background_ring_cells` cells of the base height around the footprint: enough to
+  // keep a flat top off flat seabed, few enough that the structure's cells stay the majority
+  // (eq. 6.2's median would otherwise follow the seabed).
+  const double ring = config.background_ring_cells * c;
+  tv.background_radius_m = model.radius_m + ring;
+  tv.background_ring_m = ring;
+  tv.grid_anchor_xy = scene.origin_xy;
+  // The model is centred on a cell corner of the scene grid.
+  const Eigen::Vector2d snapped(
+      scene.origin_xy.x() + std::round((center.x() - scene.origin_xy.x()) / c) * c,
+      scene.origin_xy.y() + std::round((center.y() - scene.origin_xy.y()) / c) * c);
+  const ElevationMap ref = crop(scene, {}, snapped, tv.background_radius_m + search_m + 2 * c);
+  std::vector<YawTrial> trials(yaws.size());
+  tbb::parallel_for(std::size_t(0), yaws.size(), [&](std::size_t k) {
+    trials[k].yaw = yaws[k];
+    if (ref.empty()) return;
+    const ElevationMap mm = render_top_view(model, yaws[k], snapped, tv);
+    const std::size_t cells = mm.num_valid();
+    SwathRegistrationConfig rc;
+    rc.search_m = search_m;
+    rc.min_overlap_cells = std::max<int>(1, static_cast<int>(0.5 * static_cast<double>(cells)));
+    rc.subcell = subcell;
+    rc.num_threads = 0;
+    try {
+      // Eq. 6.1 (ζ) and the exhaustive shift search, reused from swath registration.
+      const SwathTie tie = register_elevation_maps(ref, mm, rc);
+      trials[k].t = tie.t;
+      trials[k].fit = fit_at(ref, mm, tie.t);
+    } catch (const Error&) {
+      // Too little of the scene under the model at every shift: this yaw cannot be judged.
+    }
+  });
+  YawTrial best;
+  for (auto& t : trials) {
+    if (t.fit.rms < best.fit.rms) best = t;
+  }
+  best.t.head<2>() += snapped - center;  // relative to `center`
+  return best;
+}
+
+std::vector<double> yaw_range(Symmetry s, double step) {
+  const double span = s == Symmetry::None ? 2 * M_PI : s == Symmetry::Half ? M_PI : 0;
+  std::vector<double> out{0};
+  for (double y = step; y < span - 1e-9; y += step) out.push_back(y);
+  return out;
+}
+
+}  // namespace
+
+void Search4dConfig::validate() const {
+  require(yaw_step_deg > 0 && yaw_step_deg <= 180, "4D search yaw_step_deg must lie in (0, 180]");
+  require_non_negative(search_m, "4D search search_m", "m");
+  require(search_radius_fraction >= 0 && search_radius_fraction <= 2,
+          "4D search search_radius_fraction must lie in [0, 2]");
+  require_non_negative(refine_cell_m, "4D search refine_cell_m", "m");
+  require(refine_yaw_step_deg > 0 && refine_yaw_step_deg <= yaw_step_deg,
+          "4D search refine_yaw_step_deg must lie in (0, yaw_step_deg]");
+  require(background_ring_cells >= 0 && background_ring_cells <= 100,
+          "4D search background_ring_cells must lie in 0-100");
+}
+
+void RecognitionConfig::validate() const {
+  require_positive(map_cell_m, "map_cell_m", "m");
+  require_positive(recog_cell_m, "recog_cell_m", "m");
+  require(recog_cell_m >= map_cell_m, "recog_cell_m must be >= map_cell_m");
+  descriptor.validate();
+  scan.validate();
+  search.validate();
+  icp.validate();
+  sampling.validate();
+  require_positive(max_relative_score, "max_relative_score");
+  require_positive(max_residual_median_m, "max_residual_median_m", "m");
+  require(min_support >= 0 && min_support <= 1, "min_support must lie in [0, 1]");
+  require_positive(support_tol_m, "support_tol_m", "m");
+  require(min_observed >= 0 && min_observed <= 1, "min_observed must lie in [0, 1]");
+  require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
+          "max_instances must lie in [1, " + std::to_string(kMaxExpectedInstances) + "]");
+  require(max_rejections >= 1 && max_rejections <= 100, "max_rejections must lie in [1, 100]");
+  require_non_negative(removal_margin_m, "removal_margin_m", "m");
+  require_non_negative(ground_clearance_m, "ground_clearance_m", "m");
+  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
+          "max_buried_fraction must lie in [0, 1]");
+  require(max_tilt_deg >= 0 && max_tilt_deg <= 180, "max_tilt_deg must lie in [0, 180]");
+  require_non_negative(max_icp_shift_m, "max_icp_shift_m", "m");
+  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+}
+
+Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,
+                         const ElevationMap& fine, const Eigen::Vector2d& center_xy,
+                         double period_m, const Search4dConfig& config) {
+  config.validate();
+  require(!scene.empty(), "4D search: the scene map is empty");
+  const auto start = Clock::now();
+  const double step = config.yaw_step_deg * kDeg;
+  const std::vector<double> yaws = yaw_range(model.symmetry, step);
+  const double search = config.search_m > 0 ? config.search_m
+                                            : std::sqrt(0.5) * period_m + 2 * scene.cell_m +
+                                                  config.search_radius_fraction * model.radius_m;
+  Search4dResult out;
+  YawTrial best = best_yaw(model, scene, center_xy, yaws, search, config, false);
+  out.yaws_tried = static_cast<int>(yaws.size());
+  if (!std::isfinite(best.fit.rms)) {
+    out.seconds = since(start);
+    return out;
+  }
+  if (config.refine_cell_m > 0 && !fine.empty() && fine.cell_m < scene.cell_m) {
+    std::vector<double> fine_yaws;
+    const double fs = config.refine_yaw_step_deg * kDeg;
+    const double half = model.symmetry == Symmetry::Full ? 0 : step;
+    for (double d = -half; d <= half + 1e-9; d += fs) fine_yaws.push_back(best.yaw + d);
+    const Eigen::Vector2d c2 = center_xy + best.t.head<2>();
+    YawTrial b2 = best_yaw(model, fine, c2, fine_yaws, 1.5 * scene.cell_m, config, true);
+    out.yaws_tried += static_cast<int>(fine_yaws.size());
+    if (std::isfinite(b2.fit.rms)) {
+      b2.t.head<2>() += c2 - center_xy;
+      best = b2;
+    }
+  }
+  out.found = true;
+  out.yaw_rad = std::remainder(best.yaw, 2 * M_PI);
+  out.T_world_model = top_view_pose(model, best.yaw, center_xy, best.t);
+  out.rms_m = best.fit.rms;
+  out.overlap_cells = best.fit.overlap;
+  out.seconds = since(start);
+  return out;
+}
+
+Residual structure_residual(const std::vector<Eigen::Vector3f>& scene_world,
+                            const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                            double margin_m, double above_base_m) {
+  const Eigen::AlignedBox3f box = model.mesh.bounding_box();
+  const Eigen::Isometry3f T_model_world = T_world_model.inverse().cast<float>();
+  const float m = static_cast<float>(margin_m);
+  std::vector<Eigen::Vector3f> over;
+  for (const auto& p : scene_world) {
+    const Eigen::Vector3f q = T_model_world * p;
+    if (q.x() < box.min().x() - m || q.x() > box.max().x() + m || q.y() < box.min().y() - m ||
+        q.y() > box.max().y() + m || q.z() < box.min().z() + above_base_m ||
+        q.z() > box.max().z() + m) {
+      continue;
+    }
+    over.push_back(p);
+  }
+  Residual r;
+  r.points = over.size();
+  if (over.empty()) {
+    r.median_m = r.mean_m = std::numeric_limits<double>::quiet_NaN();
+    return r;
+  }
+  TriangleMesh placed = model.mesh;
+  placed.transform(T_world_model);
+  const MeshDistance dist(placed);
+  std::vector<double> d = dist.distances(over);
+  r.mean_m = std::accumulate(d.begin(), d.end(), 0.0) / static_cast<double>(d.size());
+  const auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+  std::nth_element(d.begin(), mid, d.end());
+  r.median_m = *mid;
+  return r;
+}
+
+namespace {
+
+// Scene points bucketed by the cells of a grid (CSR), to fetch the points near a placement.
+struct PointGrid {
+  ElevationMap grid;  // geometry only
+  std::vector<std::size_t> start;
+  std::vector<uint32_t> index;
+  void build(const PointCloud& cloud, const ElevationMap& g) {
+    grid = g;
+    grid.z.clear();
+    start.assign(static_cast<std::size_t>(g.rows) * g.cols + 1, 0);
+    std::vector<std::size_t> cell(cloud.size(), SIZE_MAX);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      const auto& p = cloud.points[i];
+      const int c = static_cast<int>(std::floor((p.x() - g.origin_xy.x()) / g.cell_m));
+      const int r = static_cast<int>(std::floor((g.origin_xy.y() - p.y()) / g.cell_m));
+      if (r < 0 || c < 0 || r >= g.rows || c >= g.cols) continue;
+      cell[i] = g.index(r, c);
+      ++start[cell[i] + 1];
+    }
+    for (std::size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+    index.resize(start.back());
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      if (cell[i] != SIZE_MAX) index[fill[cell[i]]++] = static_cast<uint32_t>(i);
+    }
+  }
+  // Points within the square of half-width h about (x, y), skipping removed cells.
+  std::vector<Eigen::Vector3f> near(const PointCloud& cloud, const Eigen::Vector2d& c, double h,
+                                    const std::vector<uint8_t>& removed) const {
+    std::vector<Eigen::Vector3f> out;
+    const int c0 =
+        std::max(0, static_cast<int>(std::floor((c.x() - h - grid.origin_xy.x()) / grid.cell_m)));
+    const int c1 =
+        std::min(grid.cols - 1,
+                 static_cast<int>(std::floor((c.x() + h - grid.origin_xy.x()) / grid.cell_m)));
+    const int r0 =
+        std::max(0, static_cast<int>(std::floor((grid.origin_xy.y() - c.y() - h) / grid.cell_m)));
+    const int r1 =
+        std::min(grid.rows - 1,
+                 static_cast<int>(std::floor((grid.origin_xy.y() - c.y() + h) / grid.cell_m)));
+    for (int r = r0; r <= r1; ++r) {
+      for (int col = c0; col <= c1; ++col) {
+        const std::size_t k = grid.index(r, col);
+        if (!removed.empty() && removed[k]) continue;
+        for (std::size_t j = start[k]; j < start[k + 1]; ++j) out.push_back(cloud.points[index[j]]);
+      }
+    }
+    return out;
+  }
+};
+
+// Marks the cells of `map` within `margin` of the placed model's footprint.
+void mark_placed(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& map,
+                 double margin, std::vector<uint8_t>& mask) {
+  TopViewConfig tv;
+  tv.cell_m = map.cell_m;
+  tv.grid_anchor_xy = map.origin_xy;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int g = static_cast<int>(std::ceil(margin / map.cell_m));
+  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - map.origin_xy.x()) / map.cell_m));
+  const int dr0 = static_cast<int>(std::lround((map.origin_xy.y() - v.origin_xy.y()) / map.cell_m));
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (!fp[v.index(r, c)]) continue;
+      for (int dr = -g; dr <= g; ++dr) {
+        for (int dc = -g; dc <= g; ++dc) {
+          const int rr = r + dr0 + dr, cc = c + dc0 + dc;
+          if (rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+          mask[map.index(rr, cc)] = 1;
+        }
+      }
+    }
+  }
+}
+
+// Fraction of the model's height below the ground (0 when the ground is unknown).
+double buried_fraction(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
+  if (!std::isfinite(ground_z)) return 0.0;
+  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
+  return (ground_z - base) / std::max(1e-6, m.height());
+}
+
+// Angle between the model's z axis and the world's, degrees.
+double tilt_deg(const Eigen::Isometry3d& T) {
+  return std::acos(std::clamp(T.linear()(2, 2), -1.0, 1.0)) / kDeg;
+}
+
+// Support (beyond the thesis, whose decision is a residual threshold): the model's relief cells
+// are its footprint cells standing more than relief_m above the local ground (the median scene
+// height in a ring `ring_m` wide around the footprint); support is the fraction of the observed
+// relief cells where the scene map agrees with the placed model within tol. A flat part of a
+// model (a footing, a mudmat) pressed into flat seabed has no relief and cannot vouch for it.
+// Returns {support, fraction of the relief cells observed, ground height}.
+struct Support {
+  double support = 0, observed = 0;
+  double ground_z = std::numeric_limits<double>::quiet_NaN();
+};
+Support support_of(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& scene,
+                   const std::vector<uint8_t>& removed, double tol, double relief_m = 0.1,
+                   double ring_m = 0.4) {
+  TopViewConfig tv;
+  tv.cell_m = scene.cell_m;
+  tv.grid_anchor_xy = scene.origin_xy;
+  tv.background_radius_m = m.radius_m + ring_m;
+  tv.background_ring_m = ring_m;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int dc0 =
+      static_cast<int>(std::lround((v.origin_xy.x() - scene.origin_xy.x()) / scene.cell_m));
+  const int dr0 =
+      static_cast<int>(std::lround((scene.origin_xy.y() - v.origin_xy.y()) / scene.cell_m));
+  auto scene_at = [&](int r, int c) {
+    const int rr = r + dr0, cc = c + dc0;
+    if (rr < 0 || cc < 0 || rr >= scene.rows || cc >= scene.cols) return ElevationMap::kNoData;
+    const std::size_t i = scene.index(rr, cc);
+    return (!removed.empty() && removed[i]) ? ElevationMap::kNoData : scene.z[i];
+  };
+  std::vector<float> ring;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (fp[v.index(r, c)] || v.at(r, c) != v.at(r, c)) continue;
+      const float zs = scene_at(r, c);
+      if (zs == zs) ring.push_back(zs);
+    }
+  }
+  Support out;
+  if (ring.empty()) return out;
+  const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
+  std::nth_element(ring.begin(), mid, ring.end());
+  const double ground = *mid;
+  out.ground_z = ground;
+  // Each relief cell weighs its height above the ground: the tall parts identify a structure
+  // (a riser's buoyancies, a pillar's column), and a model whose tall parts fall where the map
+  // has no data (an occlusion shadow, the sonar's blind range) is not confirmed by a matching
+  // footing alone.
+  double relief = 0, seen = 0, agree = 0;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      const float zm = v.at(r, c);
+      if (!fp[v.index(r, c)] || !(zm > ground + relief_m)) continue;
+      const double w = zm - ground;
+      relief += w;
+      const float zs = scene_at(r, c);
+      if (zs != zs) continue;
+      seen += w;
+      if (std::abs(zs - zm) <= tol) agree += w;
+    }
+  }
+  if (relief == 0) return out;
+  out.support = seen > 0 ? agree / seen : 0.0;
+  out.observed = seen / relief;
+  return out;
+}
+
+}  // namespace
+
+RecognitionResult recognize_2d(const PointCloud& scene_world,
+                               const std::vector<ModelTemplate>& models_in,
+                               const RecognitionConfig& config, bool progress) {
+  config.validate();
+  require(!models_in.empty(), "recognition: the catalogue is empty: give at least one CAD model");
+  require(!scene_world.empty(), "recognition: the scene cloud is empty");
+  const auto start = Clock::now();
+  std::optional<tbb::global_control> threads;
+  if (config.num_threads > 0) {
+    threads.emplace(tbb::global_control::max_allowed_parallelism,
+                    static_cast<std::size_t>(config.num_threads));
+  }
+  RecognitionResult out;
+  out.scene_points = scene_world.size();
+
+  // The field's elevation maps (sec. 6.2.1): fine for registration, coarse (Δ_NE) for the scan.
+  ElevationMapConfig mc;
+  mc.cell_m = config.map_cell_m;
+  const ElevationMap fine = elevation_map_from_points(scene_world, mc);
+  mc.cell_m = config.recog_cell_m;
+  const ElevationMap coarse = elevation_map_from_points(scene_world, mc);
+  out.map_rows = coarse.rows;
+  out.map_cols = coarse.cols;
+  PointGrid points;
+  points.build(scene_world, coarse);
+  out.seconds_maps = since(start);
+
+  // Sec. 6.3.2.6: models in decreasing size; each detection removes its area.
+  std::vector<const ModelTemplate*> order;
+  for (const auto& m : models_in) order.push_back(&m);
+  std::stable_sort(order.begin(), order.end(), [](const ModelTemplate* a, const ModelTemplate* b) {
+    return a->radius_m > b->radius_m;
+  });
+  const double period = config.scan.period_m;
+  const double width = coarse.cols * coarse.cell_m, height = coarse.rows * coarse.cell_m;
+  for (const ModelTemplate* m : order) {
+    const double r_patch = m->radius_m + std::sqrt(0.5) * period;  // eq. 6.8
+    if (2 * r_patch > std::min(width, height)) {
+      throw Error("recognition: model '" + m->name + "' (patch diameter " +
+                  std::to_string(2 * r_patch) + " m) is larger than the map (" +
+                  std::to_string(width) + " x " + std::to_string(height) +
+                  " m): check the model's unit and the map");
+    }
+  }
+  std::vector<uint8_t> removed_coarse(coarse.z.size(), 0), removed_fine(fine.z.size(), 0);
+  Progress bar("recognize", order.size(), progress);
+  for (const ModelTemplate* m : order) {
+    const double r_patch = m->radius_m + std::sqrt(0.5) * period;  // eq. 6.8
+    const RingLayout layout =
+        make_ring_layout(coarse.cell_m, r_patch, config.descriptor.ring_width_m);
+    // The model's descriptor: its top view with the seabed it stands on around it.
+    TopViewConfig tv;
+    tv.cell_m = coarse.cell_m;
+    tv.background_radius_m = r_patch + coarse.cell_m;
+    // Centred on a cell centre, as the patches are.
+    const double h = 0.5 * coarse.cell_m;
+    const ElevationMap view = render_top_view(*m, 0.0, {h, h}, tv);
+    const int vr = static_cast<int>(std::floor((view.origin_xy.y() - h) / view.cell_m));
+    const int vc = static_cast<int>(std::floor((h - view.origin_xy.x()) / view.cell_m));
+    const RingDescriptor model_desc = describe_model(view, vr, vc, layout, config.descriptor);
+
+    const int wanted = m->expected >= 0 ? m->expected : config.max_instances;
+    std::unique_ptr<ModelIndex> index;  // the model's KD-tree, built at its first registration
+    int found = 0, rejected = 0;
+    std::vector<uint8_t> excluded(coarse.z.size(), 0);
+    while (found < wanted && rejected < config.max_rejections) {
+      SearchRecord rec;
+      rec.model = m->name;
+      const auto t0 = Clock::now();
+      rec.scan = scan_patches(coarse, removed_coarse, excluded, layout, model_desc,
+                              config.descriptor.min_valid_fraction,
+                              config.max_relative_score * m->height(), config.scan);
+      if (!rec.scan.found) {
+        rec.reason = "no patch scores below max_relative_score x model height";
+        out.searches.push_back(rec);
+        break;
+      }
+      Placement& p = rec.placement;
+      p.model = m->name;
+      p.score_m = rec.scan.score_m;
+      p.seconds_scan = since(t0);
+      const auto t1 = Clock::now();
+      // Step 1: exhaustive 4D search (eq. 6.9) about the winning patch.
+      ElevationMap coarse_live = coarse, fine_live;
+      for (std::size_t i = 0; i < coarse_live.z.size(); ++i) {
+        if (removed_coarse[i]) coarse_live.z[i] = ElevationMap::kNoData;
+      }
+      fine_live =
+          crop(fine, removed_fine, rec.scan.center_xy, m->radius_m + period + 6 * coarse.cell_m);
+      const Search4dResult s4 =
+          search_4d(*m, coarse_live, fine_live, rec.scan.center_xy, period, config.search);
+      if (!s4.found) {
+        rec.reason = "the 4D search found no placement with enough scene under the model";
+      } else {
+        p.T_world_model_4d = s4.T_world_model;
+        p.rms_4d_m = s4.rms_m;
+        const double reach = m->radius_m + config.icp.max_distance_m + 0.1;
+        const Eigen::Vector2d c4 =
+            (s4.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
+        std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
+        // The structure's points only: those standing above the local seabed (the median height
+        // around the placed footprint). Seabed points beside a wall or a footing would otherwise
+        // pull the model sideways and tilt it.
+        const Support s_4d =
+            support_of(*m, s4.T_world_model, fine, removed_fine, config.support_tol_m);
+        p.ground_z = s_4d.ground_z;
+        if (std::isfinite(s_4d.ground_z)) {
+          const float cut = static_cast<float>(s_4d.ground_z + config.ground_clearance_m);
+          local.erase(std::remove_if(local.begin(), local.end(),
+                                     [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
+                      local.end());
+        }
+        p.residual_4d = structure_residual(local, *m, s4.T_world_model);
+        p.T_world_model = s4.T_world_model;
+        p.residual = p.residual_4d;
+        const double buried_4d = buried_fraction(*m, s4.T_world_model, s_4d.ground_z);
+        if (buried_4d > config.max_buried_fraction) {
+          rec.reason = "more of the model below the seabed than max_buried_fraction";
+        } else if (config.run_icp && local.size() >= 6) {
+          // Step 2: trimmed ICP for the full 6D pose.
+          try {
+            if (!index) index = std::make_unique<ModelIndex>(m->points, m->normals);
+            const IcpResult icp = trimmed_icp(*index, local, s4.T_world_model, config.icp);
+            p.icp_iterations = icp.iterations;
+            const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
+                                          0.5 * (m->base_z + m->top_z));
+            const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
+            if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
+                shift <= config.max_icp_shift_m) {
+              p.T_world_model = icp.T_world_model;
+              p.residual = structure_residual(local, *m, icp.T_world_model);
+              p.icp_kept = true;
+            }
+          } catch (const Error&) {
+            // No scene point near the model: keep the 4D placement (judged below).
+          }
+        }
+        const Support sup =
+            support_of(*m, p.T_world_model, fine, removed_fine, config.support_tol_m);
+        p.support = sup.support;
+        p.observed = sup.observed;
+        if (!rec.reason.empty()) {
+          // rejected above
+        } else if (buried_fraction(*m, p.T_world_model, sup.ground_z) >
+                   config.max_buried_fraction) {
+          rec.reason = "more of the model below the seabed than max_buried_fraction";
+        } else if (sup.observed < config.min_observed) {
+          rec.reason = "too little of the model's relief observed (or none above the ground)";
+        } else if (!(p.residual.median_m <= config.max_residual_median_m)) {
+          rec.reason = "residual median above max_residual_median_m";
+        } else if (sup.support < config.min_support) {
+          rec.reason = "support below min_support";
+        }
+      }
+      p.seconds_registration = since(t1);
+      p.seconds = since(t0);
+      rec.accepted = rec.reason.empty();
+      if (rec.accepted) {
+        out.placements.push_back(p);
+        ++found;
+        mark_placed(*m, p.T_world_model, coarse, config.removal_margin_m, removed_coarse);
+        mark_placed(*m, p.T_world_model, fine, config.removal_margin_m, removed_fine);
+      } else {
+        ++rejected;
+        // Not this patch again for this model.
+        const int g = static_cast<int>(std::ceil(0.5 * m->radius_m / coarse.cell_m));
+        for (int dr = -g; dr <= g; ++dr) {
+          for (int dc = -g; dc <= g; ++dc) {
+            const int rr = rec.scan.row + dr, cc = rec.scan.col + dc;
+            if (rr >= 0 && cc >= 0 && rr < coarse.rows && cc < coarse.cols) {
+              excluded[coarse.index(rr, cc)] = 1;
+            }
+          }
+        }
+      }
+      out.searches.push_back(std::move(rec));
+    }
+    bar.add();
+  }
+  bar.finish();
+  out.seconds = since(start);
+  return out;
+}
+
+TriangleMesh placed_models_mesh(const std::vector<ModelTemplate>& models,
+                                const std::vector<Placement>& placements) {
+  TriangleMesh out;
+  for (const Placement& p : placements) {
+    for (const auto& m : models) {
+      if (m.name != p.model) continue;
+      TriangleMesh placed = m.mesh;
+      placed.transform(p.T_world_model);
+      out.append(placed);
+    }
+  }
+  return out;
+}
+
+namespace {
+nlohmann::json pose_json(const Eigen::Isometry3d& T) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) {
+    rows.push_back({T.matrix()(r, 0), T.matrix()(r, 1), T.matrix()(r, 2), T.matrix()(r, 3)});
+  }
+  return rows;
+}
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+nlohmann::json rpy_deg(const Eigen::Isometry3d& T) {
+  // R = Rz(yaw)·Ry(pitch)·Rx(roll), as scene files give poses.
+  const Eigen::Matrix3d R = T.linear();
+  const double pitch = std::asin(std::clamp(-R(2, 0), -1.0, 1.0));
+  const double roll = std::atan2(R(2, 1), R(2, 2)), yaw = std::atan2(R(1, 0), R(0, 0));
+  return {roll / kDeg, pitch / kDeg, yaw / kDeg};
+}
+}  // namespace
+
+std::string placements_json(const RecognitionResult& result, const std::string& map_source,
+                            const std::string& catalogue_source, const RecognitionConfig& config) {
+  nlohmann::json j;
+  j["format"] = "sonar3d-placements";
+  j["version"] = 1;
+  j["map"] = map_source;
+  j["catalogue"] = catalogue_source;
+  j["frame"] = "world: local ENU (x East, y North, z up), metres";
+  j["settings"] = {{"map_cell_m", config.map_cell_m},
+                   {"recog_cell_m", config.recog_cell_m},
+                   {"period_m", config.scan.period_m},
+                   {"ring_width_m", config.descriptor.ring_width_m},
+                   {"bin_m", config.descriptor.bin_m},
+                   {"yaw_step_deg", config.search.yaw_step_deg},
+                   {"icp", config.run_icp},
+                   {"max_relative_score", config.max_relative_score},
+                   {"max_residual_median_m", config.max_residual_median_m},
+                   {"min_support", config.min_support}};
+  nlohmann::json list = nlohmann::json::array();
+  for (const Placement& p : result.placements) {
+    list.push_back({{"model", p.model},
+                    {"method", p.method},
+                    {"T_world_model", pose_json(p.T_world_model)},
+                    {"translation",
+                     {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
+                      p.T_world_model.translation().z()}},
+                    {"rpy_deg", rpy_deg(p.T_world_model)},
+                    {"score_m", p.score_m},
+                    {"residual_median_m", num(p.residual.median_m)},
+                    {"residual_mean_m", num(p.residual.mean_m)},
+                    {"residual_points", p.residual.points},
+                    {"support", p.support},
+                    {"observed", p.observed},
+                    {"ground_z", num(p.ground_z)},
+                    {"step1_T_world_model", pose_json(p.T_world_model_4d)},
+                    {"step1_residual_median_m", num(p.residual_4d.median_m)},
+                    {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
+                    {"icp_iterations", p.icp_iterations},
+                    {"icp_kept", p.icp_kept},
+                    {"seconds_scan", p.seconds_scan},
+                    {"seconds_registration", p.seconds_registration},
+                    {"seconds", p.seconds}});
+  }
+  j["placements"] = list;
+  nlohmann::json searches = nlohmann::json::array();
+  for (const SearchRecord& s : result.searches) {
+    nlohmann::json e = {{"model", s.model},
+                        {"accepted", s.accepted},
+                        {"candidates", s.scan.candidates},
+                        {"scored", s.scan.scored},
+                        {"aborted_early", s.scan.aborted},
+                        {"seconds_scan", s.scan.seconds}};
+    if (!s.accepted) e["reason"] = s.reason;
+    if (s.scan.found) {
+      e["score_m"] = s.scan.score_m;
+      e["patch_center_xy"] = {s.scan.center_xy.x(), s.scan.center_xy.y()};
+    }
+    if (!s.accepted && s.scan.found) {
+      e["residual_median_m"] = num(s.placement.residual.median_m);
+      const Eigen::Vector3d t = s.placement.T_world_model.translation();
+      e["step1_translation"] = {s.placement.T_world_model_4d.translation().x(),
+                                s.placement.T_world_model_4d.translation().y(),
+                                s.placement.T_world_model_4d.translation().z()};
+      e["translation"] = {t.x(), t.y(), t.z()};
+      e["rpy_deg"] = rpy_deg(s.placement.T_world_model);
+      e["support"] = s.placement.support;
+      e["observed"] = s.placement.observed;
+    }
+    searches.push_back(e);
+  }
+  j["searches"] = searches;
+  j["map_cells"] = {result.map_cols, result.map_rows};
+  j["scene_points"] = result.scene_points;
+  j["seconds"] = result.seconds;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,208 @@
+// Elevation bracketing of reconstructions (recon/bracketing.hpp): per-point "bracket" and "views"
+// properties, the never-bracketed share of the region, and the warning that a pass stops short of
+// the rule 2·r·tan(A_v/2) past the surface (docs/experiments.md), with the extension it needs.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/recon/bracketing.hpp"
+#include "sonar3d/recon/carve.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
+
+using namespace sonar3d;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+// A reduced 20° sensor: 30° × 20°, 60 beams, 1–4 m in 2 cm bins.
+SonarSpec spec20() {
+  SonarSpec s;
+  s.name = "test-20deg";
+  s.set_uniform_bearings(30 * kDeg, 60);
+  s.r_min = 1.0;
+  s.r_max = 4.0;
+  s.range_bins = 150;
+  s.vertical_aperture_rad = 20 * kDeg;
+  return s;
+}
+
+// A box 0.4 × 0.6 × 0.6 m standing on z = 0 (top at 0.6 m, front face at x = -0.2 m).
+constexpr double kTop = 0.6, kFront = -0.2, kSonarX = -2.5;
+TriangleMesh box_mesh() {
+  TriangleMesh m = make_box(0.4, 0.6, 0.6);
+  m.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.3)));
+  return m;
+}
+
+Eigen::AlignedBox3d region() {
+  return Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -0.03), Eigen::Vector3d(1, 1, 2.5));
+}
+
+struct PassRun {
+  PointCloud cloud;
+  std::vector<Eigen::Isometry3d> poses;
+};
+
+// A vertical pass at x = -2.5 m from z0 to z1 every 2 cm, carved at 2 cm voxels above the seabed.
+PassRun carve_pass(double z0, double z1) {
+  const SonarSpec spec = spec20();
+  Scene scene;
+  SceneObject box;
+  box.name = "box";
+  box.mesh_world = box_mesh();
+  box.reflectivity = 0.8;
+  scene.objects.push_back(box);
+  SimulatorConfig sc;
+  sc.elevation_step_rad = 0.05 * kDeg;
+  sc.jitter = true;
+  sc.gain = 2.0;
+  const Simulator sim(scene, spec, sc);
+  CarveConfig cfg;
+  cfg.voxel_size = 0.02;
+  cfg.region = region();
+  Carver carver(spec, cfg);
+  PassRun run;
+  const int n = static_cast<int>(std::round((z1 - z0) / 0.02)) + 1;
+  for (int k = 0; k < n; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(kSonarX, 0, z0 + 0.02 * k);
+    carver.integrate(sim.render(T, 100 + k), T);
+    run.poses.push_back(T);
+  }
+  run.cloud = carver.finalize();
+  return run;
+}
+
+const PassExtension* upper_extension(const BracketReport& r) {
+  for (const auto& e : r.extensions)
+    if (e.upper) return &e;
+  return nullptr;
+}
+
+std::size_t count_above(const PointCloud& c, double z) {
+  return static_cast<std::size_t>(
+      std::count_if(c.points.begin(), c.points.end(), [z](const auto& p) { return p.z() > z; }));
+}
+
+}  // namespace
+
+// A pass ending r·tan(A_v/2) above the top (the case: 0.5 m above at 3 m, 20°) is short
+// by the other r·tan(A_v/2): the warning gives that extension, upward.
+TEST(Bracket, PassStoppingShortWarnsWithTheRuleExtension) {
+  const double rt = (kFront - kSonarX) * std::tan(10 * kDeg);  // 0.41 m at the front face
+  const double end = kTop + rt;
+  PassRun run = carve_pass(-0.3, end);
+  ASSERT_FALSE(run.cloud.empty());
+  const BracketReport rep = assess_bracketing(run.cloud, run.poses, spec20(), {}, region());
+  ASSERT_EQ(rep.passes, 1u);
+  const PassExtension* e = upper_extension(rep);
+  ASSERT_NE(e, nullptr) << "no warning for a pass that stops short";
+  // The extreme surface is the box top, 2.3–2.7 m from the pass: the rule 2·r·tan 10°.
+  EXPECT_GT(e->range, 2.2);
+  EXPECT_LT(e->range, 2.8);
+  EXPECT_NEAR(e->rule, 2 * e->range * std::tan(10 * kDeg), 1e-9);
+  EXPECT_NEAR(e->past_surface, end - kTop, 0.04);
+  EXPECT_NEAR(e->extend, e->rule - (end - kTop), 0.04);
+  EXPECT_GT(e->direction.z(), 0.99);
+  EXPECT_NE(e->message().find("extend it by"), std::string::npos) << e->message();
+  // The seabed region hides the unbracketed space under the pass' start: no lower warning.
+  for (const auto& x : rep.extensions) EXPECT_TRUE(x.upper) << x.message();
+}
+
+// A pass that ends at the top itself cannot tell how high the surface goes: the warning asks for
+// at least 1.1·r·tan(A_v/2), a lower bound of the rule's 2·r·tan(A_v/2) from the true top.
+TEST(Bracket, PassEndingAtTheTopWarnsWithALowerBound) {
+  PassRun run = carve_pass(-0.3, kTop);
+  const BracketReport rep = assess_bracketing(run.cloud, run.poses, spec20(), {}, region());
+  const PassExtension* e = upper_extension(rep);
+  ASSERT_NE(e, nullptr);
+  const double rt = e->range * std::tan(10 * kDeg);
+  EXPECT_GT(e->extend, 1.0 * rt);
+  EXPECT_LE(e->extend, 2 * rt + 0.04);  // never more than the rule from the true top
+  EXPECT_NE(e->message().find("at least"), std::string::npos) << e->message();
+}
+
+// A pass that runs the rule's length past the top gives no warning, and brackets more of the
+// region than a short one.
+TEST(Bracket, LongPassGivesNoWarningAndBracketsTheRegion) {
+  PassRun longer = carve_pass(-0.3, kTop + 1.0);
+  PassRun shorter = carve_pass(-0.3, kTop + 0.1);
+  const BracketReport a = assess_bracketing(longer.cloud, longer.poses, spec20(), {}, region());
+  const BracketReport b = assess_bracketing(shorter.cloud, shorter.poses, spec20(), {}, region());
+  EXPECT_EQ(upper_extension(a), nullptr) << a.warnings().front();
+  EXPECT_NE(upper_extension(b), nullptr);
+  EXPECT_GT(a.region_samples, 1000u);
+  EXPECT_LT(a.unbracketed_share, b.unbracketed_share);
+  EXPECT_LT(a.never_bracketed_share, b.never_bracketed_share);
+}
+
+// Every point carries bracket and views; they survive a PLY round trip; min_bracket removes the
+// ghosts above the top of a short pass and keeps the front face.
+TEST(Bracket, PropertiesAndGhostFilter) {
+  PassRun run = carve_pass(-0.3, kTop + 0.2);
+  PointCloud all = run.cloud;
+  const BracketReport rep = assess_bracketing(all, run.poses, spec20(), {}, region());
+  ASSERT_EQ(rep.kept, all.size());
+  const PointProperty* b = all.property("bracket");
+  const PointProperty* v = all.property("views");
+  ASSERT_NE(b, nullptr);
+  ASSERT_NE(v, nullptr);
+  ASSERT_EQ(b->values.size(), all.size());
+  // Front-face points at mid height were seen across the whole aperture, from 40+ frames.
+  int face = 0;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const auto& p = all.points[i];
+    if (std::abs(p.x() - kFront) < 0.03 && p.z() > 0.2 && p.z() < 0.4) {
+      ++face;
+      EXPECT_GT(b->values[i], 0.95f) << p.transpose();
+      EXPECT_GT(v->values[i], 40.0f);
+    }
+    EXPECT_GE(b->values[i], 0.0f);
+    EXPECT_LE(b->values[i], 1.0f);
+  }
+  EXPECT_GT(face, 20);
+
+  const auto dir = test::temp_dir("ply");
+  write_ply((dir / "c.ply").string(), all);
+  const PointCloud back = read_ply((dir / "c.ply").string());
+  ASSERT_NE(back.property("bracket"), nullptr);
+  EXPECT_EQ(back.property("bracket")->values, b->values);
+  EXPECT_EQ(back.property("views")->values, v->values);
+
+  BracketConfig cfg;
+  cfg.min_bracket = 0.5;
+  PointCloud filtered = run.cloud;
+  const BracketReport fr = assess_bracketing(filtered, run.poses, spec20(), cfg, region());
+  EXPECT_EQ(fr.kept, filtered.size());
+  const EvalResult before = evaluate(all, box_mesh(), EvalConfig());
+  const EvalResult after = evaluate(filtered, box_mesh(), EvalConfig());
+  std::printf(
+      "short pass: %zu -> %zu points above the top + 10 cm; outliers %.1f -> %.1f %%, "
+      "coverage %.1f -> %.1f %%\n",
+      count_above(all, kTop + 0.1), count_above(filtered, kTop + 0.1), 100 * before.outliers,
+      100 * after.outliers, 100 * before.coverage, 100 * after.coverage);
+  EXPECT_LT(count_above(filtered, kTop + 0.1), count_above(all, kTop + 0.1));
+  EXPECT_LE(after.outliers, before.outliers);
+  EXPECT_GT(after.coverage, 0.9 * before.coverage);
+}
+
+TEST(Bracket, ConfigErrors) {
+  BracketConfig c;
+  c.min_bracket = 1.5;
+  test::expect_error([&] { c.validate(); }, "min_bracket");
+  c = {};
+  c.bracketed_level = 0;
+  test::expect_error([&] { c.validate(); }, "bracketed_level");
+  PointCloud cloud;
+  cloud.properties.push_back({"bad name", {}});
+  cloud.points.emplace_back(0, 0, 0);
+  const auto dir = test::temp_dir("err");
+  test::expect_error([&] { write_ply((dir / "x.ply").string(), cloud); }, "property");
+}
