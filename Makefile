@@ -50,7 +50,7 @@ bench: build
 # Needs the Debian packages clang and libclang-rt-14-dev.
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 60
-FUZZ_TARGETS ?= dataset scene sweep ply mesh holoocean_config pickle navcsv geotiff colmap aris rosmsg rosbag catalogue
+FUZZ_TARGETS ?= dataset scene sweep ply mesh holoocean_config pickle navcsv geotiff colmap aris rosmsg rosbag catalogue npz
 FUZZ_SAN = -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 
 fuzz:

@@ -16,6 +16,8 @@ find_package(Ceres REQUIRED)
 find_package(SQLite3 REQUIRED)
 # ROS 1 bag chunks are bz2 or lz4 compressed (libbz2-dev, liblz4-dev).
 find_package(BZip2 REQUIRED)
+# NumPy .npz camera files (IDR/NeuS) are zips of deflated entries (zlib1g-dev).
+find_package(ZLIB REQUIRED)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(LZ4 REQUIRED IMPORTED_TARGET liblz4)
 

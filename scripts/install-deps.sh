@@ -16,6 +16,7 @@ PACKAGES=(
   libsqlite3-dev       # ROS 2 bags (sqlite3 storage)
   libbz2-dev liblz4-dev  # ROS 1 bag chunks (bz2, lz4)
   libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
+  zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-pytest pybind11-dev  # the Python module and its tests

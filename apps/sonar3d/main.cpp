@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
   add_register(app, g, run);
   add_map(app, g, run);
   add_recognize(app, g, run);
+  add_texture(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -194,15 +194,22 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
   if (elements.empty()) fail("missing 'element vertex'");
   const PlyElement& vert = elements.front();
   const auto& props = vert.props;
-  int ix = -1, iy = -1, iz = -1, ii = -1;
+  int ix = -1, iy = -1, iz = -1, ii = -1, ir = -1, ig = -1, ib = -1;
   for (int k = 0; k < static_cast<int>(props.size()); ++k) {
     const auto& n = props[k].name;
     if (n == "x") ix = k;
     if (n == "y") iy = k;
     if (n == "z") iz = k;
     if (n == "intensity" || n == "scalar_intensity" || n == "scalar_Intensity") ii = k;
+    if (n == "red" || n == "diffuse_red") ir = k;
+    if (n == "green" || n == "diffuse_green") ig = k;
+    if (n == "blue" || n == "diffuse_blue") ib = k;
   }
   if (ix < 0 || iy < 0 || iz < 0) fail("vertex has no x, y, z properties");
+  // A colour only from all three as 8-bit (what PLY tools write); other types (16-bit, float
+  // 0 … 1) are skipped like any extra property, as before colours were read.
+  auto is_u8 = [&](int k) { return props[k].type == "uchar" || props[k].type == "uint8"; };
+  const bool has_color = ir >= 0 && ig >= 0 && ib >= 0 && is_u8(ir) && is_u8(ig) && is_u8(ib);
   const unsigned long long vertex_count = vert.count;
   const unsigned long long data_bytes = file_size - static_cast<unsigned long long>(f.tellg());
   // Sizes are checked against the file before anything is allocated: a binary vertex takes
@@ -234,11 +241,14 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
   PointCloud cloud;
   cloud.points.resize(vertex_count);
   if (ii >= 0) cloud.intensity.resize(vertex_count);
-  // Point clouds (not meshes) keep their other vertex scalars as named properties.
+  if (has_color) cloud.color.resize(vertex_count);
+  // Point clouds (not meshes) keep their other vertex scalars as named properties (the uchar
+  // colour, when read as one, is not among them).
   std::vector<int> extra;
   if (!faces) {
     for (int k = 0; k < static_cast<int>(props.size()); ++k) {
       if (k == ix || k == iy || k == iz || k == ii) continue;
+      if (has_color && (k == ir || k == ig || k == ib)) continue;
       extra.push_back(k);
       cloud.properties.push_back({props[k].name, std::vector<float>(vertex_count)});
     }
@@ -256,6 +266,12 @@ PointCloud read_ply_faces(const std::string& path, std::vector<std::vector<uint3
       throw Error(path + ": vertex " + std::to_string(v) + " has a coordinate beyond float range");
     }
     if (ii >= 0) cloud.intensity[v] = static_cast<float>(vals[ii]);
+    if (has_color) {
+      const int idx[3] = {ir, ig, ib};
+      for (int c = 0; c < 3; ++c) {
+        cloud.color[v][c] = static_cast<std::uint8_t>(std::lround(vals[idx[c]]));
+      }
+    }
     for (std::size_t e = 0; e < extra.size(); ++e) {
       cloud.properties[e].values[v] = static_cast<float>(vals[extra[e]]);
     }
@@ -380,11 +396,17 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
   if (cloud.has_intensity() && cloud.intensity.size() != cloud.points.size()) {
     throw Error("cannot write '" + path + "': intensity count differs from point count");
   }
+  if (cloud.has_color() && cloud.color.size() != cloud.points.size()) {
+    throw Error("cannot write '" + path + "': colour count differs from point count");
+  }
   for (const auto& p : cloud.properties) {
     const bool name_ok = !p.name.empty() && p.name.find_first_of(" \t\r\n") == std::string::npos;
     if (!name_ok || p.values.size() != cloud.points.size()) {
       throw Error("cannot write '" + path + "': property '" + printable(p.name) +
                   "' has no valid name or not one value per point");
+    }
+    if (cloud.has_color() && (p.name == "red" || p.name == "green" || p.name == "blue")) {
+      throw Error("cannot write '" + path + "': property '" + p.name + "' clashes with the colour");
     }
   }
   AtomicPath out(path);
@@ -395,24 +417,42 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
       << " 1.0\ncomment sonar3d point cloud, world frame, metres\nelement vertex " << cloud.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n";
     if (cloud.has_intensity()) f << "property float intensity\n";
+    if (cloud.has_color()) f << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
     for (const auto& p : cloud.properties) f << "property float " << p.name << "\n";
     f << "end_header\n";
     if (format == PlyFormat::Binary) {
-      std::vector<float> rec;
-      rec.reserve(cloud.size() * (4 + cloud.properties.size()));
+      std::vector<char> rec;
+      const std::size_t stride = 12 + (cloud.has_intensity() ? 4 : 0) +
+                                 (cloud.has_color() ? 3 : 0) + 4 * cloud.properties.size();
+      rec.resize(cloud.size() * stride);
+      char* p = rec.data();
       for (std::size_t i = 0; i < cloud.size(); ++i) {
-        rec.insert(rec.end(), cloud.points[i].data(), cloud.points[i].data() + 3);
-        if (cloud.has_intensity()) rec.push_back(cloud.intensity[i]);
-        for (const auto& p : cloud.properties) rec.push_back(p.values[i]);
+        std::memcpy(p, cloud.points[i].data(), 12);
+        p += 12;
+        if (cloud.has_intensity()) {
+          std::memcpy(p, &cloud.intensity[i], 4);
+          p += 4;
+        }
+        if (cloud.has_color()) {
+          std::memcpy(p, cloud.color[i].data(), 3);
+          p += 3;
+        }
+        for (const auto& pr : cloud.properties) {
+          std::memcpy(p, &pr.values[i], 4);
+          p += 4;
+        }
       }
-      f.write(reinterpret_cast<const char*>(rec.data()),
-              static_cast<std::streamsize>(rec.size() * sizeof(float)));
+      f.write(rec.data(), static_cast<std::streamsize>(rec.size()));
     } else {
       f.precision(9);
       for (std::size_t i = 0; i < cloud.size(); ++i) {
         const auto& p = cloud.points[i];
         f << p.x() << ' ' << p.y() << ' ' << p.z();
         if (cloud.has_intensity()) f << ' ' << cloud.intensity[i];
+        if (cloud.has_color()) {
+          f << ' ' << int(cloud.color[i][0]) << ' ' << int(cloud.color[i][1]) << ' '
+            << int(cloud.color[i][2]);
+        }
         for (const auto& pr : cloud.properties) f << ' ' << pr.values[i];
         f << '\n';
       }
@@ -421,6 +461,18 @@ void write_ply(const std::string& path, const PointCloud& cloud, PlyFormat forma
     if (!f) throw Error("failed writing '" + path + "' (disk full?)");
   }
   out.commit();
+}
+
+bool is_sonar3d_ply(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return false;
+  // write_ply's first three lines: "ply", the format, the comment.
+  char head[256] = {};
+  f.read(head, sizeof(head) - 1);
+  const std::string h(head, static_cast<std::size_t>(f.gcount()));
+  return h.rfind("ply\nformat ", 0) == 0 &&
+         (h.find("\ncomment sonar3d point cloud, world frame, metres\n") != std::string::npos ||
+          h.find("\ncomment sonar3d textured mesh, world frame, metres") != std::string::npos);
 }
 
 }  // namespace sonar3d

@@ -38,4 +38,24 @@ struct TexturedCloud {
 TexturedCloud texture_cloud(const PointCloud& cloud, const std::vector<CameraView>& views,
                             const TextureConfig& config = {});
 
+// The same, one frame at a time, so that a long video need not be held in memory: add() each
+// view (its image may be freed afterwards), then result(). texture_cloud() is add() over all.
+class CloudTexturer {
+ public:
+  // Keeps a reference to `cloud`: it must outlive the texturer. Throws on a bad config.
+  CloudTexturer(const PointCloud& cloud, const TextureConfig& config = {});
+  // Throws Error (naming the frame by `index`) when the image does not match the camera's size,
+  // the camera is invalid or the pose is not finite. Returns how many points this frame coloured.
+  std::size_t add(const CameraView& view, std::size_t index = 0);
+  TexturedCloud result() const;
+
+ private:
+  const PointCloud& cloud_;
+  TextureConfig config_;
+  std::vector<Eigen::Vector3d> sum_;
+  std::vector<std::uint32_t> views_;
+  std::vector<Eigen::Vector2d> pixel_;
+  std::vector<float> depth_;
+};
+
 }  // namespace sonar3d

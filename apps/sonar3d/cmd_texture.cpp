@@ -1,0 +1,95 @@
+// sonar3d texture: colour a point cloud from posed camera images (thesis sec. 6.4).
+#include <fmt/core.h>
+
+#include "commands.hpp"
+#include "sonar3d/video/texture_files.hpp"
+
+namespace sonar3d::cli {
+
+void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "texture",
+      "Colour a point cloud from posed camera images (thesis sec. 6.4): every image projected "
+      "onto the points it sees, colours averaged in linear RGB; points hidden behind others in a "
+      "frame take no colour from it. Poses from a COLMAP text model or an IDR/NeuS cameras .npz, "
+      "in "
+      "the cloud's frame.");
+  auto job = std::make_shared<TextureFilesJob>();
+  auto cloud = std::make_shared<std::string>(), colmap = std::make_shared<std::string>(),
+       images = std::make_shared<std::string>(), output = std::make_shared<std::string>(),
+       neus = std::make_shared<std::string>(), neus_frame = std::make_shared<std::string>("world");
+  cmd->add_option("cloud", *cloud,
+                  "point cloud to colour (PLY), or with --mesh a mesh (any Assimp format); in the "
+                  "poses' frame")
+      ->required()
+      ->check(CLI::ExistingFile);
+  auto* colmap_opt = cmd->add_option("--colmap", *colmap,
+                                     "COLMAP text model directory (cameras.txt, images.txt; "
+                                     "colmap model_converter --output_type TXT)")
+                         ->check(CLI::ExistingDirectory);
+  auto* neus_opt =
+      cmd->add_option("--neus", *neus,
+                      "IDR/NeuS cameras_*.npz instead of --colmap: world_mat_i for the i-th image "
+                      "of --images in name order")
+          ->check(CLI::ExistingFile)
+          ->excludes(colmap_opt);
+  colmap_opt->excludes(neus_opt);
+  cmd->add_option("--neus-frame", *neus_frame,
+                  "frame of the cloud for --neus: world (world_mat as given) or normalized "
+                  "(NeuS's unit-sphere frame, x = (x_world - c)/s by scale_mat)")
+      ->check(CLI::IsMember({"world", "normalized"}))
+      ->capture_default_str();
+  cmd->add_option(
+         "--images", *images,
+         "the images: those named in images.txt, or with --neus all of the directory in name order "
+         "(8/16-bit: sRGB; float: linear)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", *output,
+                  "coloured point cloud (PLY with uchar red green blue, sRGB)")
+      ->required();
+  cmd->add_option("--point-spacing", job->config.point_spacing_m,
+                  "the cloud's point spacing, m (the splat size of the depth test)")
+      ->capture_default_str();
+  cmd->add_option("--depth-tolerance", job->config.depth_tolerance_m,
+                  "a point is visible within this of the nearest depth at its pixel, m")
+      ->capture_default_str();
+  cmd->add_option("--max-range", job->config.max_range_m,
+                  "points farther from a camera take no colour from it, m")
+      ->capture_default_str();
+  cmd->add_flag(
+      "--mesh", job->is_mesh,
+      "CLOUD is a mesh (any format Assimp reads, e.g. a registered CAD model): colour its "
+      "vertices, visibility by ray casting the mesh itself; writes a PLY mesh");
+  cmd->add_option("--texel", job->mesh.texel_m,
+                  "with --mesh: subdivide until every edge is at most this long, m (0: as is)")
+      ->capture_default_str();
+  cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
+                "leave out the points no image saw (default: kept, black)");
+  add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
+  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output] {
+    if (colmap->empty() && neus->empty()) {
+      throw CLI::ValidationError("--colmap or --neus", "camera poses are required");
+    }
+    if (job->is_mesh && job->drop_uncoloured) {
+      throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
+    }
+    run = [&g, job, cloud, colmap, neus, neus_frame, images, output] {
+      job->cloud = *cloud;
+      job->mesh.max_range_m = job->config.max_range_m;
+      job->colmap_dir = *colmap;
+      job->neus_file = *neus;
+      job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
+      job->images_dir = *images;
+      job->output = *output;
+      job->progress = !g.quiet;
+      const TextureFilesResult r = texture_cloud_files(*job);
+      const char* what = job->is_mesh ? "vertices" : "points";
+      fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured, r.points,
+                 what, r.frames, r.written, what, job->output.string());
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

@@ -1,0 +1,65 @@
+#pragma once
+// Video mapping from files (`sonar3d texture`): a point cloud, camera poses from a COLMAP text
+// model, and the camera images on disk → a PLY with per-point colours.
+//
+// Colour conventions (docs/video.md): 8- and 16-bit images are taken as sRGB-encoded (what
+// cameras and image tools write) and decoded to linear RGB before averaging, since averaging
+// light is only meaningful in linear units; 32-bit float images (TIFF) are taken as linear
+// already. The output PLY's uchar red/green/blue are sRGB-encoded again, as viewers display them.
+#include <cstddef>
+#include <filesystem>
+#include <string>
+
+#include "sonar3d/video/neus.hpp"
+#include "sonar3d/video/render.hpp"
+#include "sonar3d/video/texture.hpp"
+#include "sonar3d/video/texture_mesh.hpp"
+
+namespace sonar3d {
+
+// The sRGB transfer function (IEC 61966-2-1) and its inverse, on [0, 1] (clamped).
+float srgb_to_linear(float encoded);
+float linear_to_srgb(float linear);
+
+// Reads a colour or grey image (PNG, JPEG, TIFF ... through OpenCV) into linear RGB: 8/16-bit
+// sRGB decoded, float taken as linear (it must be finite); grey replicated, alpha dropped.
+// Throws Error naming the file when it cannot be read or has an unsupported pixel type.
+RgbImage read_rgb_image(const std::filesystem::path& path);
+// Writes a 16-bit sRGB-encoded PNG (atomic). The inverse of read_rgb_image within 1e-5.
+void write_rgb_image(const std::filesystem::path& path, const RgbImage& image);
+
+struct TextureFilesJob {
+  std::filesystem::path cloud;  // PLY, world frame
+  // Poses in the cloud's frame, from one of:
+  std::filesystem::path colmap_dir;  // cameras.txt + images.txt, or
+  std::filesystem::path neus_file;   // IDR/NeuS cameras_*.npz (world_mat_i for the i-th image)
+  NeusFrame neus_frame = NeusFrame::World;
+  // The images named in images.txt; with neus_file, the image files of this directory (.png
+  // .jpg .jpeg .tif .tiff) in name order, one per world_mat_i, as IDR/NeuS list them.
+  std::filesystem::path images_dir;
+  std::filesystem::path output;  // PLY with red/green/blue
+  TextureConfig config;
+  // `cloud` is a mesh (any format Assimp reads): textured with MeshTexturer (Embree visibility,
+  // subdivided to `mesh.texel_m`), written as a PLY mesh with vertex colours.
+  bool is_mesh = false;
+  MeshTextureConfig mesh;
+  bool overwrite = false;        // replace an existing sonar3d point cloud at `output`
+  bool drop_uncoloured = false;  // leave out the points no frame saw (else they are black)
+  bool progress = true;          // a progress bar on a terminal
+};
+
+struct TextureFilesResult {
+  std::size_t points = 0;    // in the input cloud
+  std::size_t coloured = 0;  // seen by at least one frame
+  std::size_t frames = 0;    // images used
+  std::size_t written = 0;   // points in the output
+};
+
+// Checks `output` before any work: it may not exist, or be a PLY sonar3d wrote (replaced only
+// with `overwrite`); it may not be the input cloud. Then reads the model, textures the cloud one
+// frame at a time (memory: one image) and writes the output atomically. Errors name the file:
+// a missing image, an image whose size is not its camera's, a camera whose distortion does not
+// invert (cameras.txt and its line).
+TextureFilesResult texture_cloud_files(const TextureFilesJob& job);
+
+}  // namespace sonar3d

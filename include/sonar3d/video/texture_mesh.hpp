@@ -1,0 +1,66 @@
+#pragma once
+// Video mapping onto a mesh (thesis sec. 6.4: the registered CAD models): each frame's colour
+// sampled at the mesh's vertices that the camera sees, averaged over frames. Visibility is exact:
+// a ray from the camera to the vertex is cast against the mesh itself with Embree, so no colour
+// reaches a surface behind another (the thesis' octree let it leak) and, unlike point splats,
+// a surface seen at a grazing angle does not hide itself. The mesh is first subdivided until no
+// edge is longer than the texel size, so that vertex colours carry the image's detail.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include "sonar3d/core/mesh.hpp"
+#include "sonar3d/video/texture.hpp"
+
+namespace sonar3d {
+
+struct MeshTextureConfig {
+  double texel_m = 0.01;      // subdivide until every edge is at most this long (0: no subdivision)
+  double max_range_m = 30.0;  // vertices farther from a camera take no colour from it
+  // Subdivision refused beyond this many vertices: ~150 bytes each at the last level (mesh,
+  // midpoint table, colour sums), so the default bounds it near 600 MB.
+  std::size_t max_vertices = 4'000'000;
+  void validate() const;  // throws Error naming the field
+};
+
+// Splits every triangle into four (edge midpoints shared) until no edge exceeds `max_edge_m`.
+// Throws Error when that would exceed `max_vertices`.
+TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
+                               std::size_t max_vertices);
+
+struct TexturedMesh {
+  TriangleMesh mesh;                   // the subdivided mesh
+  std::vector<Eigen::Vector3f> color;  // per vertex: linear RGB mean over the frames; 0 if none
+  std::vector<std::uint32_t> views;    // per vertex: frames that saw it (0: no colour)
+  std::size_t coloured() const;
+};
+
+// One frame at a time (memory: the mesh plus one image).
+class MeshTexturer {
+ public:
+  // Subdivides `mesh` and builds its ray-tracing structure. Throws Error on a bad mesh or config.
+  MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& config = {});
+  ~MeshTexturer();
+  MeshTexturer(const MeshTexturer&) = delete;
+  MeshTexturer& operator=(const MeshTexturer&) = delete;
+  // Returns how many vertices this frame coloured. Throws Error naming frame `index` when its image
+  // does not match its camera or its pose is not finite.
+  std::size_t add(const CameraView& view, std::size_t index = 0);
+  const TriangleMesh& mesh() const;
+  TexturedMesh result() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView>& views,
+                          const MeshTextureConfig& config = {});
+
+// Binary PLY with float x y z, uchar red green blue (sRGB; black where no frame saw the vertex)
+// and the faces; atomic. read_ply_faces() reads it back.
+void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMesh& textured);
+
+}  // namespace sonar3d

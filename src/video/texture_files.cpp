@@ -1,0 +1,285 @@
+// `sonar3d texture`: a point cloud coloured from posed camera images on disk.
+#include "sonar3d/video/texture_files.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <vector>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/video/colmap.hpp"
+
+namespace sonar3d {
+
+namespace fs = std::filesystem;
+
+float srgb_to_linear(float e) {
+  e = std::clamp(e, 0.0f, 1.0f);
+  return e <= 0.04045f ? e / 12.92f : std::pow((e + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float l) {
+  l = std::clamp(l, 0.0f, 1.0f);
+  return l <= 0.0031308f ? 12.92f * l : 1.055f * std::pow(l, 1.0f / 2.4f) - 0.055f;
+}
+
+RgbImage read_rgb_image(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw Error("image '" + path.string() + "' is not a file");
+  cv::Mat m;
+  try {
+    m = cv::imread(path.string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+  } catch (const cv::Exception& e) {
+    throw Error("cannot read image '" + path.string() + "': " + e.what());
+  }
+  if (m.empty()) {
+    throw Error("cannot read image '" + path.string() + "' (not an image format OpenCV reads)");
+  }
+  const int ch = m.channels();
+  if (ch != 1 && ch != 3 && ch != 4) {
+    throw Error("image '" + path.string() + "' has " + std::to_string(ch) +
+                " channels (grey, BGR or BGRA expected)");
+  }
+  RgbImage img;
+  img.width = m.cols;
+  img.height = m.rows;
+  img.rgb.resize(3 * static_cast<std::size_t>(m.cols) * m.rows);
+  img.range_m.assign(static_cast<std::size_t>(m.cols) * m.rows,
+                     std::numeric_limits<float>::infinity());
+  // A table per encoded value: 8- and 16-bit are sRGB-encoded.
+  std::vector<float> lut;
+  if (m.depth() == CV_8U || m.depth() == CV_16U) {
+    const int levels = m.depth() == CV_8U ? 256 : 65536;
+    lut.resize(levels);
+    for (int k = 0; k < levels; ++k) lut[k] = srgb_to_linear(float(k) / float(levels - 1));
+  } else if (m.depth() != CV_32F) {
+    throw Error("image '" + path.string() +
+                "' has an unsupported pixel type (8-bit, 16-bit or 32-bit float expected)");
+  }
+  for (int v = 0; v < m.rows; ++v) {
+    for (int u = 0; u < m.cols; ++u) {
+      float bgr[3];
+      for (int c = 0; c < 3; ++c) {
+        const int k = ch == 1 ? 0 : c;
+        switch (m.depth()) {
+          case CV_8U:
+            bgr[c] = lut[m.ptr<std::uint8_t>(v)[u * ch + k]];
+            break;
+          case CV_16U:
+            bgr[c] = lut[m.ptr<std::uint16_t>(v)[u * ch + k]];
+            break;
+          default: {
+            const float x = m.ptr<float>(v)[u * ch + k];
+            if (!std::isfinite(x)) {
+              throw Error("image '" + path.string() + "': pixel (" + std::to_string(u) + ", " +
+                          std::to_string(v) + ") is not finite");
+            }
+            bgr[c] = x;
+          }
+        }
+      }
+      const std::size_t o = 3 * (static_cast<std::size_t>(v) * m.cols + u);
+      img.rgb[o] = bgr[2];  // OpenCV's order is BGR
+      img.rgb[o + 1] = bgr[1];
+      img.rgb[o + 2] = bgr[0];
+    }
+  }
+  return img;
+}
+
+void write_rgb_image(const fs::path& path, const RgbImage& image) {
+  require(image.width > 0 && image.height > 0 &&
+              image.rgb.size() == 3 * static_cast<std::size_t>(image.width) * image.height,
+          "cannot write image '" + path.string() + "': its size and pixel count differ");
+  cv::Mat m(image.height, image.width, CV_16UC3);
+  for (int v = 0; v < image.height; ++v) {
+    for (int u = 0; u < image.width; ++u) {
+      const Eigen::Vector3f c = image.at(u, v);
+      auto* p = m.ptr<std::uint16_t>(v) + 3 * u;
+      for (int k = 0; k < 3; ++k) {
+        p[2 - k] = static_cast<std::uint16_t>(std::lround(65535.0f * linear_to_srgb(c[k])));
+      }
+    }
+  }
+  std::vector<uchar> bytes;
+  if (!cv::imencode(".png", m, bytes)) throw Error("cannot encode '" + path.string() + "'");
+  AtomicPath out(path);
+  {
+    std::ofstream f(out.temp(), std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
+    f.close();
+    if (!f) throw Error("failed writing '" + path.string() + "' (disk full?)");
+  }
+  out.commit();
+}
+
+namespace {
+
+void check_output(const TextureFilesJob& job) {
+  const fs::path& out = job.output;
+  require(!out.empty(), "texture: no output file given");
+  std::error_code ec;
+  if (!fs::exists(out, ec)) return;
+  if (fs::equivalent(out, job.cloud, ec)) {
+    throw Error("texture: the output '" + out.string() + "' is the input cloud");
+  }
+  if (!fs::is_regular_file(out, ec) || !is_sonar3d_ply(out.string())) {
+    throw Error("'" + out.string() +
+                "' exists and is not a point cloud sonar3d wrote: not replaced (choose another "
+                "output)");
+  }
+  if (!job.overwrite) {
+    throw Error("'" + out.string() + "' exists (use --overwrite to replace it)");
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// One frame to project: its image file, and its camera unless it comes from the image's size.
+struct Frame {
+  fs::path file;
+  std::optional<CameraIntrinsics> camera;
+  std::string camera_name;  // for errors
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+};
+
+std::vector<Frame> list_frames(const TextureFilesJob& job) {
+  std::vector<Frame> frames;
+  if (!job.neus_file.empty()) {
+    require(job.colmap_dir.empty(), "texture: give either a COLMAP model or a NeuS file, not both");
+    const auto cams = read_neus_cameras(job.neus_file, job.neus_frame);
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(job.images_dir)) {
+      std::string ext = e.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (e.is_regular_file() &&
+          (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff")) {
+        files.push_back(e.path());
+      }
+    }
+    std::sort(files.begin(), files.end());
+    if (files.size() != cams.size()) {
+      throw Error("'" + job.images_dir.string() + "' holds " + std::to_string(files.size()) +
+                  " images but '" + job.neus_file.string() + "' has " +
+                  std::to_string(cams.size()) + " cameras (world_mat_i): one image per camera");
+    }
+    for (std::size_t i = 0; i < cams.size(); ++i) {
+      Frame f;
+      f.file = files[i];
+      f.K = cams[i].K;
+      f.T_world_camera = cams[i].T_world_camera;
+      f.camera_name = job.neus_file.string() + ": world_mat_" + std::to_string(i);
+      frames.push_back(f);
+    }
+    return frames;
+  }
+  const PosedImages posed = read_colmap_text(job.colmap_dir);
+  require(!posed.images.empty(),
+          "texture: '" + (job.colmap_dir / "images.txt").string() + "' lists no image");
+  check_images_exist(posed, job.images_dir);
+  for (const PosedImage& pi : posed.images) {
+    Frame f;
+    f.file = job.images_dir / pi.name;
+    f.camera = posed.cameras.at(pi.camera_id);
+    f.camera_name = "camera " + std::to_string(pi.camera_id) + " in '" +
+                    (job.colmap_dir / "cameras.txt").string() + "'";
+    f.T_world_camera = pi.T_world_camera;
+    frames.push_back(f);
+  }
+  return frames;
+}
+
+}  // namespace
+
+TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
+  job.config.validate();
+  check_output(job);
+  const std::vector<Frame> frames = list_frames(job);
+  PointCloud cloud;
+  std::unique_ptr<CloudTexturer> cloud_texturer;
+  std::unique_ptr<MeshTexturer> mesh_texturer;
+  if (job.is_mesh) {
+    mesh_texturer = std::make_unique<MeshTexturer>(load_mesh(job.cloud.string()), job.mesh);
+  } else {
+    cloud = read_ply(job.cloud.string());
+    cloud_texturer = std::make_unique<CloudTexturer>(cloud, job.config);
+  }
+  Progress progress("texture", frames.size(), job.progress);
+  TextureFilesResult r;
+  r.points = job.is_mesh ? mesh_texturer->mesh().vertices.size() : cloud.size();
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const Frame& fr = frames[f];
+    const RgbImage img = read_rgb_image(fr.file);
+    CameraIntrinsics cam;
+    if (fr.camera) {
+      cam = *fr.camera;
+    } else {
+      try {
+        cam = intrinsics_from_K(fr.K, img.width, img.height);
+      } catch (const Error& e) {
+        throw Error(fr.camera_name + " with image '" + fr.file.string() + "': " + e.what());
+      }
+    }
+    if (img.width != cam.width || img.height != cam.height) {
+      throw Error("image '" + fr.file.string() + "' is " + std::to_string(img.width) + "×" +
+                  std::to_string(img.height) + " pixels, but its " + fr.camera_name + " is " +
+                  std::to_string(cam.width) + "×" + std::to_string(cam.height));
+    }
+    const CameraView view{cam, fr.T_world_camera, &img};
+    if (job.is_mesh) {
+      mesh_texturer->add(view, f);
+    } else {
+      cloud_texturer->add(view, f);
+    }
+    ++r.frames;
+    progress.add();
+  }
+  progress.finish();
+  if (job.is_mesh) {
+    const TexturedMesh tm = mesh_texturer->result();
+    r.coloured = tm.coloured();
+    r.written = tm.mesh.vertices.size();
+    write_textured_mesh_ply(job.output, tm);
+    return r;
+  }
+  const TexturedCloud t = cloud_texturer->result();
+  PointCloud out;
+  for (const auto& pr : cloud.properties) out.properties.push_back({pr.name, {}});
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const bool seen = t.views[i] > 0;
+    r.coloured += seen ? 1 : 0;
+    if (!seen && job.drop_uncoloured) continue;
+    out.points.push_back(cloud.points[i]);
+    if (cloud.has_intensity()) out.intensity.push_back(cloud.intensity[i]);
+    for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
+      out.properties[k].values.push_back(cloud.properties[k].values[i]);
+    }
+    std::array<std::uint8_t, 3> c{0, 0, 0};
+    if (seen) {
+      for (int k = 0; k < 3; ++k) {
+        c[k] = static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(t.color[i][k])));
+      }
+    }
+    out.color.push_back(c);
+  }
+  r.written = out.size();
+  write_ply(job.output.string(), out);
+  return r;
+}
+
+}  // namespace sonar3d
