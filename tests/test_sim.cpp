@@ -395,6 +395,9 @@ trajectory: {type: straight, start: [0, 0, 2], end: [0.1, 0, 2], spacing: 0.05}
       "[1,0,0]}}",
       "no 'pose'");
   check("{name: p, reference: sphere, kind: rock}", "kind");
+  // Found by fuzz_scene: a terrain of 6.8e93 m made the vertex count overflow the integer its
+  // error message printed it as (undefined behaviour); now one error naming the count.
+  check("{name: t, primitive: {type: terrain, size: [6.8e93, 6], cell: 0.2}}", "vertices");
 }
 
 TEST(SceneFile, BadScenesNameTheProblem) {

@@ -2,6 +2,8 @@
 // profile, and rocks as Gaussian bumps.
 #include "sonar3d/sim/terrain.hpp"
 
+#include <fmt/core.h>
+
 #include <cmath>
 #include <random>
 #include <string>
@@ -23,8 +25,9 @@ void TerrainConfig::validate() const {
   require_positive(rock_radius_m, "terrain.rock_radius", "m");
   const double nx = std::ceil(size.x() / cell_m) + 1, ny = std::ceil(size.y() / cell_m) + 1;
   require(nx * ny <= static_cast<double>(max_vertices),
-          "terrain: " + std::to_string(static_cast<long long>(nx * ny)) +
-              " vertices at terrain.cell = " + std::to_string(cell_m) + " m exceed " +
+          // Printed as a double: the count may exceed every integer type (a size of 1e90 m).
+          "terrain: " + fmt::format("{:.4g}", nx * ny) + " vertices at terrain.cell = " +
+              std::to_string(cell_m) + " m exceed " +
               std::to_string(max_vertices) + ": use a larger cell");
 }
 
