@@ -24,6 +24,7 @@
 #include "sonar3d/sim/dead_reckoning.hpp"
 #include "sonar3d/sim/terrain.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 using sonar3d::ElevationMap;
@@ -490,19 +491,8 @@ objects:
 trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5, spacing: 0.04, period: 0.1}
 )";
 
-struct CliRun {
-  int code;
-  std::string out;
-};
-
-CliRun run_cli(const fs::path& dir, const std::string& args) {
-  const std::string log = (dir / "cli.log").string();
-  const int rc =
-      std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
-  std::ifstream in(log);
-  return {WEXITSTATUS(rc),
-          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>())};
-}
+using sonar3d::test::CliRun;
+using sonar3d::test::run_cli;
 
 }  // namespace
 

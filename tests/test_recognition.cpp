@@ -405,19 +405,8 @@ TEST(RecogPipeline, BadInputsGiveClearErrors) {
 
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out;
-};
-
-CliRun run_cli(const fs::path& dir, const std::string& args) {
-  const std::string log = (dir / "cli.log").string();
-  const int rc =
-      std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
-  std::ifstream in(log);
-  return {WEXITSTATUS(rc),
-          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>())};
-}
+using sonar3d::test::CliRun;
+using sonar3d::test::run_cli;
 
 // A 10 × 8 m seabed with relief and rocks, a pillar (yaw 30°) and a tank, surveyed by a
 // downward-looking MB2250-like sonar 4 m up on four East-West lines 2 m apart.

@@ -1,9 +1,13 @@
 #pragma once
 // Helpers shared by the GoogleTest suites.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <string>
 
 #include "sonar3d/core/error.hpp"
@@ -45,5 +49,23 @@ inline void expect_error(const std::function<void()>& f, const std::string& need
     EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
   }
 }
+
+#ifdef SONAR3D_CLI
+// The command-line tool run with `args`; its exit code and what it printed (stdout and stderr
+// together, in `dir`/cli.log).
+struct CliRun {
+  int code;
+  std::string out;
+};
+
+inline CliRun run_cli(const std::filesystem::path& dir, const std::string& args) {
+  const std::string log = (dir / "cli.log").string();
+  const int rc =
+      std::system((std::string(SONAR3D_CLI) + " " + args + " > " + log + " 2>&1").c_str());
+  std::ifstream in(log);
+  return {WEXITSTATUS(rc),
+          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>())};
+}
+#endif
 
 }  // namespace sonar3d::test

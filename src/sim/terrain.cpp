@@ -26,8 +26,8 @@ void TerrainConfig::validate() const {
   const double nx = std::ceil(size.x() / cell_m) + 1, ny = std::ceil(size.y() / cell_m) + 1;
   require(nx * ny <= static_cast<double>(max_vertices),
           // Printed as a double: the count may exceed every integer type (a size of 1e90 m).
-          "terrain: " + fmt::format("{:.4g}", nx * ny) + " vertices at terrain.cell = " +
-              std::to_string(cell_m) + " m exceed " +
+          "terrain: " + fmt::format("{:.4g}", nx * ny) +
+              " vertices at terrain.cell = " + std::to_string(cell_m) + " m exceed " +
               std::to_string(max_vertices) + ": use a larger cell");
 }
 
