@@ -15,6 +15,7 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/video/texture_files.hpp"
+#include "visibility_raster.hpp"
 
 namespace sonar3d {
 
@@ -77,12 +78,56 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
   return m;
 }
 
+namespace {
+
+// Spreads the low 21 bits of v to every third bit (Morton code).
+std::uint64_t spread3(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+// Renumbers the vertices along a Morton curve, so that vertices near in the mesh are near in
+// memory and in every image: the per-frame loop then reads the raster and the image with few cache
+// misses (subdivision appends midpoints in an order scattered over the model).
+void sort_vertices_spatially(TriangleMesh& m) {
+  const Eigen::AlignedBox3f box = m.bounding_box();
+  const Eigen::Vector3f extent = (box.max() - box.min()).cwiseMax(1e-6f);
+  std::vector<std::pair<std::uint64_t, int>> key(m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const Eigen::Vector3f q = (m.vertices[i] - box.min()).cwiseQuotient(extent) * 2097151.0f;
+    key[i] = {spread3(static_cast<std::uint64_t>(q.x())) |
+                  spread3(static_cast<std::uint64_t>(q.y())) << 1 |
+                  spread3(static_cast<std::uint64_t>(q.z())) << 2,
+              static_cast<int>(i)};
+  }
+  std::sort(key.begin(), key.end());
+  std::vector<int> new_index(m.vertices.size());
+  std::vector<Eigen::Vector3f> vertices(m.vertices.size());
+  for (std::size_t k = 0; k < key.size(); ++k) {
+    new_index[key[k].second] = static_cast<int>(k);
+    vertices[k] = m.vertices[key[k].second];
+  }
+  m.vertices = std::move(vertices);
+  for (auto& t : m.triangles)
+    t = Eigen::Vector3i(new_index[t[0]], new_index[t[1]], new_index[t[2]]);
+}
+
+}  // namespace
+
 struct MeshTexturer::Impl {
   TriangleMesh mesh;
   MeshTextureConfig config;
   RTCScene scene = nullptr;
   std::vector<Eigen::Vector3d> sum;
   std::vector<std::uint32_t> views;
+  TriangleMesh occluder;  // the mesh as given
+  std::unique_ptr<detail::VisibilityRaster> raster;
+  std::size_t raster_decided = 0, rays_cast = 0;
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
   }
@@ -98,7 +143,12 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
   // The occluder is the mesh as given (attach_mesh validates it); colours go on its subdivision.
   detail::attach_mesh(impl_->scene, mesh, "texture mesh");
   rtcCommitScene(impl_->scene);
+  if (config.raster_visibility) {
+    impl_->occluder = mesh;
+    impl_->raster = std::make_unique<detail::VisibilityRaster>(impl_->occluder);
+  }
   impl_->mesh = subdivide_to_edge(mesh, config.texel_m, config.max_vertices);
+  sort_vertices_spatially(impl_->mesh);
   impl_->sum.assign(impl_->mesh.vertices.size(), Eigen::Vector3d::Zero());
   impl_->views.assign(impl_->mesh.vertices.size(), 0);
 }
@@ -106,6 +156,8 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
 MeshTexturer::~MeshTexturer() = default;
 
 const TriangleMesh& MeshTexturer::mesh() const { return impl_->mesh; }
+std::size_t MeshTexturer::raster_decided() const { return impl_->raster_decided; }
+std::size_t MeshTexturer::rays_cast() const { return impl_->rays_cast; }
 
 std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   view.camera.validate();
@@ -120,12 +172,14 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const Eigen::Vector3d origin = view.T_world_camera.translation();
   const auto& V = impl_->mesh.vertices;
   const double max_range = impl_->config.max_range_m;
-  std::atomic<std::size_t> coloured{0};
+  detail::VisibilityRaster* raster = impl_->raster.get();
+  if (raster) raster->render(view.camera, T_camera_world);
+  std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 4096),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       RTCIntersectContext ctx;
                       rtcInitIntersectContext(&ctx);
-                      std::size_t local = 0;
+                      std::size_t local = 0, local_decided = 0, local_rays = 0;
                       for (std::size_t i = r.begin(); i != r.end(); ++i) {
                         const Eigen::Vector3d p_world = V[i].cast<double>();
                         const Eigen::Vector3d p = T_camera_world * p_world;
@@ -134,30 +188,45 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
                         if (dist > max_range) continue;
                         const auto px = project(view.camera, p);
                         if (!px || !in_image(view.camera, *px)) continue;
-                        // Occluded when the mesh crosses the ray short of the vertex: stop a hair
-                        // before it (relative, for float precision at range) so its own triangles
-                        // do not count.
-                        const Eigen::Vector3d d = (p_world - origin) / dist;
-                        RTCRay ray;
-                        ray.org_x = static_cast<float>(origin.x());
-                        ray.org_y = static_cast<float>(origin.y());
-                        ray.org_z = static_cast<float>(origin.z());
-                        ray.dir_x = static_cast<float>(d.x());
-                        ray.dir_y = static_cast<float>(d.y());
-                        ray.dir_z = static_cast<float>(d.z());
-                        ray.tnear = 0.0f;
-                        ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
-                        ray.mask = 0xFFFFFFFFu;
-                        ray.flags = 0;
-                        ray.time = 0.0f;
-                        rtcOccluded1(impl_->scene, &ctx, &ray);
-                        if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
+                        const auto verdict = raster ? raster->test(p_world, p, dist)
+                                                    : detail::VisibilityRaster::Verdict::Unknown;
+                        if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
+                          ++local_decided;
+                          continue;
+                        }
+                        if (verdict == detail::VisibilityRaster::Verdict::Visible) {
+                          ++local_decided;
+                        } else {
+                          // Occluded when the mesh crosses the ray short of the vertex: stop a hair
+                          // before it (relative, for float precision at range) so its own triangles
+                          // do not count.
+                          ++local_rays;
+                          const Eigen::Vector3d d = (p_world - origin) / dist;
+                          RTCRay ray;
+                          ray.org_x = static_cast<float>(origin.x());
+                          ray.org_y = static_cast<float>(origin.y());
+                          ray.org_z = static_cast<float>(origin.z());
+                          ray.dir_x = static_cast<float>(d.x());
+                          ray.dir_y = static_cast<float>(d.y());
+                          ray.dir_z = static_cast<float>(d.z());
+                          ray.tnear = 0.0f;
+                          ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
+                          ray.mask = 0xFFFFFFFFu;
+                          ray.flags = 0;
+                          ray.time = 0.0f;
+                          rtcOccluded1(impl_->scene, &ctx, &ray);
+                          if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
+                        }
                         impl_->sum[i] += view.image->sample(*px).cast<double>();
                         ++impl_->views[i];
                         ++local;
                       }
                       coloured.fetch_add(local, std::memory_order_relaxed);
+                      decided.fetch_add(local_decided, std::memory_order_relaxed);
+                      rays.fetch_add(local_rays, std::memory_order_relaxed);
                     });
+  impl_->raster_decided += decided.load();
+  impl_->rays_cast += rays.load();
   return coloured.load();
 }
 

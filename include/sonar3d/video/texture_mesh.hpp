@@ -1,10 +1,13 @@
 #pragma once
 // Video mapping onto a mesh (thesis sec. 6.4: the registered CAD models): each frame's colour
-// sampled at the mesh's vertices that the camera sees, averaged over frames. Visibility is exact:
-// a ray from the camera to the vertex is cast against the mesh itself with Embree, so no colour
-// reaches a surface behind another (the thesis' octree let it leak) and, unlike point splats,
-// a surface seen at a grazing angle does not hide itself. The mesh is first subdivided until no
-// edge is longer than the texel size, so that vertex colours carry the image's detail.
+// sampled at the mesh's vertices that the camera sees, averaged over frames. Visibility comes from
+// the mesh itself, so no colour reaches a surface behind another (the thesis' octree let it leak)
+// and, unlike point splats, a surface seen at a grazing angle does not hide itself. Per frame the
+// mesh is rasterised into a triangle-id buffer (src/video/visibility_raster.hpp); each vertex is
+// tested against the front triangle at its pixel along its own ray, and where that does not decide
+// (silhouettes, sub-pixel triangles) an Embree ray from the camera to the vertex does. The mesh is
+// first subdivided until no edge is longer than the texel size, so that vertex colours carry the
+// image's detail.
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
@@ -22,6 +25,10 @@ struct MeshTextureConfig {
   // Subdivision refused beyond this many vertices: ~150 bytes each at the last level (mesh,
   // midpoint table, colour sums), so the default bounds it near 600 MB.
   std::size_t max_vertices = 4'000'000;
+  // false: one Embree ray per vertex and frame, exact below the pixel but ~5× slower; true: the
+  // visibility raster first, rays only where it does not decide (an occluder smaller than a pixel
+  // that covers the vertex but no pixel centre is missed).
+  bool raster_visibility = true;
   void validate() const;  // throws Error naming the field
 };
 
@@ -31,7 +38,7 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
                                std::size_t max_vertices);
 
 struct TexturedMesh {
-  TriangleMesh mesh;                   // the subdivided mesh
+  TriangleMesh mesh;  // the subdivided mesh, its vertices renumbered in spatial (Morton) order
   std::vector<Eigen::Vector3f> color;  // per vertex: linear RGB mean over the frames; 0 if none
   std::vector<std::uint32_t> views;    // per vertex: frames that saw it (0: no colour)
   std::size_t coloured() const;
@@ -50,6 +57,9 @@ class MeshTexturer {
   std::size_t add(const CameraView& view, std::size_t index = 0);
   const TriangleMesh& mesh() const;
   TexturedMesh result() const;
+  // Vertex tests so far decided by the raster and by Embree rays (over all frames).
+  std::size_t raster_decided() const;
+  std::size_t rays_cast() const;
 
  private:
   struct Impl;
