@@ -87,6 +87,11 @@ trajectory: {type: lawnmower, x: [-1, 1], y: [-1, 1], z: 3, line_spacing: 1, spa
 w('colmap', 'two_cameras', '# c\n1 OPENCV 640 480 500 505 320.5 240.5 -0.1 0.01 0.001 -0.001\n2 SIMPLE_RADIAL 100 80 90 50.5 40.5 0.01' + SEP + '# i\n1 0.7071 0 0.7071 0 1 2 3 1 a b.png\n10.5 3 -1 4 5 6\n2 1 0 0 0 0 0 0 2 c.jpg\n\n')
 w('colmap', 'full_opencv', '1 FULL_OPENCV 1280 960 900 905 641.8 479.4 -0.12 0.03 0.0008 -0.0005 -0.002 0 0 0' + SEP + '5 0.5 -0.5 0.5 -0.5 2 3 -1 1 frame.png\n\n')
 
+cam = 'format: sonar3d-camera\nversion: 1\nwidth: 320\nheight: 240\nfx: 200\nfy: 201\ncx: 159.5\ncy: 119.5\nk1: -0.05\nk2: 0.01\np1: 0\np2: 0\nk3: 0\nT_vehicle_camera:\n  translation: [0.1, 0, -0.2]\n  quaternion: [1, 0, 0, 0]\n'
+cam_frames = 'index,timestamp,file\n0,10,camera/frames/000000.png\n1,10.5,camera/frames/000001.png\n'
+w('camera_dataset', 'simulated', cam + SEP + cam_frames + SEP + nav)
+w('camera_dataset', 'rpy_pinhole', cam.replace('quaternion: [1, 0, 0, 0]', 'rpy_deg: [180, 0, 90]').replace('k1: -0.05\n', '') + SEP + cam_frames.replace('10.5', '11') + SEP + nav)
+
 for f in os.listdir('data/sweeps'):
     w('sweep', f.replace('.yaml', ''), open('data/sweeps/' + f).read())
 

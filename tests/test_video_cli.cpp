@@ -14,6 +14,7 @@
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulation.hpp"
+#include "sonar3d/video/camera_dataset.hpp"
 #include "sonar3d/video/colmap.hpp"
 #include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
@@ -411,4 +412,158 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
   r = run(tmp, args + (tmp / "x.ply").string() + " --colmap " + tmp.string());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_FALSE(fs::exists(tmp / "x.ply"));
+}
+
+// Camera frames in a dataset: a scene with a `camera:` block simulates camera images into the
+// dataset's camera/ part, placed on the navigation; `sonar3d texture --dataset` colours a cloud
+// from them; then the bad inputs of the format.
+TEST(TextureCli, DatasetCameraFramesFromTheSimulatorColourACloud) {
+  const fs::path tmp = test::temp_dir("texture_cli_dataset");
+  const std::string scene_text = R"(
+seed: 4
+sensor: {preset: sim-10deg, beams: 40, fov_deg: 40, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+simulation: {elevation_step_deg: 0.2}
+objects:
+  - {name: seabed, primitive: {type: plane, size: [6, 6]}, reflectivity: 0.3, color: [0.8, 0.7, 0.3]}
+  - {name: box, primitive: {type: box, size: [0.6, 0.6, 0.6]}, pose: {translation: [0, 0, 0.3]}, reflectivity: 0.9, color: [0.9, 0.1, 0.1]}
+trajectory: {period: 0.1, type: straight, start: [-1, 0, 3], end: [1, 0, 3], spacing: 0.05}
+camera:
+  width: 240
+  height: 180
+  fx: 150
+  fy: 150
+  cx: 119.5
+  cy: 89.5
+  k1: -0.02
+  T_vehicle_camera: {translation: [0.1, 0, -0.2], rpy_deg: [180, 0, 0]}
+  rate_hz: 1
+  ambient: 1.0
+  attenuation_per_m: 0.0
+)";
+  std::ofstream(tmp / "scene.yaml") << scene_text;
+  const fs::path ds = tmp / "ds";
+  CliRun r =
+      run(tmp, "simulate " + (tmp / "scene.yaml").string() + " -o " + ds.string() + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  ASSERT_TRUE(has_camera_frames(ds));
+  const CameraDataset cams = read_camera_dataset(ds);
+  const double span = cams.navigation.times.back() - cams.navigation.times.front();
+  EXPECT_EQ(cams.size(), static_cast<std::size_t>(std::floor(span * 1.0 + 1e-9)) + 1);
+  EXPECT_EQ(cams.rig.intrinsics.width, 240);
+  EXPECT_NEAR(cams.rig.intrinsics.k1, -0.02, 1e-12);
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    const Eigen::Isometry3d T = cams.T_world_camera(i);
+    EXPECT_NEAR(T.translation().z(), 2.8, 1e-9);     // 3 m − 0.2 m below the vehicle
+    EXPECT_NEAR(T.linear().col(2).z(), -1.0, 1e-9);  // looking down
+    const RgbImage img = read_rgb_image(cams.image_path(i));
+    EXPECT_EQ(img.width, 240);
+  }
+
+  PointCloud cloud;
+  const std::size_t n_seabed = 30000;
+  for (const SceneObject& o : read_truth(ds)) {
+    const auto pts = sample_surface(o.mesh_world, o.name == "seabed" ? n_seabed : 6000, 9);
+    cloud.points.insert(cloud.points.end(), pts.begin(), pts.end());
+  }
+  const fs::path in = tmp / "cloud.ply", out = tmp / "coloured.ply";
+  write_ply(in.string(), cloud);
+  r = run(tmp, "texture " + in.string() + " --dataset " + ds.string() +
+                   " --point-spacing 0.04 -o " + out.string() + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("from " + std::to_string(cams.size()) + " images"), std::string::npos)
+      << r.out;
+  const PointCloud got = read_ply(out.string());
+  ASSERT_EQ(got.size(), cloud.size());
+  const auto sand = srgb8({0.8f, 0.7f, 0.3f}), red = srgb8({0.9f, 0.1f, 0.1f});
+  const std::array<std::uint8_t, 3> black{0, 0, 0};
+  std::size_t hidden = 0, sand_ok = 0, red_ok = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    const Eigen::Vector3f& p = got.points[i];
+    const double m = std::max(std::abs(p.x()), std::abs(p.y()));
+    if (i < n_seabed && m < 0.25) {
+      EXPECT_EQ(got.color[i], black) << "under the box " << p.transpose();
+      ++hidden;
+    } else if (i < n_seabed && m > 0.5 && m < 0.9) {
+      EXPECT_TRUE(near(got.color[i], sand, 3)) << p.transpose();
+      ++sand_ok;
+    } else if (i >= n_seabed && p.z() > 0.59 && m < 0.25) {
+      EXPECT_TRUE(near(got.color[i], red, 3)) << p.transpose();
+      ++red_ok;
+    }
+  }
+  EXPECT_GT(hidden, 100u);
+  EXPECT_GT(sand_ok, 1500u);
+  EXPECT_GT(red_ok, 200u);
+
+  // Bad inputs, each in a copy of the dataset: one line, exit 1.
+  auto broken = [&](const std::string& name) {
+    const fs::path copy = tmp / name;
+    fs::copy(ds, copy, fs::copy_options::recursive);
+    return copy;
+  };
+  const std::string args = "texture " + in.string() + " --point-spacing 0.04 --quiet -o ";
+  {
+    const fs::path d = broken("no_fx");
+    std::ifstream f(d / "camera/camera.yaml");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    std::string text = ss.str();
+    text.erase(text.find("fx:"), text.find('\n', text.find("fx:")) - text.find("fx:") + 1);
+    std::ofstream(d / "camera/camera.yaml") << text;
+    r = run(tmp, args + (tmp / "o1.ply").string() + " --dataset " + d.string());
+    expect_one_line_error(r, "fx");
+  }
+  {
+    const fs::path d = broken("late_frame");
+    std::ofstream(d / "camera/frames.csv", std::ios::app) << "99,1e6,camera/frames/000000.png\n";
+    r = run(tmp, args + (tmp / "o2.ply").string() + " --dataset " + d.string());
+    expect_one_line_error(r, "has no pose");
+  }
+  {
+    const fs::path d = broken("missing_image");
+    fs::remove(d / "camera/frames/000001.png");
+    r = run(tmp, args + (tmp / "o3.ply").string() + " --dataset " + d.string());
+    expect_one_line_error(r, "000001.png");
+  }
+  r = run(tmp, args + (tmp / "o4.ply").string() + " --dataset " + ds.string() + " --images " +
+                   tmp.string());
+  EXPECT_EQ(r.code, 2) << r.err;  // a usage error
+  EXPECT_NE(r.err.find("--images: does not apply to --dataset"), std::string::npos) << r.err;
+  r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + tmp.string());
+  expect_one_line_error(r, "camera/camera.yaml is missing");
+  for (const char* name : {"o1.ply", "o2.ply", "o3.ply", "o4.ply", "o5.ply"}) {
+    EXPECT_FALSE(fs::exists(tmp / name)) << name;
+  }
+}
+
+// A scene's `camera:` block: bad values name the key.
+TEST(TextureCli, SceneCameraBlockErrorsNameTheKey) {
+  const fs::path tmp = test::temp_dir("texture_cli_scene_camera");
+  const std::string base = R"(
+sensor: {preset: sim-10deg, beams: 20, fov_deg: 20, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+objects:
+  - {name: seabed, primitive: {type: plane, size: [4, 4]}}
+trajectory: {period: 0.1, type: straight, start: [-1, 0, 3], end: [1, 0, 3], spacing: 0.1}
+)";
+  auto load = [&](const std::string& camera) {
+    std::ofstream(tmp / "scene.yaml") << base << "camera: " << camera << "\n";
+    return load_simulation_setup((tmp / "scene.yaml").string());
+  };
+  const SimulationSetup ok =
+      load("{width: 64, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5, rate_hz: 4}");
+  ASSERT_TRUE(ok.camera.has_value());
+  EXPECT_EQ(ok.camera->rig.intrinsics.width, 64);
+  EXPECT_DOUBLE_EQ(ok.camera->rate_hz, 4);
+  test::expect_error([&] { load("{width: 64, height: 48, fy: 50, cx: 31.5, cy: 23.5}"); }, "fx");
+  test::expect_error([&] { load("{width: 0, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5}"); },
+                     "camera.width");
+  test::expect_error(
+      [&] { load("{width: 64, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5, rate_hz: 0}"); },
+      "camera.rate_hz");
+  test::expect_error(
+      [&] { load("{width: 64, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5, k1: -1.5}"); },
+      "does not invert");
+  test::expect_error(
+      [&] { load("{width: 64, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5, zoom: 2}"); },
+      "zoom");
 }

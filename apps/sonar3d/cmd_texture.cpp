@@ -11,13 +11,13 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "texture",
       "Colour a point cloud from posed camera images (thesis sec. 6.4): every image projected "
       "onto the points it sees, colours averaged in linear RGB; points hidden behind others in a "
-      "frame take no colour from it. Poses from a COLMAP text model or an IDR/NeuS cameras .npz, "
-      "in "
-      "the cloud's frame.");
+      "frame take no colour from it. Poses from a COLMAP text model or an IDR/NeuS cameras .npz "
+      "in the cloud's frame, or from a dataset's camera frames placed on its navigation.");
   auto job = std::make_shared<TextureFilesJob>();
   auto cloud = std::make_shared<std::string>(), colmap = std::make_shared<std::string>(),
        images = std::make_shared<std::string>(), output = std::make_shared<std::string>(),
-       neus = std::make_shared<std::string>(), neus_frame = std::make_shared<std::string>("world");
+       neus = std::make_shared<std::string>(), neus_frame = std::make_shared<std::string>("world"),
+       dataset = std::make_shared<std::string>();
   cmd->add_option("cloud", *cloud,
                   "point cloud to colour (PLY), or with --mesh a mesh (any Assimp format); in the "
                   "poses' frame")
@@ -33,17 +33,23 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
                       "of --images in name order")
           ->check(CLI::ExistingFile)
           ->excludes(colmap_opt);
-  colmap_opt->excludes(neus_opt);
+  auto* dataset_opt =
+      cmd->add_option("--dataset", *dataset,
+                      "a dataset with camera frames (camera/ in docs/formats.md) instead: images "
+                      "and intrinsics from camera/, poses from its navigation · T_vehicle_camera")
+          ->check(CLI::ExistingDirectory)
+          ->excludes(colmap_opt)
+          ->excludes(neus_opt);
+  colmap_opt->excludes(neus_opt)->excludes(dataset_opt);
+  neus_opt->excludes(dataset_opt);
   cmd->add_option("--neus-frame", *neus_frame,
                   "frame of the cloud for --neus: world (world_mat as given) or normalized "
                   "(NeuS's unit-sphere frame, x = (x_world - c)/s by scale_mat)")
       ->check(CLI::IsMember({"world", "normalized"}))
       ->capture_default_str();
-  cmd->add_option(
-         "--images", *images,
-         "the images: those named in images.txt, or with --neus all of the directory in name order "
-         "(8/16-bit: sRGB; float: linear)")
-      ->required()
+  cmd->add_option("--images", *images,
+                  "with --colmap or --neus: the images: those named in images.txt, or with --neus "
+                  "all of the directory in name order (8/16-bit: sRGB; float: linear)")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--output", *output,
                   "coloured point cloud (PLY with uchar red green blue, sRGB)")
@@ -67,18 +73,26 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
-  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output] {
-    if (colmap->empty() && neus->empty()) {
-      throw CLI::ValidationError("--colmap or --neus", "camera poses are required");
+  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset] {
+    if (colmap->empty() && neus->empty() && dataset->empty()) {
+      throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
+    }
+    if (dataset->empty() && images->empty()) {
+      throw CLI::ValidationError("--images", "required with --colmap or --neus");
+    }
+    if (!dataset->empty() && !images->empty()) {
+      throw CLI::ValidationError("--images",
+                                 "does not apply to --dataset (its camera/ holds them)");
     }
     if (job->is_mesh && job->drop_uncoloured) {
       throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
     }
-    run = [&g, job, cloud, colmap, neus, neus_frame, images, output] {
+    run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset] {
       job->cloud = *cloud;
       job->mesh.max_range_m = job->config.max_range_m;
       job->colmap_dir = *colmap;
       job->neus_file = *neus;
+      job->dataset_dir = *dataset;
       job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
       job->images_dir = *images;
       job->output = *output;

@@ -157,30 +157,12 @@ Eigen::Isometry3d Dataset::T_world_sonar(std::size_t i) const {
 
 bool Dataset::has_truth() const { return fs::exists(truth_dir() / "scene.yaml"); }
 
-Dataset read_dataset(const fs::path& dir) {
-  if (!fs::is_directory(dir)) throw Error("dataset '" + dir.string() + "' is not a directory");
-  Dataset ds;
-  ds.root = dir;
-  const std::string yaml_path = (dir / "sonar.yaml").string();
-  if (!fs::exists(yaml_path)) {
-    throw Error("'" + dir.string() + "' is not a sonar3d dataset: sonar.yaml is missing");
-  }
-  YAML::Node root = yaml::load_file(yaml_path);
-  if (!root.IsMap()) throw Error(yaml_path + ": expected a mapping at the top level");
-  const int version = yaml::get_int(root, "version", -1, yaml_path);
-  if (version != kDatasetVersion) {
-    throw Error(yaml::where(yaml_path, root, "version") + ": unsupported dataset version " +
-                std::to_string(version) + " (this build reads version " +
-                std::to_string(kDatasetVersion) + ")");
-  }
-  yaml::check_keys(root, {"format", "version", "sensor", "noise"}, yaml_path);
-  if (!root["sensor"]) throw Error(yaml_path + ": required key 'sensor' is missing");
-  ds.spec = yaml::parse_sonar_spec(root["sensor"], yaml_path, "sensor");
-
-  // frames.csv: index,timestamp,file
-  const std::string csv = (dir / "frames.csv").string();
-  std::ifstream f(csv);
-  if (!f) throw Error("dataset '" + dir.string() + "': frames.csv is missing");
+std::vector<FrameRecord> read_frames_csv(const fs::path& path) {
+  // index,timestamp,file
+  const std::string csv = path.string();
+  std::ifstream f(path);
+  if (!f) throw Error("cannot read '" + csv + "'");
+  std::vector<FrameRecord> frames;
   std::string line;
   int lineno = 0;
   bool header = true;
@@ -214,7 +196,7 @@ Dataset read_dataset(const fs::path& dir) {
     if (!std::isfinite(r.timestamp)) {
       throw Error(csv + ":" + std::to_string(lineno) + ": timestamp is not finite");
     }
-    if (!ds.frames.empty() && r.timestamp < ds.frames.back().timestamp) {
+    if (!frames.empty() && r.timestamp < frames.back().timestamp) {
       throw Error(csv + ":" + std::to_string(lineno) + ": timestamps go backwards");
     }
     if (c.empty() || fs::path(c).is_absolute() || c.find("..") != std::string::npos) {
@@ -227,8 +209,41 @@ Dataset read_dataset(const fs::path& dir) {
                   " repeats line " + std::to_string(it->second) +
                   "; every frame needs its own index");
     }
-    ds.frames.push_back(r);
+    frames.push_back(r);
   }
+  return frames;
+}
+
+std::string frames_csv_text(const std::vector<FrameRecord>& frames) {
+  std::ostringstream csv;
+  csv << "index,timestamp,file\n" << std::setprecision(17);
+  for (const auto& r : frames) csv << r.index << ',' << r.timestamp << ',' << r.file << '\n';
+  return csv.str();
+}
+
+Dataset read_dataset(const fs::path& dir) {
+  if (!fs::is_directory(dir)) throw Error("dataset '" + dir.string() + "' is not a directory");
+  Dataset ds;
+  ds.root = dir;
+  const std::string yaml_path = (dir / "sonar.yaml").string();
+  if (!fs::exists(yaml_path)) {
+    throw Error("'" + dir.string() + "' is not a sonar3d dataset: sonar.yaml is missing");
+  }
+  YAML::Node root = yaml::load_file(yaml_path);
+  if (!root.IsMap()) throw Error(yaml_path + ": expected a mapping at the top level");
+  const int version = yaml::get_int(root, "version", -1, yaml_path);
+  if (version != kDatasetVersion) {
+    throw Error(yaml::where(yaml_path, root, "version") + ": unsupported dataset version " +
+                std::to_string(version) + " (this build reads version " +
+                std::to_string(kDatasetVersion) + ")");
+  }
+  yaml::check_keys(root, {"format", "version", "sensor", "noise"}, yaml_path);
+  if (!root["sensor"]) throw Error(yaml_path + ": required key 'sensor' is missing");
+  ds.spec = yaml::parse_sonar_spec(root["sensor"], yaml_path, "sensor");
+
+  const fs::path csv = dir / "frames.csv";
+  if (!fs::exists(csv)) throw Error("dataset '" + dir.string() + "': frames.csv is missing");
+  ds.frames = read_frames_csv(csv);
 
   const std::string nav = (dir / "navigation.tum").string();
   if (!fs::exists(nav)) throw Error("dataset '" + dir.string() + "': navigation.tum is missing");
@@ -300,8 +315,10 @@ void DatasetWriter::set_navigation(const Trajectory& T_world_vehicle) {
 
 void DatasetWriter::set_noise(const NoiseImages& noise) { impl_->noise = noise; }
 
-fs::path DatasetWriter::truth_dir() {
-  const fs::path p = impl_->out.temp() / "truth";
+fs::path DatasetWriter::truth_dir() { return part_dir("truth"); }
+
+fs::path DatasetWriter::part_dir(const std::string& name) {
+  const fs::path p = impl_->out.temp() / name;
   fs::create_directories(p);
   return p;
 }
@@ -337,10 +354,7 @@ void DatasetWriter::commit() {
   }
   out << YAML::EndMap;
   write_text_file((tmp / "sonar.yaml").string(), std::string(out.c_str()) + "\n");
-  std::ostringstream csv;
-  csv << "index,timestamp,file\n" << std::setprecision(17);
-  for (const auto& r : impl_->frames) csv << r.index << ',' << r.timestamp << ',' << r.file << '\n';
-  write_text_file((tmp / "frames.csv").string(), csv.str());
+  write_text_file((tmp / "frames.csv").string(), frames_csv_text(impl_->frames));
   write_tum((tmp / "navigation.tum").string(), impl_->navigation);
   impl_->out.commit();
 }

@@ -184,9 +184,10 @@ SimulationSetup load_simulation_setup(const std::string& path) {
   const fs::path base = fs::path(path).parent_path();
   YAML::Node root = yaml::load_file(path);
   if (!root.IsMap()) throw Error(path + ": expected a mapping at the top level");
-  yaml::check_keys(
-      root, {"sensor", "simulation", "objects", "trajectory", "noise", "seed", "navigation_error"},
-      path);
+  yaml::check_keys(root,
+                   {"sensor", "simulation", "objects", "trajectory", "noise", "seed",
+                    "navigation_error", "camera"},
+                   path);
   if (!root["sensor"]) throw Error(path + ": required key 'sensor' is missing");
   setup.spec = yaml::parse_sonar_spec(root["sensor"], path, "sensor");
   setup.seed = static_cast<unsigned long long>(yaml::get_int(root, "seed", 1, path));
@@ -343,6 +344,28 @@ SimulationSetup load_simulation_setup(const std::string& path) {
     }
     setup.navigation_error = dr;
   }
+  if (const YAML::Node n = root["camera"]) {
+    SimulatedCamera cam;
+    cam.rig = parse_camera_rig(n, path, "camera", {"rate_hz", "ambient", "attenuation_per_m"});
+    cam.rate_hz = yaml::get_double(n, "rate_hz", cam.rate_hz, path, "camera");
+    cam.render.ambient = yaml::get_double(n, "ambient", cam.render.ambient, path, "camera");
+    cam.render.attenuation_per_m =
+        yaml::get_double(n, "attenuation_per_m", cam.render.attenuation_per_m, path, "camera");
+    if (!(cam.rate_hz > 0 && cam.rate_hz <= 1000)) {
+      throw Error(yaml::where(path, n, "camera.rate_hz") + ": must be within (0, 1000] Hz");
+    }
+    const double span = setup.T_world_vehicle.times.back() - setup.T_world_vehicle.times.front();
+    if (span * cam.rate_hz > 1e6) {
+      throw Error(yaml::where(path, n, "camera.rate_hz") + ": " + std::to_string(span) +
+                  " s of trajectory at this rate is more than a million camera frames");
+    }
+    try {
+      cam.render.validate();
+    } catch (const Error& e) {
+      throw Error(yaml::where(path, n, "camera") + ": " + e.what());
+    }
+    setup.camera = cam;
+  }
   if (const YAML::Node n = root["noise"]) {
     yaml::check_keys(n, {"model", "scale", "stripes", "mean", "std"}, path, "noise");
     const std::string model = yaml::get_string(n, "model", "none", path, "noise");
@@ -420,6 +443,30 @@ std::optional<NoiseImages> noise_images(const SimulationSetup& setup) {
   return out;
 }
 
+namespace {
+
+// The camera's images over the trajectory's span at rate_hz, rendered at the true poses.
+void simulate_camera_frames(const SimulationSetup& setup, const fs::path& camera_dir,
+                            bool progress) {
+  const SimulatedCamera& cam = *setup.camera;
+  const Trajectory& traj = setup.T_world_vehicle;
+  const CameraRenderer renderer(setup.scene, cam.render);
+  CameraFramesWriter writer(camera_dir, cam.rig);
+  const double t0 = traj.times.front(), span = traj.times.back() - t0;
+  const auto count = static_cast<std::size_t>(std::floor(span * cam.rate_hz + 1e-9)) + 1;
+  Progress bar("camera", count, progress);
+  for (std::size_t k = 0; k < count; ++k) {
+    const double t = std::min(t0 + static_cast<double>(k) / cam.rate_hz, traj.times.back());
+    const Eigen::Isometry3d T_world_camera = traj.interpolate(t) * cam.rig.T_vehicle_camera;
+    writer.add(t, renderer.render(cam.rig.intrinsics, T_world_camera));
+    bar.add();
+  }
+  bar.finish();
+  writer.finish();
+}
+
+}  // namespace
+
 SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& out, bool progress) {
   const auto t_start = std::chrono::steady_clock::now();
   const Simulator sim(setup.scene, setup.spec, setup.simulator);
@@ -444,6 +491,7 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const fs::path& o
   writer.set_navigation(
       setup.navigation_error ? dead_reckoning(traj, *setup.navigation_error, setup.seed) : traj);
   if (noise) writer.set_noise(*noise);
+  if (setup.camera) simulate_camera_frames(setup, writer.part_dir("camera"), progress);
 
   // Ground truth: every object's world-frame mesh and a scene.yaml that lists them.
   const fs::path truth = writer.truth_dir();

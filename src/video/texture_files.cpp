@@ -17,6 +17,7 @@
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/video/camera_dataset.hpp"
 #include "sonar3d/video/colmap.hpp"
 
 namespace sonar3d {
@@ -159,8 +160,29 @@ struct Frame {
 
 std::vector<Frame> list_frames(const TextureFilesJob& job) {
   std::vector<Frame> frames;
+  require(
+      int(!job.neus_file.empty()) + int(!job.colmap_dir.empty()) + int(!job.dataset_dir.empty()) ==
+          1,
+      "texture: give one source of camera poses: a COLMAP model, a NeuS file or a dataset");
+  if (!job.dataset_dir.empty()) {
+    const CameraDataset ds = read_camera_dataset(job.dataset_dir);
+    require(ds.size() > 0, "texture: '" + (job.dataset_dir / "camera" / "frames.csv").string() +
+                               "' lists no frame");
+    for (std::size_t i = 0; i < ds.size(); ++i) {
+      Frame f;
+      f.file = ds.image_path(i);
+      if (!fs::exists(f.file)) {
+        throw Error("camera frame " + std::to_string(ds.frames[i].index) + " ('" +
+                    ds.frames[i].file + "') is not in '" + job.dataset_dir.string() + "'");
+      }
+      f.camera = ds.rig.intrinsics;
+      f.camera_name = "camera in '" + (job.dataset_dir / "camera" / "camera.yaml").string() + "'";
+      f.T_world_camera = ds.T_world_camera(i);
+      frames.push_back(f);
+    }
+    return frames;
+  }
   if (!job.neus_file.empty()) {
-    require(job.colmap_dir.empty(), "texture: give either a COLMAP model or a NeuS file, not both");
     const auto cams = read_neus_cameras(job.neus_file, job.neus_frame);
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(job.images_dir)) {

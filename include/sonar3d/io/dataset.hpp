@@ -44,6 +44,11 @@ struct Dataset {
   std::filesystem::path truth_dir() const { return root / "truth"; }
 };
 
+// A frames.csv (index,timestamp,file; the sonar's and the camera's): indices unique, timestamps
+// finite and never going back, files relative paths inside the dataset. Errors name file and line.
+std::vector<FrameRecord> read_frames_csv(const std::filesystem::path& path);
+std::string frames_csv_text(const std::vector<FrameRecord>& frames);
+
 // Reads sonar.yaml, frames.csv, navigation.tum and noise/ (frames are read on demand). Errors name
 // the file, line and key.
 Dataset read_dataset(const std::filesystem::path& dir);
@@ -62,6 +67,8 @@ class DatasetWriter {
   void set_noise(const NoiseImages& noise);
   // Directory (inside the temporary dataset) where ground truth can be written.
   std::filesystem::path truth_dir();
+  // Directory (inside the temporary dataset) for an optional part, e.g. "camera".
+  std::filesystem::path part_dir(const std::string& name);
   void commit();
 
  private:

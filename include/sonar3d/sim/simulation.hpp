@@ -13,6 +13,8 @@
 #include "sonar3d/sim/noise.hpp"
 #include "sonar3d/sim/scene.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "sonar3d/video/camera_dataset.hpp"
+#include "sonar3d/video/render.hpp"
 
 namespace sonar3d {
 
@@ -22,6 +24,15 @@ struct NoiseModelConfig {
   StripeNoiseConfig stripes;
   std::string mean_path, std_path;  // Kind::Images: float TIFFs (range bins × beams)
   double scale = 1.0;               // multiplies mean and std (an SNR knob)
+};
+
+// Scene key `camera:` — a camera on the vehicle whose images the simulator renders (video
+// mapping's ground truth) into the dataset's camera/ part, at rate_hz over the trajectory's span,
+// from the true trajectory.
+struct SimulatedCamera {
+  CameraRig rig;
+  double rate_hz = 2.0;  // frames per second
+  CameraRenderConfig render;
 };
 
 struct SimulationSetup {
@@ -34,6 +45,7 @@ struct SimulationSetup {
   // Scene key navigation_error: the logged navigation drifts (navigation.tum); truth/ keeps the
   // true trajectory (truth/navigation.tum).
   std::optional<DeadReckoningConfig> navigation_error;
+  std::optional<SimulatedCamera> camera;
   unsigned long long seed = 1;
 };
 

@@ -31,11 +31,13 @@ void write_rgb_image(const std::filesystem::path& path, const RgbImage& image);
 struct TextureFilesJob {
   std::filesystem::path cloud;  // PLY, world frame
   // Poses in the cloud's frame, from one of:
-  std::filesystem::path colmap_dir;  // cameras.txt + images.txt, or
-  std::filesystem::path neus_file;   // IDR/NeuS cameras_*.npz (world_mat_i for the i-th image)
+  std::filesystem::path colmap_dir;   // cameras.txt + images.txt, or
+  std::filesystem::path neus_file;    // IDR/NeuS cameras_*.npz (world_mat_i for the i-th image), or
+  std::filesystem::path dataset_dir;  // a dataset's camera frames, posed on its navigation
   NeusFrame neus_frame = NeusFrame::World;
-  // The images named in images.txt; with neus_file, the image files of this directory (.png
-  // .jpg .jpeg .tif .tiff) in name order, one per world_mat_i, as IDR/NeuS list them.
+  // The images named in images.txt (not used with dataset_dir); with neus_file, the image files of
+  // this directory (.png .jpg .jpeg .tif .tiff) in name order, one per world_mat_i, as IDR/NeuS
+  // list them.
   std::filesystem::path images_dir;
   std::filesystem::path output;  // PLY with red/green/blue
   TextureConfig config;
