@@ -29,8 +29,9 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     bool glb_all_lods = false, no_connections = false;
   };
   auto o = std::make_shared<Opts>();
-  cmd->add_option("map", o->map, "map directory (sonar3d map: merged.ply) or point cloud (.ply, "
-                                 "world frame)")
+  cmd->add_option("map", o->map,
+                  "map directory (sonar3d map: merged.ply) or point cloud (.ply, "
+                  "world frame)")
       ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("--placements", o->placements, "placements JSON from sonar3d recognize")
@@ -54,8 +55,9 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
   cmd->add_option("--min-valid-fraction", o->cfg.seabed.min_valid_fraction,
                   "a coarse cell needs at least this fraction of its finest cells observed")
       ->capture_default_str();
-  cmd->add_flag("--no-fill", [o](std::int64_t) { o->cfg.seabed.fill_footprints = false; },
-                "leave the seabed under placed models as holes (default: filled from around)");
+  cmd->add_flag(
+      "--no-fill", [o](std::int64_t) { o->cfg.seabed.fill_footprints = false; },
+      "leave the seabed under placed models as holes (default: filled from around)");
   cmd->add_option("--min-ridge", o->cfg.connections.min_ridge_m,
                   "pipeline search: ridge crest above the ground, metres")
       ->capture_default_str();
@@ -79,22 +81,17 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       if (fs::is_directory(map)) {
         cloud_path = map / "merged.ply";
         require(fs::is_regular_file(cloud_path),
-                "'" + map.string() + "' is a directory without merged.ply: give a map directory "
-                "from sonar3d map or a point cloud (.ply)");
+                "'" + map.string() +
+                    "' is a directory without merged.ply: give a map directory "
+                    "from sonar3d map or a point cloud (.ply)");
       }
       const fs::path out = o->output;
       require(!fs::exists(out) || (fs::is_directory(out) && fs::is_empty(out)),
-              "'" + out.string() + "' exists: sonar3d world writes a new directory; choose "
-              "another output (-o) or remove it yourself");
+              "'" + out.string() +
+                  "' exists: sonar3d world writes a new directory; choose "
+                  "another output (-o) or remove it yourself");
       const PlacementsFile placements = read_placements(o->placements);
-      const Catalogue cat = read_catalogue(o->catalogue);
-      std::vector<std::string> names;
-      std::vector<TriangleMesh> meshes;
-      for (const CatalogueModel& m : cat.models) {
-        names.push_back(m.name);
-        meshes.push_back(load_catalogue_mesh(cat, m));
-      }
-      std::vector<WorldObject> objects = world_objects(placements, names, meshes, o->catalogue);
+      std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
       const PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
       const WorldModel w = build_world_model(cloud, std::move(objects), cfg);
@@ -125,21 +122,22 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                             errors[k].median_as_mapped_m,
                             truth->has_alignment ? ", before taking out the map's placement" : "");
         }
-        fmt::print("  seabed lod{}: {} m cells, {} triangles, {} bytes ({:.0f}x smaller than the "
-                   "cloud){}\n",
-                   lod.lod, lod.cell_m, lod.mesh.triangles.size(), r.seabed_bytes[k],
-                   static_cast<double>(info.cloud_bytes) / static_cast<double>(r.seabed_bytes[k]),
-                   err);
+        fmt::print(
+            "  seabed lod{}: {} m cells, {} triangles, {} bytes ({:.0f}x smaller than the "
+            "cloud){}\n",
+            lod.lod, lod.cell_m, lod.mesh.triangles.size(), r.seabed_bytes[k],
+            static_cast<double>(info.cloud_bytes) / static_cast<double>(r.seabed_bytes[k]), err);
       }
       for (const Connection& c : w.connections) {
         fmt::print("  {} {} -> {}: {:.2f} m ({:.0f} % of the cross-sections)\n", c.kind, c.from,
                    c.to, c.length_m, 100 * c.fraction);
       }
-      fmt::print("world.glb {} bytes; all files {} bytes against the cloud's {} ({:.0f}x); "
-                 "{:.2f} s -> {}\n",
-                 r.glb_bytes, r.bytes_total, info.cloud_bytes,
-                 static_cast<double>(info.cloud_bytes) / static_cast<double>(r.bytes_total),
-                 w.seconds, out.string());
+      fmt::print(
+          "world.glb {} bytes; all files {} bytes against the cloud's {} ({:.0f}x); "
+          "{:.2f} s -> {}\n",
+          r.glb_bytes, r.bytes_total, info.cloud_bytes,
+          static_cast<double>(info.cloud_bytes) / static_cast<double>(r.bytes_total), w.seconds,
+          out.string());
       return 0;
     };
   });

@@ -1,10 +1,9 @@
 #include "sonar3d/world/gltf.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
@@ -27,15 +26,14 @@ struct Bin {
     const std::size_t offset = bytes.size();
     bytes.resize(offset + size);
     if (size > 0) std::memcpy(bytes.data() + offset, data, size);
-    views.push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", size}, {"target", target}});
+    views.push_back(
+        {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", size}, {"target", target}});
     return static_cast<int>(views.size()) - 1;
   }
   int accessor(int view, int component, std::size_t count, const char* type, bool normalized,
                nlohmann::json min = nullptr, nlohmann::json max = nullptr) {
-    nlohmann::json a = {{"bufferView", view},
-                        {"componentType", component},
-                        {"count", count},
-                        {"type", type}};
+    nlohmann::json a = {
+        {"bufferView", view}, {"componentType", component}, {"count", count}, {"type", type}};
     if (normalized) a["normalized"] = true;
     if (!min.is_null()) a["min"] = min;
     if (!max.is_null()) a["max"] = max;
@@ -49,8 +47,8 @@ std::vector<Eigen::Vector3f> vertex_normals(const TriangleMesh& m) {
   std::vector<Eigen::Vector3f> n(m.vertices.size(), Eigen::Vector3f::Zero());
   for (const Eigen::Vector3i& t : m.triangles) {
     const Eigen::Vector3f a = m.vertices[static_cast<std::size_t>(t[0])];
-    const Eigen::Vector3f c =
-        (m.vertices[static_cast<std::size_t>(t[1])] - a).cross(m.vertices[static_cast<std::size_t>(t[2])] - a);
+    const Eigen::Vector3f c = (m.vertices[static_cast<std::size_t>(t[1])] - a)
+                                  .cross(m.vertices[static_cast<std::size_t>(t[2])] - a);
     for (int k = 0; k < 3; ++k) n[static_cast<std::size_t>(t[k])] += c;
   }
   for (Eigen::Vector3f& v : n) {
@@ -102,25 +100,24 @@ void write_glb(const std::filesystem::path& path, const GltfScene& scene) {
     const long long n = static_cast<long long>(m.vertices.size());
     for (const Eigen::Vector3i& t : m.triangles) {
       for (int k = 0; k < 3; ++k) {
-        require(t[k] >= 0 && t[k] < n, what + ": a triangle refers to a vertex outside 0.." +
-                                           std::to_string(n - 1));
+        require(t[k] >= 0 && t[k] < n,
+                what + ": a triangle refers to a vertex outside 0.." + std::to_string(n - 1));
         idx.push_back(static_cast<std::uint32_t>(t[k]));
       }
     }
     const std::vector<Eigen::Vector3f> normals = vertex_normals(m);
     nlohmann::json attributes;
-    attributes["POSITION"] =
-        bin.accessor(bin.view(m.vertices.data(), m.vertices.size() * 12, kArrayBuffer), kFloat,
-                     m.vertices.size(), "VEC3", false, {lo.x(), lo.y(), lo.z()},
-                     {hi.x(), hi.y(), hi.z()});
-    attributes["NORMAL"] = bin.accessor(
-        bin.view(normals.data(), normals.size() * 12, kArrayBuffer), kFloat, normals.size(),
-        "VEC3", false);
+    attributes["POSITION"] = bin.accessor(
+        bin.view(m.vertices.data(), m.vertices.size() * 12, kArrayBuffer), kFloat,
+        m.vertices.size(), "VEC3", false, {lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()});
+    attributes["NORMAL"] = bin.accessor(bin.view(normals.data(), normals.size() * 12, kArrayBuffer),
+                                        kFloat, normals.size(), "VEC3", false);
     if (!gm.colors.empty()) {
       // Each colour padded to 4 bytes: glTF requires vertex attribute elements 4-byte aligned.
       std::vector<std::uint8_t> rgba(gm.colors.size() * 4, 255);
       for (std::size_t k = 0; k < gm.colors.size(); ++k) {
-        for (int c = 0; c < 3; ++c) rgba[k * 4 + static_cast<std::size_t>(c)] = gm.colors[k][static_cast<std::size_t>(c)];
+        for (int c = 0; c < 3; ++c)
+          rgba[k * 4 + static_cast<std::size_t>(c)] = gm.colors[k][static_cast<std::size_t>(c)];
       }
       attributes["COLOR_0"] = bin.accessor(bin.view(rgba.data(), rgba.size(), kArrayBuffer),
                                            kUnsignedByte, gm.colors.size(), "VEC4", true);
@@ -131,7 +128,8 @@ void write_glb(const std::filesystem::path& path, const GltfScene& scene) {
         {{"name", gm.name},
          {"doubleSided", true},
          {"pbrMetallicRoughness",
-          {{"baseColorFactor", {gm.base_color[0], gm.base_color[1], gm.base_color[2], gm.base_color[3]}},
+          {{"baseColorFactor",
+            {gm.base_color[0], gm.base_color[1], gm.base_color[2], gm.base_color[3]}},
            {"metallicFactor", 0.0},
            {"roughnessFactor", 1.0}}}});
     meshes.push_back({{"name", gm.name},

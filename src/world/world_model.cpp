@@ -12,6 +12,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/world/gltf.hpp"
 
@@ -26,7 +27,8 @@ constexpr std::uintmax_t kMaxJsonBytes = 64ull << 20;  // placements / summary f
 nlohmann::json parse_json_file(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
-    throw Error(what + " '" + path + "': " + (fs::exists(path, ec) ? "not a file" : "no such file"));
+    throw Error(what + " '" + path +
+                "': " + (fs::exists(path, ec) ? "not a file" : "no such file"));
   }
   const std::uintmax_t size = fs::file_size(path, ec);
   require(!ec && size <= kMaxJsonBytes,
@@ -61,8 +63,8 @@ Eigen::Isometry3d parse_pose(const nlohmann::json& j, const std::string& where) 
     throw Error(where + ": expected a 4×4 matrix (4 rows of 4 numbers, or 16 numbers)");
   }
   require(m.allFinite(), where + ": a number is not finite");
-  require(m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-9) &&
-              std::abs(m(3, 3) - 1) < 1e-9 && m.row(3).head<3>().norm() < 1e-9,
+  require(m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-9) && std::abs(m(3, 3) - 1) < 1e-9 &&
+              m.row(3).head<3>().norm() < 1e-9,
           where + ": the last row must be 0 0 0 1");
   const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
   require((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-3 &&
@@ -94,7 +96,7 @@ struct PlacedBox {
 std::vector<PlacedBox> placed_boxes(const std::vector<WorldObject>& objects, double margin_m) {
   std::vector<PlacedBox> out;
   for (const WorldObject& o : objects) {
-    const Eigen::AlignedBox3f b = o.mesh_model.bounding_box();
+    const Eigen::AlignedBox3f b = o.mesh_model->bounding_box();
     PlacedBox p;
     p.T_model_world = o.T_world_model.inverse();
     p.box = Eigen::AlignedBox3d(b.min().cast<double>() - Eigen::Vector3d::Constant(margin_m),
@@ -139,13 +141,14 @@ PlacementsFile read_placements(const std::string& path) {
   require(j.contains("format") && j["format"].is_string() &&
               j["format"].get<std::string>() == "sonar3d-placements",
           where + ": no \"format\": \"sonar3d-placements\" (write it with sonar3d recognize)");
-  require(j.contains("version") && j["version"].is_number_integer() && j["version"].get<long long>() == 1,
+  require(j.contains("version") && j["version"].is_number_integer() &&
+              j["version"].get<long long>() == 1,
           where + ": unsupported \"version\" (this sonar3d reads version 1)");
   require(j.contains("placements") && j["placements"].is_array(),
           where + ": no \"placements\" list");
   const nlohmann::json& list = j["placements"];
-  require(list.size() <= kMaxPlacements, where + ": more than " + std::to_string(kMaxPlacements) +
-                                             " placements");
+  require(list.size() <= kMaxPlacements,
+          where + ": more than " + std::to_string(kMaxPlacements) + " placements");
   PlacementsFile out;
   out.path = path;
   out.map = optional_string(j, "map");
@@ -205,6 +208,10 @@ std::vector<WorldObject> world_objects(const PlacementsFile& placements,
                                        const std::string& catalogue_path) {
   require(catalogue_names.size() == catalogue_meshes.size(),
           "world_objects: one mesh per catalogue name");
+  std::vector<std::shared_ptr<const TriangleMesh>> shared;
+  for (const TriangleMesh& m : catalogue_meshes) {
+    shared.push_back(std::make_shared<const TriangleMesh>(m));
+  }
   std::map<std::string, int> count;
   std::vector<WorldObject> out;
   for (std::size_t i = 0; i < placements.placements.size(); ++i) {
@@ -221,10 +228,23 @@ std::vector<WorldObject> world_objects(const PlacementsFile& placements,
     o.T_world_model = p.T_world_model;
     o.score_m = p.score_m;
     o.residual_median_m = p.residual_median_m;
-    o.mesh_model = catalogue_meshes[static_cast<std::size_t>(it - catalogue_names.begin())];
+    o.mesh_model = shared[static_cast<std::size_t>(it - catalogue_names.begin())];
     out.push_back(std::move(o));
   }
   return out;
+}
+
+std::vector<WorldObject> world_objects(const PlacementsFile& placements,
+                                       const Catalogue& catalogue) {
+  std::vector<std::string> names;
+  std::vector<TriangleMesh> meshes;
+  for (const CatalogueModel& m : catalogue.models) {
+    names.push_back(m.name);
+    const bool placed = std::any_of(placements.placements.begin(), placements.placements.end(),
+                                    [&](const PlacementRecord& p) { return p.model == m.name; });
+    meshes.push_back(placed ? load_catalogue_mesh(catalogue, m) : TriangleMesh{});
+  }
+  return world_objects(placements, names, meshes, catalogue.path);
 }
 
 std::vector<std::uint8_t> explained_points(const PointCloud& cloud_world,
@@ -332,7 +352,8 @@ std::size_t fill_holes(ElevationMap& map, const std::vector<std::uint8_t>& fill_
       for (int dr = -1; dr <= 1; ++dr) {
         for (int dc = -1; dc <= 1; ++dc) {
           const int rr = r + dr, cc = c + dc;
-          if ((dr == 0 && dc == 0) || rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+          if ((dr == 0 && dc == 0) || rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols)
+            continue;
           if (map.valid(rr, cc)) {
             sum += map.at(rr, cc);
             ++n;
@@ -519,7 +540,8 @@ std::optional<SeabedTruth> find_seabed_truth(const fs::path& map_path, const fs:
   if (ds.empty()) return std::nullopt;
   if (!fs::is_regular_file(ds / "truth" / "scene.yaml", ec)) {
     if (!dataset.empty()) {
-      throw Error("truth dataset '" + ds.string() + "': no truth/scene.yaml (a simulated dataset "
+      throw Error("truth dataset '" + ds.string() +
+                  "': no truth/scene.yaml (a simulated dataset "
                   "from sonar3d simulate is needed)");
     }
     return std::nullopt;  // the map's dataset was not simulated (or moved): no error to measure
@@ -563,8 +585,10 @@ SeabedError seabed_error(const TriangleMesh& mesh, const SeabedTruth& truth, std
 WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                                    const WorldWriteInfo& info) {
   std::error_code ec;
-  if (fs::exists(fs::symlink_status(dir, ec)) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
-    throw Error("'" + dir.string() + "' exists: sonar3d world writes a new directory; choose "
+  if (fs::exists(fs::symlink_status(dir, ec)) &&
+      !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
+    throw Error("'" + dir.string() +
+                "' exists: sonar3d world writes a new directory; choose "
                 "another output (-o) or remove it yourself");
   }
   require(!world.seabed.empty(), "write_world_model: no seabed level of detail");
@@ -613,12 +637,12 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
   nlohmann::json objects = nlohmann::json::array();
   for (const WorldObject& o : world.objects) {
     const std::string file = "models/" + o.id + ".ply";
-    TriangleMesh placed = o.mesh_model;
+    TriangleMesh placed = *o.mesh_model;
     placed.transform(o.T_world_model);
     save_mesh((tmp / file).string(), placed);
     r.models_bytes += fs::file_size(tmp / file);
     if (!mesh_of_model.count(o.model)) {
-      scene.meshes.push_back({o.model, o.mesh_model, {}, steel});
+      scene.meshes.push_back({o.model, *o.mesh_model, {}, steel});
       mesh_of_model[o.model] = static_cast<int>(scene.meshes.size()) - 1;
     }
     scene.nodes.push_back({o.id, mesh_of_model[o.model], o.T_world_model.matrix(), {}});
@@ -651,7 +675,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
       {"objects", objects},
       {"connections", connections},
       {"seabed", seabed},
-      {"source", {{"map", info.map}, {"placements", info.placements}, {"catalogue", info.catalogue}}},
+      {"source",
+       {{"map", info.map}, {"placements", info.placements}, {"catalogue", info.catalogue}}},
       {"bytes_total", r.bytes_total},
       {"cloud_bytes", info.cloud_bytes}};
   write_text_file((tmp / "graph.json").string(), graph.dump(2) + "\n");

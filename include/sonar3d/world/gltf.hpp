@@ -26,7 +26,7 @@ struct GltfMesh {
 
 struct GltfNode {
   std::string name;
-  int mesh = -1;  // index into GltfScene::meshes, or -1
+  int mesh = -1;                                         // index into GltfScene::meshes, or -1
   Eigen::Matrix4d matrix = Eigen::Matrix4d::Identity();  // node-to-parent transform
   std::vector<int> children;                             // indices into GltfScene::nodes
 };

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,7 +36,7 @@ struct PlacementsFile {
 };
 
 // Placement records allowed in one file (a count read from a file decides allocations).
-constexpr std::size_t kMaxPlacements = 100'000;
+constexpr std::size_t kMaxPlacements = 10'000;
 
 // Reads a placements JSON ("format": "sonar3d-placements", version 1). Errors name the file and
 // the placement index and key at fault: not JSON, another format or version, a missing or
@@ -51,7 +52,9 @@ struct WorldObject {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
   double score_m = 0;
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();
-  TriangleMesh mesh_model;  // the catalogue mesh, model frame
+  // The catalogue mesh, model frame; shared by the objects of one model (a placements file of
+  // thousands of records must not copy a mesh each).
+  std::shared_ptr<const TriangleMesh> mesh_model;
 };
 
 struct SeabedConfig {
@@ -122,6 +125,11 @@ std::vector<WorldObject> world_objects(const PlacementsFile& placements,
                                        const std::vector<TriangleMesh>& catalogue_meshes,
                                        const std::string& catalogue_path);
 
+// The same with the meshes of a catalogue (recog/catalogue.hpp), loaded for the models placed.
+struct Catalogue;
+std::vector<WorldObject> world_objects(const PlacementsFile& placements,
+                                       const Catalogue& catalogue);
+
 // Per point: 1 when a placed model explains it (SeabedConfig::margin_m).
 std::vector<std::uint8_t> explained_points(const PointCloud& cloud_world,
                                            const std::vector<WorldObject>& objects,
@@ -170,7 +178,7 @@ std::optional<SeabedTruth> find_seabed_truth(const std::filesystem::path& map_pa
                                              const std::filesystem::path& dataset);
 
 struct SeabedError {
-  double median_m = 0;          // with the map's placement taken out when known
+  double median_m = 0;            // with the map's placement taken out when known
   double median_as_mapped_m = 0;  // as the map lies in the world
   std::size_t samples = 0;
 };
@@ -182,7 +190,7 @@ SeabedError seabed_error(const TriangleMesh& mesh, const SeabedTruth& truth,
 struct WorldWriteInfo {
   std::string map, placements, catalogue;  // sources, recorded in graph.json
   std::uintmax_t cloud_bytes = 0;          // size of the point cloud file the model replaces
-  std::vector<double> seabed_error_m;  // per LOD (NaN: not measured), or empty
+  std::vector<double> seabed_error_m;      // per LOD (NaN: not measured), or empty
   bool glb_all_lods = false;  // world.glb carries every LOD (default: the coarsest only)
 };
 
