@@ -15,6 +15,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/world/gltf.hpp"
 #include "sonar3d/world/world_model.hpp"
@@ -304,6 +305,17 @@ TEST(WorldGltf, ParsesBackWithTheRightNodesTransformsAndVertices) {
     EXPECT_NEAR(p_gltf.y(), p_world.z(), 1e-5);
     EXPECT_NEAR(p_gltf.z(), -p_world.y(), 1e-5);
   }
+  // sonar3d's own mesh loader turns glTF's y-up back: the scene in the ENU world frame.
+  const TriangleMesh loaded = load_mesh((s.dir / "world.glb").string());
+  TriangleMesh expected = s.world.seabed[2].mesh;
+  for (const WorldObject& o : s.world.objects) {
+    TriangleMesh placed = *o.mesh_model;
+    placed.transform(o.T_world_model);
+    expected.append(placed);
+  }
+  // (Vertex counts differ: load_mesh joins identical vertices.)
+  EXPECT_TRUE(loaded.bounding_box().min().isApprox(expected.bounding_box().min(), 1e-4f));
+  EXPECT_TRUE(loaded.bounding_box().max().isApprox(expected.bounding_box().max(), 1e-4f));
   // The two boxes share one mesh.
   EXPECT_EQ(find_node(root, "box_0")->mMeshes[0], find_node(root, "box_1")->mMeshes[0]);
   EXPECT_EQ(scene->mNumMeshes, 3u);
