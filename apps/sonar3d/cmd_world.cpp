@@ -1,0 +1,146 @@
+// sonar3d world: a semantic world model from a map and its placements (thesis sec. 6.3.3).
+#include <fmt/core.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include "commands.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/world/world_model.hpp"
+
+namespace sonar3d::cli {
+
+namespace fs = std::filesystem;
+
+void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "world",
+      "Build a semantic world model (thesis sec. 6.3.3, Fig. 6.18) from a map and the placements "
+      "of `sonar3d recognize`: the seabed (points no placed model explains) as height-field "
+      "meshes at several levels of detail, the placed CAD models, and a graph of objects and "
+      "pipelines between them. Writes OUTPUT/world.glb (glTF 2.0), seabed_lod<k>.ply, "
+      "models/<id>.ply and graph.json (docs/world.md).");
+  struct Opts {
+    std::string map, placements, catalogue, output, truth;
+    WorldModelConfig cfg;
+    bool glb_all_lods = false, no_connections = false;
+  };
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("map", o->map,
+                  "map directory (sonar3d map: merged.ply) or point cloud (.ply, "
+                  "world frame)")
+      ->required()
+      ->check(CLI::ExistingPath);
+  cmd->add_option("--placements", o->placements, "placements JSON from sonar3d recognize")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--catalogue", o->catalogue,
+                  "catalogue YAML the placements were made with (docs/recognition.md)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", o->output, "world model directory to create (must not exist)")
+      ->required();
+  cmd->add_option("--lod-cells", o->cfg.seabed.lod_cells_m,
+                  "seabed height-field cell per level of detail, metres, finest first; each an "
+                  "integer multiple of the previous")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--margin", o->cfg.seabed.margin_m,
+                  "points within a placed model's bounding box grown by this many metres are the "
+                  "model's, not the seabed's")
+      ->capture_default_str();
+  cmd->add_option("--min-valid-fraction", o->cfg.seabed.min_valid_fraction,
+                  "a coarse cell needs at least this fraction of its finest cells observed")
+      ->capture_default_str();
+  cmd->add_flag(
+      "--no-fill", [o](std::int64_t) { o->cfg.seabed.fill_footprints = false; },
+      "leave the seabed under placed models as holes (default: filled from around)");
+  cmd->add_option("--min-ridge", o->cfg.connections.min_ridge_m,
+                  "pipeline search: ridge crest above the ground, metres")
+      ->capture_default_str();
+  cmd->add_option("--ridge-fraction", o->cfg.connections.min_fraction,
+                  "pipeline search: fraction of cross-sections showing the ridge")
+      ->capture_default_str();
+  cmd->add_flag("--no-connections", o->no_connections, "do not search for pipelines");
+  cmd->add_flag("--glb-all-lods", o->glb_all_lods,
+                "world.glb carries every seabed level of detail (default: the coarsest)");
+  cmd->add_option("--truth", o->truth,
+                  "simulated dataset whose truth terrain measures the seabed's error (default: "
+                  "the map's dataset when it has truth/)")
+      ->check(CLI::ExistingDirectory);
+  cmd->callback([&run, o] {
+    run = [o] {
+      WorldModelConfig cfg = o->cfg;
+      cfg.find_connections = !o->no_connections;
+      cfg.validate();
+      const fs::path map = o->map;
+      fs::path cloud_path = map;
+      if (fs::is_directory(map)) {
+        cloud_path = map / "merged.ply";
+        require(fs::is_regular_file(cloud_path),
+                "'" + map.string() +
+                    "' is a directory without merged.ply: give a map directory "
+                    "from sonar3d map or a point cloud (.ply)");
+      }
+      const fs::path out = o->output;
+      require(!fs::exists(out) || (fs::is_directory(out) && fs::is_empty(out)),
+              "'" + out.string() +
+                  "' exists: sonar3d world writes a new directory; choose "
+                  "another output (-o) or remove it yourself");
+      const PlacementsFile placements = read_placements(o->placements);
+      std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
+      const PointCloud cloud = read_ply(cloud_path.string());
+      require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
+      const WorldModel w = build_world_model(cloud, std::move(objects), cfg);
+
+      WorldWriteInfo info;
+      info.map = o->map;
+      info.placements = o->placements;
+      info.catalogue = o->catalogue;
+      info.cloud_bytes = fs::file_size(cloud_path);
+      info.glb_all_lods = o->glb_all_lods;
+      const std::optional<SeabedTruth> truth = find_seabed_truth(map, o->truth);
+      std::vector<SeabedError> errors;
+      if (truth) {
+        for (const SeabedLod& lod : w.seabed) {
+          errors.push_back(seabed_error(lod.mesh, *truth));
+          info.seabed_error_m.push_back(errors.back().median_m);
+        }
+      }
+      const WorldWriteResult r = write_world_model(out, w, info);
+
+      fmt::print("map: {} points, {} on the seabed; {} placed models; {} cells filled under them\n",
+                 w.cloud_points, w.seabed_points, w.objects.size(), w.filled_cells);
+      for (std::size_t k = 0; k < w.seabed.size(); ++k) {
+        const SeabedLod& lod = w.seabed[k];
+        std::string err;
+        if (truth) {
+          err = fmt::format("; median error {:.3f} m ({:.3f} m as mapped{})", errors[k].median_m,
+                            errors[k].median_as_mapped_m,
+                            truth->has_alignment ? ", before taking out the map's placement" : "");
+        }
+        fmt::print(
+            "  seabed lod{}: {} m cells, {} triangles, {} bytes ({:.0f}x smaller than the "
+            "cloud){}\n",
+            lod.lod, lod.cell_m, lod.mesh.triangles.size(), r.seabed_bytes[k],
+            static_cast<double>(info.cloud_bytes) / static_cast<double>(r.seabed_bytes[k]), err);
+      }
+      for (const Connection& c : w.connections) {
+        fmt::print("  {} {} -> {}: {:.2f} m ({:.0f} % of the cross-sections)\n", c.kind, c.from,
+                   c.to, c.length_m, 100 * c.fraction);
+      }
+      fmt::print(
+          "world.glb {} bytes; all files {} bytes against the cloud's {} ({:.0f}x); "
+          "{:.2f} s -> {}\n",
+          r.glb_bytes, r.bytes_total, info.cloud_bytes,
+          static_cast<double>(info.cloud_bytes) / static_cast<double>(r.bytes_total), w.seconds,
+          out.string());
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

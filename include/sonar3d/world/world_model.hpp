@@ -1,0 +1,208 @@
+#pragma once
+// Semantic world models (thesis sec. 6.3.3, Fig. 6.18): a field's point cloud turned into the
+// registered CAD models, a seabed surface at several levels of detail, and a graph of the
+// objects and their connections — the thesis' 600 MB cloud became a 5 MB model.
+//
+// Frames: local ENU world (x East, y North, z up); the thesis' (North, East, Depth) are
+// (y, x, −z). Placements are T_world_model. docs/world.md describes the method and its
+// measurements, docs/formats.md the output directory.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
+
+namespace sonar3d {
+
+// One placement read from `sonar3d recognize`'s placements JSON (docs/recognition.md).
+struct PlacementRecord {
+  std::string model;
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  double score_m = 0;
+  double residual_median_m = std::numeric_limits<double>::quiet_NaN();  // null in the file: NaN
+};
+
+struct PlacementsFile {
+  std::string path;
+  std::string map, catalogue;  // the sources recorded by recognize (may be empty)
+  std::vector<PlacementRecord> placements;
+};
+
+// Placement records allowed in one file (a count read from a file decides allocations).
+constexpr std::size_t kMaxPlacements = 10'000;
+
+// Reads a placements JSON ("format": "sonar3d-placements", version 1). Errors name the file and
+// the placement index and key at fault: not JSON, another format or version, a missing or
+// non-string model, a T_world_model that is not 4×4 finite numbers with a rotation block
+// (orthonormal, determinant +1, within 1e-3) and a last row of 0 0 0 1.
+PlacementsFile read_placements(const std::string& path);
+
+// A placed CAD model of the world model.
+struct WorldObject {
+  std::string id;     // "<model>_<n>", n counting from 0 per model in placement order
+  std::string model;  // catalogue name
+  std::string kind = "structure";
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  double score_m = 0;
+  double residual_median_m = std::numeric_limits<double>::quiet_NaN();
+  // The catalogue mesh, model frame; shared by the objects of one model (a placements file of
+  // thousands of records must not copy a mesh each).
+  std::shared_ptr<const TriangleMesh> mesh_model;
+};
+
+struct SeabedConfig {
+  // Levels of detail: height-field cell sizes, m, finest first; each an integer multiple (≥ 2×)
+  // of the previous one. The finest is mapped from the points, each coarser one from the finest
+  // by the median of its valid cells.
+  std::vector<double> lod_cells_m{0.05, 0.2, 1.0};
+  // A point is explained by a placed model (and left out of the seabed) when it lies inside the
+  // model's bounding box (model frame) grown by this margin on every side, m.
+  double margin_m = 0.1;
+  // A coarse cell gets a height when at least this fraction of its fine cells hold one.
+  double min_valid_fraction = 0.25;
+  // No-data cells under a placed model's grown footprint are filled from their neighbours
+  // (the seabed goes on under a structure); other no-data cells stay holes.
+  bool fill_footprints = true;
+  // Refuses height fields with more cells than this (ElevationMapConfig::max_cells).
+  std::size_t max_cells = 100'000'000;
+  void validate() const;  // throws Error naming the parameter
+};
+
+// Pipelines found in the map between two placed structures: the seabed along the straight line
+// joining their footprint centres carries a ridge (a half-buried pipe) over most of its length.
+struct ConnectionConfig {
+  double station_m = 0.25;    // spacing of the cross-sections along the line, m
+  double corridor_m = 0.5;    // half-width searched for the ridge's crest around the line, m
+  double band_m = 1.5;        // half-width of each cross-section; beyond corridor_m: the ground
+  double min_ridge_m = 0.08;  // crest at least this far above the ground's median, m
+  double min_fraction = 0.6;  // of the cross-sections with data, the fraction showing a ridge
+  double max_length_m = 100;  // pairs of structures farther apart are not tested, m
+  void validate() const;
+};
+
+struct WorldModelConfig {
+  SeabedConfig seabed;
+  ConnectionConfig connections;
+  bool find_connections = true;
+  void validate() const;
+};
+
+struct SeabedLod {
+  int lod = 0;
+  double cell_m = 0;
+  ElevationMap heights;  // the height field meshed (world z per cell)
+  TriangleMesh mesh;     // world frame: a vertex per valid cell centre
+};
+
+struct Connection {
+  std::string from, to;  // object ids
+  std::string kind = "pipeline";
+  double length_m = 0;  // from the first to the last cross-section showing the ridge
+  double fraction = 0;  // of the cross-sections with data that show it
+};
+
+struct WorldModel {
+  std::vector<WorldObject> objects;
+  std::vector<Connection> connections;
+  std::vector<SeabedLod> seabed;
+  std::size_t cloud_points = 0, seabed_points = 0;  // seabed: the points no model explains
+  std::size_t filled_cells = 0;                     // finest LOD cells filled under footprints
+  double seconds = 0;
+};
+
+// The objects for `placements`, meshes from `catalogue_meshes` (name → model-frame mesh, same
+// order as `catalogue_names`). A placement naming a model the catalogue does not list is an
+// Error naming the placements file, the placement and the catalogue.
+std::vector<WorldObject> world_objects(const PlacementsFile& placements,
+                                       const std::vector<std::string>& catalogue_names,
+                                       const std::vector<TriangleMesh>& catalogue_meshes,
+                                       const std::string& catalogue_path);
+
+// The same with the meshes of a catalogue (recog/catalogue.hpp), loaded for the models placed.
+struct Catalogue;
+std::vector<WorldObject> world_objects(const PlacementsFile& placements,
+                                       const Catalogue& catalogue);
+
+// Per point: 1 when a placed model explains it (SeabedConfig::margin_m).
+std::vector<std::uint8_t> explained_points(const PointCloud& cloud_world,
+                                           const std::vector<WorldObject>& objects,
+                                           double margin_m);
+
+// The height field as a triangle mesh: a vertex at each valid cell's centre (x, y, z), two
+// triangles per 2×2 block of valid cells (split along the diagonal with the smaller height
+// difference), one where exactly three are valid; no-data cells leave holes. Counter-clockwise
+// seen from above (normals up).
+TriangleMesh height_field_mesh(const ElevationMap& map);
+
+// A coarser height field: blocks of factor × factor cells, each the median of its valid cells
+// when at least min_valid_fraction of them are valid, else no data.
+ElevationMap downsample_heights(const ElevationMap& fine, int factor, double min_valid_fraction);
+
+// Fills no-data cells whose centres lie in the mask by repeated averaging of their valid
+// 8-neighbours (from the edge of each hole inward). Returns the number of cells filled.
+std::size_t fill_holes(ElevationMap& map, const std::vector<std::uint8_t>& fill_mask);
+
+// Pipelines between pairs of structures (ConnectionConfig), found on `seabed` (the seabed with
+// the structures removed and their footprints filled).
+std::vector<Connection> find_connections(const ElevationMap& seabed,
+                                         const std::vector<WorldObject>& objects,
+                                         const ConnectionConfig& config, double margin_m);
+
+// The whole world model from a world-frame cloud and its placed objects. An empty cloud, or a
+// cloud that every placed model explains entirely, is an Error.
+WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObject> objects,
+                             const WorldModelConfig& config);
+
+// Ground truth for the seabed's error, from a simulated dataset (truth/scene.yaml, objects of
+// kind terrain) and, when the map directory's summary.json records it, the map's placement in
+// the world (MapAlignment, docs/mapping.md), which no mapping can observe.
+struct SeabedTruth {
+  TriangleMesh terrain_world;
+  bool has_alignment = false;
+  Eigen::Matrix2d M = Eigen::Matrix2d::Identity();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+  double dz = 0;
+  std::string dataset;
+};
+// `dataset`: a simulated dataset directory; empty: the one named by map_dir/summary.json, if
+// any. Returns nullopt when there is no truth to use; errors (a dataset without terrain, an
+// unreadable summary) name the file.
+std::optional<SeabedTruth> find_seabed_truth(const std::filesystem::path& map_path,
+                                             const std::filesystem::path& dataset);
+
+struct SeabedError {
+  double median_m = 0;            // with the map's placement taken out when known
+  double median_as_mapped_m = 0;  // as the map lies in the world
+  std::size_t samples = 0;
+};
+// Unsigned distances from uniform samples of `mesh` (about `samples`, seeded) to the truth
+// terrain, median.
+SeabedError seabed_error(const TriangleMesh& mesh, const SeabedTruth& truth,
+                         std::size_t samples = 200'000, unsigned long long seed = 1);
+
+struct WorldWriteInfo {
+  std::string map, placements, catalogue;  // sources, recorded in graph.json
+  std::uintmax_t cloud_bytes = 0;          // size of the point cloud file the model replaces
+  std::vector<double> seabed_error_m;      // per LOD (NaN: not measured), or empty
+  bool glb_all_lods = false;  // world.glb carries every LOD (default: the coarsest only)
+};
+
+struct WorldWriteResult {
+  std::vector<std::uintmax_t> seabed_bytes;  // per LOD PLY
+  std::uintmax_t glb_bytes = 0, models_bytes = 0, bytes_total = 0;
+};
+
+// Writes the world model directory (docs/formats.md, "World model directory"): world.glb,
+// seabed_lod<k>.ply, models/<id>.ply, graph.json; atomically as a whole. `dir` must not exist
+// or be an empty directory.
+WorldWriteResult write_world_model(const std::filesystem::path& dir, const WorldModel& world,
+                                   const WorldWriteInfo& info);
+
+}  // namespace sonar3d

@@ -1,0 +1,74 @@
+// World models (thesis sec. 6.3.3, docs/world.md): seabed levels of detail, placed models, graph.
+#include "common.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/world/world_model.hpp"
+
+namespace sonar3d::python {
+
+using namespace pybind11::literals;
+
+void bind_world(py::module_& m) {
+  m.def(
+      "world_model",
+      [](const carray<float>& points, const std::string& placements, const std::string& catalogue,
+         const std::vector<double>& lod_cells_m, double margin_m, bool fill_footprints,
+         bool find_connections, const std::string& output, bool glb_all_lods) {
+        PointCloud cloud;
+        cloud.points = array_to_points(points);
+        WorldModelConfig cfg;
+        cfg.seabed.lod_cells_m = lod_cells_m;
+        cfg.seabed.margin_m = margin_m;
+        cfg.seabed.fill_footprints = fill_footprints;
+        cfg.find_connections = find_connections;
+        cfg.validate();
+        const PlacementsFile p = read_placements(placements);
+        WorldModel w;
+        {
+          py::gil_scoped_release release;
+          w = build_world_model(cloud, world_objects(p, read_catalogue(catalogue)), cfg);
+          if (!output.empty()) {
+            WorldWriteInfo info;
+            info.map = "(points)";
+            info.placements = placements;
+            info.catalogue = catalogue;
+            info.glb_all_lods = glb_all_lods;
+            write_world_model(output, w, info);
+          }
+        }
+        py::list objects, connections, seabed;
+        for (const WorldObject& o : w.objects) {
+          objects.append(py::dict("id"_a = o.id, "model"_a = o.model, "kind"_a = o.kind,
+                                  "T_world_model"_a = pose_to_array(o.T_world_model),
+                                  "score_m"_a = o.score_m,
+                                  "residual_median_m"_a = o.residual_median_m));
+        }
+        for (const Connection& c : w.connections) {
+          connections.append(py::dict("from"_a = c.from, "to"_a = c.to, "kind"_a = c.kind,
+                                      "length_m"_a = c.length_m, "fraction"_a = c.fraction));
+        }
+        for (SeabedLod& l : w.seabed) {
+          const py::ssize_t nt = static_cast<py::ssize_t>(l.mesh.triangles.size());
+          seabed.append(py::dict(
+              "lod"_a = l.lod, "cell_m"_a = l.cell_m,
+              "vertices"_a = points_to_array(std::move(l.mesh.vertices)),
+              "triangles"_a = adopt<Eigen::Vector3i, int>(std::move(l.mesh.triangles), {nt, 3})));
+        }
+        return py::dict("objects"_a = objects, "connections"_a = connections, "seabed"_a = seabed,
+                        "seabed_points"_a = w.seabed_points, "filled_cells"_a = w.filled_cells);
+      },
+      "points"_a, "placements"_a, "catalogue"_a,
+      "lod_cells_m"_a = std::vector<double>{0.05, 0.2, 1.0}, "margin_m"_a = 0.1,
+      "fill_footprints"_a = true, "find_connections"_a = true, "output"_a = "",
+      "glb_all_lods"_a = false,
+      "A world model (thesis sec. 6.3.3) from an (N, 3) world-frame cloud, a placements JSON "
+      "(sonar3d.recognize / sonar3d recognize) and the catalogue YAML: the seabed (points no "
+      "placed model explains) as height-field meshes at lod_cells_m (metres, finest first), the "
+      "placed models and the pipelines found between them. Returns a dict: objects (id, model, "
+      "kind, T_world_model 4×4, score_m, residual_median_m), connections (from, to, kind, "
+      "length_m, fraction), seabed (lod, cell_m, vertices (N, 3) float32, triangles (M, 3) "
+      "int32), seabed_points, filled_cells. With output, also writes that directory (world.glb, "
+      "seabed_lod<k>.ply, models/, graph.json; docs/formats.md).");
+}
+
+}  // namespace sonar3d::python

@@ -1,0 +1,48 @@
+"""World models through the bindings (docs/world.md)."""
+import json
+
+import numpy as np
+import pytest
+
+import sonar3d
+
+
+def test_world_model_seabed_objects_and_files(tmp_path):
+    # A 6 x 4 m seabed with relief every 2 cm and a tank standing on it at (3, 2).
+    step = 0.02
+    xs, ys = np.meshgrid(np.arange(0, 6, step), np.arange(0, 4, step))
+    z = 0.1 * np.sin(xs) - 1.0
+    pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()]).astype(np.float32)
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({
+        "format": "sonar3d-placements", "version": 1,
+        "placements": [{"model": "tank", "score_m": 0.1, "residual_median_m": 0.01,
+                        "T_world_model": [[1, 0, 0, 3], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]}]}))
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.05, 0.2],
+                            output=str(tmp_path / "W"))
+    assert [o["id"] for o in w["objects"]] == ["tank_0"]
+    np.testing.assert_allclose(w["objects"][0]["T_world_model"][:3, 3], [3, 2, -1])
+    assert [l["cell_m"] for l in w["seabed"]] == pytest.approx([0.05, 0.2])
+    fine = w["seabed"][0]
+    assert fine["vertices"].shape[1] == 3 and fine["triangles"].shape[1] == 3
+    assert fine["triangles"].max() < len(fine["vertices"])
+    # The mesh follows the surface it was made from.
+    v = fine["vertices"]
+    assert np.median(np.abs(v[:, 2] - (0.1 * np.sin(v[:, 0]) - 1.0))) < 0.01
+    graph = json.loads((tmp_path / "W" / "graph.json").read_text())
+    assert graph["format"] == "sonar3d-world"
+    assert (tmp_path / "W" / "world.glb").stat().st_size > 0
+
+
+def test_world_model_refuses_an_unknown_model(tmp_path):
+    pts = np.zeros((10, 3), np.float32)
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: pillar, reference: pillar}\n")
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({
+        "format": "sonar3d-placements", "version": 1,
+        "placements": [{"model": "tank", "T_world_model": np.eye(4).tolist()}]}))
+    with pytest.raises(sonar3d.Error, match="names model 'tank'"):
+        sonar3d.world_model(pts, str(placements), str(cat))
