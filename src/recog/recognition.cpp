@@ -14,6 +14,7 @@
 #include <numeric>
 #include <optional>
 
+#include "placements_json.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -631,14 +632,44 @@ nlohmann::json pose_json(const Eigen::Isometry3d& T) {
   return rows;
 }
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-nlohmann::json rpy_deg(const Eigen::Isometry3d& T) {
+}  // namespace
+
+nlohmann::json rpy_deg_json(const Eigen::Isometry3d& T) {
   // R = Rz(yaw)·Ry(pitch)·Rx(roll), as scene files give poses.
   const Eigen::Matrix3d R = T.linear();
   const double pitch = std::asin(std::clamp(-R(2, 0), -1.0, 1.0));
   const double roll = std::atan2(R(2, 1), R(2, 2)), yaw = std::atan2(R(1, 0), R(0, 0));
   return {roll / kDeg, pitch / kDeg, yaw / kDeg};
 }
-}  // namespace
+
+nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const Placement& p : placements) {
+    list.push_back({{"model", p.model},
+                    {"method", p.method},
+                    {"T_world_model", pose_json(p.T_world_model)},
+                    {"translation",
+                     {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
+                      p.T_world_model.translation().z()}},
+                    {"rpy_deg", rpy_deg_json(p.T_world_model)},
+                    {"score_m", p.score_m},
+                    {"residual_median_m", num(p.residual.median_m)},
+                    {"residual_mean_m", num(p.residual.mean_m)},
+                    {"residual_points", p.residual.points},
+                    {"support", p.support},
+                    {"observed", p.observed},
+                    {"ground_z", num(p.ground_z)},
+                    {"step1_T_world_model", pose_json(p.T_world_model_4d)},
+                    {"step1_residual_median_m", num(p.residual_4d.median_m)},
+                    {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
+                    {"icp_iterations", p.icp_iterations},
+                    {"icp_kept", p.icp_kept},
+                    {"seconds_scan", p.seconds_scan},
+                    {"seconds_registration", p.seconds_registration},
+                    {"seconds", p.seconds}});
+  }
+  return list;
+}
 
 std::string placements_json(const RecognitionResult& result, const std::string& map_source,
                             const std::string& catalogue_source, const RecognitionConfig& config) {
@@ -658,31 +689,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_relative_score", config.max_relative_score},
                    {"max_residual_median_m", config.max_residual_median_m},
                    {"min_support", config.min_support}};
-  nlohmann::json list = nlohmann::json::array();
-  for (const Placement& p : result.placements) {
-    list.push_back({{"model", p.model},
-                    {"method", p.method},
-                    {"T_world_model", pose_json(p.T_world_model)},
-                    {"translation",
-                     {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
-                      p.T_world_model.translation().z()}},
-                    {"rpy_deg", rpy_deg(p.T_world_model)},
-                    {"score_m", p.score_m},
-                    {"residual_median_m", num(p.residual.median_m)},
-                    {"residual_mean_m", num(p.residual.mean_m)},
-                    {"residual_points", p.residual.points},
-                    {"support", p.support},
-                    {"observed", p.observed},
-                    {"ground_z", num(p.ground_z)},
-                    {"step1_T_world_model", pose_json(p.T_world_model_4d)},
-                    {"step1_residual_median_m", num(p.residual_4d.median_m)},
-                    {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
-                    {"icp_iterations", p.icp_iterations},
-                    {"icp_kept", p.icp_kept},
-                    {"seconds_scan", p.seconds_scan},
-                    {"seconds_registration", p.seconds_registration},
-                    {"seconds", p.seconds}});
-  }
+  nlohmann::json list = placements_list_json(result.placements);
   j["placements"] = list;
   nlohmann::json searches = nlohmann::json::array();
   for (const SearchRecord& s : result.searches) {
@@ -704,7 +711,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                                 s.placement.T_world_model_4d.translation().y(),
                                 s.placement.T_world_model_4d.translation().z()};
       e["translation"] = {t.x(), t.y(), t.z()};
-      e["rpy_deg"] = rpy_deg(s.placement.T_world_model);
+      e["rpy_deg"] = rpy_deg_json(s.placement.T_world_model);
       e["support"] = s.placement.support;
       e["observed"] = s.placement.observed;
     }
