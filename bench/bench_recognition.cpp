@@ -75,6 +75,12 @@ int main(int argc, char** argv) {
       if (!std::strcmp(argv[i], "--no-icp")) cfg.run_icp = false;
       if (!std::strcmp(argv[i], "--no-upright")) cfg3.upright = false;
       if (!std::strcmp(argv[i], "--method") && i + 1 < argc) method = argv[++i];
+      if (!std::strcmp(argv[i], "--max-residual-3d") && i + 1 < argc) {
+        cfg3.max_residual_median_m = std::atof(argv[++i]);
+      }
+      if (!std::strcmp(argv[i], "--min-coverage") && i + 1 < argc) {
+        cfg3.min_coverage = std::atof(argv[++i]);
+      }
       if (!std::strcmp(argv[i], "--label") && i + 1 < argc) label = argv[++i];
       if (!std::strcmp(argv[i], "--match-m") && i + 1 < argc) match_m = std::atof(argv[++i]);
     }
@@ -198,10 +204,10 @@ int main(int argc, char** argv) {
       std::printf(
           "  search %s (3d): %zu subspaces (r %.2f m, T %.2f m), failed fit %zu, volume %zu, "
           "points %zu, occupancy %zu; %zu kept, %zu matched, %zu passed, %zu accepted (subspaces "
-          "%.2f s, matching %.2f s)\n",
+          "%.2f s, matching %.2f s); nearest miss: coverage %.2f, residual median %.1f cm\n",
           s.model.c_str(), s.subspaces, s.r_subspace_m, s.period_m, s.failed[1], s.failed[2],
           s.failed[3], s.failed[4], s.kept, s.registered, s.passed, s.accepted, s.seconds_subspaces,
-          s.seconds_matching);
+          s.seconds_matching, s.best_rejected_coverage, 100 * s.best_rejected_residual_m);
     }
     return 0;
   } catch (const std::exception& e) {

@@ -50,7 +50,7 @@ struct Recognition3dConfig {
   double ground_quantile = 0.25;
   // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model of a
   // survivor holding more points are not matched (they hold nearly the same points).
-  double dedup_fraction = 0.25;
+  double dedup_fraction = 0.5;
   int starts = 2;                  // ICP starts per subspace (best yaws / rotations)
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
   int coarse_iterations = 15;      // first ICP pass iterations
@@ -63,7 +63,7 @@ struct Recognition3dConfig {
   // fraction of the model's samples (above its base clearance) with a scene point within
   // coverage_tol_m (a model placed into empty space has no error and no coverage).
   double max_residual_median_m = 0.04;
-  double min_coverage = 0.3;
+  double min_coverage = 0.5;
   double coverage_tol_m = 0.06;
   double max_tilt_deg = 10;  // upright: a placement tilted more than this is refused
   // Non-maximum suppression: two placements of one model whose centres are closer than this
@@ -78,7 +78,8 @@ struct Recognition3dConfig {
 
 // Shape statistics of a point set (sec. 6.3.1.1): the side lengths of its oriented bounding box
 // (principal axes of the points' covariance, extent along each, sorted decreasing), its volume,
-// its point count and its occupancy (voxels of occupancy_voxel_m holding a point).
+// its point count and its occupancy (voxels of occupancy_voxel_m holding a point). The
+// recognition computes the same from one point per occupied voxel (docs/recognition.md).
 struct ShapeStats {
   Eigen::Vector3d sides = Eigen::Vector3d::Zero();  // l[1] >= l[2] >= l[3], m
   double volume = 0;                                // m³
@@ -117,6 +118,9 @@ struct Search3dRecord {
   std::size_t passed = 0;      // survivors whose match passed the residual and coverage
   std::size_t suppressed = 0;  // passed but overlapping a better placement
   std::size_t accepted = 0;
+  // The matched survivor that came nearest to passing (highest coverage): its coverage and
+  // residual median, for the log.
+  double best_rejected_coverage = 0, best_rejected_residual_m = 0;
   double seconds_subspaces = 0, seconds_matching = 0;
 };
 
