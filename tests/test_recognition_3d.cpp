@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "recog_test_support.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
@@ -21,24 +22,9 @@ using namespace sonar3d;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
-ModelTemplate reference_template(const std::string& name, Symmetry s = Symmetry::None) {
-  ModelSamplingConfig sc;
-  sc.spacing_m = 0.015;
-  return make_model_template(name, make_reference_object(name), s, -1, sc);
-}
-
-Eigen::Isometry3d pose(double x, double y, double z, double yaw_deg, double roll_deg = 0,
-                       double pitch_deg = 0) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = Eigen::Vector3d(x, y, z);
-  T.linear() = (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(roll_deg * kDeg, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
-  return T;
-}
+using test::kDeg;
+using test::pose;
+using test::reference_template;
 
 // Points on the surface of the axis-aligned box [0, a] × [0, b] × [0, c], every `step`.
 std::vector<Eigen::Vector3f> box_surface(double a, double b, double c, double step) {

@@ -217,8 +217,9 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
             s.model, s.subspaces, s.r_subspace_m, s.kept, s.registered, s.passed, s.accepted,
             s.suppressed, s.seconds_subspaces, s.seconds_matching);
       }
-      fmt::print("{} placements ({} candidates rejected) in {:.2f} s -> {}, {}\n",
-                 r.placements.size(), rejected, r.seconds, json_path.string(), mesh_path.string());
+      fmt::print("{} placements{} in {:.2f} s -> {}, {}\n", r.placements.size(),
+                 three_d ? "" : fmt::format(" ({} candidates rejected)", rejected), r.seconds,
+                 json_path.string(), mesh_path.string());
       return 0;
     };
   });

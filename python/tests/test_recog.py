@@ -7,6 +7,20 @@ import pytest
 import sonar3d
 
 
+def box_catalogue(tmp_path):
+    """A catalogue of a 1.0 x 0.6 x 0.5 m box (OBJ, base at z = 0) and the riser."""
+    box = tmp_path / "box.obj"
+    verts = [(x, y, h) for h in (0, 0.5) for y in (-0.3, 0.3) for x in (-0.5, 0.5)]
+    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
+    box.write_text("".join("v %g %g %g\n" % p for p in verts) +
+                   "".join("f %d %d %d\nf %d %d %d\n" % (a, b, c_, a, c_, d)
+                           for a, b, c_, d in faces))
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\"}\n"
+                   "  - {name: riser, reference: riser}\n")
+    return cat
+
+
 def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     # A 6 x 5 m seabed at 1 cm with gentle relief and, seen from above, a 1.0 x 0.6 x 0.5 m box
     # centred at (2.5, 2.0) turned by 30 degrees.
@@ -18,15 +32,7 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     v = -s * (xs - 2.5) + c * (ys - 2.0)
     z = np.where((np.abs(u) <= 0.5) & (np.abs(v) <= 0.3), 0.5, z)
     pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()]).astype(np.float32)
-    box = tmp_path / "box.obj"
-    verts = [(x, y, h) for h in (0, 0.5) for y in (-0.3, 0.3) for x in (-0.5, 0.5)]
-    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
-    box.write_text("".join("v %g %g %g\n" % p for p in verts) +
-                   "".join("f %d %d %d\nf %d %d %d\n" % (a, b, c_, a, c_, d)
-                           for a, b, c_, d in faces))
-    cat = tmp_path / "cat.yaml"
-    cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\"}\n"
-                   "  - {name: riser, reference: riser}\n")
+    cat = box_catalogue(tmp_path)
     placements = sonar3d.recognize(pts, str(cat))
     assert [p["model"] for p in placements] == ["box"]
     T = placements[0]["T_world_model"]
@@ -55,15 +61,7 @@ def test_recognize_3d_finds_a_box_with_walls(tmp_path):
     c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
     box_pts = np.column_stack([0.5 + c * u - s * v, -0.3 + s * u + c * v, w])
     pts = np.vstack([seabed, box_pts]).astype(np.float32)
-    box = tmp_path / "box.obj"
-    verts = [(x, y, h) for h in (0, 0.5) for y in (-0.3, 0.3) for x in (-0.5, 0.5)]
-    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
-    box.write_text("".join("v %g %g %g\n" % p for p in verts) +
-                   "".join("f %d %d %d\nf %d %d %d\n" % (a, b, c_, a, c_, d)
-                           for a, b, c_, d in faces))
-    cat = tmp_path / "cat.yaml"
-    cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\"}\n"
-                   "  - {name: riser, reference: riser}\n")
+    cat = box_catalogue(tmp_path)
     placements = sonar3d.recognize(pts, str(cat), method="3d")
     assert [p["model"] for p in placements] == ["box"]
     assert placements[0]["method"] == "3d"

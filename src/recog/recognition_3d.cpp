@@ -15,9 +15,8 @@
 #include <limits>
 #include <memory>
 #include <numeric>
-#include <optional>
 
-#include "placements_json.hpp"
+#include "recog_common.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -25,11 +24,7 @@
 namespace sonar3d {
 
 namespace {
-constexpr double kDeg = M_PI / 180.0;
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using namespace recog_internal;
 using V3f = Eigen::Vector3f;
 
 // Voxel keys of `points` at edge `voxel` (21 bits per axis from the points' minimum corner).
@@ -199,10 +194,6 @@ Eigen::Vector3d model_center(const ModelTemplate& m) {
   return {m.center_xy.x(), m.center_xy.y(), 0.5 * (m.base_z + m.top_z)};
 }
 
-double tilt_deg(const Eigen::Isometry3d& T) {
-  return std::acos(std::clamp(T.linear()(2, 2), -1.0, 1.0)) / kDeg;
-}
-
 // The 24 rotations of the cube (signed permutation matrices of determinant +1).
 std::vector<Eigen::Matrix3d> cube_rotations() {
   std::vector<Eigen::Matrix3d> out;
@@ -285,13 +276,11 @@ std::vector<Eigen::Vector3f> voxel_subsample(const std::vector<Eigen::Vector3f>&
   return out;
 }
 
-ShapeStats shape_stats(const std::vector<Eigen::Vector3f>& points, double occupancy_voxel_m) {
-  require_positive(occupancy_voxel_m, "shape statistics occupancy_voxel_m", "m");
-  ShapeStats s;
-  s.points = points.size();
-  if (points.empty()) return s;
-  // Sec. 6.3.1.1: the OBB from the decomposition of the points' scatter about their centroid;
-  // each side is the extent of the points along one principal direction.
+namespace {
+// Sec. 6.3.1.1: the OBB from the decomposition of the points' scatter about their centroid; each
+// side is the extent of the points along one principal direction (plus `pad`), sorted
+// decreasing.
+Eigen::Vector3d obb_sides(const std::vector<V3f>& points, double pad) {
   Eigen::Matrix3d E;
   Eigen::Vector3d c;
   principal_frame(points, &E, &c);
@@ -302,10 +291,19 @@ ShapeStats shape_stats(const std::vector<Eigen::Vector3f>& points, double occupa
     lo = lo.cwiseMin(q);
     hi = hi.cwiseMax(q);
   }
-  Eigen::Vector3d sides = hi - lo;
+  Eigen::Vector3d sides = (hi - lo).array() + pad;
   std::sort(sides.data(), sides.data() + 3, std::greater<double>());
-  s.sides = sides;
-  s.volume = sides.prod();
+  return sides;
+}
+}  // namespace
+
+ShapeStats shape_stats(const std::vector<Eigen::Vector3f>& points, double occupancy_voxel_m) {
+  require_positive(occupancy_voxel_m, "shape statistics occupancy_voxel_m", "m");
+  ShapeStats s;
+  s.points = points.size();
+  if (points.empty()) return s;
+  s.sides = obb_sides(points, 0);
+  s.volume = s.sides.prod();
   std::vector<uint64_t> keys = voxel_keys(points, occupancy_voxel_m);
   std::sort(keys.begin(), keys.end());
   s.occupancy = static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
@@ -329,20 +327,8 @@ ShapeStats coarse_stats(const std::vector<V3f>& coarse, const std::vector<uint32
   }
   s.occupancy = idx.size();
   if (pts.empty()) return s;
-  Eigen::Matrix3d E;
-  Eigen::Vector3d c;
-  principal_frame(pts, &E, &c);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d hi = -lo;
-  for (const auto& p : pts) {
-    const Eigen::Vector3d q = E.transpose() * (p.cast<double>() - c);
-    lo = lo.cwiseMin(q);
-    hi = hi.cwiseMax(q);
-  }
-  Eigen::Vector3d sides = (hi - lo).array() + voxel;
-  std::sort(sides.data(), sides.data() + 3, std::greater<double>());
-  s.sides = sides;
-  s.volume = sides.prod();
+  s.sides = obb_sides(pts, voxel);
+  s.volume = s.sides.prod();
   return s;
 }
 }  // namespace
@@ -505,13 +491,6 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   c->coverage = static_cast<double>(hit) / static_cast<double>(m.pts.size());
 }
 
-std::vector<double> yaws_for(Symmetry s, double step) {
-  const double span = s == Symmetry::None ? 2 * M_PI : s == Symmetry::Half ? M_PI : 0;
-  std::vector<double> out{0};
-  for (double y = step; y < span - 1e-9; y += step) out.push_back(y);
-  return out;
-}
-
 // Direct 3D matching in one subspace (sec. 6.3.1.2).
 Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
                          const std::vector<V3f>& sub, const Ground& ground,
@@ -539,7 +518,7 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
       double score;
     };
     std::vector<Start> starts;
-    for (double yaw : yaws_for(m.t->symmetry, cfg.yaw_step_deg * kDeg)) {
+    for (double yaw : yaw_range(m.t->symmetry, cfg.yaw_step_deg * kDeg)) {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.translate(Eigen::Vector3d(cs.x(), cs.y(), tz));
       T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
@@ -582,14 +561,8 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
                                const Recognition3dConfig& cfg,
                                std::vector<Search3dRecord>* searches, bool progress) {
   cfg.validate();
-  require(!models_in.empty(), "recognition: the catalogue is empty: give at least one CAD model");
-  require(!scene_world.empty(), "recognition: the scene cloud is empty");
+  const auto threads = check_recognition_inputs(scene_world, models_in, cfg.num_threads);
   const auto start = Clock::now();
-  std::optional<tbb::global_control> threads;
-  if (cfg.num_threads > 0) {
-    threads.emplace(tbb::global_control::max_allowed_parallelism,
-                    static_cast<std::size_t>(cfg.num_threads));
-  }
   RecognitionResult out;
   out.scene_points = scene_world.size();
   Eigen::AlignedBox3f scene_box;
@@ -615,12 +588,8 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
   subsample(full, nullptr, cfg.voxel_m, &scene, nullptr);
   out.seconds_maps = since(start);
 
-  std::vector<const ModelTemplate*> order;
-  for (const auto& m : models_in) order.push_back(&m);
   // Sec. 6.3.2.6 (as in the 2D method): models in decreasing size.
-  std::stable_sort(order.begin(), order.end(), [](const ModelTemplate* a, const ModelTemplate* b) {
-    return a->radius_m > b->radius_m;
-  });
+  const std::vector<const ModelTemplate*> order = by_decreasing_size(models_in);
   Progress bar("recognize 3d", order.size(), progress);
   for (const ModelTemplate* mt : order) {
     Search3dRecord rec;
