@@ -10,6 +10,7 @@
 #include <random>
 
 #include "recog_test_support.hpp"
+#include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
@@ -235,4 +236,31 @@ TEST(Recog3dCli, MethodThreeDOnACloud) {
   r = test::run_cli(dir, base + " --method 4d --overwrite -q");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.out.find("4d"), std::string::npos) << r.out;
+}
+
+// Bad inputs are clear errors, not allocations: an empty catalogue, a model wider than the
+// scene, a cloud spanning thousands of kilometres.
+TEST(Recog3dPipeline, BadInputsGiveClearErrors) {
+  const ModelTemplate pillar = reference_template("pillar", Symmetry::Half);
+  const Recognition3dConfig cfg;
+  PointCloud small;
+  for (int i = 0; i < 100; ++i) small.points.emplace_back(0.01f * i, 0.005f * i, 0.0f);
+  auto message = [&](const PointCloud& c, const std::vector<ModelTemplate>& models) {
+    try {
+      recognize_3d(c, models, cfg);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message(small, {}).find("catalogue is empty"), std::string::npos);
+  EXPECT_NE(message(small, {pillar}).find("'pillar'"), std::string::npos);
+  EXPECT_NE(message(small, {pillar}).find("larger than the scene"), std::string::npos);
+  PointCloud huge = small;
+  huge.points.emplace_back(4e6f, 3e6f, 0.0f);
+  const std::string m = message(huge, {pillar});
+  EXPECT_NE(m.find("outside"), std::string::npos) << m;
+  Recognition3dConfig bad;
+  bad.alpha_fit = 0;
+  EXPECT_THROW(bad.validate(), Error);
 }
