@@ -1,5 +1,6 @@
 // CAD-model recognition measured against the truth of a simulated scene (docs/recognition.md):
-//   bench_recognition SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--label TEXT]
+//   bench_recognition SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--method 2d|3d] [--no-upright]
+//                     [--label TEXT]
 // MAP: a cloud (.ply) or a map directory (merged.ply) made from the scene's simulated survey.
 // Scene objects are matched to placements by name (a catalogue model named like the object) and
 // position (centres within --match-m, default 0.75 m). Prints one Markdown row per truth object and
@@ -22,6 +23,7 @@
 #include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/recognition_3d.hpp"
 
 using namespace sonar3d;
 namespace fs = std::filesystem;
@@ -58,16 +60,27 @@ double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T.linear()(1, 0), 
 int main(int argc, char** argv) {
   if (argc < 4) {
     std::fprintf(
-        stderr, "usage: %s SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--label TEXT] [--match-m M]\n",
+        stderr,
+        "usage: %s SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--method 2d|3d] [--no-upright] "
+        "[--label TEXT] [--match-m M]\n",
         argv[0]);
     return 2;
   }
   try {
     RecognitionConfig cfg;
-    std::string label = argv[1];
+    Recognition3dConfig cfg3;
+    std::string label = argv[1], method = "2d";
     double match_m = 0.75;
     for (int i = 4; i < argc; ++i) {
       if (!std::strcmp(argv[i], "--no-icp")) cfg.run_icp = false;
+      if (!std::strcmp(argv[i], "--no-upright")) cfg3.upright = false;
+      if (!std::strcmp(argv[i], "--method") && i + 1 < argc) method = argv[++i];
+      if (!std::strcmp(argv[i], "--max-residual-3d") && i + 1 < argc) {
+        cfg3.max_residual_median_m = std::atof(argv[++i]);
+      }
+      if (!std::strcmp(argv[i], "--min-coverage") && i + 1 < argc) {
+        cfg3.min_coverage = std::atof(argv[++i]);
+      }
       if (!std::strcmp(argv[i], "--label") && i + 1 < argc) label = argv[++i];
       if (!std::strcmp(argv[i], "--match-m") && i + 1 < argc) match_m = std::atof(argv[++i]);
     }
@@ -91,7 +104,10 @@ int main(int argc, char** argv) {
     if (fs::is_directory(map)) map /= "merged.ply";
     const PointCloud cloud = read_ply(map.string());
     const auto t0 = std::chrono::steady_clock::now();
-    const RecognitionResult r = recognize_2d(cloud, models, cfg, false);
+    require(method == "2d" || method == "3d", "--method: 2d or 3d");
+    std::vector<Search3dRecord> searches3;
+    const RecognitionResult r = method == "3d" ? recognize_3d(cloud, models, cfg3, &searches3)
+                                               : recognize_2d(cloud, models, cfg, false);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -125,7 +141,8 @@ int main(int argc, char** argv) {
         if (d < best_d) best = static_cast<int>(k), best_d = d;
       }
       // The metric at the true pose, on the points above the local seabed.
-      const double ground = best >= 0 ? r.placements[best].ground_z : t.T.translation().z();
+      double ground = best >= 0 ? r.placements[best].ground_z : t.T.translation().z();
+      if (!std::isfinite(ground)) ground = t.T.translation().z();
       std::vector<Eigen::Vector3f> near;
       const Eigen::Vector3d ct = t.T * c;
       for (const auto& q : cloud.points) {
@@ -182,6 +199,15 @@ int main(int argc, char** argv) {
       std::printf("  search %s: %s%s (scan %.2f s, %zu candidates, %zu aborted early)\n",
                   s.model.c_str(), s.accepted ? "accepted" : "rejected: ", s.reason.c_str(),
                   s.scan.seconds, s.scan.candidates, s.scan.aborted);
+    }
+    for (const auto& s : searches3) {
+      std::printf(
+          "  search %s (3d): %zu subspaces (r %.2f m, T %.2f m), failed fit %zu, volume %zu, "
+          "points %zu, occupancy %zu; %zu kept, %zu matched, %zu passed, %zu accepted (subspaces "
+          "%.2f s, matching %.2f s); nearest miss: coverage %.2f, residual median %.1f cm\n",
+          s.model.c_str(), s.subspaces, s.r_subspace_m, s.period_m, s.failed[1], s.failed[2],
+          s.failed[3], s.failed[4], s.kept, s.registered, s.passed, s.accepted, s.seconds_subspaces,
+          s.seconds_matching, s.best_rejected_coverage, 100 * s.best_rejected_residual_m);
     }
     return 0;
   } catch (const std::exception& e) {

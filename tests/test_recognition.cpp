@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "recog_test_support.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/mesh_io.hpp"
@@ -29,13 +30,9 @@ using namespace sonar3d;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
-ModelTemplate reference_template(const std::string& name, Symmetry s = Symmetry::None) {
-  ModelSamplingConfig sc;
-  sc.spacing_m = 0.015;
-  return make_model_template(name, make_reference_object(name), s, -1, sc);
-}
+using test::kDeg;
+using test::pose;
+using test::reference_template;
 
 double seabed(double x, double y) {
   return 0.08 * std::sin(0.6 * x + 0.3) * std::cos(0.45 * y) + 0.03 * std::sin(1.7 * x - 1.1 * y);
@@ -90,17 +87,6 @@ PointCloud synthetic_scene(
     }
   }
   return cloud;
-}
-
-Eigen::Isometry3d pose(double x, double y, double z, double yaw_deg, double roll_deg = 0,
-                       double pitch_deg = 0) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = Eigen::Vector3d(x, y, z);
-  T.linear() = (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(roll_deg * kDeg, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
-  return T;
 }
 
 double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T.linear()(1, 0), T.linear()(0, 0)); }

@@ -1,8 +1,10 @@
-// CAD-model recognition (thesis sec. 6.3.2, docs/recognition.md): the 2D method on a cloud.
+// CAD-model recognition (thesis sec. 6.3, docs/recognition.md): the 2D (sec. 6.3.2) or 3D
+// (sec. 6.3.1) method on a cloud.
 #include "common.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/recognition_3d.hpp"
 
 namespace sonar3d::python {
 
@@ -12,7 +14,10 @@ void bind_recog(py::module_& m) {
   m.def(
       "recognize",
       [](const carray<float>& points, const std::string& catalogue, bool icp, double period_m,
-         double map_cell_m, double recog_cell_m, double min_support, int num_threads) {
+         double map_cell_m, double recog_cell_m, double min_support, int num_threads,
+         const std::string& method, bool upright) {
+        require(method == "2d" || method == "3d",
+                "recognize: method must be '2d' or '3d', not '" + method + "'");
         PointCloud cloud;
         cloud.points = array_to_points(points);
         RecognitionConfig cfg;
@@ -24,6 +29,10 @@ void bind_recog(py::module_& m) {
         cfg.num_threads = num_threads;
         cfg.scan.num_threads = num_threads;
         cfg.validate();
+        Recognition3dConfig cfg3;
+        cfg3.upright = upright;
+        cfg3.num_threads = num_threads;
+        cfg3.validate();
         const Catalogue cat = read_catalogue(catalogue);
         std::vector<ModelTemplate> models;
         RecognitionResult r;
@@ -33,24 +42,29 @@ void bind_recog(py::module_& m) {
             models.push_back(make_model_template(mo.name, load_catalogue_mesh(cat, mo), mo.symmetry,
                                                  mo.expected, cfg.sampling));
           }
-          r = recognize_2d(cloud, models, cfg, false);
+          r = method == "3d" ? recognize_3d(cloud, models, cfg3)
+                             : recognize_2d(cloud, models, cfg, false);
         }
         py::list out;
         for (const Placement& p : r.placements) {
           out.append(py::dict(
-              "model"_a = p.model, "T_world_model"_a = pose_to_array(p.T_world_model),
-              "score_m"_a = p.score_m, "residual_median_m"_a = p.residual.median_m,
-              "residual_mean_m"_a = p.residual.mean_m, "support"_a = p.support,
-              "step1_T_world_model"_a = pose_to_array(p.T_world_model_4d),
+              "model"_a = p.model, "method"_a = p.method,
+              "T_world_model"_a = pose_to_array(p.T_world_model), "score_m"_a = p.score_m,
+              "residual_median_m"_a = p.residual.median_m, "residual_mean_m"_a = p.residual.mean_m,
+              "support"_a = p.support, "step1_T_world_model"_a = pose_to_array(p.T_world_model_4d),
               "step1_residual_median_m"_a = p.residual_4d.median_m, "seconds"_a = p.seconds));
         }
         return out;
       },
       "points"_a, "catalogue"_a, "icp"_a = true, "period_m"_a = 0.16, "map_cell_m"_a = 0.02,
-      "recog_cell_m"_a = 0.08, "min_support"_a = 0.35, "num_threads"_a = 0,
+      "recog_cell_m"_a = 0.08, "min_support"_a = 0.35, "num_threads"_a = 0, "method"_a = "2d",
+      "upright"_a = true,
       "Find the catalogue's CAD models (a YAML file, docs/recognition.md) in an (N, 3) world-frame "
-      "cloud and place them in 6D: ring descriptors on the elevation map, 4D search (eq. 6.9), "
-      "trimmed ICP. Returns one dict per placement: model, T_world_model (4×4), score_m, "
+      "cloud and place them in 6D. method '2d' (sec. 6.3.2): ring descriptors on the elevation "
+      "map, 4D search (eq. 6.9), trimmed ICP (icp, period_m, map_cell_m, recog_cell_m, "
+      "min_support apply); method '3d' (sec. 6.3.1): spherical subspaces filtered by eq. "
+      "6.4-6.7, yaw sweep + trimmed ICP in each, or a global registration with upright=False. "
+      "Returns one dict per placement: model, method, T_world_model (4×4), score_m, "
       "residual_median_m, residual_mean_m, support, step1_T_world_model, step1_residual_median_m, "
       "seconds.");
 }

@@ -7,6 +7,20 @@ import pytest
 import sonar3d
 
 
+def box_catalogue(tmp_path):
+    """A catalogue of a 1.0 x 0.6 x 0.5 m box (OBJ, base at z = 0) and the riser."""
+    box = tmp_path / "box.obj"
+    verts = [(x, y, h) for h in (0, 0.5) for y in (-0.3, 0.3) for x in (-0.5, 0.5)]
+    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
+    box.write_text("".join("v %g %g %g\n" % p for p in verts) +
+                   "".join("f %d %d %d\nf %d %d %d\n" % (a, b, c_, a, c_, d)
+                           for a, b, c_, d in faces))
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\"}\n"
+                   "  - {name: riser, reference: riser}\n")
+    return cat
+
+
 def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     # A 6 x 5 m seabed at 1 cm with gentle relief and, seen from above, a 1.0 x 0.6 x 0.5 m box
     # centred at (2.5, 2.0) turned by 30 degrees.
@@ -18,15 +32,7 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     v = -s * (xs - 2.5) + c * (ys - 2.0)
     z = np.where((np.abs(u) <= 0.5) & (np.abs(v) <= 0.3), 0.5, z)
     pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()]).astype(np.float32)
-    box = tmp_path / "box.obj"
-    verts = [(x, y, h) for h in (0, 0.5) for y in (-0.3, 0.3) for x in (-0.5, 0.5)]
-    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
-    box.write_text("".join("v %g %g %g\n" % p for p in verts) +
-                   "".join("f %d %d %d\nf %d %d %d\n" % (a, b, c_, a, c_, d)
-                           for a, b, c_, d in faces))
-    cat = tmp_path / "cat.yaml"
-    cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\"}\n"
-                   "  - {name: riser, reference: riser}\n")
+    cat = box_catalogue(tmp_path)
     placements = sonar3d.recognize(pts, str(cat))
     assert [p["model"] for p in placements] == ["box"]
     T = placements[0]["T_world_model"]
@@ -37,3 +43,31 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     with pytest.raises(sonar3d.Error, match="catalogue is empty"):
         (tmp_path / "empty.yaml").write_text("models: []\n")
         sonar3d.recognize(pts, str(tmp_path / "empty.yaml"))
+
+
+def test_recognize_3d_finds_a_box_with_walls(tmp_path):
+    # A 5 x 5 m seabed every 3 cm and a 1.0 x 0.6 x 0.5 m box at (0.5, -0.3) turned by 30 degrees,
+    # its top and walls sampled: the 3D method (thesis sec. 6.3.1) with its upright prior.
+    step = 0.03
+    g = np.arange(-2.5, 2.5, step)
+    xs, ys = np.meshgrid(g, g)
+    seabed = np.column_stack([xs.ravel(), ys.ravel(), 0.03 * np.sin(0.8 * xs.ravel())])
+    u, v, w = np.meshgrid(np.arange(-0.5, 0.5001, 0.02), np.arange(-0.3, 0.3001, 0.02),
+                          np.arange(0.06, 0.5001, 0.02), indexing="ij")
+    u, v, w = u.ravel(), v.ravel(), w.ravel()
+    surface = (np.abs(np.abs(u) - 0.5) < 1e-6) | (np.abs(np.abs(v) - 0.3) < 1e-6) | \
+        (np.abs(w - 0.5) < 1e-6)
+    u, v, w = u[surface], v[surface], w[surface]
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    box_pts = np.column_stack([0.5 + c * u - s * v, -0.3 + s * u + c * v, w])
+    pts = np.vstack([seabed, box_pts]).astype(np.float32)
+    cat = box_catalogue(tmp_path)
+    placements = sonar3d.recognize(pts, str(cat), method="3d")
+    assert [p["model"] for p in placements] == ["box"]
+    assert placements[0]["method"] == "3d"
+    T = placements[0]["T_world_model"]
+    assert np.hypot(T[0, 3] - 0.5, T[1, 3] + 0.3) < 0.03
+    yaw = math.degrees(math.atan2(T[1, 0], T[0, 0]))
+    assert abs((yaw - 30 + 90) % 180 - 90) < 3
+    with pytest.raises(sonar3d.Error, match="method must be"):
+        sonar3d.recognize(pts, str(cat), method="4d")

@@ -61,6 +61,15 @@ std::size_t ModelIndex::nearest(const Eigen::Vector3f& p, float* dist2) const {
   return idx;
 }
 
+std::vector<std::size_t> ModelIndex::within(const Eigen::Vector3f& p, float radius) const {
+  std::vector<std::pair<unsigned, float>> found;
+  impl_->tree->radiusSearch(p.data(), radius * radius, found,
+                            nanoflann::SearchParams(32, 0, false));
+  std::vector<std::size_t> out(found.size());
+  for (std::size_t i = 0; i < found.size(); ++i) out[i] = found[i].first;
+  return out;
+}
+
 const std::vector<Eigen::Vector3f>& ModelIndex::points() const { return impl_->cloud.pts; }
 const std::vector<Eigen::Vector3f>& ModelIndex::normals() const { return impl_->normals; }
 

@@ -14,6 +14,7 @@
 #include <numeric>
 #include <optional>
 
+#include "recog_common.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -23,11 +24,7 @@
 namespace sonar3d {
 
 namespace {
-constexpr double kDeg = M_PI / 180.0;
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using namespace recog_internal;
 
 // The block of `map` covering the square of half-width `half_m` about `center` (corners on the
 // map's grid), removed cells as no data.
@@ -142,6 +139,8 @@ YawTrial best_yaw(const ModelTemplate& model, const ElevationMap& scene,
   return best;
 }
 
+}  // namespace
+
 std::vector<double> yaw_range(Symmetry s, double step) {
   const double span = s == Symmetry::None ? 2 * M_PI : s == Symmetry::Half ? M_PI : 0;
   std::vector<double> out{0};
@@ -149,7 +148,27 @@ std::vector<double> yaw_range(Symmetry s, double step) {
   return out;
 }
 
-}  // namespace
+double tilt_deg(const Eigen::Isometry3d& T) {
+  return std::acos(std::clamp(T.linear()(2, 2), -1.0, 1.0)) / kDeg;
+}
+
+std::unique_ptr<tbb::global_control> check_recognition_inputs(
+    const PointCloud& scene, const std::vector<ModelTemplate>& models, int num_threads) {
+  require(!models.empty(), "recognition: the catalogue is empty: give at least one CAD model");
+  require(!scene.empty(), "recognition: the scene cloud is empty");
+  if (num_threads <= 0) return nullptr;
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                               static_cast<std::size_t>(num_threads));
+}
+
+std::vector<const ModelTemplate*> by_decreasing_size(const std::vector<ModelTemplate>& models) {
+  std::vector<const ModelTemplate*> order;
+  for (const auto& m : models) order.push_back(&m);
+  std::stable_sort(order.begin(), order.end(), [](const ModelTemplate* a, const ModelTemplate* b) {
+    return a->radius_m > b->radius_m;
+  });
+  return order;
+}
 
 void Search4dConfig::validate() const {
   require(yaw_step_deg > 0 && yaw_step_deg <= 180, "4D search yaw_step_deg must lie in (0, 180]");
@@ -348,11 +367,6 @@ double buried_fraction(const ModelTemplate& m, const Eigen::Isometry3d& T, doubl
   return (ground_z - base) / std::max(1e-6, m.height());
 }
 
-// Angle between the model's z axis and the world's, degrees.
-double tilt_deg(const Eigen::Isometry3d& T) {
-  return std::acos(std::clamp(T.linear()(2, 2), -1.0, 1.0)) / kDeg;
-}
-
 // Support (beyond the thesis, whose decision is a residual threshold): the model's relief cells
 // are its footprint cells standing more than relief_m above the local ground (the median scene
 // height in a ring `ring_m` wide around the footprint); support is the fraction of the observed
@@ -428,14 +442,8 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                                const std::vector<ModelTemplate>& models_in,
                                const RecognitionConfig& config, bool progress) {
   config.validate();
-  require(!models_in.empty(), "recognition: the catalogue is empty: give at least one CAD model");
-  require(!scene_world.empty(), "recognition: the scene cloud is empty");
+  const auto threads = check_recognition_inputs(scene_world, models_in, config.num_threads);
   const auto start = Clock::now();
-  std::optional<tbb::global_control> threads;
-  if (config.num_threads > 0) {
-    threads.emplace(tbb::global_control::max_allowed_parallelism,
-                    static_cast<std::size_t>(config.num_threads));
-  }
   RecognitionResult out;
   out.scene_points = scene_world.size();
 
@@ -452,11 +460,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
   out.seconds_maps = since(start);
 
   // Sec. 6.3.2.6: models in decreasing size; each detection removes its area.
-  std::vector<const ModelTemplate*> order;
-  for (const auto& m : models_in) order.push_back(&m);
-  std::stable_sort(order.begin(), order.end(), [](const ModelTemplate* a, const ModelTemplate* b) {
-    return a->radius_m > b->radius_m;
-  });
+  const std::vector<const ModelTemplate*> order = by_decreasing_size(models_in);
   const double period = config.scan.period_m;
   const double width = coarse.cols * coarse.cell_m, height = coarse.rows * coarse.cell_m;
   for (const ModelTemplate* m : order) {
@@ -631,14 +635,44 @@ nlohmann::json pose_json(const Eigen::Isometry3d& T) {
   return rows;
 }
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-nlohmann::json rpy_deg(const Eigen::Isometry3d& T) {
+}  // namespace
+
+nlohmann::json rpy_deg_json(const Eigen::Isometry3d& T) {
   // R = Rz(yaw)·Ry(pitch)·Rx(roll), as scene files give poses.
   const Eigen::Matrix3d R = T.linear();
   const double pitch = std::asin(std::clamp(-R(2, 0), -1.0, 1.0));
   const double roll = std::atan2(R(2, 1), R(2, 2)), yaw = std::atan2(R(1, 0), R(0, 0));
   return {roll / kDeg, pitch / kDeg, yaw / kDeg};
 }
-}  // namespace
+
+nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const Placement& p : placements) {
+    list.push_back({{"model", p.model},
+                    {"method", p.method},
+                    {"T_world_model", pose_json(p.T_world_model)},
+                    {"translation",
+                     {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
+                      p.T_world_model.translation().z()}},
+                    {"rpy_deg", rpy_deg_json(p.T_world_model)},
+                    {"score_m", p.score_m},
+                    {"residual_median_m", num(p.residual.median_m)},
+                    {"residual_mean_m", num(p.residual.mean_m)},
+                    {"residual_points", p.residual.points},
+                    {"support", p.support},
+                    {"observed", p.observed},
+                    {"ground_z", num(p.ground_z)},
+                    {"step1_T_world_model", pose_json(p.T_world_model_4d)},
+                    {"step1_residual_median_m", num(p.residual_4d.median_m)},
+                    {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
+                    {"icp_iterations", p.icp_iterations},
+                    {"icp_kept", p.icp_kept},
+                    {"seconds_scan", p.seconds_scan},
+                    {"seconds_registration", p.seconds_registration},
+                    {"seconds", p.seconds}});
+  }
+  return list;
+}
 
 std::string placements_json(const RecognitionResult& result, const std::string& map_source,
                             const std::string& catalogue_source, const RecognitionConfig& config) {
@@ -658,31 +692,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_relative_score", config.max_relative_score},
                    {"max_residual_median_m", config.max_residual_median_m},
                    {"min_support", config.min_support}};
-  nlohmann::json list = nlohmann::json::array();
-  for (const Placement& p : result.placements) {
-    list.push_back({{"model", p.model},
-                    {"method", p.method},
-                    {"T_world_model", pose_json(p.T_world_model)},
-                    {"translation",
-                     {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
-                      p.T_world_model.translation().z()}},
-                    {"rpy_deg", rpy_deg(p.T_world_model)},
-                    {"score_m", p.score_m},
-                    {"residual_median_m", num(p.residual.median_m)},
-                    {"residual_mean_m", num(p.residual.mean_m)},
-                    {"residual_points", p.residual.points},
-                    {"support", p.support},
-                    {"observed", p.observed},
-                    {"ground_z", num(p.ground_z)},
-                    {"step1_T_world_model", pose_json(p.T_world_model_4d)},
-                    {"step1_residual_median_m", num(p.residual_4d.median_m)},
-                    {"step1_residual_mean_m", num(p.residual_4d.mean_m)},
-                    {"icp_iterations", p.icp_iterations},
-                    {"icp_kept", p.icp_kept},
-                    {"seconds_scan", p.seconds_scan},
-                    {"seconds_registration", p.seconds_registration},
-                    {"seconds", p.seconds}});
-  }
+  nlohmann::json list = placements_list_json(result.placements);
   j["placements"] = list;
   nlohmann::json searches = nlohmann::json::array();
   for (const SearchRecord& s : result.searches) {
@@ -704,7 +714,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                                 s.placement.T_world_model_4d.translation().y(),
                                 s.placement.T_world_model_4d.translation().z()};
       e["translation"] = {t.x(), t.y(), t.z()};
-      e["rpy_deg"] = rpy_deg(s.placement.T_world_model);
+      e["rpy_deg"] = rpy_deg_json(s.placement.T_world_model);
       e["support"] = s.placement.support;
       e["observed"] = s.placement.observed;
     }

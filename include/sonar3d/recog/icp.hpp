@@ -35,6 +35,8 @@ class ModelIndex {
   ModelIndex& operator=(const ModelIndex&) = delete;
   // Nearest sample to p (model frame): its index and squared distance.
   std::size_t nearest(const Eigen::Vector3f& p, float* dist2) const;
+  // Indices of the samples within `radius` of p (unsorted).
+  std::vector<std::size_t> within(const Eigen::Vector3f& p, float radius) const;
   const std::vector<Eigen::Vector3f>& points() const;
   const std::vector<Eigen::Vector3f>& normals() const;
 

@@ -1,0 +1,143 @@
+#pragma once
+// CAD-model recognition in the 3D scene (thesis sec. 6.3.1): the scene split into spherical
+// subspaces (eq. 6.3), each kept only if it could hold the model (oriented bounding box, volume,
+// point count, voxel occupancy: eq. 6.4-6.7), then direct 3D matching of the subsampled model in
+// every surviving subspace: a yaw sweep and trimmed ICP when the model is known to stand upright
+// on the seabed (the thesis' "prior information about the most likely orientation"), a global
+// registration when nothing is known of its orientation (the thesis used Go-ICP); a residual
+// threshold decides "found" (sec. 6.3.1.3), non-maximum suppression keeps one placement per
+// instance, and models are searched in decreasing size, each detection removing its points.
+//
+// Frames: local ENU world (x East, y North, z up). Placements are T_world_model.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recog/icp.hpp"
+#include "sonar3d/recog/model.hpp"
+#include "sonar3d/recog/recognition.hpp"
+
+namespace sonar3d {
+
+struct Recognition3dConfig {
+  // Subsampling of model and scene (sec. 6.3.1.2: "typically 3 cm"), voxel edge, m.
+  double voxel_m = 0.03;
+  // Subspace grid period T as a fraction of r_model (the thesis: T = 0.5·r_model); the subspace
+  // radius is r_model + √3/2·T (eq. 6.3), r_model the radius of the model's bounding sphere.
+  double period_fraction = 0.5;
+  // Eq. 6.4-6.7 (the thesis' values).
+  double alpha_fit = 1.2;        // eq. 6.4: l_model[i] <= alpha_fit · l_subspace[i]
+  double alpha_volume = 0.6;     // eq. 6.5: V_subspace >= alpha_volume · V_model
+  int n_min = 10;                // eq. 6.6: N_subspace >= N_min
+  double alpha_occupancy = 0.6;  // eq. 6.7: O_subspace >= alpha_occupancy · O_model
+  // Voxel edge of the occupancy count of eq. 6.7, m.
+  double occupancy_voxel_m = 0.1;
+  // Orientation prior: structures stand upright on the seabed (yaw unknown). When true, each
+  // subspace is matched by a yaw sweep and trimmed ICP from the best yaws; when false, by the
+  // global registration (rotation unknown).
+  bool upright = true;
+  double yaw_step_deg = 15;  // yaw sweep step (range from the catalogue's symmetry), degrees
+  // Seabed: points lower than the local seabed plus this are dropped from the subspaces and the
+  // matching (as the 2D method's ground_clearance_m), and the model's own base below its base
+  // plus this is dropped likewise; 0 keeps the seabed (the thesis kept it: its OBBs then grow
+  // with the seabed, sec. 6.3.1.4). Used with `upright` only.
+  double seabed_clearance_m = 0.05;
+  // Local seabed: a low quantile of the lowest point per ground_cell_m cell within
+  // ground_window_m of each cell, m.
+  double ground_cell_m = 0.25;
+  double ground_window_m = 2.0;
+  double ground_quantile = 0.25;
+  // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model of a
+  // survivor holding more points are not matched (they hold nearly the same points).
+  double dedup_fraction = 0.5;
+  int starts = 2;                  // ICP starts per subspace (best yaws / rotations)
+  double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
+  int coarse_iterations = 15;      // first ICP pass iterations
+  std::size_t max_points = 1500;   // scene points per subspace used in the matching
+  double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance
+                                   // exceeds this is not refined, m
+  TrimmedIcpConfig icp;            // fine ICP pass
+  // Decision ("found", sec. 6.3.1.3: a threshold on the error to the CAD model after matching):
+  // the median distance from the scene points over the placed model to its samples, and the
+  // fraction of the model's samples (above its base clearance) with a scene point within
+  // coverage_tol_m (a model placed into empty space has no error and no coverage).
+  double max_residual_median_m = 0.04;
+  double min_coverage = 0.5;
+  double coverage_tol_m = 0.06;
+  double max_tilt_deg = 10;  // upright: a placement tilted more than this is refused
+  // Non-maximum suppression: two placements of one model whose centres are closer than this
+  // fraction of its horizontal radius are one instance (the better kept).
+  double nms_fraction = 1.0;
+  double removal_margin_m = 0.1;  // scene points this close to a placed model are removed
+  int max_instances = 20;         // per model whose count is not given
+  ModelSamplingConfig sampling;
+  int num_threads = 0;  // 0 = all cores
+  void validate() const;
+};
+
+// Shape statistics of a point set (sec. 6.3.1.1): the side lengths of its oriented bounding box
+// (principal axes of the points' covariance, extent along each, sorted decreasing), its volume,
+// its point count and its occupancy (voxels of occupancy_voxel_m holding a point). The
+// recognition computes the same from one point per occupied voxel (docs/recognition.md).
+struct ShapeStats {
+  Eigen::Vector3d sides = Eigen::Vector3d::Zero();  // l[1] >= l[2] >= l[3], m
+  double volume = 0;                                // m³
+  std::size_t points = 0;
+  std::size_t occupancy = 0;
+};
+ShapeStats shape_stats(const std::vector<Eigen::Vector3f>& points, double occupancy_voxel_m);
+
+// Eq. 6.4-6.7: which test a subspace fails (None: kept).
+enum class SubspaceTest { None, Fit, Volume, Points, Occupancy };
+const char* subspace_test_name(SubspaceTest t);  // "kept", "obb_fit", "volume", ...
+SubspaceTest subspace_test(const ShapeStats& subspace, const ShapeStats& model,
+                           const Recognition3dConfig& config);
+
+// Voxel-grid subsampling: the centroid of the points in each voxel of edge voxel_m.
+std::vector<Eigen::Vector3f> voxel_subsample(const std::vector<Eigen::Vector3f>& points,
+                                             double voxel_m);
+
+// Global registration of a model onto scene points when no orientation is known (the role
+// Go-ICP plays in sec. 6.3.1.2): rotation hypotheses aligning the principal axes of the model's
+// samples with the scene's under each of the 24 rotations of the cube (axis order and signs
+// unknown), each scored by the trimmed mean nearest-sample distance, then a coarse and a fine
+// trimmed ICP from the `starts` best. Not a branch and bound: it trusts the principal axes to
+// within ICP's basin (docs/recognition.md says where it breaks).
+IcpResult global_registration(const ModelIndex& model, const std::vector<Eigen::Vector3f>& scene,
+                              const Recognition3dConfig& config, double* score_m = nullptr);
+
+// Per model: what the subspace analysis and the matching did.
+struct Search3dRecord {
+  std::string model;
+  double r_model_m = 0, r_subspace_m = 0, period_m = 0;
+  std::size_t subspaces = 0;                // centres with at least one point within r_subspace
+  std::size_t kept = 0;                     // passed eq. 6.4-6.7
+  std::size_t failed[5] = {0, 0, 0, 0, 0};  // per SubspaceTest (index 0 unused)
+  std::size_t registered = 0;  // survivors matched (one per group with nearly the same points)
+  std::size_t passed = 0;      // survivors whose match passed the residual and coverage
+  std::size_t suppressed = 0;  // passed but overlapping a better placement
+  std::size_t accepted = 0;
+  // The matched survivor that came nearest to passing (highest coverage): its coverage and
+  // residual median, for the log.
+  double best_rejected_coverage = 0, best_rejected_residual_m = 0;
+  double seconds_subspaces = 0, seconds_matching = 0;
+};
+
+// The whole 3D method on a world-frame cloud: placements with method "3d" (score_m: the start's
+// trimmed mean distance; support: the coverage). Errors: an empty catalogue or cloud, a model
+// larger than the scene.
+RecognitionResult recognize_3d(const PointCloud& scene_world,
+                               const std::vector<ModelTemplate>& models,
+                               const Recognition3dConfig& config,
+                               std::vector<Search3dRecord>* searches = nullptr,
+                               bool progress = false);
+
+// Placements of the 3D method as JSON (the format of placements_json, method "3d", with the 3D
+// settings and the subspace analysis per model).
+std::string placements_json_3d(const RecognitionResult& result,
+                               const std::vector<Search3dRecord>& searches,
+                               const std::string& map_source, const std::string& catalogue_source,
+                               const Recognition3dConfig& config);
+
+}  // namespace sonar3d

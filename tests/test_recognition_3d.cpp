@@ -1,0 +1,266 @@
+// recog: CAD-model recognition in 3D (thesis sec. 6.3.1): the subspace tests of eq. 6.4-6.7 by
+// hand, the global registration from an arbitrary rotation, the whole method on a synthetic
+// scene (structure found at its pose, absent model not reported), and the CLI's --method 3d.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "recog_test_support.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/recog/icp.hpp"
+#include "sonar3d/recog/model.hpp"
+#include "sonar3d/recog/recognition_3d.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace sonar3d;
+
+namespace {
+
+using test::kDeg;
+using test::pose;
+using test::reference_template;
+
+// Points on the surface of the axis-aligned box [0, a] × [0, b] × [0, c], every `step`.
+std::vector<Eigen::Vector3f> box_surface(double a, double b, double c, double step) {
+  std::vector<Eigen::Vector3f> out;
+  const int na = static_cast<int>(std::lround(a / step)),
+            nb = static_cast<int>(std::lround(b / step)),
+            nc = static_cast<int>(std::lround(c / step));
+  for (int i = 0; i <= na; ++i) {
+    for (int j = 0; j <= nb; ++j) {
+      for (int k = 0; k <= nc; ++k) {
+        const bool face = i == 0 || i == na || j == 0 || j == nb || k == 0 || k == nc;
+        if (face) out.emplace_back(i * step, j * step, k * step);
+      }
+    }
+  }
+  return out;
+}
+
+// A 3D scene: a seabed with relief and three rocks every 3 cm, and the models' samples seen from
+// above and the sides (normals not pointing down), with Gaussian noise.
+PointCloud scene_3d(const std::vector<std::pair<const ModelTemplate*, Eigen::Isometry3d>>& placed,
+                    double half, double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> n(0, static_cast<float>(noise));
+  PointCloud cloud;
+  const double rocks[][3] = {{-1.6, 1.5, 0.15}, {1.7, -1.4, 0.2}, {-1.2, -1.7, 0.12}};
+  for (double x = -half; x <= half; x += 0.03) {
+    for (double y = -half; y <= half; y += 0.03) {
+      double z = 0.05 * std::sin(0.7 * x + 0.3) * std::cos(0.5 * y);
+      for (const auto& k : rocks) {
+        z += k[2] * std::exp(-((x - k[0]) * (x - k[0]) + (y - k[1]) * (y - k[1])) / 0.02);
+      }
+      cloud.points.emplace_back(x + n(rng), y + n(rng), z + n(rng));
+    }
+  }
+  for (const auto& [m, T] : placed) {
+    const Eigen::Isometry3f Tf = T.cast<float>();
+    for (std::size_t i = 0; i < m->points.size(); i += 2) {
+      if ((Tf.linear() * m->normals[i]).z() < -0.3f) continue;  // facing the seabed: unseen
+      cloud.points.push_back(Tf * m->points[i] + Eigen::Vector3f(n(rng), n(rng), n(rng)));
+    }
+  }
+  return cloud;
+}
+
+}  // namespace
+
+TEST(Recog3dSubspace, ShapeStatsOfABoxByHand) {
+  const std::vector<Eigen::Vector3f> pts = box_surface(2.0, 1.0, 0.5, 0.05);
+  const ShapeStats s = shape_stats(pts, 0.1);
+  EXPECT_NEAR(s.sides[0], 2.0, 1e-3);
+  EXPECT_NEAR(s.sides[1], 1.0, 1e-3);
+  EXPECT_NEAR(s.sides[2], 0.5, 1e-3);
+  EXPECT_NEAR(s.volume, 1.0, 1e-2);
+  EXPECT_EQ(s.points, pts.size());
+  // Occupancy: voxels of 10 cm from the lowest corner; these five points fill three.
+  const std::vector<Eigen::Vector3f> few = {
+      {0, 0, 0}, {0.05f, 0, 0}, {0.25f, 0, 0}, {0.25f, 0.35f, 0}, {0.26f, 0.36f, 0.01f}};
+  EXPECT_EQ(shape_stats(few, 0.1).occupancy, 3u);
+  EXPECT_EQ(shape_stats(few, 1.0).occupancy, 1u);
+}
+
+// Eq. 6.4-6.7 with the thesis' margins, cases computed by hand.
+TEST(Recog3dSubspace, TestsKeepTheTrueSubspaceAndRejectSmallOrSparseOnes) {
+  const Recognition3dConfig cfg;  // alpha_fit 1.2, alpha_volume 0.6, N_min 10, alpha_occ 0.6
+  ShapeStats model;
+  model.sides = {2.0, 1.0, 0.5};
+  model.volume = 1.0;
+  model.points = 2000;
+  model.occupancy = 300;
+  // The structure itself (with some seabed: larger than the model): kept.
+  ShapeStats sub = model;
+  sub.sides = {2.4, 1.3, 0.6};
+  sub.volume = sub.sides.prod();
+  EXPECT_EQ(subspace_test(sub, model, cfg), SubspaceTest::None);
+  // Eq. 6.4: a side 2.0 > 1.2 · 1.6 = 1.92: the model cannot fit.
+  ShapeStats small = sub;
+  small.sides = {1.6, 1.3, 0.6};
+  small.volume = 2.0;  // volume alone would pass
+  EXPECT_EQ(subspace_test(small, model, cfg), SubspaceTest::Fit);
+  // Within alpha_fit on every side (2.0 = 1.2 · 1.6667, ...) but its volume is
+  // (1/1.2)³ = 0.579 < 0.6 of the model's: eq. 6.5.
+  ShapeStats thin = sub;
+  thin.sides = model.sides / 1.2;
+  thin.volume = thin.sides.prod();
+  EXPECT_LT(thin.volume, 0.6);
+  EXPECT_EQ(subspace_test(thin, model, cfg), SubspaceTest::Volume);
+  // Eq. 6.6: 9 points < N_min = 10 (a few outliers spanning the box).
+  ShapeStats sparse = sub;
+  sparse.points = 9;
+  EXPECT_EQ(subspace_test(sparse, model, cfg), SubspaceTest::Points);
+  sparse.points = 10;
+  EXPECT_EQ(subspace_test(sparse, model, cfg), SubspaceTest::None);
+  // Eq. 6.7: 179 occupied voxels < 0.6 · 300 = 180; 180 passes.
+  ShapeStats hollow = sub;
+  hollow.occupancy = 179;
+  EXPECT_EQ(subspace_test(hollow, model, cfg), SubspaceTest::Occupancy);
+  hollow.occupancy = 180;
+  EXPECT_EQ(subspace_test(hollow, model, cfg), SubspaceTest::None);
+  EXPECT_STREQ(subspace_test_name(SubspaceTest::Occupancy), "occupancy");
+}
+
+// The global registration (no orientation prior) recovers an arbitrary rotation of a clean
+// sampled model.
+TEST(Recog3dGlobal, RecoversAnArbitraryRotationOfACleanModel) {
+  const ModelTemplate riser = reference_template("riser");
+  Recognition3dConfig cfg;
+  cfg.upright = false;
+  const std::vector<Eigen::Vector3f> model_pts = voxel_subsample(riser.points, cfg.voxel_m);
+  ASSERT_GT(model_pts.size(), 100u);
+  ASSERT_LT(model_pts.size(), riser.points.size() / 2);
+  const ModelIndex index(riser.points, riser.normals);
+  for (const Eigen::Isometry3d& T_true :
+       {pose(3.0, -2.0, 1.0, 130, 40, -70), pose(-1.0, 5.0, -2.0, -60, 170, 25)}) {
+    std::vector<Eigen::Vector3f> scene;
+    for (const auto& p : model_pts) scene.push_back(T_true.cast<float>() * p);
+    double score = 0;
+    const IcpResult r = global_registration(index, scene, cfg, &score);
+    EXPECT_LT(score, 0.01);
+    // The placed model coincides with the true one (up to the riser's own symmetries): every
+    // sample brought back by T_true⁻¹·T lies on the model.
+    const Eigen::Isometry3f D = (T_true.inverse() * r.T_world_model).cast<float>();
+    double worst = 0;
+    for (std::size_t i = 0; i < riser.points.size(); i += 10) {
+      float d2 = 0;
+      index.nearest(D * riser.points[i], &d2);
+      worst = std::max(worst, static_cast<double>(std::sqrt(d2)));
+    }
+    EXPECT_LT(worst, 0.03);
+    EXPECT_LT(
+        (r.T_world_model * Eigen::Vector3d(0, 0, 1) - T_true * Eigen::Vector3d(0, 0, 1)).norm(),
+        0.05);
+  }
+}
+
+// The whole method: a riser and a pillar on a seabed with rocks are found at their true poses
+// (upright prior: yaw sweep + trimmed ICP), one placement each; the tank of the catalogue,
+// absent from the scene, is not reported; the subspace tests kept the structure's subspaces and
+// rejected most others.
+TEST(Recog3dPipeline, FindsStructuresAtTheirPosesAndNotAbsentModels) {
+  const ModelTemplate riser = reference_template("riser");
+  const ModelTemplate pillar = reference_template("pillar", Symmetry::Half);
+  const ModelTemplate tank = reference_template("tank", Symmetry::Full);
+  const Eigen::Isometry3d T_riser = pose(-1.2, 0.8, -0.03, 20);
+  const Eigen::Isometry3d T_pillar = pose(1.3, -0.6, -0.05, 65);
+  const PointCloud cloud = scene_3d({{&riser, T_riser}, {&pillar, T_pillar}}, 2.5, 0.005, 3);
+  Recognition3dConfig cfg;
+  std::vector<Search3dRecord> searches;
+  const RecognitionResult r = recognize_3d(cloud, {riser, pillar, tank}, cfg, &searches);
+  const std::string js = placements_json_3d(r, searches, "", "", cfg);
+  ASSERT_EQ(r.placements.size(), 2u) << js;
+  for (const Placement& p : r.placements) {
+    SCOPED_TRACE(p.model);
+    ASSERT_NE(p.model, "tank") << js;
+    EXPECT_EQ(p.method, "3d");
+    const ModelTemplate& m = p.model == "riser" ? riser : pillar;
+    const Eigen::Isometry3d& T = p.model == "riser" ? T_riser : T_pillar;
+    const Eigen::Vector3d c(m.center_xy.x(), m.center_xy.y(), 0.5);
+    EXPECT_LT((p.T_world_model * c - T * c).norm(), 0.03) << js;
+    const double period = p.model == "riser" ? M_PI : M_PI / 2;
+    const double yaw = std::atan2(p.T_world_model.linear()(1, 0), p.T_world_model.linear()(0, 0));
+    const double yaw_true = std::atan2(T.linear()(1, 0), T.linear()(0, 0));
+    EXPECT_LT(std::abs(std::remainder(yaw - yaw_true, period)) / kDeg, 2.0) << js;
+    EXPECT_LT(p.residual.median_m, 0.02);
+  }
+  ASSERT_EQ(searches.size(), 3u);
+  for (const Search3dRecord& s : searches) {
+    SCOPED_TRACE(s.model);
+    EXPECT_NEAR(s.r_subspace_m, s.r_model_m * (1 + std::sqrt(3.0) / 4), 1e-9);  // eq. 6.3
+    EXPECT_GT(s.subspaces, 0u);
+    if (s.model != "tank") {
+      EXPECT_GE(s.kept, 1u);
+      EXPECT_EQ(s.accepted, 1u);
+    } else {
+      EXPECT_EQ(s.accepted, 0u);
+    }
+    EXPECT_LT(s.kept, s.subspaces);
+  }
+}
+
+// sonar3d recognize --method 3d on a cloud: the placements file says method 3d and holds the
+// structure; an unknown method is one clear line.
+TEST(Recog3dCli, MethodThreeDOnACloud) {
+  const fs::path dir = test::temp_dir("recog3d_cli");
+  const ModelTemplate pillar = reference_template("pillar", Symmetry::Half);
+  write_ply((dir / "scene.ply").string(),
+            scene_3d({{&pillar, pose(0.4, 0.3, -0.05, 30)}}, 2.5, 0.005, 5));
+  {
+    std::ofstream(dir / "cat.yaml") << R"(models:
+  - {name: pillar, reference: pillar, symmetry: "180"}
+  - {name: tank, reference: tank, symmetry: full}
+)";
+  }
+  const std::string base = "recognize " + (dir / "scene.ply").string() + " --catalogue " +
+                           (dir / "cat.yaml").string() + " -o " + (dir / "p.json").string();
+  test::CliRun r = test::run_cli(dir, base + " --method 3d -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream f(dir / "p.json");
+  const nlohmann::json j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["format"], "sonar3d-placements");
+  EXPECT_EQ(j["method"], "3d");
+  ASSERT_EQ(j["placements"].size(), 1u) << j.dump(1);
+  EXPECT_EQ(j["placements"][0]["model"], "pillar");
+  EXPECT_EQ(j["placements"][0]["method"], "3d");
+  EXPECT_NEAR(j["placements"][0]["translation"][0].get<double>(), 0.4, 0.03);
+  EXPECT_NEAR(j["placements"][0]["translation"][1].get<double>(), 0.3, 0.03);
+  EXPECT_TRUE(fs::exists(dir / "p.ply"));
+  r = test::run_cli(dir, base + " --method 4d --overwrite -q");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("4d"), std::string::npos) << r.out;
+}
+
+// Bad inputs are clear errors, not allocations: an empty catalogue, a model wider than the
+// scene, a cloud spanning thousands of kilometres.
+TEST(Recog3dPipeline, BadInputsGiveClearErrors) {
+  const ModelTemplate pillar = reference_template("pillar", Symmetry::Half);
+  const Recognition3dConfig cfg;
+  PointCloud small;
+  for (int i = 0; i < 100; ++i) small.points.emplace_back(0.01f * i, 0.005f * i, 0.0f);
+  auto message = [&](const PointCloud& c, const std::vector<ModelTemplate>& models) {
+    try {
+      recognize_3d(c, models, cfg);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message(small, {}).find("catalogue is empty"), std::string::npos);
+  EXPECT_NE(message(small, {pillar}).find("'pillar'"), std::string::npos);
+  EXPECT_NE(message(small, {pillar}).find("larger than the scene"), std::string::npos);
+  PointCloud huge = small;
+  huge.points.emplace_back(4e6f, 3e6f, 0.0f);
+  const std::string m = message(huge, {pillar});
+  EXPECT_NE(m.find("outside"), std::string::npos) << m;
+  Recognition3dConfig bad;
+  bad.alpha_fit = 0;
+  EXPECT_THROW(bad.validate(), Error);
+}
