@@ -1245,6 +1245,18 @@ TEST_F(SceneReportTest, MalformedInputsNameTheFile) {
   tc.output = root_ / "truncated.html";
   expect_error([&] { write_report(trunc, tc); }, {trunc.string()});
   EXPECT_FALSE(fs::exists(root_ / "truncated.html"));
+
+  // A file the report did not write is never replaced; its own page is.
+  const fs::path mine = root_ / "mine.html";
+  write_text_file(mine.string(), "<html>my notes</html>");
+  ReportConfig oc = cfg;
+  oc.output = mine;
+  expect_error([&] { write_report(root_ / "textured_cloud.ply", oc); },
+               {mine.string(), "not a page sonar3d report wrote"});
+  EXPECT_EQ(read_text_file(mine.string()), "<html>my notes</html>");
+  oc.output = root_ / "twice.html";
+  write_report(root_ / "textured_cloud.ply", oc);
+  EXPECT_NO_THROW(write_report(root_ / "textured_cloud.ply", oc));
 }
 
 // The CLI: each kind, the summary line, and one error line with a non-zero exit.

@@ -66,5 +66,73 @@
     };
   }
 
-  window.sonar3dWeb = { fmtNum, el, select, decodeU8, decodeF32, decodeU32, COLORMAPS, hexToRgb, colormap };
+  // The 3D viewer both pages draw in: a WebGL renderer in `box`, a z-up camera with a head light,
+  // orbit controls (drag rotates, right-drag pans, the wheel zooms), resizing with the box.
+  // Returns null, after showing `message(text)`, when the browser has no WebGL.
+  function createViewer(box, message) {
+    const T = window.THREE;
+    let renderer;
+    try {
+      renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    } catch (e) {
+      console.warn('sonar3d report: WebGL unavailable:', e && e.message);
+      message('This browser cannot draw 3D (WebGL is unavailable or disabled).');
+      return null;
+    }
+    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    box.append(renderer.domElement);
+    box.append(el('div', { class: 'hud', text: 'drag: rotate · right-drag: pan · wheel: zoom' }));
+    const scene = new T.Scene();
+    scene.background = new T.Color(0xf0f3f7);
+    const camera = new T.PerspectiveCamera(40, 1, 0.01, 1000);
+    camera.up.set(0, 0, 1);  // world z up
+    scene.add(camera);
+    scene.add(new T.AmbientLight(0xffffff, 1.6));
+    const sun = new T.DirectionalLight(0xffffff, 2.2);
+    sun.position.set(0.5, 1, 1);
+    camera.add(sun);  // a head light: the scene is lit from wherever it is seen
+    const controls = new T.OrbitControls(camera, renderer.domElement);
+    const v = { T, renderer, scene, camera, controls };
+    v.render = () => renderer.render(scene, camera);
+    controls.addEventListener('change', v.render);
+    v.resize = () => {
+      const w = box.clientWidth, h = box.clientHeight;
+      if (!w || !h) return;
+      renderer.setSize(w, h);
+      camera.aspect = w / h;
+      camera.updateProjectionMatrix();
+      v.render();
+    };
+    new ResizeObserver(v.resize).observe(box);
+    // Looks at the box from the south-west, above, far enough to see all of it.
+    v.fit = (bbox) => {
+      if (!bbox || bbox.isEmpty()) return;
+      const c = bbox.getCenter(new T.Vector3());
+      const r = Math.max(bbox.getSize(new T.Vector3()).length() / 2, 0.05);
+      const dir = new T.Vector3(-1, -0.75, 0.55).normalize();
+      const dist = r / Math.sin((camera.fov * Math.PI / 180) / 2);
+      camera.position.copy(c).addScaledVector(dir, dist);
+      camera.near = dist / 100;
+      camera.far = dist * 10;
+      camera.updateProjectionMatrix();
+      controls.target.copy(c);
+      controls.update();
+    };
+    // A grid in the world xy plane under the box, `margin` times its larger side, in round steps.
+    v.grid = (bbox, margin) => {
+      const size = bbox.getSize(new T.Vector3());
+      const span = Math.max(size.x, size.y) * margin;
+      const step = Math.pow(10, Math.floor(Math.log10(Math.max(span / 4, 1e-3))));
+      const div = Math.max(2, Math.min(200, Math.round(span / step)));
+      const grid = new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
+      grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
+      const ctr = bbox.getCenter(new T.Vector3());
+      grid.position.set(ctr.x, ctr.y, bbox.min.z);
+      return grid;
+    };
+    return v;
+  }
+
+  window.sonar3dWeb = { fmtNum, el, select, decodeU8, decodeF32, decodeU32, COLORMAPS, hexToRgb, colormap,
+    createViewer };
 })();

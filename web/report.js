@@ -12,7 +12,8 @@
   const POINTS = R.points || [];
   const BY_ID = new Map(POINTS.map((p) => [p.id, p]));
   const api = (window.sonar3dReport = { ready: false, plotsReady: false, viewerReady: false });
-  const { el, select, fmtNum, decodeF32, decodeU32, COLORMAPS, colormap } = window.sonar3dWeb;
+  const { el, select, fmtNum, decodeF32, decodeU32, COLORMAPS, colormap, createViewer } =
+    window.sonar3dWeb;
 
   // ---------------------------------------------------------------- formatting helpers
   // Units come from the parameter name's suffix (the project's convention: SI, _deg at edges).
@@ -532,46 +533,17 @@
       api.viewerReady = true;
       return;
     }
-    const T = window.THREE;
-    let renderer;
-    try {
-      renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-    } catch (e) {
-      console.warn('sonar3d report: WebGL unavailable:', e && e.message);
-      message('This browser cannot draw 3D (WebGL is unavailable or disabled).');
+    const V = createViewer(box, message);
+    if (!V) {
       api.viewerReady = true;
       return;
     }
-    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
-    box.append(renderer.domElement);
-    const hud = el('div', { class: 'hud', text: 'drag: rotate · right-drag: pan · wheel: zoom' });
-    box.append(hud);
-    const scene = new T.Scene();
-    scene.background = new T.Color(0xf0f3f7);
-    const camera = new T.PerspectiveCamera(40, 1, 0.01, 1000);
-    camera.up.set(0, 0, 1);  // world z up
-    scene.add(camera);
-    scene.add(new T.AmbientLight(0xffffff, 1.6));
-    const sun = new T.DirectionalLight(0xffffff, 2.2);
-    sun.position.set(0.5, 1, 1);
-    camera.add(sun);  // a head light: the model is lit from wherever it is seen
-    const controls = new T.OrbitControls(camera, renderer.domElement);
+    const { T, scene, render, resize } = V;
     const meshCache = new Map();
     let cloudObj = null, grid = null, meshObjs = [];
     const state = { id: null, mode: D.color_mode === 'height' ? 'height' : 'error', size: 1,
       showMesh: true, errorMax: D.error_color_max_m > 0 ? String(D.error_color_max_m) : 'auto' };
 
-    function render() { renderer.render(scene, camera); }
-    controls.addEventListener('change', render);
-    function resize() {
-      const w = box.clientWidth, h = box.clientHeight;
-      if (!w || !h) return;
-      renderer.setSize(w, h);
-      camera.aspect = w / h;
-      camera.updateProjectionMatrix();
-      render();
-    }
-    new ResizeObserver(resize).observe(box);
 
     function meshFor(name) {
       if (meshCache.has(name)) return meshCache.get(name);
@@ -629,19 +601,7 @@
       onclick: () => { fit(); render(); } }));
 
     let baseSize = 0.01, bbox = null, zRange = [0, 1];
-    function fit() {
-      if (!bbox) return;
-      const c = bbox.getCenter(new T.Vector3());
-      const r = Math.max(bbox.getSize(new T.Vector3()).length() / 2, 0.05);
-      const dir = new T.Vector3(-1, -0.75, 0.55).normalize();
-      const dist = r / Math.sin((camera.fov * Math.PI / 180) / 2);
-      camera.position.copy(c).addScaledVector(dir, dist);
-      camera.near = dist / 100;
-      camera.far = dist * 10;
-      camera.updateProjectionMatrix();
-      controls.target.copy(c);
-      controls.update();
-    }
+    function fit() { V.fit(bbox); }
 
     function colorize() {
       if (!cloudObj) return;
@@ -795,14 +755,7 @@
       scene.add(cloudObj);
       if (grid) scene.remove(grid);
       if (bbox) {
-        const size = bbox.getSize(new T.Vector3());
-        const span = Math.max(size.x, size.y) * 1.6;
-        const step = Math.pow(10, Math.floor(Math.log10(Math.max(span / 4, 1e-3))));
-        const div = Math.max(2, Math.min(200, Math.round(span / step)));
-        grid = new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
-        grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
-        const ctr = bbox.getCenter(new T.Vector3());
-        grid.position.set(ctr.x, ctr.y, bbox.min.z);
+        grid = V.grid(bbox, 1.6);
         scene.add(grid);
       }
       fit();

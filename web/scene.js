@@ -7,8 +7,8 @@
   'use strict';
 
   const D = JSON.parse(document.getElementById('sonar3d-data').textContent);
-  const { el, select, fmtNum, decodeU8, decodeF32, decodeU32, COLORMAPS, hexToRgb, colormap } =
-    window.sonar3dWeb;
+  const { el, select, fmtNum, decodeU8, decodeF32, decodeU32, COLORMAPS, hexToRgb, colormap,
+    createViewer } = window.sonar3dWeb;
   const LAYERS = D.layers || [];
   const api = (window.sonar3dReport = { ready: false, viewerReady: false, kind: D.kind });
   const KIND_TEXT = {
@@ -44,7 +44,7 @@
   function drawTables() {
     const box = document.getElementById('tables');
     for (const t of D.tables || []) {
-      const table = el('table', { id: 'table-' + t.id });
+      const table = el('table', { id: 'table-' + t.id, class: 'results scene-table' });
       table.append(el('thead', {}, el('tr', {}, ...t.columns.map((c) => el('th', { text: c })))));
       const body = el('tbody');
       for (const r of t.rows) {
@@ -71,40 +71,12 @@
       api.viewerReady = true;
       return;
     }
-    const T = window.THREE;
-    let renderer;
-    try {
-      renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-    } catch (e) {
-      console.warn('sonar3d report: WebGL unavailable:', e && e.message);
-      message('This browser cannot draw 3D (WebGL is unavailable or disabled).');
+    const V = createViewer(box, message);
+    if (!V) {
       api.viewerReady = true;
       return;
     }
-    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
-    box.append(renderer.domElement);
-    box.append(el('div', { class: 'hud', text: 'drag: rotate · right-drag: pan · wheel: zoom' }));
-    const scene = new T.Scene();
-    scene.background = new T.Color(0xf0f3f7);
-    const camera = new T.PerspectiveCamera(40, 1, 0.01, 1000);
-    camera.up.set(0, 0, 1);  // world z up
-    scene.add(camera);
-    scene.add(new T.AmbientLight(0xffffff, 1.6));
-    const sun = new T.DirectionalLight(0xffffff, 2.2);
-    sun.position.set(0.5, 1, 1);
-    camera.add(sun);  // a head light: the scene is lit from wherever it is seen
-    const controls = new T.OrbitControls(camera, renderer.domElement);
-    function render() { renderer.render(scene, camera); }
-    controls.addEventListener('change', render);
-    function resize() {
-      const w = box.clientWidth, h = box.clientHeight;
-      if (!w || !h) return;
-      renderer.setSize(w, h);
-      camera.aspect = w / h;
-      camera.updateProjectionMatrix();
-      render();
-    }
-    new ResizeObserver(resize).observe(box);
+    const { T, scene, render, resize } = V;
 
     // Build every layer once; the whole scene's box and height range set colours and camera.
     const objs = new Map();
@@ -139,18 +111,8 @@
     }
     const zRange = bbox.isEmpty() ? [0, 1] : [bbox.min.z, bbox.max.z];
     const diag = bbox.isEmpty() ? 1 : bbox.getSize(new T.Vector3()).length();
-    const baseSize = Math.max(diag / 250, 0.002);  // points in world units: they scale with zoom
-    if (!bbox.isEmpty()) {
-      const size = bbox.getSize(new T.Vector3());
-      const span = Math.max(size.x, size.y) * 1.4;
-      const step = Math.pow(10, Math.floor(Math.log10(Math.max(span / 4, 1e-3))));
-      const div = Math.max(2, Math.min(200, Math.round(span / step)));
-      const grid = new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
-      grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
-      const ctr = bbox.getCenter(new T.Vector3());
-      grid.position.set(ctr.x, ctr.y, bbox.min.z);
-      scene.add(grid);
-    }
+    const baseSize = Math.max(diag / 150, 0.002);  // points in world units: they scale with zoom
+    if (!bbox.isEmpty()) scene.add(V.grid(bbox, 1.4));
 
     // Point colour modes offered: those any cloud has, the first of change, own colours, height.
     const modes = [];
@@ -239,18 +201,7 @@
           b.union(o.geometry.boundingBox);
         }
       }
-      const use = b.isEmpty() ? bbox : b;
-      if (use.isEmpty()) return;
-      const c = use.getCenter(new T.Vector3());
-      const r = Math.max(use.getSize(new T.Vector3()).length() / 2, 0.05);
-      const dir = new T.Vector3(-1, -0.75, 0.55).normalize();
-      const dist = r / Math.sin((camera.fov * Math.PI / 180) / 2);
-      camera.position.copy(c).addScaledVector(dir, dist);
-      camera.near = dist / 100;
-      camera.far = dist * 10;
-      camera.updateProjectionMatrix();
-      controls.target.copy(c);
-      controls.update();
+      V.fit(b.isEmpty() ? bbox : b);
     }
     function setSize() {
       for (const L of LAYERS) {

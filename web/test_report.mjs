@@ -395,8 +395,8 @@ async function checkScene(page, ex) {
     const [r, g, b] = rgb;
     let ok;
     if (c.rgb) ok = rgb.every((v, k) => Math.abs(v - c.rgb[k]) <= 1);
-    else if (c.hue === 'red') ok = r > b + 80;
-    else if (c.hue === 'blue') ok = b > r + 80;
+    else if (c.hue === 'red') ok = r > b + 40;
+    else if (c.hue === 'blue') ok = b > r + 40;
     else ok = Math.min(r, g, b) > 220;
     check(ok, `${c.layer}[${c.index}] coloured ${c.rgb ? c.rgb.join(',') : c.hue} (${rgb})`);
   }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <fstream>
 #include <random>
 #include <unordered_map>
 #include <utility>
@@ -196,6 +197,21 @@ std::vector<std::uint32_t> subsample(const PointCloud& cloud, std::size_t budget
     std::sort(idx.begin(), idx.end());
   }
   return idx;
+}
+
+void check_replaceable(const fs::path& output) {
+  std::error_code ec;
+  if (!fs::exists(output, ec)) return;
+  std::string head(256, '\0');
+  if (fs::is_regular_file(output, ec)) {
+    std::ifstream f(output, std::ios::binary);
+    f.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(f.gcount()));
+    // Both templates open with this comment (web/report_template.html, scene_template.html).
+    if (head.find("<!-- sonar3d ") != std::string::npos) return;
+  }
+  throw Error("report: '" + output.string() +
+              "' exists and is not a page sonar3d report wrote: remove it or choose another -o");
 }
 
 std::string fill_page(const WebAssets& assets, const std::string& title, std::string data_json) {

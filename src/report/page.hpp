@@ -44,6 +44,10 @@ std::string utc_now();
 std::vector<std::uint32_t> subsample(const PointCloud& cloud, std::size_t budget,
                                      std::uint64_t seed, std::size_t* num_finite);
 
+// Throws Error unless `output` is absent or a page sonar3d report wrote (its template's opening
+// comment): the report never replaces a file it did not write.
+void check_replaceable(const std::filesystem::path& output);
+
 // The page: the template with its placeholders ({{TITLE}}, /*{{STYLE}}*/, <!--{{LIBS}}-->,
 // <!--{{DATA}}-->, <!--{{APP}}-->) replaced by the escaped title, the style, the inlined
 // libraries, `data_json` in <script type="application/json" id="sonar3d-data"> and the code.

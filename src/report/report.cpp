@@ -199,6 +199,7 @@ namespace {
 ReportSummary write_sweep_report(const fs::path& plan_dir, const ReportConfig& cfg) {
   ReportSummary summary;
   summary.output = cfg.output.empty() ? plan_dir / "report.html" : cfg.output;
+  report_page::check_replaceable(summary.output);
 
   // Assets first: a missing `npm ci` should fail before any heavy work.
   const fs::path web_dir = cfg.web_dir.empty() ? default_web_dir() : cfg.web_dir;

@@ -480,6 +480,7 @@ ReportSummary write_scene_report(const fs::path& input, ReportInput kind, const 
   } else {
     summary.output = cfg.output;
   }
+  check_replaceable(summary.output);
   if (!cfg.placements.empty() && kind != ReportInput::Map && kind != ReportInput::Ply) {
     throw Error("report: --placements is for a map directory or a PLY cloud, not a " +
                 std::string(report_input_name(kind)) + " input");
