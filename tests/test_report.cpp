@@ -294,6 +294,13 @@ void run_browser_test(const fs::path& page, const fs::path& shot, const std::str
   EXPECT_TRUE(fs::exists(shot));
 }
 
+// Reads the web assets of this source tree.
+ReportConfig report_test_config() {
+  ReportConfig cfg;
+  cfg.web_dir = kWebDir;
+  return cfg;
+}
+
 class ReportTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -304,11 +311,7 @@ class ReportTest : public ::testing::Test {
   static void TearDownTestSuite() {
     if (std::getenv("SONAR3D_KEEP_TEST_OUTPUT") == nullptr) fs::remove_all(root_);
   }
-  static ReportConfig config() {
-    ReportConfig cfg;
-    cfg.web_dir = kWebDir;
-    return cfg;
-  }
+  static ReportConfig config() { return report_test_config(); }
   // A copy of the fixture plan directory to damage.
   static fs::path copy_plan(const std::string& name) {
     const fs::path d = root_ / name;
@@ -697,11 +700,7 @@ class SceneReportTest : public ::testing::Test {
   static void TearDownTestSuite() {
     if (std::getenv("SONAR3D_KEEP_TEST_OUTPUT") == nullptr) fs::remove_all(root_);
   }
-  static ReportConfig config() {
-    ReportConfig cfg;
-    cfg.web_dir = kWebDir;
-    return cfg;
-  }
+  static ReportConfig config() { return report_test_config(); }
 
   // A map directory: merged.ply is a bumpy seabed (60 × 40 points) plus the vertices of three
   // placed models; placements.json (4×4 rows, as `sonar3d recognize` writes) places them.

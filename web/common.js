@@ -68,8 +68,17 @@
 
   // The 3D viewer both pages draw in: a WebGL renderer in `box`, a z-up camera with a head light,
   // orbit controls (drag rotates, right-drag pans, the wheel zooms), resizing with the box.
-  // Returns null, after showing `message(text)`, when the browser has no WebGL.
-  function createViewer(box, message) {
+  // Returns null, with a message in the box instead of the viewer, when there is nothing to show
+  // (`nothing`: what to say then) or the browser has no WebGL.
+  function createViewer(box, nothing) {
+    const message = (text) => {
+      box.append(el('div', { class: 'message', text }));
+      document.getElementById('viewer-info').style.display = 'none';
+    };
+    if (nothing) {
+      message(nothing);
+      return null;
+    }
     const T = window.THREE;
     let renderer;
     try {

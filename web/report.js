@@ -524,16 +524,8 @@
     const box = document.getElementById('viewer');
     const ids = POINTS.filter((p) => D.clouds && D.clouds[p.id]).map((p) => p.id)
       .sort((a, b) => compare(BY_ID.get(a).rank, BY_ID.get(b).rank) || compare(a, b));
-    const message = (text) => {
-      box.append(el('div', { class: 'message', text }));
-      document.getElementById('viewer-info').style.display = 'none';
-    };
-    if (!ids.length) {
-      message('No reconstructed cloud to show (no configuration finished with a cloud).');
-      api.viewerReady = true;
-      return;
-    }
-    const V = createViewer(box, message);
+    const V = createViewer(box, ids.length ? null :
+      'No reconstructed cloud to show (no configuration finished with a cloud).');
     if (!V) {
       api.viewerReady = true;
       return;

@@ -62,16 +62,7 @@
   // ---------------------------------------------------------------- 3D viewer
   function initViewer() {
     const box = document.getElementById('viewer');
-    const message = (text) => {
-      box.append(el('div', { class: 'message', text }));
-      document.getElementById('viewer-info').style.display = 'none';
-    };
-    if (!LAYERS.length) {
-      message('Nothing to draw.');
-      api.viewerReady = true;
-      return;
-    }
-    const V = createViewer(box, message);
+    const V = createViewer(box, LAYERS.length ? null : 'Nothing to draw.');
     if (!V) {
       api.viewerReady = true;
       return;
