@@ -868,9 +868,9 @@ class SceneReportTest : public ::testing::Test {
   // a mesh with vertex colours (write_textured_mesh_ply's layout).
   static void make_textured() {
     PointCloud c;
-    for (int k = 0; k < 3000; ++k) {
-      const float a = 0.01f * k;
-      c.points.emplace_back(std::cos(a) * (1 + 0.001f * k), std::sin(a), 0.0005f * k);
+    for (int k = 0; k < 3000; ++k) {  // a 60 × 50 patch of a wavy surface
+      const float x = 0.02f * (k % 60), y = 0.02f * (k / 60);
+      c.points.emplace_back(x, y, 0.05f * std::sin(8 * x) * std::cos(6 * y));
       c.color.push_back({static_cast<std::uint8_t>(k % 256), static_cast<std::uint8_t>(k / 12),
                          static_cast<std::uint8_t>(k % 3 == 0 ? 0 : 200)});
     }

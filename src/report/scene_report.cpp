@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "page.hpp"
 #include "sonar3d/core/atomic_file.hpp"
@@ -55,13 +56,32 @@ struct PlyData {
   bool is_mesh = false;
 };
 
+// Whether the PLY header declares faces (read_ply keeps a cloud's extra vertex properties, such as
+// change_m; read_ply_faces reads the faces). The readers check the file itself.
+bool ply_has_faces(const fs::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::string line;
+  for (int n = 0; n < 10000 && std::getline(f, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line == "end_header") break;
+    std::istringstream in(line);
+    std::string word, name, count;
+    in >> word >> name >> count;
+    if (word == "element" && name == "face") return count != "0";
+  }
+  return false;
+}
+
 PlyData read_any_ply(const fs::path& path) {
   if (!fs::is_regular_file(path)) throw Error("report: '" + path.string() + "' not found");
   PlyData d;
+  if (!ply_has_faces(path)) {
+    d.cloud = read_ply(path.string());
+    return d;
+  }
   std::vector<std::vector<std::uint32_t>> faces;
   d.cloud = read_ply_faces(path.string(), &faces);
-  if (faces.empty()) return d;
-  d.is_mesh = true;
+  d.is_mesh = !faces.empty();
   d.mesh.vertices = d.cloud.points;
   for (std::size_t f = 0; f < faces.size(); ++f) {
     const auto& face = faces[f];
