@@ -30,6 +30,7 @@
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/report/report.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/video/texture_mesh.hpp"
 
 namespace fs = std::filesystem;
 // ordered_json, as the planner writes results.json: the axes keep the sweep's order.
@@ -875,13 +876,13 @@ class SceneReportTest : public ::testing::Test {
                          static_cast<std::uint8_t>(k % 3 == 0 ? 0 : 200)});
     }
     write_ply((root_ / "textured_cloud.ply").string(), c);
-    TriangleMesh box = make_box(1, 0.6, 0.4);
-    std::vector<Rgb> rgb;
-    for (std::size_t v = 0; v < box.vertices.size(); ++v) {
-      rgb.push_back(
-          {static_cast<std::uint8_t>(30 * v), 180, static_cast<std::uint8_t>(255 - 20 * v)});
+    TexturedMesh box;  // written by sonar3d texture's own writer
+    box.mesh = make_box(1, 0.6, 0.4);
+    for (std::size_t v = 0; v < box.mesh.vertices.size(); ++v) {
+      box.color.emplace_back(0.1f * (v % 8), 0.5f, 1.f - 0.1f * (v % 8));  // linear RGB
+      box.views.push_back(v == 0 ? 0 : 2);  // vertex 0 seen by no frame: black
     }
-    write_mesh_ply(root_ / "textured_mesh.ply", box, rgb);
+    write_textured_mesh_ply(root_ / "textured_mesh.ply", box);
   }
 
   static fs::path root_;

@@ -49,7 +49,7 @@
       const body = el('tbody');
       for (const r of t.rows) {
         body.append(el('tr', {}, ...r.map((v) => el('td',
-          { class: typeof v === 'number' ? 'num' : '', text: fmtCell(v) }))));
+          { class: typeof v === 'number' || v === null ? 'num' : '', text: fmtCell(v) }))));
       }
       table.append(body);
       const section = el('section', { id: 'section-' + t.id }, el('h2', { text: t.title }));
@@ -100,7 +100,19 @@
       scene.add(obj);
       objs.set(L.id, obj);
     }
-    const zRange = bbox.isEmpty() ? [0, 1] : [bbox.min.z, bbox.max.z];
+    // Height colours span the 1st to 99th percentile of the heights drawn by height (a few tall
+    // structures would otherwise leave the whole seabed one colour).
+    const zs = [];
+    for (const L of LAYERS) {
+      if (L.type === 'lines' || (L.type === 'mesh' && (L.rgb || L.color !== 'height'))) continue;
+      const pos = objs.get(L.id).geometry.getAttribute('position').array;
+      const step = Math.max(1, Math.floor(pos.length / 3 / 100000));
+      for (let i = 0; i < pos.length / 3; i += step) zs.push(pos[3 * i + 2]);
+    }
+    zs.sort((a, b) => a - b);
+    const zRange = zs.length ? [zs[Math.floor(0.01 * (zs.length - 1))],
+      zs[Math.ceil(0.99 * (zs.length - 1))]] :
+      bbox.isEmpty() ? [0, 1] : [bbox.min.z, bbox.max.z];
     const diag = bbox.isEmpty() ? 1 : bbox.getSize(new T.Vector3()).length();
     const baseSize = Math.max(diag / 150, 0.002);  // points in world units: they scale with zoom
     if (!bbox.isEmpty()) scene.add(V.grid(bbox, 1.4));
@@ -180,8 +192,8 @@
           text: 'points in their own colours (black: no camera saw them)' }));
       }
       if (anyHeight) {
-        cb.append(el('span', { class: 'lab', text: `height z: ${fmtNum(zRange[0])} m` }),
-          bar('viridis'), el('span', { class: 'lab', text: `${fmtNum(zRange[1])} m` }));
+        cb.append(el('span', { class: 'lab', text: `height z: ≤ ${fmtNum(zRange[0])} m` }),
+          bar('viridis'), el('span', { class: 'lab', text: `≥ ${fmtNum(zRange[1])} m` }));
       }
     }
 
