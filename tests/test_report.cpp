@@ -1179,6 +1179,8 @@ TEST_F(SceneReportTest, MalformedInputsNameTheFile) {
   const std::string graph = (w / "graph.json").string();
   write_text_file(graph, "{\"format\": \"sonar3d-world\", \"version\": 1, \"objects\": [");
   fails(w, {graph, "malformed JSON"}, cfg);
+  write_text_file(graph, std::string(100000, '[') + std::string(100000, ']'));
+  fails(w, {graph, "deeper than"}, cfg);
   json g = json::parse(read_text_file((root_ / "world/graph.json").string()));
   g["objects"][0]["T_world_model"] = json::array({1, 0, 0});
   write_text_file(graph, g.dump());

@@ -102,9 +102,21 @@ class Obj {
   std::string where_;
 };
 
+// Nesting deeper than any of these files needs is refused while parsing: the recursive parser
+// and destructor would otherwise overflow the stack on a hostile file of nested brackets.
+constexpr int kMaxJsonDepth = 32;
+
 json parse(const std::string& text, const std::string& path) {
+  const json::parser_callback_t depth_guard = [&path](int depth, json::parse_event_t event, json&) {
+    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
+        depth >= kMaxJsonDepth) {
+      throw Error("report: '" + path + "' nests objects or arrays deeper than " +
+                  std::to_string(kMaxJsonDepth) + " levels");
+    }
+    return true;
+  };
   try {
-    return json::parse(text);
+    return json::parse(text, depth_guard);
   } catch (const json::parse_error& e) {
     throw Error("report: '" + path + "' is malformed JSON: " + e.what());
   }
