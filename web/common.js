@@ -70,7 +70,8 @@
   // orbit controls (drag rotates, right-drag pans, the wheel zooms), resizing with the box.
   // Returns null, with a message in the box instead of the viewer, when there is nothing to show
   // (`nothing`: what to say then) or the browser has no WebGL.
-  function createViewer(box, nothing) {
+  // `dark`: a dark background (scene pages: white "no change" points and pale colours show).
+  function createViewer(box, nothing, dark) {
     const message = (text) => {
       box.append(el('div', { class: 'message', text }));
       document.getElementById('viewer-info').style.display = 'none';
@@ -92,7 +93,7 @@
     box.append(renderer.domElement);
     box.append(el('div', { class: 'hud', text: 'drag: rotate · right-drag: pan · wheel: zoom' }));
     const scene = new T.Scene();
-    scene.background = new T.Color(0xf0f3f7);
+    scene.background = new T.Color(dark ? 0x22272e : 0xf0f3f7);
     const camera = new T.PerspectiveCamera(40, 1, 0.01, 1000);
     camera.up.set(0, 0, 1);  // world z up
     scene.add(camera);
@@ -133,7 +134,8 @@
       const span = Math.max(size.x, size.y) * margin;
       const step = Math.pow(10, Math.floor(Math.log10(Math.max(span / 4, 1e-3))));
       const div = Math.max(2, Math.min(200, Math.round(span / step)));
-      const grid = new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
+      const grid = dark ? new T.GridHelper(div * step, div, 0x5a6472, 0x3a424d) :
+        new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
       grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
       const ctr = bbox.getCenter(new T.Vector3());
       grid.position.set(ctr.x, ctr.y, bbox.min.z);

@@ -62,7 +62,7 @@
   // ---------------------------------------------------------------- 3D viewer
   function initViewer() {
     const box = document.getElementById('viewer');
-    const V = createViewer(box, LAYERS.length ? null : 'Nothing to draw.');
+    const V = createViewer(box, LAYERS.length ? null : 'Nothing to draw.', true);
     if (!V) {
       api.viewerReady = true;
       return;

@@ -420,7 +420,8 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
   const float size = box.isEmpty() ? 0.3f : std::max(0.1f, 0.03f * box.diagonal().norm());
   const char* kBefore = "#d62728";  // before / removed
   const char* kAfter = "#2ca02c";   // after / added
-  const char* kSame = "#555555";    // unchanged
+  const char* kSame = "#9aa0a6";    // unchanged
+  const char* kMove = "#f2c12e";    // before -> after of a moved object
   std::vector<Eigen::Vector3f> ends;
   std::vector<Rgb> colors;
   auto seg = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b, const char* hex) {
@@ -450,7 +451,7 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
     if (o.has_b && !same) marker(o.T_world_model_b_in_a, kAfter);
     if (o.has_a && o.has_b && !same) {
       seg(o.T_world_model_a.topRightCorner<3, 1>().cast<float>(),
-          o.T_world_model_b_in_a.topRightCorner<3, 1>().cast<float>(), "#000000");
+          o.T_world_model_b_in_a.topRightCorner<3, 1>().cast<float>(), kMove);
     }
     if (models) {
       const std::string asked = "'" + cpath.string() + "': objects[" + std::to_string(i) + "]";
@@ -472,6 +473,7 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
   scene.legend(kBefore, "before (survey A) / removed");
   scene.legend(kAfter, "after (survey B, in A's frame) / added");
   scene.legend(kSame, "unchanged");
+  scene.legend(kMove, "moved: before to after");
   scene.table(
       "objects", "Objects",
       {"id", "model", "status", "shift [cm]", "turn [°]", "position A [m]", "position B in A [m]"},
