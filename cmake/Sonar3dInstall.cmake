@@ -35,7 +35,7 @@ install(FILES ${PROJECT_BINARY_DIR}/sonar3dConfig.cmake
 set(_web ${PROJECT_SOURCE_DIR}/web)
 set(_web_dest ${CMAKE_INSTALL_DATADIR}/sonar3d/web)
 install(FILES ${_web}/report_template.html ${_web}/report.css ${_web}/report.js
-              ${_web}/common.js ${_web}/scene_template.html ${_web}/scene.js
+              ${_web}/common.js ${_web}/scene.js
         DESTINATION ${_web_dest})
 install(FILES ${_web}/dist/three-bundle.js DESTINATION ${_web_dest}/dist OPTIONAL)
 install(FILES ${_web}/node_modules/three/LICENSE DESTINATION ${_web_dest}/dist

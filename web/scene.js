@@ -25,6 +25,17 @@
     if (Array.isArray(v)) return v.map(fmtCell).join(', ');
     return String(v);
   }
+  // The page template is the sweep report's (web/report_template.html): its sweep-only sections
+  // go, a container for the tables comes after the viewer.
+  function initLayout() {
+    for (const id of ['plots-section', 'table-section', 'sweep-section']) {
+      const e = document.getElementById(id);
+      if (e) e.remove();
+    }
+    const viewer = document.getElementById('viewer-section');
+    viewer.querySelector('h2').id = 'viewer-heading';
+    viewer.after(el('div', { id: 'tables' }));
+  }
   function initHeader() {
     document.getElementById('title').textContent = D.title || 'sonar3d';
     document.getElementById('subtitle').textContent =
@@ -314,6 +325,7 @@
   }
 
   // ---------------------------------------------------------------- start
+  initLayout();
   initHeader();
   drawTables();
   initViewer();

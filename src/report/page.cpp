@@ -70,11 +70,10 @@ std::string html_escape(const std::string& s) {
 
 }  // namespace
 
-WebAssets load_web_assets(const fs::path& dir, const std::string& template_name,
-                          const std::string& app_name, bool with_plotly) {
+WebAssets load_web_assets(const fs::path& dir, const std::string& app_name, bool with_plotly) {
   WebAssets a;
   a.dir = dir;
-  a.template_html = read_asset(dir, template_name);
+  a.template_html = read_asset(dir, "report_template.html");
   a.css = read_asset(dir, "report.css");
   a.common_js = read_asset(dir, "common.js");
   a.app_js = read_asset(dir, app_name);
@@ -207,7 +206,7 @@ void check_replaceable(const fs::path& output) {
     std::ifstream f(output, std::ios::binary);
     f.read(head.data(), static_cast<std::streamsize>(head.size()));
     head.resize(static_cast<std::size_t>(f.gcount()));
-    // Both templates open with this comment (web/report_template.html, scene_template.html).
+    // Every page opens with its template's comment (web/report_template.html).
     if (head.find("<!-- sonar3d ") != std::string::npos) return;
   }
   throw Error("report: '" + output.string() +
@@ -237,8 +236,8 @@ std::string fill_page(const WebAssets& assets, const std::string& title, std::st
     const std::string& ph = parts[k].first;
     const std::size_t pos = tpl.find(ph);
     if (pos == std::string::npos || tpl.find(ph, pos + 1) != std::string::npos) {
-      throw Error("report: a web asset template in '" + assets.dir.string() + "' must contain " +
-                  ph + " exactly once");
+      throw Error("report: web asset '" + (assets.dir / "report_template.html").string() +
+                  "' must contain " + ph + " exactly once");
     }
     at.emplace_back(pos, k);
   }

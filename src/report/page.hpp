@@ -21,10 +21,11 @@ struct WebAssets {
   std::string template_html, css, common_js, app_js, plotly_js, three_js;
 };
 
-// Reads web/<template_name>, web/<app_name> and the shared files (Plotly only when asked: the
-// scene pages draw no plot); a missing one is an Error saying to run scripts/install-deps.sh.
-WebAssets load_web_assets(const std::filesystem::path& dir, const std::string& template_name,
-                          const std::string& app_name, bool with_plotly);
+// Reads web/report_template.html (every page's), web/<app_name> and the shared files (Plotly only
+// when asked: the scene pages draw no plot); a missing one is an Error saying to run
+// scripts/install-deps.sh.
+WebAssets load_web_assets(const std::filesystem::path& dir, const std::string& app_name,
+                          bool with_plotly);
 
 std::string base64(const void* data, std::size_t n);
 

@@ -203,8 +203,7 @@ ReportSummary write_sweep_report(const fs::path& plan_dir, const ReportConfig& c
 
   // Assets first: a missing `npm ci` should fail before any heavy work.
   const fs::path web_dir = cfg.web_dir.empty() ? default_web_dir() : cfg.web_dir;
-  const report_page::WebAssets assets =
-      report_page::load_web_assets(web_dir, "report_template.html", "report.js", true);
+  const report_page::WebAssets assets = report_page::load_web_assets(web_dir, "report.js", true);
   json results = load_results(plan_dir);
   json& points = results["points"];
   summary.num_points = points.size();

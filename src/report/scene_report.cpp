@@ -511,7 +511,7 @@ ReportSummary write_scene_report(const fs::path& input, ReportInput kind, const 
     throw Error("report: --catalogue goes with --placements (map) or a change directory");
   }
   const fs::path web_dir = cfg.web_dir.empty() ? default_web_dir() : cfg.web_dir;
-  const WebAssets assets = load_web_assets(web_dir, "scene_template.html", "scene.js", false);
+  const WebAssets assets = load_web_assets(web_dir, "scene.js", false);
 
   Scene scene(cfg, summary);
   Progress progress("report", 1 + cfg.overlays.size(), cfg.progress);
