@@ -979,6 +979,7 @@ TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
                        {"colors",
                         {{{"layer", "placement_0"}, {"index", 0}, {"rgb", {31, 119, 180}}},
                          {{"layer", "placement_2"}, {"index", 0}, {"rgb", {214, 39, 40}}}}},
+                       {"focus", {{"table", "placements"}, {"layer", "placement_0"}}},
                        {"mode_change", false}};
   run_scene_browser_test(s.output, expect, "map");
 }
@@ -1031,6 +1032,7 @@ TEST_F(SceneReportTest, WorldShowsSeabedModelsAndConnections) {
                           {"rgb", {tank_colors_[5][0], tank_colors_[5][1], tank_colors_[5][2]}}},
                          {{"layer", "object_sphere_0"}, {"index", 0}, {"rgb", {214, 39, 40}}},
                          {{"layer", "connections"}, {"index", 0}, {"rgb", {255, 127, 14}}}}},
+                       {"focus", {{"table", "objects"}, {"layer", "object_tank_0"}}},
                        {"mode_change", false}};
   run_scene_browser_test(s.output, expect, "world");
 }

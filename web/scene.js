@@ -58,8 +58,12 @@
       const table = el('table', { id: 'table-' + t.id, class: 'results scene-table' });
       table.append(el('thead', {}, el('tr', {}, ...t.columns.map((c) => el('th', { text: c })))));
       const body = el('tbody');
-      for (const r of t.rows) {
-        body.append(el('tr', {}, ...r.map((v) => el('td',
+      for (const [i, r] of t.rows.entries()) {
+        // A row naming a layer brings it into view when clicked.
+        const focus = t.focus && t.focus[i];
+        const attrs = focus ? { class: 'focusable', title: 'click: show it in the 3D view',
+          onclick: () => api.focus && api.focus(focus) } : {};
+        body.append(el('tr', attrs, ...r.map((v) => el('td',
           { class: typeof v === 'number' || v === null ? 'num' : '', text: fmtCell(v) }))));
       }
       table.append(body);
@@ -307,6 +311,20 @@
         for (const L of groups.get(gname) || []) api.setVisible(L.id, L.id === id);
         const s = document.getElementById('scene-group-' + gname);
         if (s) s.value = id;
+      },
+      // Looks at one layer from close by (a structure in a large field).
+      focus(id) {
+        const o = objs.get(id);
+        if (!o) return;
+        if (!o.visible) api.setVisible(id, true);
+        const b = o.geometry.boundingBox.clone();
+        const c = b.getCenter(new T.Vector3());
+        const r = Math.max(b.getSize(new T.Vector3()).length(), 0.5);
+        V.fit(b.expandByVector(new T.Vector3(r, r, r * 0.25)));
+        render();
+        api.focused = id;
+        document.getElementById('viewer').scrollIntoView({ block: 'nearest' });
+        return c;
       },
       setColorMode(m) {
         state.mode = m;

@@ -13,7 +13,8 @@
 // EXPECT.json says what it must draw: {"kind", "layers": [{"id", "type", "count", "visible"}]
 // (exactly these, in this order), "tables": {id: rows}, "groups": {name: [layer ids]} (one shown
 // at a time), "colors": [{"layer", "index", "rgb": [r, g, b]} or {..., "hue": "red"|"blue"|
-// "white"}], "mode_change": whether another point colouring repaints the canvas}.
+// "white"}], "mode_change": whether another point colouring repaints the canvas, "focus":
+// {"table", "layer"}: clicking the table's first row brings that layer into view}.
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 import fs from 'node:fs';
@@ -416,6 +417,19 @@ async function checkScene(page, ex) {
         .filter((l) => l.group === g && l.visible).map((l) => l.id);
       check(vis.length === 1 && vis[0] === id, `${g}: choosing ${id} shows it alone (${vis})`);
     }
+  }
+  if (ex.focus) {
+    // Clicking a table row brings its layer into view: the camera moves, the canvas repaints.
+    const before = pixelStats(await page.screenshot({ clip: box })).png;
+    await page.click(`#table-${ex.focus.table} tbody tr:first-child`);
+    await page.waitForTimeout(200);
+    const focused = await page.evaluate(() => window.sonar3dReport.focused);
+    await canvas.scrollIntoViewIfNeeded();
+    const after = pixelStats(await page.screenshot({ clip: box })).png;
+    const d = differingPixels(before, after);
+    check(focused === ex.focus.layer && d > 100,
+      `clicking the first ${ex.focus.table} row shows ${ex.focus.layer} (${focused}, ` +
+      `${d} pixels changed)`);
   }
   if (ex.mode_change) {
     const before = shot.png;

@@ -169,9 +169,11 @@ class Scene {
     layers_.push_back(j);
   }
 
-  void table(const std::string& id, const std::string& title, const json& columns,
-             const json& rows) {
-    tables_.push_back({{"id", id}, {"title", title}, {"columns", columns}, {"rows", rows}});
+  // `focus`: per row, the layer a click on the row brings into view (or null).
+  void table(const std::string& id, const std::string& title, const json& columns, const json& rows,
+             const json& focus = nullptr) {
+    tables_.push_back(
+        {{"id", id}, {"title", title}, {"columns", columns}, {"rows", rows}, {"focus", focus}});
     summary_.num_table_rows += rows.size();
   }
   void card(const std::string& k, const json& v) { cards_.push_back({{"k", k}, {"v", v}}); }
@@ -312,13 +314,14 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
     }
   }
   Models models(cat);
-  json rows = json::array();
+  json rows = json::array(), focus = json::array();
   for (std::size_t i = 0; i < placements.size(); ++i) {
     const ReportPlacement& p = placements[i];
     const std::string asked = "'" + ppath + "': placements[" + std::to_string(i) + "]";
     scene.mesh("placement_" + std::to_string(i), p.model + " #" + std::to_string(i + 1),
                models.placed(p.model, p.T_world_model, asked), {}, scene.model_color(p.model), 0.45,
                true);
+    focus.push_back("placement_" + std::to_string(i));
     rows.push_back({i + 1, p.model, p.T_world_model(0, 3), p.T_world_model(1, 3),
                     p.T_world_model(2, 3), yaw_deg(p.T_world_model), p.score_m,
                     num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method});
@@ -326,7 +329,7 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
   scene.table("placements", "Placements (" + ppath + ")",
               {"#", "model", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
                "residual median [m]", "residual mean [m]", "method"},
-              rows);
+              rows, focus);
   scene.card("placements", placements.size());
 }
 
@@ -349,7 +352,7 @@ void build_world(const fs::path& dir, Scene& scene) {
                         s.bytes >= 0 ? json(s.bytes) : json(nullptr),
                         num_or_null(s.median_error_m)});
   }
-  json obj_rows = json::array();
+  json obj_rows = json::array(), obj_focus = json::array();
   std::map<std::string, Eigen::Vector3f> centre;
   for (const WorldObject& o : g.objects) {
     const fs::path p = dir / o.file;
@@ -360,6 +363,7 @@ void build_world(const fs::path& dir, Scene& scene) {
     scene.mesh("object_" + o.id, o.id, d.mesh, d.cloud.color, scene.model_color(o.model), 0.85,
                true);
     centre[o.id] = o.T_world_model.topRightCorner<3, 1>().cast<float>();
+    obj_focus.push_back("object_" + o.id);
     obj_rows.push_back({o.id, o.model, o.kind, o.T_world_model(0, 3), o.T_world_model(1, 3),
                         o.T_world_model(2, 3), yaw_deg(o.T_world_model), num_or_null(o.score_m),
                         num_or_null(o.residual_median_m), d.cloud.has_color() ? "yes" : "no"});
@@ -383,7 +387,7 @@ void build_world(const fs::path& dir, Scene& scene) {
   scene.table("objects", "Objects",
               {"id", "model", "kind", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
                "residual median [m]", "vertex colours"},
-              obj_rows);
+              obj_rows, obj_focus);
   scene.table("connections", "Connections", {"from", "to", "kind", "length [m]"}, con_rows);
   scene.table("seabed", "Seabed levels of detail",
               {"lod", "file", "cell [m]", "triangles", "bytes", "median error [m]"}, lod_rows);
