@@ -1008,10 +1008,21 @@ TEST_F(SceneReportTest, WorldShowsSeabedModelsAndConnections) {
   EXPECT_EQ((*lines)["count"], 1);
   const std::vector<float> ends = floats((*lines)["xyz"]);
   ASSERT_EQ(ends.size(), 6u);
-  EXPECT_FLOAT_EQ(ends[0], 2);
-  EXPECT_FLOAT_EQ(ends[1], 2);
-  EXPECT_FLOAT_EQ(ends[3], 6);
-  EXPECT_FLOAT_EQ(ends[4], 4);
+  // From centre to centre of the placed models' bounding boxes.
+  auto box_centre = [&](const char* file) {
+    Eigen::AlignedBox3f b;
+    for (const auto& p : read_ply((root_ / "world" / file).string()).points) b.extend(p);
+    return Eigen::Vector3f(b.center());
+  };
+  const Eigen::Vector3f ct = box_centre("models/tank_0.ply"),
+                        cs = box_centre("models/sphere_0.ply");
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_FLOAT_EQ(ends[i], ct[i]);
+    EXPECT_FLOAT_EQ(ends[3 + i], cs[i]);
+  }
+  EXPECT_NEAR(ends[0], 2, 0.1);  // the tank at (2, 2), the sphere at (6, 4)
+  EXPECT_NEAR(ends[3], 6, 0.1);
+  EXPECT_NEAR(ends[4], 4, 0.1);
   EXPECT_EQ(table_rows(d, "objects"), 2u);
   EXPECT_EQ(table_rows(d, "connections"), 1u);
   EXPECT_EQ(table_rows(d, "seabed"), 2u);

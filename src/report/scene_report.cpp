@@ -362,7 +362,7 @@ void build_world(const fs::path& dir, Scene& scene) {
                   "') has no faces: a mesh is expected");
     scene.mesh("object_" + o.id, o.id, d.mesh, d.cloud.color, scene.model_color(o.model), 0.85,
                true);
-    centre[o.id] = o.T_world_model.topRightCorner<3, 1>().cast<float>();
+    centre[o.id] = d.mesh.bounding_box().center();  // of the model as placed (world frame)
     obj_focus.push_back("object_" + o.id);
     obj_rows.push_back({o.id, o.model, o.kind, o.T_world_model(0, 3), o.T_world_model(1, 3),
                         o.T_world_model(2, 3), yaw_deg(o.T_world_model), num_or_null(o.score_m),
