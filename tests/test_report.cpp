@@ -1194,6 +1194,8 @@ TEST_F(SceneReportTest, MalformedInputsNameTheFile) {
   fails(w, {graph, "malformed JSON"}, cfg);
   write_text_file(graph, std::string(100000, '[') + std::string(100000, ']'));
   fails(w, {graph, "deeper than"}, cfg);
+  write_text_file(graph, "{\"format\": \"sonar3d-world\", \"version\": 1e4444}");
+  fails(w, {graph, "malformed JSON", "number overflow"}, cfg);  // found by fuzz_report_scene
   json g = json::parse(read_text_file((root_ / "world/graph.json").string()));
   g["objects"][0]["T_world_model"] = json::array({1, 0, 0});
   write_text_file(graph, g.dump());

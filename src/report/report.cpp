@@ -49,7 +49,7 @@ json load_results(const fs::path& plan_dir) {
   json r;
   try {
     r = json::parse(read_text_file(path.string()));
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number beyond double
     throw Error("report: '" + path.string() + "' is malformed JSON: " + e.what());
   }
   const std::string where = "report: '" + path.string() + "': ";

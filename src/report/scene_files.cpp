@@ -117,7 +117,8 @@ json parse(const std::string& text, const std::string& path) {
   };
   try {
     return json::parse(text, depth_guard);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, and out_of_range for a number beyond double (fuzz_report_scene found it).
     throw Error("report: '" + path + "' is malformed JSON: " + e.what());
   }
 }
