@@ -16,6 +16,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/report/scene_files.hpp"
 
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;

@@ -17,8 +17,6 @@
 #include <string>
 #include <vector>
 
-#include "sonar3d/report/scene_files.hpp"
-
 namespace sonar3d {
 
 enum class ReportColor { Error, Height };
