@@ -29,12 +29,13 @@ install(FILES ${PROJECT_BINARY_DIR}/sonar3dConfig.cmake
               ${PROJECT_SOURCE_DIR}/cmake/Sonar3dOpenCV.cmake
         DESTINATION ${SONAR3D_CONFIG_DIR})
 
-# The report's web assets: the project's own three files and the two npm-built libraries
-# (`npm ci` in web/, scripts/install-deps.sh), in the layout report.cpp reads. OPTIONAL: a build
+# The report's web assets: the project's own files (sweep and scene pages) and the two npm-built
+# libraries (`npm ci` in web/, scripts/install-deps.sh), in the layout report.cpp reads. OPTIONAL: a build
 # without them installs, and `sonar3d report` then says which asset is missing.
 set(_web ${PROJECT_SOURCE_DIR}/web)
 set(_web_dest ${CMAKE_INSTALL_DATADIR}/sonar3d/web)
 install(FILES ${_web}/report_template.html ${_web}/report.css ${_web}/report.js
+              ${_web}/common.js ${_web}/scene.js
         DESTINATION ${_web_dest})
 install(FILES ${_web}/dist/three-bundle.js DESTINATION ${_web_dest}/dist OPTIONAL)
 install(FILES ${_web}/node_modules/three/LICENSE DESTINATION ${_web_dest}/dist

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -18,14 +19,18 @@
 #include <random>
 #include <regex>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/report/report.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/video/texture_mesh.hpp"
 
 namespace fs = std::filesystem;
 // ordered_json, as the planner writes results.json: the axes keep the sweep's order.
@@ -290,6 +295,13 @@ void run_browser_test(const fs::path& page, const fs::path& shot, const std::str
   EXPECT_TRUE(fs::exists(shot));
 }
 
+// Reads the web assets of this source tree.
+ReportConfig report_test_config() {
+  ReportConfig cfg;
+  cfg.web_dir = kWebDir;
+  return cfg;
+}
+
 class ReportTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -300,11 +312,7 @@ class ReportTest : public ::testing::Test {
   static void TearDownTestSuite() {
     if (std::getenv("SONAR3D_KEEP_TEST_OUTPUT") == nullptr) fs::remove_all(root_);
   }
-  static ReportConfig config() {
-    ReportConfig cfg;
-    cfg.web_dir = kWebDir;
-    return cfg;
-  }
+  static ReportConfig config() { return report_test_config(); }
   // A copy of the fixture plan directory to damage.
   static fs::path copy_plan(const std::string& name) {
     const fs::path d = root_ / name;
@@ -604,6 +612,697 @@ TEST_F(ReportTest, SingleAxisAndAllFailedSweepsInHeadlessChromium) {
   EXPECT_EQ(s.num_failed, 4u);
   EXPECT_EQ(s.num_clouds, 0u);
   run_browser_test(s.output, root_ / "allfailed_page.png", "--all-failed");
+}
+
+// ---------------------------------------------------------------- scene pages
+// Map, world, change directories and PLY files (docs/report.md, "Scene pages"), built here per
+// the agreed formats (docs/formats.md): the page embeds what the inputs hold, and headless
+// Chromium draws the right layers with the right counts and colours.
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+// A binary little-endian PLY triangle mesh with optional uchar colours, as `sonar3d world` writes
+// its seabed and models.
+void write_mesh_ply(const fs::path& path, const TriangleMesh& m, const std::vector<Rgb>& rgb = {}) {
+  fs::create_directories(path.parent_path());
+  std::ofstream f(path, std::ios::binary);
+  f << "ply\nformat binary_little_endian 1.0\nelement vertex " << m.vertices.size()
+    << "\nproperty float x\nproperty float y\nproperty float z\n";
+  if (!rgb.empty()) f << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  f << "element face " << m.triangles.size()
+    << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+    f.write(reinterpret_cast<const char*>(m.vertices[v].data()), 12);
+    if (!rgb.empty()) f.write(reinterpret_cast<const char*>(rgb[v].data()), 3);
+  }
+  for (const auto& t : m.triangles) {
+    const unsigned char n = 3;
+    f.write(reinterpret_cast<const char*>(&n), 1);
+    f.write(reinterpret_cast<const char*>(t.data()), 12);
+  }
+}
+
+// A height-field mesh of nx × ny cells over [0, sx] × [0, sy].
+TriangleMesh grid_mesh(int nx, int ny, double sx, double sy) {
+  TriangleMesh m;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      const double x = sx * i / nx, y = sy * j / ny;
+      m.vertices.emplace_back(x, y, 0.1 * std::sin(x) * std::cos(y));
+    }
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i, b = a + 1, c = a + nx + 1, d = c + 1;
+      m.triangles.emplace_back(a, b, d);
+      m.triangles.emplace_back(a, d, c);
+    }
+  return m;
+}
+
+Eigen::Matrix4d pose_xyz_yaw(double x, double y, double z, double yaw_deg) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translate(Eigen::Vector3d(x, y, z));
+  T.rotate(Eigen::AngleAxisd(yaw_deg * M_PI / 180, Eigen::Vector3d::UnitZ()));
+  return T.matrix();
+}
+json flat16(const Eigen::Matrix4d& T) {
+  json a = json::array();
+  for (int k = 0; k < 16; ++k) a.push_back(T(k / 4, k % 4));
+  return a;
+}
+json rows4(const Eigen::Matrix4d& T) {
+  json a = json::array();
+  for (int r = 0; r < 4; ++r) a.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return a;
+}
+TriangleMesh placed(TriangleMesh m, const Eigen::Matrix4d& T) {
+  Eigen::Isometry3d iso;
+  iso.matrix() = T;
+  m.transform(iso);
+  return m;
+}
+
+const char* kCatalogue =
+    "models:\n  - name: tank\n    reference: tank\n    symmetry: full\n"
+    "  - name: sphere\n    reference: sphere\n    symmetry: full\n";
+
+class SceneReportTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    root_ = fs::temp_directory_path() / ("sonar3d_test_scene_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+    write_text_file((root_ / "catalogue.yaml").string(), kCatalogue);
+    make_map();
+    make_world();
+    make_changes();
+    make_textured();
+  }
+  static void TearDownTestSuite() {
+    if (std::getenv("SONAR3D_KEEP_TEST_OUTPUT") == nullptr) fs::remove_all(root_);
+  }
+  static ReportConfig config() { return report_test_config(); }
+
+  // A map directory: merged.ply is a bumpy seabed (60 × 40 points) plus the vertices of three
+  // placed models; placements.json (4×4 rows, as `sonar3d recognize` writes) places them.
+  static void make_map() {
+    const fs::path d = root_ / "map";
+    fs::create_directories(d);
+    poses_ = {pose_xyz_yaw(1.5, 1.0, 0.0, 30), pose_xyz_yaw(4.0, 2.5, 0.0, -75),
+              pose_xyz_yaw(3.0, 0.8, 0.0, 0)};
+    models_ = {"tank", "tank", "sphere"};
+    PointCloud cloud;
+    for (int j = 0; j < 40; ++j)
+      for (int i = 0; i < 60; ++i) {
+        cloud.points.emplace_back(0.1f * i, 0.1f * j, 0.05f * std::sin(0.3f * i));
+      }
+    for (std::size_t k = 0; k < poses_.size(); ++k) {
+      const TriangleMesh m =
+          placed(models_[k] == "tank" ? make_reference_tank() : make_reference_sphere(), poses_[k]);
+      for (std::size_t v = 0; v < m.vertices.size(); v += 7) cloud.points.push_back(m.vertices[v]);
+    }
+    write_ply((d / "merged.ply").string(), cloud);
+    map_points_ = cloud.size();
+    json list = json::array();
+    for (std::size_t k = 0; k < poses_.size(); ++k) {
+      list.push_back({{"model", models_[k]},
+                      {"method", "2d"},
+                      {"T_world_model", rows4(poses_[k])},
+                      {"score_m", 0.01 * (k + 1)},
+                      {"residual_median_m", k == 1 ? json(nullptr) : json(0.012)},
+                      {"residual_mean_m", 0.015}});
+    }
+    const json pj = {{"format", "sonar3d-placements"},
+                     {"version", 1},
+                     {"map", "map"},
+                     {"catalogue", "catalogue.yaml"},
+                     {"placements", list}};
+    write_text_file((root_ / "placements.json").string(), pj.dump(2));
+  }
+
+  // A world directory: two seabed levels of detail (800 and 200 triangles), a tank with vertex
+  // colours and a sphere without, joined by a pipeline.
+  static void make_world() {
+    const fs::path d = root_ / "world";
+    write_mesh_ply(d / "seabed_lod0.ply", grid_mesh(20, 20, 8, 6));
+    write_mesh_ply(d / "seabed_lod1.ply", grid_mesh(10, 10, 8, 6));
+    const Eigen::Matrix4d Tt = pose_xyz_yaw(2, 2, 0, 20), Ts = pose_xyz_yaw(6, 4, 0, 0);
+    const TriangleMesh tank = placed(make_reference_tank(), Tt);
+    tank_colors_.clear();
+    for (std::size_t v = 0; v < tank.vertices.size(); ++v) {
+      tank_colors_.push_back(
+          {static_cast<std::uint8_t>(40 + v % 200), 90, static_cast<std::uint8_t>(200 - v % 150)});
+    }
+    write_mesh_ply(d / "models/tank_0.ply", tank, tank_colors_);
+    write_mesh_ply(d / "models/sphere_0.ply", placed(make_reference_sphere(), Ts));
+    const json g = {
+        {"format", "sonar3d-world"},
+        {"version", 1},
+        {"objects",
+         {{{"id", "tank_0"},
+           {"model", "tank"},
+           {"kind", "structure"},
+           {"T_world_model", flat16(Tt)},
+           {"score_m", 0.02},
+           {"residual_median_m", 0.011},
+           {"file", "models/tank_0.ply"}},
+          {{"id", "sphere_0"},
+           {"model", "sphere"},
+           {"kind", "structure"},
+           {"T_world_model", flat16(Ts)},
+           {"score_m", 0.03},
+           {"residual_median_m", nullptr},
+           {"file", "models/sphere_0.ply"}}}},
+        {"connections",
+         {{{"from", "tank_0"}, {"to", "sphere_0"}, {"kind", "pipeline"}, {"length_m", 4.47}}}},
+        {"seabed",
+         {{{"lod", 0},
+           {"file", "seabed_lod0.ply"},
+           {"cell_m", 0.3},
+           {"triangles", 800},
+           {"bytes", 12000},
+           {"median_error_m", 0.01}},
+          {{"lod", 1},
+           {"file", "seabed_lod1.ply"},
+           {"cell_m", 0.6},
+           {"triangles", 200},
+           {"bytes", 3000},
+           {"median_error_m", nullptr}}}},
+        {"source", {{"map", "map"}, {"placements", "placements.json"}, {"catalogue", "c.yaml"}}},
+        {"bytes_total", 60000},
+        {"cloud_bytes", 6000000}};
+    write_text_file((d / "graph.json").string(), g.dump(2));
+  }
+
+  // A change directory: 40 × 30 points, raised by 0.3 m in one corner, lowered by 0.2 m in
+  // another; a tank moved 30 cm and turned 10°, a sphere added, a tank removed, a sphere kept.
+  static void make_changes() {
+    const fs::path d = root_ / "changes";
+    fs::create_directories(d);
+    PointCloud c;
+    PointProperty change{"change_m", {}};
+    for (int j = 0; j < 30; ++j)
+      for (int i = 0; i < 40; ++i) {
+        c.points.emplace_back(0.1f * i, 0.1f * j, 0.f);
+        float v = 0;
+        if (i < 8 && j < 8) v = 0.3f;
+        if (i > 32 && j > 22) v = -0.2f;
+        change.values.push_back(v);
+      }
+    c.properties.push_back(change);
+    write_ply((d / "change_points.ply").string(), c);
+    change_points_ = c.size();
+    const Eigen::Matrix4d A = pose_xyz_yaw(1, 1, 0, 0), B = pose_xyz_yaw(1.3, 1, 0, 10);
+    const json objects = {{{"id", "tank_0"},
+                           {"model", "tank"},
+                           {"status", "moved"},
+                           {"T_world_model_a", flat16(A)},
+                           {"T_world_model_b_in_a", flat16(B)},
+                           {"shift_m", 0.3},
+                           {"turn_deg", 10}},
+                          {{"id", "sphere_1"},
+                           {"model", "sphere"},
+                           {"status", "added"},
+                           {"T_world_model_a", nullptr},
+                           {"T_world_model_b_in_a", flat16(pose_xyz_yaw(3, 2, 0, 0))},
+                           {"shift_m", nullptr},
+                           {"turn_deg", nullptr}},
+                          {{"id", "tank_1"},
+                           {"model", "tank"},
+                           {"status", "removed"},
+                           {"T_world_model_a", flat16(pose_xyz_yaw(2, 2.5, 0, 45))},
+                           {"T_world_model_b_in_a", nullptr},
+                           {"shift_m", nullptr},
+                           {"turn_deg", nullptr}},
+                          {{"id", "sphere_0"},
+                           {"model", "sphere"},
+                           {"status", "unchanged"},
+                           {"T_world_model_a", flat16(pose_xyz_yaw(3.5, 0.5, 0, 0))},
+                           {"T_world_model_b_in_a", flat16(pose_xyz_yaw(3.51, 0.5, 0, 0))},
+                           {"shift_m", 0.01},
+                           {"turn_deg", 0.2}}};
+    const json j = {
+        {"format", "sonar3d-changes"},
+        {"version", 1},
+        {"T_a_b", flat16(pose_xyz_yaw(0.2, -0.1, 0, 1))},
+        {"registration", {{"method", "elevation-map"}, {"rms_m", 0.012}, {"overlap_cells", 1200}}},
+        {"objects", objects},
+        {"regions",
+         {{{"id", 1},
+           {"centroid", {0.35, 0.35, 0}},
+           {"area_m2", 0.64},
+           {"max_abs_change_m", 0.3},
+           {"mean_change_m", 0.3},
+           {"kind", "raised"}},
+          {{"id", 2},
+           {"centroid", {3.65, 2.65, 0}},
+           {"area_m2", 0.42},
+           {"max_abs_change_m", 0.2},
+           {"mean_change_m", -0.2},
+           {"kind", "lowered"}}}},
+        {"thresholds", {{"shift_m", 0.05}}},
+        {"seconds", 1.5}};
+    write_text_file((d / "changes.json").string(), j.dump(2));
+  }
+
+  // Textured outputs as `sonar3d texture` writes them: a cloud with colours (black: unseen) and
+  // a mesh with vertex colours (write_textured_mesh_ply's layout).
+  static void make_textured() {
+    PointCloud c;
+    for (int k = 0; k < 3000; ++k) {  // a 60 × 50 patch of a wavy surface
+      const float x = 0.02f * (k % 60), y = 0.02f * (k / 60);
+      c.points.emplace_back(x, y, 0.05f * std::sin(8 * x) * std::cos(6 * y));
+      c.color.push_back({static_cast<std::uint8_t>(k % 256), static_cast<std::uint8_t>(k / 12),
+                         static_cast<std::uint8_t>(k % 3 == 0 ? 0 : 200)});
+    }
+    write_ply((root_ / "textured_cloud.ply").string(), c);
+    TexturedMesh box;  // written by sonar3d texture's own writer
+    box.mesh = make_box(1, 0.6, 0.4);
+    for (std::size_t v = 0; v < box.mesh.vertices.size(); ++v) {
+      box.color.emplace_back(0.1f * (v % 8), 0.5f, 1.f - 0.1f * (v % 8));  // linear RGB
+      box.views.push_back(v == 0 ? 0 : 2);  // vertex 0 seen by no frame: black
+    }
+    write_textured_mesh_ply(root_ / "textured_mesh.ply", box);
+  }
+
+  static fs::path root_;
+  static std::vector<Eigen::Matrix4d> poses_;
+  static std::vector<std::string> models_;
+  static std::vector<Rgb> tank_colors_;
+  static std::size_t map_points_, change_points_;
+};
+fs::path SceneReportTest::root_;
+std::vector<Eigen::Matrix4d> SceneReportTest::poses_;
+std::vector<std::string> SceneReportTest::models_;
+std::vector<Rgb> SceneReportTest::tank_colors_;
+std::size_t SceneReportTest::map_points_ = 0, SceneReportTest::change_points_ = 0;
+
+const json* layer(const json& data, const std::string& id) {
+  for (const auto& l : data["layers"])
+    if (l["id"] == id) return &l;
+  return nullptr;
+}
+std::size_t table_rows(const json& data, const std::string& id) {
+  for (const auto& t : data["tables"])
+    if (t["id"] == id) return t["rows"].size();
+  return 0;
+}
+
+// Runs test_report.mjs on a scene page with the expectations written beside it.
+void run_scene_browser_test(const fs::path& page, const json& expect, const std::string& name) {
+  if (std::getenv("SONAR3D_SKIP_BROWSER_TEST") != nullptr) return;
+  const fs::path e = page.parent_path() / (name + "_expect.json");
+  write_text_file(e.string(), expect.dump(2));
+  run_browser_test(page, page.parent_path() / (name + "_page.png"),
+                   "--expect '" + e.string() + "'");
+}
+
+TEST_F(SceneReportTest, DetectsTheInputByContent) {
+  EXPECT_EQ(detect_report_input(root_ / "map"), ReportInput::Map);
+  EXPECT_EQ(detect_report_input(root_ / "world"), ReportInput::World);
+  EXPECT_EQ(detect_report_input(root_ / "changes"), ReportInput::Changes);
+  EXPECT_EQ(detect_report_input(root_ / "textured_cloud.ply"), ReportInput::Ply);
+  expect_error([&] { detect_report_input(root_ / "catalogue.yaml"); },
+               {"catalogue.yaml", "not a PLY"});
+  fs::create_directories(root_ / "nothing");
+  expect_error([&] { detect_report_input(root_ / "nothing"); },
+               {"results.json", "graph.json", "changes.json", "merged.ply"});
+}
+
+// Map + placements: the cloud's points and each placed model in its pose, listed in a table.
+TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
+  ReportConfig cfg = config();
+  cfg.placements = root_ / "placements.json";  // its catalogue is found beside it
+  const ReportSummary s = write_report(root_ / "map", cfg);
+  EXPECT_EQ(s.input, ReportInput::Map);
+  EXPECT_EQ(s.output, root_ / "map" / "report.html");
+  const std::string html = read_text_file(s.output.string());
+  EXPECT_EQ(html.find("plotly"), std::string::npos) << "scene pages need no Plotly";
+  EXPECT_EQ(std::regex_search(html, std::regex(R"((src|href)\s*=\s*["']?https?:)")), false);
+  const json d = embedded_data(html);
+  EXPECT_EQ(d["kind"], "map");
+  ASSERT_EQ(d["layers"].size(), 4u);
+  const json* cloud = layer(d, "cloud");
+  ASSERT_NE(cloud, nullptr);
+  EXPECT_EQ((*cloud)["count"].get<std::size_t>(), map_points_);
+  const PointCloud merged = read_ply((root_ / "map/merged.ply").string());
+  const std::vector<float> xyz = floats((*cloud)["xyz"]);
+  ASSERT_EQ(xyz.size(), 3 * merged.size());
+  for (std::size_t k = 0; k < merged.size(); k += 97) {
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(xyz[3 * k + c], merged.points[k][c]);
+  }
+  const Catalogue cat = read_catalogue((root_ / "catalogue.yaml").string());
+  json expect_layers = json::array(
+      {{{"id", "cloud"}, {"type", "points"}, {"count", map_points_}, {"visible", true}}});
+  for (std::size_t k = 0; k < poses_.size(); ++k) {
+    const json* m = layer(d, "placement_" + std::to_string(k));
+    ASSERT_NE(m, nullptr);
+    const TriangleMesh model = load_catalogue_mesh(cat, cat.models[models_[k] == "tank" ? 0 : 1]);
+    EXPECT_EQ((*m)["count"].get<std::size_t>(), model.triangles.size());
+    // The model's first vertex, placed by T_world_model.
+    const std::vector<float> v = floats((*m)["xyz"]);
+    const Eigen::Vector3d expected =
+        (poses_[k] * model.vertices[0].cast<double>().homogeneous()).head<3>();
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(v[c], expected[c], 1e-5);
+    EXPECT_LT((*m)["opacity"].get<double>(), 1.0);
+    expect_layers.push_back(
+        {{"id", (*m)["id"]}, {"type", "mesh"}, {"count", (*m)["count"]}, {"visible", true}});
+  }
+  EXPECT_EQ(table_rows(d, "placements"), 3u);
+  EXPECT_EQ(s.num_table_rows, 3u);
+  // Same model, same colour; another model, another.
+  EXPECT_EQ((*layer(d, "placement_0"))["color"], (*layer(d, "placement_1"))["color"]);
+  EXPECT_NE((*layer(d, "placement_0"))["color"], (*layer(d, "placement_2"))["color"]);
+  const json expect = {{"kind", "map"},
+                       {"layers", expect_layers},
+                       {"tables", {{"placements", 3}}},
+                       {"colors",
+                        {{{"layer", "placement_0"}, {"index", 0}, {"rgb", {31, 119, 180}}},
+                         {{"layer", "placement_2"}, {"index", 0}, {"rgb", {214, 39, 40}}}}},
+                       {"focus", {{"table", "placements"}, {"layer", "placement_0"}}},
+                       {"mode_change", false}};
+  run_scene_browser_test(s.output, expect, "map");
+}
+
+// World model: seabed levels of detail (one shown at a time), the models (the tank in its vertex
+// colours), the connection as a line, the graph as tables.
+TEST_F(SceneReportTest, WorldShowsSeabedModelsAndConnections) {
+  const ReportSummary s = write_report(root_ / "world", config());
+  EXPECT_EQ(s.input, ReportInput::World);
+  const json d = embedded_data(read_text_file(s.output.string()));
+  ASSERT_EQ(d["layers"].size(), 5u);
+  EXPECT_EQ((*layer(d, "seabed_lod0"))["count"], 800);
+  EXPECT_EQ((*layer(d, "seabed_lod0"))["visible"], false);
+  EXPECT_EQ((*layer(d, "seabed_lod1"))["count"], 200);
+  EXPECT_EQ((*layer(d, "seabed_lod1"))["visible"], true);  // the coarsest first
+  const json* tank = layer(d, "object_tank_0");
+  ASSERT_NE(tank, nullptr);
+  const std::vector<unsigned char> rgb = unbase64((*tank)["rgb"]);
+  ASSERT_EQ(rgb.size(), 3 * tank_colors_.size());
+  for (std::size_t v = 0; v < tank_colors_.size(); v += 13) {
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(rgb[3 * v + c], tank_colors_[v][c]);
+  }
+  EXPECT_TRUE((*layer(d, "object_sphere_0"))["rgb"].is_null());
+  const json* lines = layer(d, "connections");
+  ASSERT_NE(lines, nullptr);
+  EXPECT_EQ((*lines)["count"], 1);
+  const std::vector<float> ends = floats((*lines)["xyz"]);
+  ASSERT_EQ(ends.size(), 6u);
+  // From centre to centre of the placed models' bounding boxes.
+  auto box_centre = [&](const char* file) {
+    Eigen::AlignedBox3f b;
+    for (const auto& p : read_ply((root_ / "world" / file).string()).points) b.extend(p);
+    return Eigen::Vector3f(b.center());
+  };
+  const Eigen::Vector3f ct = box_centre("models/tank_0.ply"),
+                        cs = box_centre("models/sphere_0.ply");
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_FLOAT_EQ(ends[i], ct[i]);
+    EXPECT_FLOAT_EQ(ends[3 + i], cs[i]);
+  }
+  EXPECT_NEAR(ends[0], 2, 0.1);  // the tank at (2, 2), the sphere at (6, 4)
+  EXPECT_NEAR(ends[3], 6, 0.1);
+  EXPECT_NEAR(ends[4], 4, 0.1);
+  EXPECT_EQ(table_rows(d, "objects"), 2u);
+  EXPECT_EQ(table_rows(d, "connections"), 1u);
+  EXPECT_EQ(table_rows(d, "seabed"), 2u);
+  auto L = [&](const std::string& id, const char* type, bool visible) {
+    return json{
+        {"id", id}, {"type", type}, {"count", (*layer(d, id))["count"]}, {"visible", visible}};
+  };
+  const json expect = {{"kind", "world"},
+                       {"layers",
+                        {L("seabed_lod0", "mesh", false), L("seabed_lod1", "mesh", true),
+                         L("object_tank_0", "mesh", true), L("object_sphere_0", "mesh", true),
+                         L("connections", "lines", true)}},
+                       {"tables", {{"objects", 2}, {"connections", 1}, {"seabed", 2}}},
+                       {"groups", {{"seabed", {"seabed_lod0", "seabed_lod1"}}}},
+                       {"colors",
+                        {{{"layer", "object_tank_0"},
+                          {"index", 5},
+                          {"rgb", {tank_colors_[5][0], tank_colors_[5][1], tank_colors_[5][2]}}},
+                         {{"layer", "object_sphere_0"}, {"index", 0}, {"rgb", {214, 39, 40}}},
+                         {{"layer", "connections"}, {"index", 0}, {"rgb", {255, 127, 14}}}}},
+                       {"focus", {{"table", "objects"}, {"layer", "object_tank_0"}}},
+                       {"mode_change", false}};
+  run_scene_browser_test(s.output, expect, "world");
+}
+
+// Changes: the points on a diverging scale (raised red, lowered blue, unchanged white), each
+// object's markers before/after, and with a catalogue the models before and after.
+TEST_F(SceneReportTest, ChangesShowPointsObjectsAndRegions) {
+  {
+    const ReportSummary s = write_report(root_ / "changes", config());
+    const json d = embedded_data(read_text_file(s.output.string()));
+    ASSERT_EQ(d["layers"].size(), 2u);  // no catalogue: points and markers only
+    // moved: 2 markers of 4 strokes + the joining line; added, removed, unchanged: 4 each.
+    EXPECT_EQ((*layer(d, "markers"))["count"], 9 + 4 + 4 + 4);
+  }
+  ReportConfig cfg = config();
+  cfg.catalogue = root_ / "catalogue.yaml";
+  cfg.output = root_ / "changes_page.html";
+  const ReportSummary s = write_report(root_ / "changes", cfg);
+  const json d = embedded_data(read_text_file(s.output.string()));
+  // + before/after of the moved tank, after of the added sphere, before of the removed tank and
+  // the unchanged sphere.
+  ASSERT_EQ(d["layers"].size(), 7u);
+  const json* pts = layer(d, "change_points");
+  EXPECT_EQ((*pts)["count"].get<std::size_t>(), change_points_);
+  EXPECT_EQ((*pts)["color_modes"], json({"change", "height"}));
+  const std::vector<float> ch = floats((*pts)["change"]);
+  ASSERT_EQ(ch.size(), change_points_);
+  EXPECT_FLOAT_EQ(ch[0], 0.3f);
+  EXPECT_FLOAT_EQ(ch[change_points_ - 1], -0.2f);
+  EXPECT_EQ(table_rows(d, "objects"), 4u);
+  EXPECT_EQ(table_rows(d, "regions"), 2u);
+  json expect_layers = json::array();
+  for (const auto& l : d["layers"]) {
+    expect_layers.push_back(
+        {{"id", l["id"]}, {"type", l["type"]}, {"count", l["count"]}, {"visible", true}});
+  }
+  const json expect = {
+      {"kind", "changes"},
+      {"layers", expect_layers},
+      {"tables", {{"objects", 4}, {"regions", 2}}},
+      {"colors",
+       {{{"layer", "change_points"}, {"index", 0}, {"hue", "red"}},
+        {{"layer", "change_points"}, {"index", change_points_ - 1}, {"hue", "blue"}},
+        {{"layer", "change_points"}, {"index", 20 * 40 + 20}, {"hue", "white"}}}},
+      {"mode_change", true}};
+  run_scene_browser_test(s.output, expect, "changes");
+}
+
+// Textured outputs of `sonar3d texture`: a cloud and a mesh in their own colours; the mesh also
+// as an overlay over a map.
+TEST_F(SceneReportTest, TexturedPlyInItsOwnColours) {
+  const ReportSummary s = write_report(root_ / "textured_cloud.ply", config());
+  EXPECT_EQ(s.input, ReportInput::Ply);
+  EXPECT_EQ(s.output, root_ / "textured_cloud.html");
+  const json d = embedded_data(read_text_file(s.output.string()));
+  const json* c = layer(d, "cloud");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ((*c)["count"], 3000);
+  EXPECT_EQ((*c)["color_modes"], json({"rgb", "height"}));
+  const PointCloud tc = read_ply((root_ / "textured_cloud.ply").string());
+  const std::vector<unsigned char> rgb = unbase64((*c)["rgb"]);
+  ASSERT_EQ(rgb.size(), 9000u);
+  for (std::size_t k = 0; k < 3000; k += 7)
+    for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(rgb[3 * k + ch], tc.color[k][ch]);
+  auto rgb_of = [&](std::size_t k) { return json{tc.color[k][0], tc.color[k][1], tc.color[k][2]}; };
+  run_scene_browser_test(
+      s.output,
+      {{"kind", "ply"},
+       {"layers", {{{"id", "cloud"}, {"type", "points"}, {"count", 3000}, {"visible", true}}}},
+       {"tables", json::object()},
+       {"colors",
+        {{{"layer", "cloud"}, {"index", 0}, {"rgb", rgb_of(0)}},
+         {{"layer", "cloud"}, {"index", 1234}, {"rgb", rgb_of(1234)}}}},
+       {"mode_change", true}},
+      "textured_cloud");
+
+  // The textured mesh as a page of its own, and over the map with its placements.
+  std::vector<std::vector<std::uint32_t>> faces;
+  const PointCloud mv = read_ply_faces((root_ / "textured_mesh.ply").string(), &faces);
+  const ReportSummary sm = write_report(root_ / "textured_mesh.ply", config());
+  const json dm = embedded_data(read_text_file(sm.output.string()));
+  ASSERT_EQ(dm["layers"].size(), 1u);
+  EXPECT_EQ(dm["layers"][0]["type"], "mesh");
+  EXPECT_EQ(dm["layers"][0]["count"].get<std::size_t>(), faces.size());
+  ReportConfig cfg = config();
+  cfg.placements = root_ / "placements.json";
+  cfg.catalogue = root_ / "catalogue.yaml";
+  cfg.overlays = {root_ / "textured_mesh.ply"};
+  cfg.output = root_ / "map_overlay.html";
+  const ReportSummary so = write_report(root_ / "map", cfg);
+  const json dov = embedded_data(read_text_file(so.output.string()));
+  ASSERT_EQ(dov["layers"].size(), 5u);
+  const json* ov = layer(dov, "overlay_0");
+  ASSERT_NE(ov, nullptr);
+  EXPECT_EQ((*ov)["count"].get<std::size_t>(), faces.size());
+  run_scene_browser_test(
+      sm.output,
+      {{"kind", "ply"},
+       {"layers", {{{"id", "mesh"}, {"type", "mesh"}, {"count", faces.size()}, {"visible", true}}}},
+       {"tables", json::object()},
+       {"colors",
+        {{{"layer", "mesh"},
+          {"index", 3},
+          {"rgb", {mv.color[3][0], mv.color[3][1], mv.color[3][2]}}}}},
+       {"mode_change", false}},
+      "textured_mesh");
+}
+
+// Large inputs stay within the budgets: points subsampled, meshes simplified (colours kept).
+TEST_F(SceneReportTest, BudgetsBoundThePage) {
+  ReportConfig cfg = config();
+  cfg.max_points_per_cloud = 500;
+  cfg.max_mesh_triangles = 100;
+  cfg.output = root_ / "world_small.html";
+  const ReportSummary s = write_report(root_ / "world", cfg);
+  const json d = embedded_data(read_text_file(s.output.string()));
+  for (const auto& l : d["layers"]) {
+    if (l["type"] == "mesh") {
+      EXPECT_LE(l["count"].get<std::size_t>(), 100u) << l["id"];
+      if (!l["rgb"].is_null()) {
+        EXPECT_EQ(unbase64(l["rgb"]).size(), floats(l["xyz"]).size()) << l["id"];
+      }
+    }
+  }
+  cfg.output = root_ / "changes_small.html";
+  const ReportSummary sc = write_report(root_ / "changes", cfg);
+  EXPECT_EQ(sc.num_cloud_points, 500u);
+}
+
+// Malformed inputs: one clear error naming the file (and the entry), and no page.
+TEST_F(SceneReportTest, MalformedInputsNameTheFile) {
+  const ReportConfig cfg = config();
+  auto copy = [&](const std::string& from, const std::string& to) {
+    const fs::path d = root_ / to;
+    fs::remove_all(d);
+    fs::copy(root_ / from, d, fs::copy_options::recursive);
+    fs::remove(d / "report.html");
+    return d;
+  };
+  auto fails = [&](const fs::path& in, const std::vector<std::string>& parts,
+                   const ReportConfig& c) {
+    expect_error([&] { write_report(in, c); }, parts);
+    EXPECT_FALSE(fs::exists(in / "report.html")) << in;
+  };
+  const fs::path w = copy("world", "bad_world");
+  const std::string graph = (w / "graph.json").string();
+  write_text_file(graph, "{\"format\": \"sonar3d-world\", \"version\": 1, \"objects\": [");
+  fails(w, {graph, "malformed JSON"}, cfg);
+  write_text_file(graph, std::string(100000, '[') + std::string(100000, ']'));
+  fails(w, {graph, "deeper than"}, cfg);
+  write_text_file(graph, "{\"format\": \"sonar3d-world\", \"version\": 1e4444}");
+  fails(w, {graph, "malformed JSON", "number overflow"}, cfg);  // found by fuzz_report_scene
+  json g = json::parse(read_text_file((root_ / "world/graph.json").string()));
+  g["objects"][0]["T_world_model"] = json::array({1, 0, 0});
+  write_text_file(graph, g.dump());
+  fails(w, {graph, "objects[0]", "T_world_model", "16 numbers"}, cfg);
+  g = json::parse(read_text_file((root_ / "world/graph.json").string()));
+  g["connections"][0]["to"] = "pillar_7";
+  write_text_file(graph, g.dump());
+  fails(w, {graph, "connections[0]", "pillar_7"}, cfg);
+  g = json::parse(read_text_file((root_ / "world/graph.json").string()));
+  g["format"] = "sonar3d-changes";
+  write_text_file(graph, g.dump());
+  fails(w, {graph, "format", "sonar3d-world"}, cfg);
+  g = json::parse(read_text_file((root_ / "world/graph.json").string()));
+  write_text_file(graph, g.dump());
+  fs::remove(w / "models/sphere_0.ply");
+  fails(w, {(w / "models/sphere_0.ply").string(), "not found"}, cfg);
+  write_text_file((w / "models/sphere_0.ply").string(), "ply\nformat binary_little_endian 1.0\n");
+  fails(w, {(w / "models/sphere_0.ply").string()}, cfg);
+
+  const fs::path c = copy("changes", "bad_changes");
+  const std::string cj = (c / "changes.json").string();
+  json ch = json::parse(read_text_file(cj));
+  ch["objects"][1]["status"] = "vanished";
+  write_text_file(cj, ch.dump());
+  fails(c, {cj, "objects[1]", "vanished"}, cfg);
+  ch = json::parse(read_text_file((root_ / "changes/changes.json").string()));
+  ch["objects"][0]["T_world_model_b_in_a"] = nullptr;
+  write_text_file(cj, ch.dump());
+  fails(c, {cj, "objects[0]", "T_world_model_b_in_a"}, cfg);
+  ch = json::parse(read_text_file((root_ / "changes/changes.json").string()));
+  write_text_file(cj, ch.dump());
+  PointCloud no_change;
+  no_change.points.emplace_back(0.f, 0.f, 0.f);
+  write_ply((c / "change_points.ply").string(), no_change);
+  fails(c, {(c / "change_points.ply").string(), "change_m"}, cfg);
+
+  // Placements: malformed, a model the catalogue lacks, a catalogue that is not there.
+  const fs::path bad_p = root_ / "bad_placements.json";
+  ReportConfig pc = cfg;
+  pc.placements = bad_p;
+  pc.catalogue = root_ / "catalogue.yaml";
+  pc.output = root_ / "bad_map.html";
+  write_text_file(bad_p.string(), "[1, 2");
+  expect_error([&] { write_report(root_ / "map", pc); }, {bad_p.string(), "malformed JSON"});
+  json pj = json::parse(read_text_file((root_ / "placements.json").string()));
+  pj["placements"][1]["model"] = "riser";
+  write_text_file(bad_p.string(), pj.dump());
+  expect_error([&] { write_report(root_ / "map", pc); },
+               {bad_p.string(), "placements[1]", "'riser'", "catalogue.yaml"});
+  pj = json::parse(read_text_file((root_ / "placements.json").string()));
+  pj["catalogue"] = "elsewhere/none.yaml";
+  write_text_file(bad_p.string(), pj.dump());
+  pc.catalogue.clear();
+  expect_error([&] { write_report(root_ / "map", pc); }, {"none.yaml", "--catalogue"});
+  EXPECT_FALSE(fs::exists(root_ / "bad_map.html"));
+  pc.catalogue = root_ / "catalogue.yaml";
+  expect_error([&] { write_report(root_ / "world", pc); }, {"--placements", "world"});
+
+  // A truncated PLY names the file.
+  const fs::path trunc = root_ / "truncated.ply";
+  const std::string full = read_text_file((root_ / "textured_cloud.ply").string());
+  write_text_file(trunc.string(), full.substr(0, full.size() / 2));
+  ReportConfig tc = cfg;
+  tc.output = root_ / "truncated.html";
+  expect_error([&] { write_report(trunc, tc); }, {trunc.string()});
+  EXPECT_FALSE(fs::exists(root_ / "truncated.html"));
+
+  // A file the report did not write is never replaced; its own page is.
+  const fs::path mine = root_ / "mine.html";
+  write_text_file(mine.string(), "<html>my notes</html>");
+  ReportConfig oc = cfg;
+  oc.output = mine;
+  expect_error([&] { write_report(root_ / "textured_cloud.ply", oc); },
+               {mine.string(), "not a page sonar3d report wrote"});
+  EXPECT_EQ(read_text_file(mine.string()), "<html>my notes</html>");
+  oc.output = root_ / "twice.html";
+  write_report(root_ / "textured_cloud.ply", oc);
+  EXPECT_NO_THROW(write_report(root_ / "textured_cloud.ply", oc));
+}
+
+// The CLI: each kind, the summary line, and one error line with a non-zero exit.
+TEST_F(SceneReportTest, CommandLine) {
+  const std::string cli = SONAR3D_CLI;
+  if (!fs::exists(cli)) GTEST_SKIP() << "CLI not built: " << cli;
+  const std::string web = " --web-dir '" + kWebDir.string() + "' -q ";
+  const fs::path log = root_ / "cli.txt";
+  auto run = [&](const std::string& args) {
+    const int rc =
+        std::system((cli + " report " + args + web + " > '" + log.string() + "' 2>&1").c_str());
+    return std::make_pair(WEXITSTATUS(rc), read_text_file(log.string()));
+  };
+  auto [rc, out] =
+      run("'" + (root_ / "map").string() + "' --placements '" +
+          (root_ / "placements.json").string() + "' --catalogue '" +
+          (root_ / "catalogue.yaml").string() + "' -o '" + (root_ / "cli_map.html").string() + "'");
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("map"), std::string::npos) << out;
+  EXPECT_NE(out.find("4 layers"), std::string::npos) << out;
+  EXPECT_NE(out.find("3 table rows"), std::string::npos) << out;
+  std::tie(rc, out) =
+      run("'" + (root_ / "world").string() + "' -o '" + (root_ / "cli_world.html").string() + "'");
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("5 layers"), std::string::npos) << out;
+  std::tie(rc, out) = run("'" + (root_ / "catalogue.yaml").string() + "'");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("not a PLY"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 }  // namespace

@@ -12,6 +12,8 @@
   const POINTS = R.points || [];
   const BY_ID = new Map(POINTS.map((p) => [p.id, p]));
   const api = (window.sonar3dReport = { ready: false, plotsReady: false, viewerReady: false });
+  const { el, select, fmtNum, decodeF32, decodeU32, COLORMAPS, colormap, createViewer } =
+    window.sonar3dWeb;
 
   // ---------------------------------------------------------------- formatting helpers
   // Units come from the parameter name's suffix (the project's convention: SI, _deg at edges).
@@ -30,12 +32,6 @@
     const { base, unit } = splitUnit(name);
     return unit ? `${base} [${unit}]` : base;
   }
-  function fmtNum(v, digits = 3) {
-    if (typeof v !== 'number' || !isFinite(v)) return '–';
-    if (Math.abs(v) >= 1000) return Math.round(v).toLocaleString('en-US');
-    if (v === 0) return '0';
-    return String(Number(v.toPrecision(digits)));
-  }
   function fmtValue(name, v) {
     if (v === null || v === undefined) return 'none';
     if (typeof v === 'number') {
@@ -48,24 +44,6 @@
   }
   function seriesLabel(name, v) { return `${splitUnit(name).base} ${fmtValue(name, v)}`; }
   const key = (v) => JSON.stringify(v === undefined ? null : v);
-  function el(tag, attrs, ...children) {
-    const e = document.createElement(tag);
-    for (const [k, v] of Object.entries(attrs || {})) {
-      if (k === 'class') e.className = v;
-      else if (k === 'text') e.textContent = v;
-      else if (k.startsWith('on')) e.addEventListener(k.slice(2), v);
-      else e.setAttribute(k, v);
-    }
-    for (const c of children) if (c !== null && c !== undefined) e.append(c);
-    return e;
-  }
-  function select(id, label, options, value, onChange) {
-    const s = el('select', { id });
-    for (const o of options) s.append(el('option', { value: o.value, text: o.label }));
-    s.value = value;
-    s.addEventListener('change', () => onChange(s.value));
-    return el('label', { for: id }, label, s);
-  }
   function paramSummary(p, sep = ', ') {
     return AXIS_NAMES.filter((a) => AXES[a].length > 1)
       .map((a) => seriesLabel(a, (p.params || {})[a])).join(sep);
@@ -540,92 +518,24 @@
   }
 
   // ---------------------------------------------------------------- 3D viewer
-  function decodeF32(b64) {
-    const bin = atob(b64);
-    const bytes = new Uint8Array(bin.length);
-    for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
-    return new Float32Array(bytes.buffer);
-  }
-  function decodeU32(b64) {
-    const f = decodeF32(b64);
-    return new Uint32Array(f.buffer);
-  }
-  // Colour maps as stops in [0, 1] (matplotlib's viridis and turbo, sampled).
-  const COLORMAPS = {
-    viridis: ['#440154', '#482878', '#3e4989', '#31688e', '#26828e', '#1f9e89', '#35b779',
-      '#6ece58', '#b5de2b', '#fde725'],
-    turbo: ['#30123b', '#4662d7', '#36aaf9', '#1ae4b6', '#72fe5e', '#c8ef34', '#faba39',
-      '#f66b19', '#ca2a04', '#7a0403'],
-  };
-  function hexToRgb(h) {
-    const n = parseInt(h.slice(1), 16);
-    return [(n >> 16 & 255) / 255, (n >> 8 & 255) / 255, (n & 255) / 255];
-  }
-  function colormap(name) {
-    const stops = COLORMAPS[name].map(hexToRgb);
-    return (t, out, o) => {
-      if (!isFinite(t)) { out[o] = out[o + 1] = out[o + 2] = 0.6; return; }
-      const u = Math.min(1, Math.max(0, t)) * (stops.length - 1);
-      const i = Math.min(stops.length - 2, Math.floor(u));
-      const f = u - i;
-      for (let c = 0; c < 3; c++) out[o + c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
-    };
-  }
 
   let viewer = null;
   function initViewer() {
     const box = document.getElementById('viewer');
     const ids = POINTS.filter((p) => D.clouds && D.clouds[p.id]).map((p) => p.id)
       .sort((a, b) => compare(BY_ID.get(a).rank, BY_ID.get(b).rank) || compare(a, b));
-    const message = (text) => {
-      box.append(el('div', { class: 'message', text }));
-      document.getElementById('viewer-info').style.display = 'none';
-    };
-    if (!ids.length) {
-      message('No reconstructed cloud to show (no configuration finished with a cloud).');
+    const V = createViewer(box, ids.length ? null :
+      'No reconstructed cloud to show (no configuration finished with a cloud).');
+    if (!V) {
       api.viewerReady = true;
       return;
     }
-    const T = window.THREE;
-    let renderer;
-    try {
-      renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-    } catch (e) {
-      console.warn('sonar3d report: WebGL unavailable:', e && e.message);
-      message('This browser cannot draw 3D (WebGL is unavailable or disabled).');
-      api.viewerReady = true;
-      return;
-    }
-    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
-    box.append(renderer.domElement);
-    const hud = el('div', { class: 'hud', text: 'drag: rotate · right-drag: pan · wheel: zoom' });
-    box.append(hud);
-    const scene = new T.Scene();
-    scene.background = new T.Color(0xf0f3f7);
-    const camera = new T.PerspectiveCamera(40, 1, 0.01, 1000);
-    camera.up.set(0, 0, 1);  // world z up
-    scene.add(camera);
-    scene.add(new T.AmbientLight(0xffffff, 1.6));
-    const sun = new T.DirectionalLight(0xffffff, 2.2);
-    sun.position.set(0.5, 1, 1);
-    camera.add(sun);  // a head light: the model is lit from wherever it is seen
-    const controls = new T.OrbitControls(camera, renderer.domElement);
+    const { T, scene, render, resize } = V;
     const meshCache = new Map();
     let cloudObj = null, grid = null, meshObjs = [];
     const state = { id: null, mode: D.color_mode === 'height' ? 'height' : 'error', size: 1,
       showMesh: true, errorMax: D.error_color_max_m > 0 ? String(D.error_color_max_m) : 'auto' };
 
-    function render() { renderer.render(scene, camera); }
-    controls.addEventListener('change', render);
-    function resize() {
-      const w = box.clientWidth, h = box.clientHeight;
-      if (!w || !h) return;
-      renderer.setSize(w, h);
-      camera.aspect = w / h;
-      camera.updateProjectionMatrix();
-      render();
-    }
-    new ResizeObserver(resize).observe(box);
 
     function meshFor(name) {
       if (meshCache.has(name)) return meshCache.get(name);
@@ -683,19 +593,7 @@
       onclick: () => { fit(); render(); } }));
 
     let baseSize = 0.01, bbox = null, zRange = [0, 1];
-    function fit() {
-      if (!bbox) return;
-      const c = bbox.getCenter(new T.Vector3());
-      const r = Math.max(bbox.getSize(new T.Vector3()).length() / 2, 0.05);
-      const dir = new T.Vector3(-1, -0.75, 0.55).normalize();
-      const dist = r / Math.sin((camera.fov * Math.PI / 180) / 2);
-      camera.position.copy(c).addScaledVector(dir, dist);
-      camera.near = dist / 100;
-      camera.far = dist * 10;
-      camera.updateProjectionMatrix();
-      controls.target.copy(c);
-      controls.update();
-    }
+    function fit() { V.fit(bbox); }
 
     function colorize() {
       if (!cloudObj) return;
@@ -849,14 +747,7 @@
       scene.add(cloudObj);
       if (grid) scene.remove(grid);
       if (bbox) {
-        const size = bbox.getSize(new T.Vector3());
-        const span = Math.max(size.x, size.y) * 1.6;
-        const step = Math.pow(10, Math.floor(Math.log10(Math.max(span / 4, 1e-3))));
-        const div = Math.max(2, Math.min(200, Math.round(span / step)));
-        grid = new T.GridHelper(div * step, div, 0xb8c2d0, 0xd8dee7);
-        grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
-        const ctr = bbox.getCenter(new T.Vector3());
-        grid.position.set(ctr.x, ctr.y, bbox.min.z);
+        grid = V.grid(bbox, 1.6);
         scene.add(grid);
       }
       fit();

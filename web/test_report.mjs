@@ -9,6 +9,12 @@
 // values, string/boolean axes as categories, mixed axes (numbers plus levels such as null =
 // "none") with the numbers to scale and the levels as extra ticks beyond one end.
 // Run by tests/test_report.cpp (BrowserTest) after it writes a fixture report.
+// --expect EXPECT.json: the page is a scene page (map, world, changes, PLY; scene.js) and
+// EXPECT.json says what it must draw: {"kind", "layers": [{"id", "type", "count", "visible"}]
+// (exactly these, in this order), "tables": {id: rows}, "groups": {name: [layer ids]} (one shown
+// at a time), "colors": [{"layer", "index", "rgb": [r, g, b]} or {..., "hue": "red"|"blue"|
+// "white"}], "mode_change": whether another point colouring repaints the canvas, "focus":
+// {"table", "layer"}: clicking the table's first row brings that layer into view}.
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 import fs from 'node:fs';
@@ -30,6 +36,7 @@ const screenshotPath = opt('--screenshot', null);
 // finished; the page must say so instead of drawing plots.
 const mixedAxes = [];
 for (let m; (m = opt('--mixed-axis', null)) !== null;) mixedAxes.push(m);
+const expectPath = opt('--expect', null);
 const allFailed = args.includes('--all-failed');
 if (allFailed) args.splice(args.indexOf('--all-failed'), 1);
 const chromiumPath = opt('--chromium', process.env.SONAR3D_CHROMIUM || '/usr/bin/chromium');
@@ -115,14 +122,18 @@ try {
 
   const data = await page.evaluate(() => JSON.parse(
     document.getElementById('sonar3d-data').textContent));
-  const points = data.results.points;
-  if (allFailed) {
-    await checkAllFailed(page, points);
+  if (expectPath) {
+    await checkScene(page, JSON.parse(fs.readFileSync(expectPath, 'utf8')));
   } else {
-    await checkPlots(page, data);
-    await checkViewer(page);
+    const points = data.results.points;
+    if (allFailed) {
+      await checkAllFailed(page, points);
+    } else {
+      await checkPlots(page, data);
+      await checkViewer(page);
+    }
+    await checkTable(page, points);
   }
-  await checkTable(page, points);
 
   check(external.length === 0, `no network request (${external.slice(0, 3).join(', ')})`);
   check(pageErrors.length === 0, `no page error ${pageErrors.slice(0, 3).join(' | ')}`);
@@ -358,3 +369,73 @@ async function checkTable(page, points) {
   await page.click('#results-table th[data-col="rank"]');
 }
 
+
+// A scene page (scene.js) against the expectations the C++ test derived from its fixture.
+async function checkScene(page, ex) {
+  const kind = await page.evaluate(() => window.sonar3dReport.kind);
+  check(kind === ex.kind, `page kind is ${ex.kind} (${kind})`);
+  const layers = await page.evaluate(() => window.sonar3dReport.layers());
+  check(layers.length === ex.layers.length,
+    `${ex.layers.length} layers drawn (${layers.map((l) => l.id).join(', ')})`);
+  ex.layers.forEach((e, i) => {
+    const l = layers[i] || {};
+    check(l.id === e.id && l.type === e.type,
+      `layer ${i} is ${e.type} ${e.id} (${l.type} ${l.id})`);
+    check(l.count === e.count && l.drawn === e.count,
+      `layer ${e.id}: ${e.count} ${e.type === 'mesh' ? 'triangles' : e.type === 'lines' ?
+        'segments' : 'points'} in its geometry (${l.drawn} drawn, ${l.count} listed)`);
+    check(l.visible === e.visible, `layer ${e.id} ${e.visible ? 'shown' : 'hidden'} at first`);
+  });
+  for (const [id, n] of Object.entries(ex.tables || {})) {
+    const rows = await page.$$eval(`#table-${id} tbody tr`, (r) => r.length).catch(() => -1);
+    check(rows === n, `table ${id} has ${n} rows (${rows})`);
+  }
+  for (const c of ex.colors || []) {
+    const rgb = await page.evaluate(([id, i]) => window.sonar3dReport.colorOf(id, i),
+      [c.layer, c.index]);
+    const [r, g, b] = rgb;
+    let ok;
+    if (c.rgb) ok = rgb.every((v, k) => Math.abs(v - c.rgb[k]) <= 1);
+    else if (c.hue === 'red') ok = r > b + 40;
+    else if (c.hue === 'blue') ok = b > r + 40;
+    else ok = Math.min(r, g, b) > 220;
+    check(ok, `${c.layer}[${c.index}] coloured ${c.rgb ? c.rgb.join(',') : c.hue} (${rgb})`);
+  }
+  const canvas = await page.$('#viewer canvas');
+  check(!!canvas, '3D viewer has a canvas');
+  if (!canvas) return;
+  await canvas.scrollIntoViewIfNeeded();
+  const box = await canvas.boundingBox();
+  const shot = pixelStats(await page.screenshot({ clip: box }));
+  check(shot.variance > 50 && shot.colours > 20,
+    `canvas is not blank (luminance variance ${shot.variance.toFixed(0)}, ` +
+    `${shot.colours} colours)`);
+  for (const [g, ids] of Object.entries(ex.groups || {})) {
+    for (const id of ids) {
+      await page.evaluate(([gn, i]) => window.sonar3dReport.selectGroup(gn, i), [g, id]);
+      const vis = (await page.evaluate(() => window.sonar3dReport.layers()))
+        .filter((l) => l.group === g && l.visible).map((l) => l.id);
+      check(vis.length === 1 && vis[0] === id, `${g}: choosing ${id} shows it alone (${vis})`);
+    }
+  }
+  if (ex.focus) {
+    // Clicking a table row brings its layer into view: the camera moves, the canvas repaints.
+    const before = pixelStats(await page.screenshot({ clip: box })).png;
+    await page.click(`#table-${ex.focus.table} tbody tr:first-child`);
+    await page.waitForTimeout(200);
+    const focused = await page.evaluate(() => window.sonar3dReport.focused);
+    await canvas.scrollIntoViewIfNeeded();
+    const after = pixelStats(await page.screenshot({ clip: box })).png;
+    const d = differingPixels(before, after);
+    check(focused === ex.focus.layer && d > 100,
+      `clicking the first ${ex.focus.table} row shows ${ex.focus.layer} (${focused}, ` +
+      `${d} pixels changed)`);
+  }
+  if (ex.mode_change) {
+    const before = shot.png;
+    await page.evaluate(() => window.sonar3dReport.setColorMode('height'));
+    const after = pixelStats(await page.screenshot({ clip: box })).png;
+    const d = differingPixels(before, after);
+    check(d > 100, `colouring by height repaints the canvas (${d} pixels changed)`);
+  }
+}

@@ -16,6 +16,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "page.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/mesh.hpp"
@@ -30,158 +31,10 @@ using json = nlohmann::ordered_json;
 
 namespace sonar3d {
 
+using report_page::base64;
+using report_page::simplify_for_display;
+
 namespace {
-
-// The files of the web assets directory the page is made of. The first three are the project's
-// own (committed); the last two come from npm (`npm ci` in web/, run by scripts/install-deps.sh,
-// builds dist/three-bundle.js from three.js and its OrbitControls).
-struct WebAssets {
-  std::string template_html, css, app_js, plotly_js, three_js;
-};
-
-std::string read_asset(const fs::path& dir, const fs::path& rel) {
-  const fs::path p = dir / rel;
-  if (!fs::is_regular_file(p)) {
-    throw Error("report: web asset '" + p.string() +
-                "' not found: run scripts/install-deps.sh (it runs `npm ci` in web/), or point "
-                "--web-dir / SONAR3D_WEB_DIR at a web directory that holds it");
-  }
-  return read_text_file(p.string());
-}
-
-WebAssets load_web_assets(const fs::path& dir) {
-  WebAssets a;
-  a.template_html = read_asset(dir, "report_template.html");
-  a.css = read_asset(dir, "report.css");
-  a.app_js = read_asset(dir, "report.js");
-  a.plotly_js = read_asset(dir, "node_modules/plotly.js-basic-dist-min/plotly-basic.min.js");
-  a.three_js = read_asset(dir, "dist/three-bundle.js");
-  return a;
-}
-
-void replace_all(std::string& s, const std::string& from, const std::string& to) {
-  for (std::size_t pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos)) {
-    s.replace(pos, from.size(), to);
-    pos += to.size();
-  }
-}
-
-// A script inlined in <script>...</script> must not contain "</script" (it would end the
-// element) nor "<!--" (it changes how the HTML parser reads script text). Both only occur in
-// strings, comments or regular expressions, where "<\/" and "<\!" mean the same.
-std::string script_safe(std::string js) {
-  replace_all(js, "</script", "<\\/script");
-  replace_all(js, "</SCRIPT", "<\\/SCRIPT");
-  replace_all(js, "<!--", "<\\!--");
-  return js;
-}
-
-std::string html_escape(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
-std::string base64(const void* data, std::size_t n) {
-  static const char* tbl = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  const auto* b = static_cast<const unsigned char*>(data);
-  std::string out;
-  out.reserve((n + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < n; i += 3) {
-    const unsigned v = (b[i] << 16) | (b[i + 1] << 8) | b[i + 2];
-    out += tbl[(v >> 18) & 63];
-    out += tbl[(v >> 12) & 63];
-    out += tbl[(v >> 6) & 63];
-    out += tbl[v & 63];
-  }
-  if (i < n) {
-    unsigned v = b[i] << 16;
-    if (i + 1 < n) v |= b[i + 1] << 8;
-    out += tbl[(v >> 18) & 63];
-    out += tbl[(v >> 12) & 63];
-    out += (i + 1 < n) ? tbl[(v >> 6) & 63] : '=';
-    out += '=';
-  }
-  return out;
-}
-
-// Display-only simplification of a large CAD mesh by vertex clustering on a grid: each occupied
-// cell keeps the mean of its vertices, triangles that collapse are dropped. The cell grows until
-// the mesh has at most `max_tris` triangles.
-TriangleMesh simplify_for_display(const TriangleMesh& mesh, std::size_t max_tris) {
-  if (mesh.triangles.size() <= max_tris) return mesh;
-  const Eigen::AlignedBox3f box = mesh.bounding_box();
-  const Eigen::Vector3f lo = box.min();
-  const double diag = std::max<double>(box.diagonal().norm(), 1e-9);
-  double cell = diag / std::sqrt(static_cast<double>(max_tris));
-  for (int attempt = 0; attempt < 40; ++attempt, cell *= 1.3) {
-    std::unordered_map<std::uint64_t, int> index;
-    std::vector<Eigen::Vector3d> sums;
-    std::vector<int> counts;
-    std::vector<int> remap(mesh.vertices.size());
-    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
-      const Eigen::Vector3f q = ((mesh.vertices[v] - lo).cast<double>() / cell).cast<float>();
-      const auto ix = static_cast<std::uint64_t>(std::max(0.f, q.x())) & 0x1fffff;
-      const auto iy = static_cast<std::uint64_t>(std::max(0.f, q.y())) & 0x1fffff;
-      const auto iz = static_cast<std::uint64_t>(std::max(0.f, q.z())) & 0x1fffff;
-      const std::uint64_t key = (ix << 42) | (iy << 21) | iz;
-      auto [it, inserted] = index.emplace(key, static_cast<int>(sums.size()));
-      if (inserted) {
-        sums.emplace_back(Eigen::Vector3d::Zero());
-        counts.push_back(0);
-      }
-      sums[it->second] += mesh.vertices[v].cast<double>();
-      counts[it->second] += 1;
-      remap[v] = it->second;
-    }
-    TriangleMesh out;
-    for (const auto& t : mesh.triangles) {
-      const Eigen::Vector3i r(remap[t[0]], remap[t[1]], remap[t[2]]);
-      if (r[0] != r[1] && r[1] != r[2] && r[0] != r[2]) out.triangles.push_back(r);
-    }
-    if (out.triangles.size() > max_tris) continue;
-    out.vertices.resize(sums.size());
-    for (std::size_t c = 0; c < sums.size(); ++c) {
-      out.vertices[c] = (sums[c] / counts[c]).cast<float>();
-    }
-    return out;
-  }
-  return mesh;  // unreachable for finite meshes: the last grid has one cell
-}
-
-std::uint64_t fnv1a(const std::string& s) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
-  return h;
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", &tm);
-  return buf;
-}
 
 // Loads and checks results.json (docs/report.md); every error names the file and the entry.
 json load_results(const fs::path& plan_dir) {
@@ -196,7 +49,7 @@ json load_results(const fs::path& plan_dir) {
   json r;
   try {
     r = json::parse(read_text_file(path.string()));
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number beyond double
     throw Error("report: '" + path.string() + "' is malformed JSON: " + e.what());
   }
   const std::string where = "report: '" + path.string() + "': ";
@@ -298,14 +151,59 @@ fs::path default_web_dir() {
   return installed;  // neither exists: the error then names the installed location
 }
 
-ReportSummary write_report(const fs::path& plan_dir, const ReportConfig& cfg) {
-  cfg.validate();
+const char* report_input_name(ReportInput kind) {
+  switch (kind) {
+    case ReportInput::Sweep:
+      return "sweep";
+    case ReportInput::Map:
+      return "map";
+    case ReportInput::World:
+      return "world";
+    case ReportInput::Changes:
+      return "changes";
+    case ReportInput::Ply:
+      return "ply";
+  }
+  return "?";
+}
+
+ReportInput detect_report_input(const fs::path& input) {
+  std::error_code ec;
+  if (fs::is_regular_file(input, ec)) {
+    std::ifstream f(input, std::ios::binary);
+    char magic[4] = {};
+    f.read(magic, 4);
+    if (f.gcount() == 4 && std::string(magic, 3) == "ply" &&
+        (magic[3] == '\n' || magic[3] == '\r')) {
+      return ReportInput::Ply;
+    }
+    throw Error("report: '" + input.string() +
+                "' is a file but not a PLY (no 'ply' magic line): give a PLY cloud or mesh, or a "
+                "directory of sonar3d plan, map, world or diff");
+  }
+  if (!fs::is_directory(input, ec)) {
+    throw Error("report: '" + input.string() + "' does not exist");
+  }
+  if (fs::exists(input / "results.json", ec)) return ReportInput::Sweep;
+  if (fs::exists(input / "graph.json", ec)) return ReportInput::World;
+  if (fs::exists(input / "changes.json", ec)) return ReportInput::Changes;
+  if (fs::exists(input / "merged.ply", ec)) return ReportInput::Map;
+  throw Error("report: '" + input.string() +
+              "' holds none of results.json (run `sonar3d plan SWEEP.yaml -o " + input.string() +
+              "` first), graph.json (`sonar3d world`), changes.json (`sonar3d diff`) or "
+              "merged.ply (`sonar3d map`)");
+}
+
+namespace {
+
+ReportSummary write_sweep_report(const fs::path& plan_dir, const ReportConfig& cfg) {
   ReportSummary summary;
   summary.output = cfg.output.empty() ? plan_dir / "report.html" : cfg.output;
+  report_page::check_replaceable(summary.output);
 
   // Assets first: a missing `npm ci` should fail before any heavy work.
   const fs::path web_dir = cfg.web_dir.empty() ? default_web_dir() : cfg.web_dir;
-  const WebAssets assets = load_web_assets(web_dir);
+  const report_page::WebAssets assets = report_page::load_web_assets(web_dir, "report.js", true);
   json results = load_results(plan_dir);
   json& points = results["points"];
   summary.num_points = points.size();
@@ -393,23 +291,11 @@ ReportSummary write_report(const fs::path& plan_dir, const ReportConfig& cfg) {
       progress.add();
       continue;
     }
-    // Uniform random subsample of the finite points (partial Fisher-Yates, seeded per point id so
-    // a point shows the same subset whatever else is in the sweep).
-    std::vector<std::uint32_t> idx;
-    idx.reserve(cloud.size());
-    for (std::size_t k = 0; k < cloud.size(); ++k) {
-      if (cloud.points[k].allFinite()) idx.push_back(static_cast<std::uint32_t>(k));
-    }
-    const std::size_t total = idx.size();
-    if (idx.size() > per_cloud) {
-      std::mt19937_64 rng(cfg.seed ^ fnv1a(id));
-      for (std::size_t k = 0; k < per_cloud; ++k) {
-        std::uniform_int_distribution<std::size_t> pick(k, idx.size() - 1);
-        std::swap(idx[k], idx[pick(rng)]);
-      }
-      idx.resize(per_cloud);
-      std::sort(idx.begin(), idx.end());
-    }
+    // Uniform random subsample of the finite points, seeded per point id so a point shows the
+    // same subset whatever else is in the sweep.
+    std::size_t total = 0;
+    const std::vector<std::uint32_t> idx =
+        report_page::subsample(cloud, per_cloud, cfg.seed ^ report_page::fnv1a(id), &total);
     std::vector<Eigen::Vector3f> shown(idx.size());
     std::vector<float> xyz(idx.size() * 3);
     for (std::size_t k = 0; k < idx.size(); ++k) {
@@ -489,7 +375,7 @@ ReportSummary write_report(const fs::path& plan_dir, const ReportConfig& cfg) {
   const std::string dir_name = fs::absolute(plan_dir).lexically_normal().filename().string();
   data["title"] = cfg.title.empty() ? "sonar3d sweep: " + dir_name : cfg.title;
   data["plan_dir"] = fs::absolute(plan_dir).lexically_normal().string();
-  data["generated"] = utc_now();
+  data["generated"] = report_page::utc_now();
   data["results"] = results;
   data["color_mode"] = cfg.color == ReportColor::Error ? "error" : "height";
   data["error_color_max_m"] = cfg.error_color_max > 0 ? json(cfg.error_color_max) : json(nullptr);
@@ -502,48 +388,23 @@ ReportSummary write_report(const fs::path& plan_dir, const ReportConfig& cfg) {
   data["sweep_yaml"] =
       fs::is_regular_file(sweep_path) ? json(read_text_file(sweep_path.string())) : json(nullptr);
 
-  // JSON inside <script type="application/json">: '<' only occurs inside JSON strings, where
-  // \u003c means the same, so no "</script>" or "<!--" can end or confuse the element.
-  std::string data_text = data.dump(-1, ' ', false, json::error_handler_t::replace);
-  replace_all(data_text, "<", "\\u003c");
-
-  // Fill the template: each placeholder must appear exactly once; positions are found in the
-  // template itself so inserted text can never be taken for a placeholder.
-  const std::string& tpl = assets.template_html;
-  const std::vector<std::pair<std::string, std::string>> parts = {
-      {"{{TITLE}}", html_escape(data["title"].get<std::string>())},
-      {"/*{{STYLE}}*/", assets.css},
-      {"<!--{{LIBS}}-->", "<script>\n" + script_safe(assets.plotly_js) + "\n</script>\n<script>\n" +
-                              script_safe(assets.three_js) + "\n</script>"},
-      {"<!--{{DATA}}-->",
-       "<script type=\"application/json\" id=\"sonar3d-data\">" + data_text + "</script>"},
-      {"<!--{{APP}}-->", "<script>\n" + script_safe(assets.app_js) + "\n</script>"}};
-  std::vector<std::pair<std::size_t, std::size_t>> at;  // (position in tpl, part index)
-  for (std::size_t k = 0; k < parts.size(); ++k) {
-    const std::string& ph = parts[k].first;
-    const std::size_t pos = tpl.find(ph);
-    if (pos == std::string::npos || tpl.find(ph, pos + 1) != std::string::npos) {
-      throw Error("report: web asset '" + (web_dir / "report_template.html").string() +
-                  "' must contain " + ph + " exactly once");
-    }
-    at.emplace_back(pos, k);
-  }
-  std::sort(at.begin(), at.end());
-  std::string html;
-  std::size_t reserve = tpl.size();
-  for (const auto& part : parts) reserve += part.second.size();
-  html.reserve(reserve);
-  std::size_t cursor = 0;
-  for (const auto& [pos, k] : at) {
-    html.append(tpl, cursor, pos - cursor);
-    html += parts[k].second;
-    cursor = pos + parts[k].first.size();
-  }
-  html.append(tpl, cursor, std::string::npos);
-
+  const std::string html =
+      report_page::fill_page(assets, data["title"].get<std::string>(),
+                             data.dump(-1, ' ', false, json::error_handler_t::replace));
   write_text_file(summary.output.string(), html);
   summary.bytes = html.size();
   return summary;
+}
+
+}  // namespace
+
+ReportSummary write_report(const fs::path& input, const ReportConfig& cfg) {
+  cfg.validate();
+  const ReportInput kind = detect_report_input(input);
+  ReportSummary s = kind == ReportInput::Sweep ? write_sweep_report(input, cfg)
+                                               : report_page::write_scene_report(input, kind, cfg);
+  s.input = kind;
+  return s;
 }
 
 }  // namespace sonar3d

@@ -1,0 +1,72 @@
+#pragma once
+// Readers of the JSON files `sonar3d report` shows in 3D (formats: docs/formats.md, "World model
+// directory" and "Change directory"; placements: docs/recognition.md). Each parser takes the
+// file's text and the path to name in errors; every error is one line naming the file and the
+// key or entry at fault. Fuzzed: fuzz/fuzz_report_scene.cpp.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace sonar3d {
+
+// A placement of `sonar3d recognize` (placements.json, "format": "sonar3d-placements").
+struct ReportPlacement {
+  std::string model, method;
+  Eigen::Matrix4d T_world_model = Eigen::Matrix4d::Identity();
+  double score_m = 0;
+  double residual_median_m = 0, residual_mean_m = 0;  // NaN when null in the file
+};
+std::vector<ReportPlacement> parse_placements_json(const std::string& text, const std::string& path,
+                                                   std::string* catalogue_source = nullptr);
+
+// graph.json of `sonar3d world` ("format": "sonar3d-world", version 1).
+struct WorldObject {
+  std::string id, model, kind, file;  // file: relative to the world directory
+  Eigen::Matrix4d T_world_model = Eigen::Matrix4d::Identity();
+  double score_m = 0, residual_median_m = 0;  // NaN when null
+};
+struct WorldConnection {
+  std::string from, to, kind;
+  double length_m = 0;
+};
+struct WorldSeabedLod {
+  int lod = 0;
+  std::string file;
+  double cell_m = 0;
+  long long triangles = 0, bytes = 0;
+  double median_error_m = 0;  // NaN when null (no true terrain)
+};
+struct WorldGraph {
+  std::vector<WorldObject> objects;
+  std::vector<WorldConnection> connections;  // from/to are ids of objects (checked)
+  std::vector<WorldSeabedLod> seabed;        // sorted by lod
+  std::string source_map, source_placements, source_catalogue;
+  long long bytes_total = 0, cloud_bytes = 0;
+};
+WorldGraph parse_world_graph(const std::string& text, const std::string& path);
+
+// changes.json of `sonar3d diff A B` ("format": "sonar3d-changes", version 1).
+struct ChangedObject {
+  std::string id, model, status;  // unchanged | moved | added | removed
+  bool has_a = false, has_b = false;
+  Eigen::Matrix4d T_world_model_a = Eigen::Matrix4d::Identity();       // survey A, A's frame
+  Eigen::Matrix4d T_world_model_b_in_a = Eigen::Matrix4d::Identity();  // survey B, A's frame
+  double shift_m = 0, turn_deg = 0;                                    // NaN when null
+};
+struct ChangedRegion {
+  long long id = 0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  double area_m2 = 0, max_abs_change_m = 0, mean_change_m = 0;
+  std::string kind;  // raised | lowered
+};
+struct ChangeSet {
+  Eigen::Matrix4d T_a_b = Eigen::Matrix4d::Identity();
+  std::string registration_method;
+  double registration_rms_m = 0;
+  long long overlap_cells = 0;
+  std::vector<ChangedObject> objects;
+  std::vector<ChangedRegion> regions;
+};
+ChangeSet parse_changes_json(const std::string& text, const std::string& path);
+
+}  // namespace sonar3d

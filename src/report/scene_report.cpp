@@ -1,0 +1,572 @@
+// The 3D scene pages of `sonar3d report`: a map directory with placed models (thesis sec. 6.3),
+// a world model (sec. 6.3.3, Fig. 6.18: seabed levels of detail, registered CAD models and their
+// graph), a change directory between two surveys, and PLY clouds or meshes in their own colours
+// (video texturing, sec. 6.4). Layout of the page data: docs/report.md, "Scene pages".
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "page.hpp"
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/progress.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/report/scene_files.hpp"
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+namespace sonar3d::report_page {
+
+namespace {
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+// Colours of models (by first appearance of the model name) and of markers.
+const char* const kPalette[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd",
+                                "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"};
+constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
+
+Rgb hex_rgb(const std::string& hex) {
+  const unsigned long v = std::stoul(hex.substr(1), nullptr, 16);
+  return {static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 8),
+          static_cast<std::uint8_t>(v)};
+}
+
+std::string fmt_bytes(long long b) {
+  char buf[32];
+  if (b >= 1000000) {
+    std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
+  } else if (b >= 1000) {
+    std::snprintf(buf, sizeof buf, "%.1f kB", b / 1e3);
+  } else {
+    std::snprintf(buf, sizeof buf, "%lld B", b);
+  }
+  return buf;
+}
+
+// A PLY file read as a cloud, or as a mesh when it has faces (polygons split into fans).
+struct PlyData {
+  PointCloud cloud;  // the vertices and their colours / properties
+  TriangleMesh mesh;
+  bool is_mesh = false;
+};
+
+// Whether the PLY header declares faces (read_ply keeps a cloud's extra vertex properties, such as
+// change_m; read_ply_faces reads the faces). The readers check the file itself.
+bool ply_has_faces(const fs::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::string line;
+  for (int n = 0; n < 10000 && std::getline(f, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line == "end_header") break;
+    std::istringstream in(line);
+    std::string word, name, count;
+    in >> word >> name >> count;
+    if (word == "element" && name == "face") return count != "0";
+  }
+  return false;
+}
+
+PlyData read_any_ply(const fs::path& path) {
+  if (!fs::is_regular_file(path)) throw Error("report: '" + path.string() + "' not found");
+  PlyData d;
+  if (!ply_has_faces(path)) {
+    d.cloud = read_ply(path.string());
+    return d;
+  }
+  std::vector<std::vector<std::uint32_t>> faces;
+  d.cloud = read_ply_faces(path.string(), &faces);
+  d.is_mesh = !faces.empty();
+  d.mesh.vertices = d.cloud.points;
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const auto& face = faces[f];
+    if (face.size() < 3) {
+      throw Error("report: '" + path.string() + "': face " + std::to_string(f) + " has " +
+                  std::to_string(face.size()) + " vertices (at least 3 needed)");
+    }
+    for (std::size_t k = 1; k + 1 < face.size(); ++k) {
+      d.mesh.triangles.emplace_back(static_cast<int>(face[0]), static_cast<int>(face[k]),
+                                    static_cast<int>(face[k + 1]));
+    }
+  }
+  return d;
+}
+
+double yaw_deg(const Eigen::Matrix4d& T) { return std::atan2(T(1, 0), T(0, 0)) * 180.0 / M_PI; }
+json num_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json round_to(double v, double step) {
+  return std::isfinite(v) ? json(std::round(v / step) * step) : json(nullptr);
+}
+
+// Collects the layers, tables and cards of a scene page and encodes them (base64 of
+// little-endian Float32 positions and scalars, Uint32 triangle indices, Uint8 colours).
+class Scene {
+ public:
+  Scene(const ReportConfig& cfg, ReportSummary& summary) : cfg_(cfg), summary_(summary) {}
+
+  std::string model_color(const std::string& model) {
+    auto it = model_colors_.find(model);
+    if (it != model_colors_.end()) return it->second;
+    const std::string c = kPalette[model_colors_.size() % kPaletteSize];
+    model_colors_[model] = c;
+    return c;
+  }
+
+  // A cloud: coloured by its own colours, by a signed `change_m` property (diverging scale) or
+  // by height; the page offers each mode the cloud has. Encoded in finish(), when the point
+  // budget is shared over all clouds of the page.
+  void points(const std::string& id, const std::string& name, PointCloud cloud) {
+    pending_.push_back({id, name, std::move(cloud), layers_.size()});
+    layers_.push_back(json());
+  }
+
+  // A mesh, coloured by its vertex colours when `colors` holds one per vertex, else by `color`
+  // ("height": by z) ; `group` names a set of meshes of which the page shows one at a time.
+  void mesh(const std::string& id, const std::string& name, const TriangleMesh& full,
+            std::vector<Rgb> colors, const std::string& color, double opacity, bool visible,
+            const std::string& group = "") {
+    const bool rgb = !colors.empty() && colors.size() == full.vertices.size();
+    if (!rgb) colors.clear();
+    const TriangleMesh m = simplify_for_display(full, cfg_.max_mesh_triangles, &colors);
+    std::vector<float> v(m.vertices.size() * 3);
+    for (std::size_t k = 0; k < m.vertices.size(); ++k) {
+      for (int c = 0; c < 3; ++c) v[3 * k + c] = m.vertices[k][c];
+    }
+    std::vector<std::uint32_t> f(m.triangles.size() * 3);
+    for (std::size_t k = 0; k < m.triangles.size(); ++k) {
+      for (int c = 0; c < 3; ++c) f[3 * k + c] = static_cast<std::uint32_t>(m.triangles[k][c]);
+    }
+    json j = base(id, name, "mesh", visible);
+    j["xyz"] = base64(v.data(), v.size() * sizeof(float));
+    j["triangles"] = base64(f.data(), f.size() * sizeof(std::uint32_t));
+    j["rgb"] = rgb ? json(base64(colors.data(), colors.size() * 3)) : json(nullptr);
+    j["color"] = color;
+    j["opacity"] = opacity;
+    j["group"] = group.empty() ? json(nullptr) : json(group);
+    j["count"] = m.triangles.size();
+    j["num_total"] = full.triangles.size();
+    layers_.push_back(j);
+    summary_.num_mesh_triangles += m.triangles.size();
+  }
+
+  // Line segments: endpoints a0 b0 a1 b1 ..., one colour per endpoint.
+  void lines(const std::string& id, const std::string& name,
+             const std::vector<Eigen::Vector3f>& ends, const std::vector<Rgb>& colors) {
+    std::vector<float> v(ends.size() * 3);
+    for (std::size_t k = 0; k < ends.size(); ++k) {
+      for (int c = 0; c < 3; ++c) v[3 * k + c] = ends[k][c];
+    }
+    json j = base(id, name, "lines", true);
+    j["xyz"] = base64(v.data(), v.size() * sizeof(float));
+    j["rgb"] = base64(colors.data(), colors.size() * 3);
+    j["count"] = ends.size() / 2;
+    j["num_total"] = ends.size() / 2;
+    layers_.push_back(j);
+  }
+
+  // `focus`: per row, the layer a click on the row brings into view (or null).
+  void table(const std::string& id, const std::string& title, const json& columns, const json& rows,
+             const json& focus = nullptr) {
+    tables_.push_back(
+        {{"id", id}, {"title", title}, {"columns", columns}, {"rows", rows}, {"focus", focus}});
+    summary_.num_table_rows += rows.size();
+  }
+  void card(const std::string& k, const json& v) { cards_.push_back({{"k", k}, {"v", v}}); }
+  void legend(const std::string& color, const std::string& text) {
+    legend_.push_back({{"color", color}, {"text", text}});
+  }
+
+  json finish() {
+    const std::size_t per_cloud =
+        pending_.empty()
+            ? cfg_.max_points_per_cloud
+            : std::max<std::size_t>(
+                  1, std::min(cfg_.max_points_per_cloud, cfg_.max_points_total / pending_.size()));
+    for (Pending& p : pending_) {
+      std::size_t total = 0;
+      const std::vector<std::uint32_t> idx =
+          subsample(p.cloud, per_cloud, cfg_.seed ^ fnv1a(p.id), &total);
+      std::vector<float> xyz(idx.size() * 3);
+      for (std::size_t k = 0; k < idx.size(); ++k) {
+        for (int c = 0; c < 3; ++c) xyz[3 * k + c] = p.cloud.points[idx[k]][c];
+      }
+      json j = base(p.id, p.name, "points", true);
+      j["xyz"] = base64(xyz.data(), xyz.size() * sizeof(float));
+      json modes = json::array();
+      const PointProperty* change = p.cloud.property("change_m");
+      if (change != nullptr) {
+        std::vector<float> s(idx.size());
+        for (std::size_t k = 0; k < idx.size(); ++k) s[k] = change->values[idx[k]];
+        j["change"] = base64(s.data(), s.size() * sizeof(float));
+        modes.push_back("change");
+      }
+      if (p.cloud.has_color()) {
+        std::vector<Rgb> rgb(idx.size());
+        for (std::size_t k = 0; k < idx.size(); ++k) rgb[k] = p.cloud.color[idx[k]];
+        j["rgb"] = base64(rgb.data(), rgb.size() * 3);
+        modes.push_back("rgb");
+      }
+      modes.push_back("height");
+      j["color_modes"] = modes;
+      j["count"] = idx.size();
+      j["num_total"] = total;
+      layers_[p.slot] = j;
+      summary_.num_cloud_points += idx.size();
+      ++summary_.num_clouds;
+    }
+    summary_.num_layers = layers_.size();
+    json d = json::object();
+    d["layers"] = layers_;
+    d["tables"] = tables_;
+    d["cards"] = cards_;
+    d["legend"] = legend_;
+    d["max_points_per_cloud"] = per_cloud;
+    return d;
+  }
+
+ private:
+  struct Pending {
+    std::string id, name;
+    PointCloud cloud;
+    std::size_t slot;
+  };
+  static json base(const std::string& id, const std::string& name, const char* type, bool visible) {
+    return {{"id", id}, {"name", name}, {"type", type}, {"visible", visible}};
+  }
+  const ReportConfig& cfg_;
+  ReportSummary& summary_;
+  std::vector<Pending> pending_;
+  json layers_ = json::array(), tables_ = json::array(), cards_ = json::array(),
+       legend_ = json::array();
+  std::map<std::string, std::string> model_colors_;
+};
+
+std::string read_file_named(const fs::path& path, const std::string& what) {
+  if (!fs::is_regular_file(path))
+    throw Error("report: " + what + " '" + path.string() + "' not found");
+  return read_text_file(path.string());
+}
+
+// Catalogue meshes by model name, loaded once; a model the catalogue lacks is an Error naming
+// the file that asked for it.
+class Models {
+ public:
+  explicit Models(const fs::path& catalogue) : cat_(read_catalogue(catalogue.string())) {}
+  const TriangleMesh& mesh(const std::string& model, const std::string& asked_by) {
+    auto it = meshes_.find(model);
+    if (it != meshes_.end()) return it->second;
+    for (const CatalogueModel& m : cat_.models) {
+      if (m.name == model) return meshes_[model] = load_catalogue_mesh(cat_, m);
+    }
+    throw Error("report: " + asked_by + ": model '" + model + "' is not in the catalogue '" +
+                cat_.path + "'");
+  }
+  TriangleMesh placed(const std::string& model, const Eigen::Matrix4d& T,
+                      const std::string& asked_by) {
+    TriangleMesh m = mesh(model, asked_by);
+    Eigen::Isometry3d iso;
+    iso.matrix() = T;
+    m.transform(iso);
+    return m;
+  }
+
+ private:
+  Catalogue cat_;
+  std::map<std::string, TriangleMesh> meshes_;
+};
+
+json vec3(const Eigen::Matrix4d& T) { return {T(0, 3), T(1, 3), T(2, 3)}; }
+
+// A map directory's merged cloud (or any PLY cloud), with the placements of `sonar3d
+// recognize` drawn over it as semi-transparent meshes and listed.
+void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfig& cfg,
+               Scene& scene) {
+  if (ply.is_mesh) {
+    scene.mesh("mesh", cloud_path.filename().string(), ply.mesh, ply.cloud.color, "height", 1.0,
+               true);
+    scene.card("triangles", ply.mesh.triangles.size());
+  } else {
+    scene.points("cloud", cloud_path.filename().string(), ply.cloud);
+    scene.card("points", ply.cloud.size());
+  }
+  if (cfg.placements.empty()) return;
+  const std::string ppath = cfg.placements.string();
+  std::string catalogue_source;
+  const std::vector<ReportPlacement> placements = parse_placements_json(
+      read_file_named(cfg.placements, "placements file"), ppath, &catalogue_source);
+  fs::path cat = cfg.catalogue;
+  if (cat.empty()) {
+    // The catalogue the placements name: as written, or relative to the placements file.
+    const fs::path named(catalogue_source);
+    const fs::path beside = cfg.placements.parent_path() / named;
+    if (!catalogue_source.empty() && fs::is_regular_file(named)) {
+      cat = named;
+    } else if (!catalogue_source.empty() && fs::is_regular_file(beside)) {
+      cat = beside;
+    } else {
+      throw Error("report: '" + ppath + "' names the catalogue '" + catalogue_source +
+                  "', which is not found: give it with --catalogue CAT.yaml");
+    }
+  }
+  Models models(cat);
+  json rows = json::array(), focus = json::array();
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const ReportPlacement& p = placements[i];
+    const std::string asked = "'" + ppath + "': placements[" + std::to_string(i) + "]";
+    scene.mesh("placement_" + std::to_string(i), p.model + " #" + std::to_string(i + 1),
+               models.placed(p.model, p.T_world_model, asked), {}, scene.model_color(p.model), 0.45,
+               true);
+    focus.push_back("placement_" + std::to_string(i));
+    rows.push_back({i + 1, p.model, p.T_world_model(0, 3), p.T_world_model(1, 3),
+                    p.T_world_model(2, 3), yaw_deg(p.T_world_model), p.score_m,
+                    num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method});
+  }
+  scene.table("placements", "Placements (" + ppath + ")",
+              {"#", "model", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
+               "residual median [m]", "residual mean [m]", "method"},
+              rows, focus);
+  scene.card("placements", placements.size());
+}
+
+// A world model directory of `sonar3d world` (docs/formats.md, "World model directory").
+void build_world(const fs::path& dir, Scene& scene) {
+  const fs::path gpath = dir / "graph.json";
+  const WorldGraph g = parse_world_graph(read_text_file(gpath.string()), gpath.string());
+  json lod_rows = json::array();
+  for (std::size_t i = 0; i < g.seabed.size(); ++i) {
+    const WorldSeabedLod& s = g.seabed[i];
+    const fs::path p = dir / s.file;
+    const PlyData d = read_any_ply(p);
+    if (!d.is_mesh)
+      throw Error("report: '" + p.string() + "' (seabed lod " + std::to_string(s.lod) +
+                  ") has no faces: a mesh is expected");
+    // Only the coarsest level is shown at first (the page switches between them).
+    scene.mesh("seabed_lod" + std::to_string(s.lod), "seabed LOD " + std::to_string(s.lod), d.mesh,
+               d.cloud.color, "height", 1.0, i + 1 == g.seabed.size(), "seabed");
+    lod_rows.push_back({s.lod, s.file, num_or_null(s.cell_m), d.mesh.triangles.size(),
+                        s.bytes >= 0 ? json(s.bytes) : json(nullptr),
+                        num_or_null(s.median_error_m)});
+  }
+  json obj_rows = json::array(), obj_focus = json::array();
+  std::map<std::string, Eigen::Vector3f> centre;
+  for (const WorldObject& o : g.objects) {
+    const fs::path p = dir / o.file;
+    const PlyData d = read_any_ply(p);
+    if (!d.is_mesh)
+      throw Error("report: '" + p.string() + "' (object '" + o.id +
+                  "') has no faces: a mesh is expected");
+    scene.mesh("object_" + o.id, o.id, d.mesh, d.cloud.color, scene.model_color(o.model), 0.85,
+               true);
+    centre[o.id] = d.mesh.bounding_box().center();  // of the model as placed (world frame)
+    obj_focus.push_back("object_" + o.id);
+    obj_rows.push_back({o.id, o.model, o.kind, o.T_world_model(0, 3), o.T_world_model(1, 3),
+                        o.T_world_model(2, 3), yaw_deg(o.T_world_model), num_or_null(o.score_m),
+                        num_or_null(o.residual_median_m), d.cloud.has_color() ? "yes" : "no"});
+  }
+  json con_rows = json::array();
+  if (!g.connections.empty()) {
+    std::vector<Eigen::Vector3f> ends;
+    std::vector<Rgb> colors;
+    for (const WorldConnection& c : g.connections) {
+      const Rgb rgb = hex_rgb(c.kind == "pipeline" ? "#ff7f0e" : "#d62728");
+      ends.push_back(centre.at(c.from));
+      ends.push_back(centre.at(c.to));
+      colors.push_back(rgb);
+      colors.push_back(rgb);
+      con_rows.push_back({c.from, c.to, c.kind, num_or_null(c.length_m)});
+    }
+    scene.lines("connections", "connections", ends, colors);
+    scene.legend("#ff7f0e", "pipeline connection");
+    scene.legend("#d62728", "other connection (given)");
+  }
+  scene.table("objects", "Objects",
+              {"id", "model", "kind", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
+               "residual median [m]", "vertex colours"},
+              obj_rows, obj_focus);
+  scene.table("connections", "Connections", {"from", "to", "kind", "length [m]"}, con_rows);
+  scene.table("seabed", "Seabed levels of detail",
+              {"lod", "file", "cell [m]", "triangles", "bytes", "median error [m]"}, lod_rows);
+  scene.card("objects", g.objects.size());
+  scene.card("connections", g.connections.size());
+  scene.card("seabed LODs", g.seabed.size());
+  if (g.bytes_total > 0) scene.card("world model", fmt_bytes(g.bytes_total));
+  if (g.cloud_bytes > 0) scene.card("point cloud", fmt_bytes(g.cloud_bytes));
+  if (g.bytes_total > 0 && g.cloud_bytes > 0) {
+    scene.card("reduction", json(std::round(10.0 * g.cloud_bytes / g.bytes_total) / 10.0));
+  }
+}
+
+// A change directory of `sonar3d diff` (docs/formats.md, "Change directory").
+void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
+  const fs::path cpath = dir / "changes.json";
+  const ChangeSet c = parse_changes_json(read_text_file(cpath.string()), cpath.string());
+  const fs::path ppath = dir / "change_points.ply";
+  PlyData d = read_any_ply(ppath);
+  if (d.cloud.property("change_m") == nullptr) {
+    throw Error("report: '" + ppath.string() + "' has no float vertex property change_m");
+  }
+  Eigen::AlignedBox3f box;
+  for (const auto& p : d.cloud.points)
+    if (p.allFinite()) box.extend(p);
+  for (const ChangedObject& o : c.objects) {
+    if (o.has_a) box.extend(o.T_world_model_a.topRightCorner<3, 1>().cast<float>());
+    if (o.has_b) box.extend(o.T_world_model_b_in_a.topRightCorner<3, 1>().cast<float>());
+  }
+  scene.points("change_points", "change points", std::move(d.cloud));
+
+  // Markers: a cross at each object's position with a stroke along its x axis (its yaw), in
+  // survey A (before) and survey B (after, in A's frame), joined for moved objects.
+  const float size = box.isEmpty() ? 0.3f : std::max(0.1f, 0.03f * box.diagonal().norm());
+  const char* kBefore = "#d62728";  // before / removed
+  const char* kAfter = "#2ca02c";   // after / added
+  const char* kSame = "#9aa0a6";    // unchanged
+  const char* kMove = "#f2c12e";    // before -> after of a moved object
+  std::vector<Eigen::Vector3f> ends;
+  std::vector<Rgb> colors;
+  auto seg = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b, const char* hex) {
+    ends.push_back(a);
+    ends.push_back(b);
+    colors.push_back(hex_rgb(hex));
+    colors.push_back(hex_rgb(hex));
+  };
+  auto marker = [&](const Eigen::Matrix4d& T, const char* hex) {
+    const Eigen::Vector3f p = T.topRightCorner<3, 1>().cast<float>();
+    for (int a = 0; a < 3; ++a) {
+      const Eigen::Vector3f e = Eigen::Vector3f::Unit(a) * (0.5f * size);
+      seg(p - e, p + e, hex);
+    }
+    const Eigen::Vector3f x = T.block<3, 1>(0, 0).cast<float>();
+    seg(p, p + 1.5f * size * x, hex);
+  };
+  std::unique_ptr<Models> models;
+  if (!cfg.catalogue.empty()) models = std::make_unique<Models>(cfg.catalogue);
+  json rows = json::array();
+  std::map<std::string, int> counts;
+  for (std::size_t i = 0; i < c.objects.size(); ++i) {
+    const ChangedObject& o = c.objects[i];
+    ++counts[o.status];
+    const bool same = o.status == "unchanged";
+    if (o.has_a) marker(o.T_world_model_a, same ? kSame : kBefore);
+    if (o.has_b && !same) marker(o.T_world_model_b_in_a, kAfter);
+    if (o.has_a && o.has_b && !same) {
+      seg(o.T_world_model_a.topRightCorner<3, 1>().cast<float>(),
+          o.T_world_model_b_in_a.topRightCorner<3, 1>().cast<float>(), kMove);
+    }
+    if (models) {
+      const std::string asked = "'" + cpath.string() + "': objects[" + std::to_string(i) + "]";
+      if (o.has_a) {
+        scene.mesh("before_" + o.id, o.id + (same ? "" : " (before)"),
+                   models->placed(o.model, o.T_world_model_a, asked), {}, same ? kSame : kBefore,
+                   0.35, true);
+      }
+      if (o.has_b && !same) {
+        scene.mesh("after_" + o.id, o.id + " (after)",
+                   models->placed(o.model, o.T_world_model_b_in_a, asked), {}, kAfter, 0.35, true);
+      }
+    }
+    rows.push_back({o.id, o.model, o.status, round_to(o.shift_m * 100, 0.1),
+                    round_to(o.turn_deg, 0.1), o.has_a ? vec3(o.T_world_model_a) : json(nullptr),
+                    o.has_b ? vec3(o.T_world_model_b_in_a) : json(nullptr)});
+  }
+  if (!ends.empty()) scene.lines("markers", "object markers", ends, colors);
+  scene.legend(kBefore, "before (survey A) / removed");
+  scene.legend(kAfter, "after (survey B, in A's frame) / added");
+  scene.legend(kSame, "unchanged");
+  scene.legend(kMove, "moved: before to after");
+  scene.table(
+      "objects", "Objects",
+      {"id", "model", "status", "shift [cm]", "turn [°]", "position A [m]", "position B in A [m]"},
+      rows);
+  json region_rows = json::array();
+  for (const ChangedRegion& r : c.regions) {
+    region_rows.push_back({r.id, r.kind, json{r.centroid.x(), r.centroid.y(), r.centroid.z()},
+                           r.area_m2, r.max_abs_change_m, r.mean_change_m});
+  }
+  scene.table("regions", "Changed regions",
+              {"id", "kind", "centroid [m]", "area [m²]", "max |change| [m]", "mean change [m]"},
+              region_rows);
+  scene.card("registration", c.registration_method.empty() ? "–" : c.registration_method);
+  scene.card("registration rms [m]", num_or_null(c.registration_rms_m));
+  for (const char* s : {"moved", "added", "removed", "unchanged"}) scene.card(s, counts[s]);
+  scene.card("changed regions", c.regions.size());
+}
+
+}  // namespace
+
+ReportSummary write_scene_report(const fs::path& input, ReportInput kind, const ReportConfig& cfg) {
+  ReportSummary summary;
+  const bool is_file = kind == ReportInput::Ply;
+  if (cfg.output.empty()) {
+    summary.output = is_file ? fs::path(input).replace_extension(".html") : input / "report.html";
+  } else {
+    summary.output = cfg.output;
+  }
+  check_replaceable(summary.output);
+  if (!cfg.placements.empty() && kind != ReportInput::Map && kind != ReportInput::Ply) {
+    throw Error("report: --placements is for a map directory or a PLY cloud, not a " +
+                std::string(report_input_name(kind)) + " input");
+  }
+  if (!cfg.catalogue.empty() && cfg.placements.empty() && kind != ReportInput::Changes) {
+    throw Error("report: --catalogue goes with --placements (map) or a change directory");
+  }
+  const fs::path web_dir = cfg.web_dir.empty() ? default_web_dir() : cfg.web_dir;
+  const WebAssets assets = load_web_assets(web_dir, "scene.js", false);
+
+  Scene scene(cfg, summary);
+  Progress progress("report", 1 + cfg.overlays.size(), cfg.progress);
+  switch (kind) {
+    case ReportInput::Map: {
+      const fs::path cloud = input / "merged.ply";
+      build_map(cloud, read_any_ply(cloud), cfg, scene);
+      break;
+    }
+    case ReportInput::Ply:
+      build_map(input, read_any_ply(input), cfg, scene);
+      break;
+    case ReportInput::World:
+      build_world(input, scene);
+      break;
+    case ReportInput::Changes:
+      build_changes(input, cfg, scene);
+      break;
+    case ReportInput::Sweep:
+      throw Error("report: internal: a sweep is not a scene page");
+  }
+  progress.add();
+  for (std::size_t k = 0; k < cfg.overlays.size(); ++k) {
+    const PlyData d = read_any_ply(cfg.overlays[k]);
+    const std::string id = "overlay_" + std::to_string(k);
+    const std::string name = cfg.overlays[k].filename().string();
+    if (d.is_mesh) {
+      scene.mesh(id, name, d.mesh, d.cloud.color, scene.model_color(name), 0.9, true);
+    } else {
+      scene.points(id, name, d.cloud);
+    }
+    progress.add();
+  }
+  progress.finish();
+
+  json data = scene.finish();
+  const std::string name = fs::absolute(input).lexically_normal().filename().string();
+  data["format"] = 1;
+  data["kind"] = report_input_name(kind);
+  data["title"] = cfg.title.empty()
+                      ? std::string("sonar3d ") + report_input_name(kind) + ": " + name
+                      : cfg.title;
+  data["source"] = fs::absolute(input).lexically_normal().string();
+  data["generated"] = utc_now();
+  data["warnings"] = summary.warnings;
+  const std::string html = fill_page(assets, data["title"].get<std::string>(),
+                                     data.dump(-1, ' ', false, json::error_handler_t::replace));
+  write_text_file(summary.output.string(), html);
+  summary.bytes = html.size();
+  return summary;
+}
+
+}  // namespace sonar3d::report_page
