@@ -166,7 +166,7 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
   const json& objects = o.array("objects");
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const Obj e(objects[i], entry(path, "objects", i));
-    WorldObject w;
+    WorldGraphObject w;
     w.id = e.str("id");
     if (w.id.empty()) e.fail("id", "must not be empty");
     if (!ids.insert(w.id).second) e.fail("id", "'" + w.id + "' is a duplicate");

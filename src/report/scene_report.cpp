@@ -355,7 +355,7 @@ void build_world(const fs::path& dir, Scene& scene) {
   }
   json obj_rows = json::array(), obj_focus = json::array();
   std::map<std::string, Eigen::Vector3f> centre;
-  for (const WorldObject& o : g.objects) {
+  for (const WorldGraphObject& o : g.objects) {
     const fs::path p = dir / o.file;
     const PlyData d = read_any_ply(p);
     if (!d.is_mesh)

@@ -20,7 +20,7 @@ std::vector<ReportPlacement> parse_placements_json(const std::string& text, cons
                                                    std::string* catalogue_source = nullptr);
 
 // graph.json of `sonar3d world` ("format": "sonar3d-world", version 1).
-struct WorldObject {
+struct WorldGraphObject {
   std::string id, model, kind, file;  // file: relative to the world directory
   Eigen::Matrix4d T_world_model = Eigen::Matrix4d::Identity();
   double score_m = 0, residual_median_m = 0;  // NaN when null
@@ -37,7 +37,7 @@ struct WorldSeabedLod {
   double median_error_m = 0;  // NaN when null (no true terrain)
 };
 struct WorldGraph {
-  std::vector<WorldObject> objects;
+  std::vector<WorldGraphObject> objects;
   std::vector<WorldConnection> connections;  // from/to are ids of objects (checked)
   std::vector<WorldSeabedLod> seabed;        // sorted by lod
   std::string source_map, source_placements, source_catalogue;
