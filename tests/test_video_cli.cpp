@@ -404,6 +404,28 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     }
     EXPECT_GT(top, 50u);
     EXPECT_GT(under, 50u);
+    // The same as glTF 2.0 (.glb): read back through Assimp (load_mesh turns glTF's y up back
+    // into z up), the same vertices; a second run needs --overwrite; a cloud cannot go to .glb.
+    const fs::path glb = tmp / "scene_coloured.glb";
+    const std::string glb_args = "texture " + (tmp / "scene.obj").string() +
+                                 " --mesh --texel 0.04 --neus " + npz.string() + " --images " +
+                                 images.string() + " --quiet -o " + glb.string();
+    CliRun g = run(tmp, glb_args);
+    ASSERT_EQ(g.code, 0) << g.err;
+    const TriangleMesh back = load_mesh(glb.string());
+    EXPECT_EQ(back.vertices.size(), v.size());
+    EXPECT_EQ(back.triangles.size(), faces.size());
+    const Eigen::AlignedBox3f box_back = back.bounding_box();
+    EXPECT_NEAR(box_back.max().z(), 0.6, 1e-4);
+    EXPECT_NEAR(box_back.min().z(), 0.0, 1e-4);
+    expect_one_line_error(run(tmp, glb_args), "--overwrite");
+    EXPECT_EQ(run(tmp, glb_args + " --overwrite").code, 0);
+    std::ofstream(tmp / "other.glb") << "not ours";
+    expect_one_line_error(run(tmp, "texture " + (tmp / "scene.obj").string() + " --mesh --neus " +
+                                       npz.string() + " --images " + images.string() +
+                                       " --quiet --overwrite -o " + (tmp / "other.glb").string()),
+                          "not a glTF file sonar3d wrote");
+    expect_one_line_error(run(tmp, args + (tmp / "cloud.glb").string()), "needs --mesh");
   }
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");

@@ -52,7 +52,8 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "all of the directory in name order (8/16-bit: sRGB; float: linear)")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--output", *output,
-                  "coloured point cloud (PLY with uchar red green blue, sRGB)")
+                  "coloured point cloud (PLY with uchar red green blue, sRGB); with --mesh a PLY "
+                  "mesh with vertex colours, or a glTF 2.0 binary if it ends in .glb")
       ->required();
   cmd->add_option("--point-spacing", job->config.point_spacing_m,
                   "the cloud's point spacing, m (the splat size of the depth test)")

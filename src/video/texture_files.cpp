@@ -5,6 +5,7 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -127,6 +128,25 @@ void write_rgb_image(const fs::path& path, const RgbImage& image) {
 
 namespace {
 
+bool is_glb_path(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".glb";
+}
+
+// A .glb whose JSON chunk names sonar3d as its generator (write_glb).
+bool is_sonar3d_glb(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  char head[20] = {};
+  if (!f.read(head, sizeof head) || std::string(head, 4) != "glTF") return false;
+  std::uint32_t json_len = 0;
+  std::memcpy(&json_len, head + 12, 4);
+  std::string json(std::min<std::uint32_t>(json_len, 4096), '\0');
+  f.read(json.data(), static_cast<std::streamsize>(json.size()));
+  return json.find("\"generator\":\"sonar3d\"") != std::string::npos;
+}
+
 void check_output(const TextureFilesJob& job) {
   const fs::path& out = job.output;
   require(!out.empty(), "texture: no output file given");
@@ -135,10 +155,12 @@ void check_output(const TextureFilesJob& job) {
   if (fs::equivalent(out, job.cloud, ec)) {
     throw Error("texture: the output '" + out.string() + "' is the input cloud");
   }
-  if (!fs::is_regular_file(out, ec) || !is_sonar3d_ply(out.string())) {
-    throw Error("'" + out.string() +
-                "' exists and is not a point cloud sonar3d wrote: not replaced (choose another "
-                "output)");
+  const bool glb = is_glb_path(out);
+  if (!fs::is_regular_file(out, ec) ||
+      !(glb ? is_sonar3d_glb(out) : is_sonar3d_ply(out.string()))) {
+    throw Error("'" + out.string() + "' exists and is not a " +
+                (glb ? "glTF file" : "point cloud") +
+                " sonar3d wrote: not replaced (choose another output)");
   }
   if (!job.overwrite) {
     throw Error("'" + out.string() + "' exists (use --overwrite to replace it)");
@@ -230,6 +252,8 @@ std::vector<Frame> list_frames(const TextureFilesJob& job) {
 
 TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   job.config.validate();
+  require(job.is_mesh || !is_glb_path(job.output),
+          "texture: a .glb output needs --mesh (a coloured cloud is written as PLY)");
   check_output(job);
   const std::vector<Frame> frames = list_frames(job);
   PointCloud cloud;
@@ -276,7 +300,11 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
     const TexturedMesh tm = mesh_texturer->result();
     r.coloured = tm.coloured();
     r.written = tm.mesh.vertices.size();
-    write_textured_mesh_ply(job.output, tm);
+    if (is_glb_path(job.output)) {
+      write_textured_mesh_glb(job.output, tm);
+    } else {
+      write_textured_mesh_ply(job.output, tm);
+    }
     return r;
   }
   const TexturedCloud t = cloud_texturer->result();

@@ -15,6 +15,7 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/video/texture_files.hpp"
+#include "sonar3d/world/gltf.hpp"
 #include "visibility_raster.hpp"
 
 namespace sonar3d {
@@ -282,6 +283,31 @@ void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMe
     if (!f) throw Error("failed writing '" + path.string() + "' (disk full?)");
   }
   out.commit();
+}
+
+void write_textured_mesh_glb(const std::filesystem::path& path, const TexturedMesh& tm) {
+  require(tm.color.size() == tm.mesh.vertices.size(),
+          "cannot write '" + path.string() + "': colour count differs from vertex count");
+  GltfScene scene;
+  GltfMesh mesh;
+  mesh.name = "textured";
+  mesh.mesh = tm.mesh;
+  mesh.base_color = Eigen::Vector4f(1, 1, 1, 1);  // the vertex colours as they are
+  mesh.colors.resize(tm.color.size());
+  for (std::size_t i = 0; i < tm.color.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      mesh.colors[i][k] = static_cast<std::uint8_t>(
+          tm.views[i] ? std::lround(255.0f * linear_to_srgb(tm.color[i][k])) : 0);
+    }
+  }
+  scene.meshes.push_back(std::move(mesh));
+  GltfNode node;
+  node.name = "textured (world frame, ENU)";
+  node.mesh = 0;
+  node.matrix = enu_to_gltf();
+  scene.nodes.push_back(node);
+  scene.roots = {0};
+  write_glb(path, scene);
 }
 
 }  // namespace sonar3d

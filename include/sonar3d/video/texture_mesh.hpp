@@ -72,5 +72,8 @@ TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView
 // Binary PLY with float x y z, uchar red green blue (sRGB; black where no frame saw the vertex)
 // and the faces; atomic. read_ply_faces() reads it back.
 void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMesh& textured);
+// glTF 2.0 binary: the mesh with COLOR_0 (sRGB bytes; black where no frame saw the vertex) under a
+// root node turning sonar3d's ENU world (z up) into glTF's y-up frame; atomic (world/gltf.hpp).
+void write_textured_mesh_glb(const std::filesystem::path& path, const TexturedMesh& textured);
 
 }  // namespace sonar3d
