@@ -218,3 +218,10 @@ else:
 w('catalogue', 'field', "models:\n  - {name: riser, reference: riser, symmetry: none}\n  - {name: tank, reference: tank, symmetry: full, expected: 1}\n  - {name: pillar, reference: pillar, symmetry: \"180\", scale: 1.1}\n")
 w('catalogue', 'block', "models:\n  - name: panel\n    mesh: meshes/bop_panel.dae\n    symmetry: \"180\"\n    expected: 2\n  - name: sphere\n    reference: sphere\n    symmetry: full\n    scale: 0.5\n")
 w('catalogue', 'empty', "models: []\n")
+# Placements of sonar3d recognize (fuzz_placements).
+I4 = "[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]"
+w('placements', 'two', '{"format": "sonar3d-placements", "version": 1, "placements": [\n'
+  ' {"model": "riser", "T_world_model": [[0.94, -0.34, 0, -12], [0.34, 0.94, 0, 6], [0, 0, 1, -0.1], [0, 0, 0, 1]]},\n'
+  ' {"model": "tank", "T_world_model": ' + I4 + '}]}\n')
+w('placements', 'flat16', '{"format": "sonar3d-placements", "version": 1, "placements": [{"model": "t", "T_world_model": [1,0,0,1, 0,1,0,2, 0,0,1,3, 0,0,0,1]}]}\n')
+w('placements', 'empty', '{"format": "sonar3d-placements", "version": 1, "placements": []}\n')

@@ -39,5 +39,6 @@ void add_register(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_map(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run);
 
 }  // namespace sonar3d::cli

@@ -1,0 +1,665 @@
+// Change detection between two surveys (include/sonar3d/world/change.hpp, docs/change.md).
+#include "sonar3d/world/change.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/recog/model.hpp"
+
+namespace sonar3d {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
+
+// The cloud's points moved by T.
+PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  PointCloud out;
+  out.points.resize(cloud.size());
+  const Eigen::Matrix3f R = T.linear().cast<float>();
+  const Eigen::Vector3f t = T.translation().cast<float>();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 1 << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                        out.points[i] = R * cloud.points[i] + t;
+                      }
+                    });
+  return out;
+}
+
+// An elevation map of `cloud` on the grid of `like` (same cell, origin and size).
+ElevationMap map_on_grid(const PointCloud& cloud, const ElevationMap& like) {
+  ElevationMapConfig cfg;
+  cfg.cell_m = like.cell_m;
+  const double c = like.cell_m;
+  cfg.region_min_xy = {like.origin_xy.x() + 0.5 * c, like.origin_xy.y() - (like.rows - 0.5) * c};
+  cfg.region_max_xy = {like.origin_xy.x() + (like.cols - 0.5) * c, like.origin_xy.y() - 0.5 * c};
+  ElevationMap m = elevation_map_from_points(cloud, cfg);
+  if (m.rows != like.rows || m.cols != like.cols ||
+      (m.origin_xy - like.origin_xy).norm() > 1e-6 * c) {
+    throw Error("change detection: internal grid mismatch");  // cannot happen: same cell grid
+  }
+  return m;
+}
+
+ElevationMap map_of(const PointCloud& cloud, double cell_m, const char* which) {
+  require(!cloud.empty(), std::string("change detection: survey ") + which +
+                              " has no points (nothing to compare)");
+  ElevationMapConfig cfg;
+  cfg.cell_m = cell_m;
+  return elevation_map_from_points(cloud, cfg);
+}
+
+// Mean |A − B(x − dx, y − dy) − dz| over the smallest `fraction` of the overlap (nearest cell of
+// B), and the overlap's size.
+double registered_cost(const ElevationMap& a, const ElevationMap& b, const Eigen::Vector3d& t,
+                       double fraction, std::size_t* overlap) {
+  std::vector<float> d;
+  d.reserve(a.z.size() / 4);
+  const double c = b.cell_m;
+  for (int r = 0; r < a.rows; ++r) {
+    for (int col = 0; col < a.cols; ++col) {
+      const float za = a.at(r, col);
+      if (!(za == za)) continue;
+      const Eigen::Vector2d p = a.cell_center_xy(r, col) - t.head<2>();
+      const int bc = static_cast<int>(std::floor((p.x() - b.origin_xy.x()) / c));
+      const int br = static_cast<int>(std::floor((b.origin_xy.y() - p.y()) / c));
+      if (bc < 0 || br < 0 || bc >= b.cols || br >= b.rows) continue;
+      const float zb = b.at(br, bc);
+      if (!(zb == zb)) continue;
+      d.push_back(std::abs(static_cast<float>(za - zb - t.z())));
+    }
+  }
+  *overlap = d.size();
+  if (d.empty()) return std::numeric_limits<double>::infinity();
+  const std::size_t k = std::max<std::size_t>(1, static_cast<std::size_t>(fraction * d.size()));
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k - 1), d.end());
+  double sum = 0;
+  for (std::size_t i = 0; i < k; ++i) sum += d[i];
+  return sum / static_cast<double>(k);
+}
+
+// The quantile q of the values (partially reorders them).
+double quantile(std::vector<float>& v, double q) {
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// The normal distribution's two-sided quantile: P(|x| < z·sigma) = q.
+double normal_two_sided_quantile(double q) {
+  double lo = 0, hi = 10;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erf(mid / std::sqrt(2.0)) < q ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+void ChangeRegistrationConfig::validate() const {
+  require_positive(cell_m, "registration cell_m", "m");
+  require_positive(search_m, "search_m", "m");
+  require_non_negative(yaw_search_deg, "yaw_search_deg", "degrees");
+  require(yaw_search_deg <= 45, "yaw_search_deg must be at most 45 degrees");
+  require_positive(yaw_step_deg, "yaw_step_deg", "degrees");
+  require(yaw_search_deg / yaw_step_deg <= 1000,
+          "yaw_search_deg / yaw_step_deg must be at most 1000 (yaws searched)");
+  require(coarse_factor >= 1, "coarse_factor must be >= 1");
+  require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
+  require(inlier_fraction > 0 && inlier_fraction <= 1, "inlier_fraction must be in (0, 1]");
+  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+}
+
+void ChangeConfig::validate() const {
+  registration.validate();
+  require_positive(cell_m, "cell_m", "m");
+  require_positive(k_sigma, "k_sigma");
+  require(sigma_quantile > 0.5 && sigma_quantile < 1, "sigma_quantile must be in (0.5, 1)");
+  require_non_negative(min_sigma_m, "min_sigma_m", "m");
+  require_non_negative(min_area_m2, "min_area_m2", "m²");
+  require_positive(match_radius_m, "match_radius_m", "m");
+  require_non_negative(shift_tol_m, "shift_tol_m", "m");
+  require_non_negative(turn_tol_deg, "turn_tol_deg", "degrees");
+}
+
+const char* object_status_name(ObjectStatus s) {
+  switch (s) {
+    case ObjectStatus::Unchanged:
+      return "unchanged";
+    case ObjectStatus::Moved:
+      return "moved";
+    case ObjectStatus::Added:
+      return "added";
+    case ObjectStatus::Removed:
+      return "removed";
+  }
+  return "?";
+}
+
+ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                                    const ChangeRegistrationConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  const ElevationMap a = map_of(a_world, config.cell_m, "A");
+  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
+  // B turns about the centre of its extent.
+  Eigen::Vector3f lo = b_world.points[0], hi = lo;
+  for (const auto& p : b_world.points) {
+    require(p.allFinite(), "change detection: survey B has a point that is not finite");
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
+
+  SwathRegistrationConfig sw;
+  sw.search_m = config.search_m;
+  sw.min_overlap_cells = config.min_overlap_cells;
+  sw.coarse_factor = config.coarse_factor;
+  sw.num_threads = config.num_threads;
+
+  struct Trial {
+    double yaw = 0, cost = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    std::size_t overlap = 0;
+  };
+  std::string last_error;
+  auto pose_of = [&](double yaw) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.translation() = pivot - T.linear() * pivot;
+    return T;
+  };
+  auto trial = [&](double yaw) {
+    Trial tr;
+    tr.yaw = yaw;
+    const ElevationMap b = map_of(transformed(b_world, pose_of(yaw)), config.cell_m, "B");
+    if (!maps_may_overlap(a, b, config.search_m)) {
+      last_error = "their extents do not meet";
+      return tr;
+    }
+    try {
+      // Sec. 6.2.2.1, eq. 6.1–6.2: the shift and the height offset at this yaw.
+      const SwathTie tie = register_elevation_maps(a, b, sw);
+      tr.t = tie.t;
+      tr.cost = registered_cost(a, b, tie.t, config.inlier_fraction, &tr.overlap);
+    } catch (const Error& e) {
+      last_error = e.what();
+    }
+    return tr;
+  };
+  Trial best;
+  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
+  for (int k = -n; k <= n; ++k) {
+    const Trial tr = trial(k * config.yaw_step_deg * kDeg);
+    if (tr.cost < best.cost) best = tr;
+  }
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap (no yaw within ±" +
+              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
+              std::to_string(config.search_m) + " m leaves " +
+              std::to_string(config.min_overlap_cells) +
+              " cells observed in both; " + last_error + ")");
+  if (n > 0) {  // the best yaw refined 5× finer
+    const double centre = best.yaw, step = config.yaw_step_deg * kDeg / 5;
+    for (int k = -4; k <= 4; ++k) {
+      if (k == 0) continue;
+      const Trial tr = trial(centre + k * step);
+      if (tr.cost < best.cost) best = tr;
+    }
+  }
+  ChangeRegistration out;
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation() = best.t;
+  out.T_a_b = shift * pose_of(best.yaw);
+  out.method = "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
+  out.yaw_deg = best.yaw / kDeg;
+  out.rms_m = best.cost;
+  out.overlap_cells = best.overlap;
+  out.seconds = seconds_since(t0);
+  return out;
+}
+
+std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
+                                             const std::vector<SurveyPlacement>& b_in_a,
+                                             const std::map<std::string, Symmetry>& symmetries,
+                                             const ChangeConfig& config) {
+  config.validate();
+  // Pairs are formed among placements of one model within the match radius: bounded by n².
+  require(a.size() <= kMaxPlacements && b_in_a.size() <= kMaxPlacements,
+          "change detection: at most " + std::to_string(kMaxPlacements) +
+              " placements per survey are compared");
+  auto symmetry_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
+    if (symmetries.empty()) return Symmetry::None;
+    const auto it = symmetries.find(p.model);
+    require(it != symmetries.end(), std::string("placements of survey ") + which +
+                                        ": placement " + std::to_string(i) + " is a model '" +
+                                        printable(p.model) +
+                                        "' that the catalogue does not list");
+    return it->second;
+  };
+  std::vector<Symmetry> sym_a(a.size()), sym_b(b_in_a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) sym_a[i] = symmetry_of(a[i], "A", i);
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) sym_b[j] = symmetry_of(b_in_a[j], "B", j);
+
+  // Same model within the match radius: nearest pairs first.
+  struct Pair {
+    double d;
+    std::size_t i, j;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+      if (a[i].model != b_in_a[j].model) continue;
+      const double d = (a[i].T_world_model.translation().head<2>() -
+                        b_in_a[j].T_world_model.translation().head<2>())
+                           .norm();
+      if (d <= config.match_radius_m) pairs.push_back({d, i, j});
+    }
+  }
+  std::stable_sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) {
+    return x.d < y.d;
+  });
+  std::vector<long> match_a(a.size(), -1), match_b(b_in_a.size(), -1);
+  for (const Pair& p : pairs) {
+    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
+    match_a[p.i] = static_cast<long>(p.j);
+    match_b[p.j] = static_cast<long>(p.i);
+  }
+  std::map<std::string, int> count;
+  std::vector<ObjectChange> out;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ObjectChange c;
+    c.model = a[i].model;
+    c.id = c.model + "_" + std::to_string(count[c.model]++);
+    c.in_a = true;
+    c.T_world_model_a = a[i].T_world_model;
+    if (match_a[i] < 0) {
+      c.status = ObjectStatus::Removed;
+    } else {
+      const SurveyPlacement& b = b_in_a[static_cast<std::size_t>(match_a[i])];
+      c.in_b = true;
+      c.T_world_model_b_in_a = b.T_world_model;
+      c.shift_m =
+          (b.T_world_model.translation().head<2>() - a[i].T_world_model.translation().head<2>())
+              .norm();
+      // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
+      const double period = sym_a[i] == Symmetry::Half ? 180 : 360;
+      double turn = std::fmod(
+          std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
+      turn = std::min(turn, period - turn);
+      c.turn_deg = sym_a[i] == Symmetry::Full ? 0 : turn;
+      c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
+                     ? ObjectStatus::Unchanged
+                     : ObjectStatus::Moved;
+    }
+    out.push_back(c);
+  }
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+    if (match_b[j] >= 0) continue;
+    ObjectChange c;
+    c.model = b_in_a[j].model;
+    c.id = c.model + "_" + std::to_string(count[c.model]++);
+    c.status = ObjectStatus::Added;
+    c.in_b = true;
+    c.T_world_model_b_in_a = b_in_a[j].T_world_model;
+    out.push_back(c);
+  }
+  return out;
+}
+
+namespace {
+
+// The height change map, its threshold and regions (fills the geometry part of `r`).
+void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
+                      const ChangeConfig& config, ChangeResult* r) {
+  const ElevationMap a = map_of(a_world, config.cell_m, "A");
+  const ElevationMap b = map_on_grid(b_in_a, a);
+  ElevationMap d = a;
+  std::vector<float> values;
+  for (std::size_t i = 0; i < a.z.size(); ++i) {
+    const bool both = a.z[i] == a.z[i] && b.z[i] == b.z[i];
+    d.z[i] = both ? b.z[i] - a.z[i] : ElevationMap::kNoData;
+    if (both) values.push_back(d.z[i]);
+  }
+  r->registration.overlap_cells = values.size();
+  require(values.size() >= static_cast<std::size_t>(config.registration.min_overlap_cells),
+          "change detection: the registered surveys overlap on " + std::to_string(values.size()) +
+              " cells of " + std::to_string(config.cell_m) + " m only (min_overlap_cells = " +
+              std::to_string(config.registration.min_overlap_cells) + ")");
+  // The noise of both surveys and what registration left, from the differences themselves: a
+  // robust sigma about their median (changes are outliers of it).
+  ChangeThresholds& th = r->thresholds;
+  th.cell_m = config.cell_m;
+  th.median_m = quantile(values, 0.5);
+  for (float& v : values) v = std::abs(v - static_cast<float>(th.median_m));
+  th.sigma_m = std::max(config.min_sigma_m, quantile(values, config.sigma_quantile) /
+                                                normal_two_sided_quantile(config.sigma_quantile));
+  th.k_sigma = config.k_sigma;
+  th.change_m = config.k_sigma * th.sigma_m;
+  th.min_area_m2 = config.min_area_m2;
+  th.shift_tol_m = config.shift_tol_m;
+  th.turn_tol_deg = config.turn_tol_deg;
+  th.match_radius_m = config.match_radius_m;
+
+  // A cell changed when B's height lies beyond the range of A's heights in the 3×3 cells around
+  // it and A's beyond B's, both by more than the threshold (the same sign): a wall that moved by
+  // less than a cell between the maps is no change.
+  const int rows = a.rows, cols = a.cols;
+  std::vector<int8_t> sign(a.z.size(), 0);
+  const float med = static_cast<float>(th.median_m), thr = static_cast<float>(th.change_m);
+  tbb::parallel_for(0, rows, [&](int row) {
+    for (int col = 0; col < cols; ++col) {
+      const std::size_t i = a.index(row, col);
+      if (!(d.z[i] == d.z[i])) continue;
+      float alo = std::numeric_limits<float>::infinity(), ahi = -alo, blo = alo, bhi = -alo;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+          const std::size_t k = a.index(rr, cc);
+          if (a.z[k] == a.z[k]) alo = std::min(alo, a.z[k]), ahi = std::max(ahi, a.z[k]);
+          if (b.z[k] == b.z[k]) blo = std::min(blo, b.z[k] - med), bhi = std::max(bhi, b.z[k] - med);
+        }
+      }
+      const float zb = b.z[i] - med, za = a.z[i];
+      if (zb - ahi > thr && blo - za > thr) sign[i] = 1;
+      if (alo - zb > thr && za - bhi > thr) sign[i] = -1;
+    }
+  });
+  // Connected regions (8-neighbours) of one sign.
+  std::vector<int> label(a.z.size(), -1);
+  std::vector<std::size_t> stack;
+  const double cell_area = config.cell_m * config.cell_m;
+  for (std::size_t seed = 0; seed < a.z.size(); ++seed) {
+    if (sign[seed] == 0 || label[seed] >= 0) continue;
+    ChangeRegion reg;
+    reg.raised = sign[seed] > 0;
+    const int id = static_cast<int>(seed);  // provisional
+    label[seed] = id;
+    stack.assign(1, seed);
+    double sx = 0, sy = 0, sz = 0, sd = 0;
+    while (!stack.empty()) {
+      const std::size_t i = stack.back();
+      stack.pop_back();
+      const int row = static_cast<int>(i / static_cast<std::size_t>(cols));
+      const int col = static_cast<int>(i % static_cast<std::size_t>(cols));
+      const Eigen::Vector2d c = a.cell_center_xy(row, col);
+      sx += c.x();
+      sy += c.y();
+      sz += 0.5 * (a.z[i] + b.z[i]);
+      sd += d.z[i];
+      reg.max_abs_change_m = std::max(reg.max_abs_change_m, std::abs(static_cast<double>(d.z[i])));
+      ++reg.cells;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+          const std::size_t k = a.index(rr, cc);
+          if (sign[k] == sign[seed] && label[k] < 0) {
+            label[k] = id;
+            stack.push_back(k);
+          }
+        }
+      }
+    }
+    r->significant_cells += reg.cells;
+    const double n = static_cast<double>(reg.cells);
+    reg.area_m2 = n * cell_area;
+    if (reg.area_m2 < config.min_area_m2) continue;
+    reg.centroid = {sx / n, sy / n, sz / n};
+    reg.mean_change_m = sd / n;
+    reg.id = static_cast<int>(r->regions.size());
+    r->regions.push_back(reg);
+  }
+  // The registration's residual: the RMS of B − A where nothing changed.
+  double ss = 0;
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < d.z.size(); ++i) {
+    if (d.z[i] == d.z[i] && sign[i] == 0) ss += static_cast<double>(d.z[i]) * d.z[i], ++m;
+  }
+  r->registration.rms_m = m > 0 ? std::sqrt(ss / static_cast<double>(m)) : 0;
+  r->change_map = std::move(d);
+  r->height_b = b;
+}
+
+nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
+  nlohmann::json j = nlohmann::json::array();
+  for (int row = 0; row < 4; ++row) {
+    for (int col = 0; col < 4; ++col) j.push_back(T.matrix()(row, col));
+  }
+  return j;
+}
+
+}  // namespace
+
+ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                          const std::vector<SurveyPlacement>& pa,
+                          const std::vector<SurveyPlacement>& pb,
+                          const std::map<std::string, Symmetry>& symmetries,
+                          const ChangeConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  ChangeResult r;
+  r.registration = register_surveys(a_world, b_world, config.registration);
+  std::vector<SurveyPlacement> pb_in_a = pb;
+  for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
+  r.objects = compare_placements(pa, pb_in_a, symmetries, config);
+  compare_geometry(a_world, transformed(b_world, r.registration.T_a_b), config, &r);
+  r.seconds = seconds_since(t0);
+  return r;
+}
+
+std::string changes_json(const ChangeResult& r) {
+  auto num_or_null = [](bool has, double v) { return has ? nlohmann::json(v) : nlohmann::json(); };
+  nlohmann::json j;
+  j["format"] = "sonar3d-changes";
+  j["version"] = 1;
+  j["T_a_b"] = matrix_json(r.registration.T_a_b);
+  j["registration"] = {{"method", r.registration.method},
+                       {"rms_m", r.registration.rms_m},
+                       {"overlap_cells", r.registration.overlap_cells}};
+  nlohmann::json objects = nlohmann::json::array();
+  for (const ObjectChange& o : r.objects) {
+    const bool both = o.in_a && o.in_b;
+    objects.push_back(
+        {{"id", o.id},
+         {"model", o.model},
+         {"status", object_status_name(o.status)},
+         {"T_world_model_a", o.in_a ? matrix_json(o.T_world_model_a) : nlohmann::json()},
+         {"T_world_model_b_in_a", o.in_b ? matrix_json(o.T_world_model_b_in_a) : nlohmann::json()},
+         {"shift_m", num_or_null(both, o.shift_m)},
+         {"turn_deg", num_or_null(both, o.turn_deg)}});
+  }
+  j["objects"] = objects;
+  nlohmann::json regions = nlohmann::json::array();
+  for (const ChangeRegion& g : r.regions) {
+    regions.push_back({{"id", g.id},
+                       {"centroid", {g.centroid.x(), g.centroid.y(), g.centroid.z()}},
+                       {"area_m2", g.area_m2},
+                       {"max_abs_change_m", g.max_abs_change_m},
+                       {"mean_change_m", g.mean_change_m},
+                       {"kind", g.raised ? "raised" : "lowered"}});
+  }
+  j["regions"] = regions;
+  const ChangeThresholds& t = r.thresholds;
+  j["thresholds"] = {{"cell_m", t.cell_m},
+                     {"median_change_m", t.median_m},
+                     {"sigma_m", t.sigma_m},
+                     {"k_sigma", t.k_sigma},
+                     {"change_m", t.change_m},
+                     {"min_area_m2", t.min_area_m2},
+                     {"significant_cells", r.significant_cells},
+                     {"shift_tol_m", t.shift_tol_m},
+                     {"turn_tol_deg", t.turn_tol_deg},
+                     {"match_radius_m", t.match_radius_m},
+                     {"yaw_deg", r.registration.yaw_deg},
+                     {"registration_seconds", r.registration.seconds}};
+  j["seconds"] = r.seconds;
+  return j.dump(1) + "\n";
+}
+
+PointCloud change_points(const ChangeResult& r) {
+  PointCloud cloud;
+  PointProperty change{"change_m", {}};
+  const ElevationMap& d = r.change_map;
+  for (int row = 0; row < d.rows; ++row) {
+    for (int col = 0; col < d.cols; ++col) {
+      if (!d.valid(row, col)) continue;
+      const Eigen::Vector2d c = d.cell_center_xy(row, col);
+      cloud.points.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()),
+                                r.height_b.at(row, col));
+      change.values.push_back(d.at(row, col));
+    }
+  }
+  cloud.properties.push_back(std::move(change));
+  return cloud;
+}
+
+void write_change_directory(const std::string& dir, const ChangeResult& result) {
+  require(!fs::exists(dir),
+          "change detection: '" + dir + "' already exists: choose a new output directory");
+  require(!result.change_map.empty(), "change detection: no change map to write");
+  AtomicPath out(dir);
+  fs::create_directories(out.temp());
+  write_elevation_geotiff((out.temp() / "change_map.tif").string(), result.change_map);
+  write_ply((out.temp() / "change_points.ply").string(), change_points(result));
+  write_text_file((out.temp() / "changes.json").string(), changes_json(result));
+  out.commit();
+}
+
+std::vector<SurveyPlacement> parse_placements(const std::string& text, const std::string& source) {
+  // Nesting bounded while parsing (as io/holoocean.cpp does): a value nested 100,000 levels deep
+  // would overflow the stack when copied or destroyed.
+  const nlohmann::json::parser_callback_t depth_guard =
+      [&source](int depth, nlohmann::json::parse_event_t event, nlohmann::json&) {
+        if ((event == nlohmann::json::parse_event_t::object_start ||
+             event == nlohmann::json::parse_event_t::array_start) &&
+            depth >= limits::kMaxNestingDepth) {
+          throw Error("placements '" + source + "': JSON nested more than " +
+                      std::to_string(limits::kMaxNestingDepth) + " levels deep");
+        }
+        return true;
+      };
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text, depth_guard);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("placements '" + source + "': not JSON (" + printable(e.what(), 120) + ")");
+  }
+  require(j.is_object() && j.contains("format") && j["format"] == "sonar3d-placements",
+          "placements '" + source +
+              "': not a sonar3d placements file (\"format\": \"sonar3d-placements\" missing; "
+              "write it with sonar3d recognize)");
+  require(j.contains("version") && j["version"] == 1,
+          "placements '" + source + "': version must be 1");
+  require(j.contains("placements") && j["placements"].is_array(),
+          "placements '" + source + "': key 'placements' (a list) missing");
+  std::vector<SurveyPlacement> out;
+  const nlohmann::json& list = j["placements"];
+  require(list.size() <= kMaxPlacements, "placements '" + source + "': " +
+                                             std::to_string(list.size()) +
+                                             " placements; at most " +
+                                             std::to_string(kMaxPlacements) + " are compared");
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string where = "placements '" + source + "', placement " + std::to_string(i);
+    const nlohmann::json& p = list[i];
+    require(p.is_object() && p.contains("model") && p["model"].is_string() &&
+                !p["model"].get<std::string>().empty(),
+            where + ": key 'model' (a name) missing");
+    require(p.contains("T_world_model"), where + ": key 'T_world_model' missing");
+    // 4 rows of 4, or 16 numbers row-major.
+    const nlohmann::json& m = p["T_world_model"];
+    std::vector<double> v;
+    if (m.is_array() && m.size() == 4) {
+      for (const auto& row : m) {
+        require(row.is_array() && row.size() == 4,
+                where + ": T_world_model must be 4 rows of 4 numbers");
+        for (const auto& x : row) {
+          require(x.is_number(), where + ": T_world_model holds a value that is not a number");
+          v.push_back(x.get<double>());
+        }
+      }
+    } else if (m.is_array() && m.size() == 16) {
+      for (const auto& x : m) {
+        require(x.is_number(), where + ": T_world_model holds a value that is not a number");
+        v.push_back(x.get<double>());
+      }
+    } else {
+      throw Error(where + ": T_world_model must be 4 rows of 4 numbers (or 16 numbers)");
+    }
+    Eigen::Matrix4d M;
+    for (int k = 0; k < 16; ++k) M(k / 4, k % 4) = v[static_cast<std::size_t>(k)];
+    require(M.allFinite(), where + ": T_world_model is not finite");
+    const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+    require((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-4 &&
+                R.determinant() > 0 && (M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() < 1e-9,
+            where + ": T_world_model is not a rigid transform (rotation and translation)");
+    SurveyPlacement sp;
+    sp.model = p["model"].get<std::string>();
+    sp.T_world_model.matrix() = M;
+    out.push_back(sp);
+  }
+  return out;
+}
+
+PointCloud read_survey_cloud(const std::string& path) {
+  if (fs::is_regular_file(path)) return read_ply(path);
+  if (fs::is_directory(path) && fs::is_regular_file(fs::path(path) / "merged.ply")) {
+    return read_ply((fs::path(path) / "merged.ply").string());
+  }
+  throw Error("survey '" + path +
+              "': neither a point cloud (.ply) nor a map directory of sonar3d map (merged.ply)");
+}
+
+std::vector<SurveyPlacement> read_placements(const std::string& path) {
+  require(fs::is_regular_file(path), "placements '" + path + "': no such file");
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  require(ec || size <= limits::kMaxConfigBytes,
+          "placements '" + path + "' is " + std::to_string(size) + " bytes; at most " +
+              std::to_string(limits::kMaxConfigBytes) + " are read");
+  return parse_placements(read_text_file(path), path);
+}
+
+std::map<std::string, Symmetry> catalogue_symmetries(const Catalogue& catalogue) {
+  std::map<std::string, Symmetry> out;
+  for (const CatalogueModel& m : catalogue.models) out[m.name] = m.symmetry;
+  return out;
+}
+
+std::vector<SurveyPlacement> recognize_placements(const PointCloud& cloud_world,
+                                                  const Catalogue& catalogue,
+                                                  const RecognitionConfig& config) {
+  std::vector<ModelTemplate> models;
+  for (const CatalogueModel& m : catalogue.models) {
+    models.push_back(make_model_template(m.name, load_catalogue_mesh(catalogue, m), m.symmetry,
+                                         m.expected, config.sampling));
+  }
+  const RecognitionResult r = recognize_2d(cloud_world, models, config);
+  std::vector<SurveyPlacement> out;
+  for (const Placement& p : r.placements) out.push_back({p.model, p.T_world_model});
+  return out;
+}
+
+}  // namespace sonar3d
