@@ -51,7 +51,10 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--min-area", c.min_area_m2, "smallest region of change reported, square metres")
       ->capture_default_str();
   cmd->add_option("--registration-cell", c.registration.cell_m,
-                  "cell of the maps registered, metres")
+                  "cell of the maps of the final registration, metres")
+      ->capture_default_str();
+  cmd->add_option("--yaw-cell", c.registration.yaw_cell_m,
+                  "cell of the maps of the yaw search, metres")
       ->capture_default_str();
   cmd->add_option("--search", c.registration.search_m,
                   "half-width of the searched horizontal shift of B, metres")
@@ -60,7 +63,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "half-width of the searched yaw of B, degrees")
       ->capture_default_str();
   cmd->add_option("--yaw-step-deg", c.registration.yaw_step_deg,
-                  "yaw step (refined 5x finer around the best), degrees")
+                  "yaw step of the coarse search (then refined), degrees")
       ->capture_default_str();
   cmd->add_option("--match-radius", c.match_radius_m,
                   "placements of one model closer than this are one object, metres")

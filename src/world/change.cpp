@@ -119,6 +119,7 @@ double normal_two_sided_quantile(double q) {
 
 void ChangeRegistrationConfig::validate() const {
   require_positive(cell_m, "registration cell_m", "m");
+  require_positive(yaw_cell_m, "yaw_cell_m", "m");
   require_positive(search_m, "search_m", "m");
   require_non_negative(yaw_search_deg, "yaw_search_deg", "degrees");
   require(yaw_search_deg <= 45, "yaw_search_deg must be at most 45 degrees");
@@ -138,6 +139,8 @@ void ChangeConfig::validate() const {
   require(sigma_quantile > 0.5 && sigma_quantile < 1, "sigma_quantile must be in (0.5, 1)");
   require_non_negative(min_sigma_m, "min_sigma_m", "m");
   require_non_negative(min_area_m2, "min_area_m2", "m²");
+  require_non_negative(link_m, "link_m", "m");
+  require(link_m <= 100 * cell_m, "link_m must be at most 100 cells");
   require_positive(match_radius_m, "match_radius_m", "m");
   require_non_negative(shift_tol_m, "shift_tol_m", "m");
   require_non_negative(turn_tol_deg, "turn_tol_deg", "degrees");
@@ -161,78 +164,113 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
                                     const ChangeRegistrationConfig& config) {
   config.validate();
   const auto t0 = std::chrono::steady_clock::now();
-  const ElevationMap a = map_of(a_world, config.cell_m, "A");
   require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
   // B turns about the centre of its extent.
   Eigen::Vector3f lo = b_world.points[0], hi = lo;
   for (const auto& p : b_world.points) {
-    require(p.allFinite(), "change detection: survey B has a point that is not finite");
+    if (!p.allFinite()) throw Error("change detection: survey B has a point that is not finite");
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
   const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
-
-  SwathRegistrationConfig sw;
-  sw.search_m = config.search_m;
-  sw.min_overlap_cells = config.min_overlap_cells;
-  sw.coarse_factor = config.coarse_factor;
-  sw.num_threads = config.num_threads;
+  const ElevationMap a_coarse = map_of(a_world, config.yaw_cell_m, "A");
+  // The yaw search turns B's map at a fifth of its cell as points (one per cell: its highest),
+  // not every point of B (4.4 M on the field; the map keeps only the highest per cell anyway).
+  PointCloud b_thin;
+  {
+    const ElevationMap m = map_of(b_world, config.yaw_cell_m / 5, "B");
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        if (!m.valid(r, c)) continue;
+        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+        b_thin.points.emplace_back(static_cast<float>(xy.x()), static_cast<float>(xy.y()),
+                                   m.at(r, c));
+      }
+    }
+  }
+  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
 
   struct Trial {
     double yaw = 0, cost = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
     std::size_t overlap = 0;
   };
   std::string last_error;
-  auto pose_of = [&](double yaw) {
+  auto turn = [&](double yaw) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     T.translation() = pivot - T.linear() * pivot;
     return T;
   };
-  auto trial = [&](double yaw) {
+  // B turned by `yaw`, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's search
+  // (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
+  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior,
+                   double search) {
     Trial tr;
     tr.yaw = yaw;
-    const ElevationMap b = map_of(transformed(b_world, pose_of(yaw)), config.cell_m, "B");
-    if (!maps_may_overlap(a, b, config.search_m)) {
+    Eigen::Isometry3d T = turn(yaw);
+    T.translation() += prior;
+    const bool coarse = &a == &a_coarse;
+    const ElevationMap b = map_of(transformed(coarse ? b_thin : b_world, T), a.cell_m, "B");
+    if (!maps_may_overlap(a, b, search)) {
       last_error = "their extents do not meet";
       return tr;
     }
+    SwathRegistrationConfig sw;
+    sw.search_m = search;
+    sw.min_overlap_cells = config.min_overlap_cells;
+    sw.coarse_factor = config.coarse_factor;
+    sw.num_threads = config.num_threads;
+    sw.subcell = !coarse;  // the fine stage refines the shift
     try {
-      // Sec. 6.2.2.1, eq. 6.1–6.2: the shift and the height offset at this yaw.
       const SwathTie tie = register_elevation_maps(a, b, sw);
-      tr.t = tie.t;
+      tr.t = prior + tie.t;
       tr.cost = registered_cost(a, b, tie.t, config.inlier_fraction, &tr.overlap);
     } catch (const Error& e) {
       last_error = e.what();
     }
     return tr;
   };
+  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
   Trial best;
   const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
   for (int k = -n; k <= n; ++k) {
-    const Trial tr = trial(k * config.yaw_step_deg * kDeg);
+    const Trial tr = trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(),
+                           config.search_m);
     if (tr.cost < best.cost) best = tr;
   }
   require(std::isfinite(best.cost),
           "change detection: the surveys do not overlap (no yaw within ±" +
               std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
               std::to_string(config.search_m) + " m leaves " +
-              std::to_string(config.min_overlap_cells) +
-              " cells observed in both; " + last_error + ")");
-  if (n > 0) {  // the best yaw refined 5× finer
-    const double centre = best.yaw, step = config.yaw_step_deg * kDeg / 5;
-    for (int k = -4; k <= 4; ++k) {
-      if (k == 0) continue;
-      const Trial tr = trial(centre + k * step);
-      if (tr.cost < best.cost) best = tr;
+              std::to_string(config.min_overlap_cells) + " cells observed in both; " +
+              last_error + ")");
+  // 2. At the fine cell, around the coarse winner (shift within a coarse cell of it): the yaw
+  // half a step either side, the parabola through the three costs, its vertex.
+  const Eigen::Vector3d prior = best.t;
+  const double h = 0.5 * config.yaw_step_deg * kDeg, search = config.yaw_cell_m;
+  Trial mid = trial(a_fine, best.yaw, prior, search);
+  best = mid;
+  if (n > 0 && std::isfinite(mid.cost)) {
+    const Trial left = trial(a_fine, mid.yaw - h, prior, search);
+    const Trial right = trial(a_fine, mid.yaw + h, prior, search);
+    for (const Trial* tr : {&left, &right}) {
+      if (tr->cost < best.cost) best = *tr;
+    }
+    const double curvature = left.cost + right.cost - 2 * mid.cost;
+    if (std::isfinite(curvature) && curvature > 0) {
+      const double step = std::clamp(0.5 * (left.cost - right.cost) / curvature, -1.0, 1.0);
+      const Trial vertex = trial(a_fine, mid.yaw + step * h, prior, search);
+      if (vertex.cost < best.cost) best = vertex;
     }
   }
+  require(std::isfinite(best.cost), "change detection: the surveys do not overlap at the fine "
+                                    "cell (" + last_error + ")");
   ChangeRegistration out;
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
   shift.translation() = best.t;
-  out.T_a_b = shift * pose_of(best.yaw);
-  out.method = "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
+  out.T_a_b = shift * turn(best.yaw);
+  out.method = "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, coarse to fine";
   out.yaw_deg = best.yaw / kDeg;
   out.rms_m = best.cost;
   out.overlap_cells = best.overlap;
@@ -363,8 +401,8 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   th.match_radius_m = config.match_radius_m;
 
   // A cell changed when B's height lies beyond the range of A's heights in the 3×3 cells around
-  // it and A's beyond B's, both by more than the threshold (the same sign): a wall that moved by
-  // less than a cell between the maps is no change.
+  // it, or A's beyond B's, by more than the threshold: a wall that moved by less than a cell
+  // between the maps is no change. (The two cannot disagree in sign.)
   const int rows = a.rows, cols = a.cols;
   std::vector<int8_t> sign(a.z.size(), 0);
   const float med = static_cast<float>(th.median_m), thr = static_cast<float>(th.change_m);
@@ -383,11 +421,15 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
         }
       }
       const float zb = b.z[i] - med, za = a.z[i];
-      if (zb - ahi > thr && blo - za > thr) sign[i] = 1;
-      if (alo - zb > thr && za - bhi > thr) sign[i] = -1;
+      // Raised: B above all of A around, or A below all of B around (a thin tube, a cell or two
+      // wide, passes one of the two); a sub-cell shift of a wall passes neither.
+      if (zb - ahi > thr || blo - za > thr) sign[i] = 1;
+      if (alo - zb > thr || za - bhi > thr) sign[i] = -1;
     }
   });
-  // Connected regions (8-neighbours) of one sign.
+  // Regions: changed cells of one sign linked when within link_m of each other (a moved frame of
+  // thin tubes changes in strips that the 3×3 test above breaks apart).
+  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
   std::vector<int> label(a.z.size(), -1);
   std::vector<std::size_t> stack;
   const double cell_area = config.cell_m * config.cell_m;
@@ -411,8 +453,8 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
       sd += d.z[i];
       reg.max_abs_change_m = std::max(reg.max_abs_change_m, std::abs(static_cast<double>(d.z[i])));
       ++reg.cells;
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
+      for (int dr = -link; dr <= link; ++dr) {
+        for (int dc = -link; dc <= link; ++dc) {
           const int rr = row + dr, cc = col + dc;
           if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
           const std::size_t k = a.index(rr, cc);

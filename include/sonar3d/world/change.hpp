@@ -42,10 +42,13 @@ std::vector<SurveyPlacement> read_placements(const std::string& path);
 std::vector<SurveyPlacement> parse_placements(const std::string& text, const std::string& source);
 
 struct ChangeRegistrationConfig {
-  double cell_m = 0.05;        // cell of the elevation maps registered, m
-  double search_m = 0.6;       // ± horizontal shift searched (East, North), m
-  double yaw_search_deg = 2;   // ± yaw searched, degrees
-  double yaw_step_deg = 0.25;  // first yaw step; then refined 5× finer around the best, degrees
+  // The yaw window is searched on maps of yaw_cell_m (every yaw, the shift over ±search_m), the
+  // winner refined on maps of cell_m (the shift within ±yaw_cell_m of the coarse one).
+  double yaw_cell_m = 0.25;
+  double cell_m = 0.1;
+  double search_m = 0.6;        // ± horizontal shift searched (East, North), m
+  double yaw_search_deg = 2;    // ± yaw searched, degrees
+  double yaw_step_deg = 0.25;   // yaw step of the coarse search, degrees
   int coarse_factor = 4;       // the shift search's coarse-to-fine factor (swath_registration.hpp)
   int min_overlap_cells = 500;  // fewer cells observed in both maps: the surveys do not overlap
   // Fraction of the overlap whose height differences score a yaw (the smallest ones): the changes
@@ -67,12 +70,14 @@ struct ChangeRegistration {
   double seconds = 0;
 };
 
-// Survey B registered onto survey A: both clouds (each in its own world) become elevation maps at
-// cell_m; for each yaw ψ in ±yaw_search_deg (B turned about its centre), the shift (dx, dy) and
-// height offset dz come from sec. 6.2.2.1's search (register_elevation_maps: coarse-to-fine, eq.
-// 6.1's signed median for dz, sub-cell), and the yaw whose registered maps leave the smallest
-// mean |A − B| over the inlier fraction of the overlap wins; the best yaw is refined 5× finer.
-// Throws Error when the maps do not overlap.
+// Survey B registered onto survey A (both clouds in their own worlds) on elevation maps: for
+// each yaw ψ in ±yaw_search_deg every yaw_step_deg (B turned about the centre of its extent), on
+// maps of yaw_cell_m, the shift (dx, dy) and height offset dz come from sec. 6.2.2.1's search
+// (register_elevation_maps: eq. 6.1's signed median for dz, eq. 6.2's score, sub-cell), and the
+// yaw whose registered maps leave the smallest mean |A − B| over the inlier fraction of the
+// overlap wins. Then on maps of cell_m: the winner and half a step either side (shift within
+// ±yaw_cell_m of the coarse one), and the vertex of the parabola through their costs; the best
+// of these. Throws Error when the maps do not overlap.
 ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
                                     const ChangeRegistrationConfig& config);
 
@@ -90,6 +95,9 @@ struct ChangeConfig {
   double sigma_quantile = 0.8;
   double min_sigma_m = 0.005;
   double min_area_m2 = 0.05;  // regions of significant change smaller than this are dropped, m²
+  // Changed cells of one sign closer than this belong to one region (a moved frame of thin tubes
+  // changes in strips), m.
+  double link_m = 0.1;
   // Objects: placements of one model in A and B (B in A's frame) whose origins are within
   // match_radius_m are the same object (nearest pairs first); it is unchanged when it moved at
   // most shift_tol_m horizontally and turned at most turn_tol_deg (modulo the model's symmetry).
