@@ -102,7 +102,7 @@ TEST(ChangeRegistration, RecoversAKnownOffset) {
   EXPECT_LT(err.translation().head<2>().norm(), 0.01) << err.matrix();
   EXPECT_NEAR(err.translation().z(), 0, 0.005);
   EXPECT_NEAR(r.yaw_deg, -1.2, 0.1);
-  EXPECT_GT(r.overlap_cells, 10000u);
+  EXPECT_GT(r.overlap_cells, 4000u);  // of the 8 × 6 m site at 10 cm
 }
 
 // The same site surveyed twice with different noise, a navigation offset and placements that

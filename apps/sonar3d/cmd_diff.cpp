@@ -48,6 +48,9 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--k-sigma", c.k_sigma,
                   "significant change: more than this times the robust sigma of B - A")
       ->capture_default_str();
+  cmd->add_option("--tolerance", c.tolerance_m,
+                  "horizontal misalignment of the maps tolerated at height steps, metres")
+      ->capture_default_str();
   cmd->add_option("--min-area", c.min_area_m2, "smallest region of change reported, square metres")
       ->capture_default_str();
   cmd->add_option("--registration-cell", c.registration.cell_m,
@@ -73,6 +76,10 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--turn-tol-deg", c.turn_tol_deg,
                   "an object turned by at most this (modulo its symmetry) is unchanged, degrees")
+      ->capture_default_str();
+  cmd->add_option("--confirm-radius", c.confirm_radius_m,
+                  "an object change needs a region of height change within this of the object, "
+                  "metres")
       ->capture_default_str();
   cmd->add_option("--threads", c.registration.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();

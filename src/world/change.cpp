@@ -140,8 +140,12 @@ void ChangeConfig::validate() const {
   require_non_negative(min_sigma_m, "min_sigma_m", "m");
   require_non_negative(min_area_m2, "min_area_m2", "m²");
   require_non_negative(link_m, "link_m", "m");
+  require_non_negative(tolerance_m, "tolerance_m", "m");
+  require(tolerance_m <= 20 * cell_m, "tolerance_m must be at most 20 cells");
   require(link_m <= 100 * cell_m, "link_m must be at most 100 cells");
   require_positive(match_radius_m, "match_radius_m", "m");
+  require_non_negative(confirm_radius_m, "confirm_radius_m", "m");
+  require(confirm_radius_m <= 1000 * cell_m, "confirm_radius_m must be at most 1000 cells");
   require_non_negative(shift_tol_m, "shift_tol_m", "m");
   require_non_negative(turn_tol_deg, "turn_tol_deg", "degrees");
 }
@@ -245,35 +249,126 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
               std::to_string(config.search_m) + " m leaves " +
               std::to_string(config.min_overlap_cells) + " cells observed in both; " +
               last_error + ")");
-  // 2. At the fine cell, around the coarse winner (shift within a coarse cell of it): the yaw
-  // half a step either side, the parabola through the three costs, its vertex.
-  const Eigen::Vector3d prior = best.t;
-  const double h = 0.5 * config.yaw_step_deg * kDeg, search = config.yaw_cell_m;
-  Trial mid = trial(a_fine, best.yaw, prior, search);
-  best = mid;
-  if (n > 0 && std::isfinite(mid.cost)) {
-    const Trial left = trial(a_fine, mid.yaw - h, prior, search);
-    const Trial right = trial(a_fine, mid.yaw + h, prior, search);
-    for (const Trial* tr : {&left, &right}) {
-      if (tr->cost < best.cost) best = *tr;
-    }
-    const double curvature = left.cost + right.cost - 2 * mid.cost;
-    if (std::isfinite(curvature) && curvature > 0) {
-      const double step = std::clamp(0.5 * (left.cost - right.cost) / curvature, -1.0, 1.0);
-      const Trial vertex = trial(a_fine, mid.yaw + step * h, prior, search);
-      if (vertex.cost < best.cost) best = vertex;
-    }
-  }
+  // 2. At cell_m, the shift refined within a coarse cell of the coarse one (sub-cell).
+  best = trial(a_fine, best.yaw, best.t, config.yaw_cell_m);
   require(std::isfinite(best.cost), "change detection: the surveys do not overlap at the fine "
                                     "cell (" + last_error + ")");
+  // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
+  // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
+  // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
+  // inlier_fraction of |r| kept each iteration.
+  const double gn_cell = 0.5 * config.cell_m;
+  const ElevationMap a_gn = map_of(a_world, gn_cell, "A");
+  std::vector<Eigen::Vector3d> pts;
+  {
+    const ElevationMap m = map_of(b_world, gn_cell, "B");
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        if (!m.valid(r, c)) continue;
+        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+        pts.emplace_back(xy.x(), xy.y(), m.at(r, c));
+      }
+    }
+  }
+  // A's height and gradient at (x, y), bilinear between the four surrounding cell centres.
+  auto sample = [&](double x, double y, double* z, Eigen::Vector2d* g) {
+    const double u = (x - a_gn.origin_xy.x()) / gn_cell - 0.5;
+    const double v = (a_gn.origin_xy.y() - y) / gn_cell - 0.5;
+    const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
+    if (c0 < 0 || r0 < 0 || c0 + 1 >= a_gn.cols || r0 + 1 >= a_gn.rows) return false;
+    const float z00 = a_gn.at(r0, c0), z01 = a_gn.at(r0, c0 + 1), z10 = a_gn.at(r0 + 1, c0),
+                z11 = a_gn.at(r0 + 1, c0 + 1);
+    if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
+    const double fu = u - c0, fv = v - r0;
+    *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
+    const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
+    const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
+    *g = {dzdu / gn_cell, -dzdv / gn_cell};  // rows run southward
+    return true;
+  };
+  double yaw = best.yaw;
+  Eigen::Vector3d t = best.t;
+  // B's points were turned about the pivot, then shifted: q = R(ψ)(p − c) + c + t.
+  std::vector<double> absr;
+  double gn_cost = best.cost;
+  std::size_t gn_used = 0;
+  for (int it = 0; it < 30; ++it) {
+    const double cs = std::cos(yaw), sn = std::sin(yaw);
+    struct Row {
+      Eigen::Vector4d j;
+      double r;
+    };
+    std::vector<Row> rows;
+    rows.reserve(pts.size());
+    for (const Eigen::Vector3d& p : pts) {
+      const double dx = p.x() - pivot.x(), dy = p.y() - pivot.y();
+      const double qx = cs * dx - sn * dy + pivot.x() + t.x();
+      const double qy = sn * dx + cs * dy + pivot.y() + t.y();
+      double za;
+      Eigen::Vector2d g;
+      if (!sample(qx, qy, &za, &g)) continue;
+      const double dqx = -sn * dx - cs * dy, dqy = cs * dx - sn * dy;  // ∂q/∂ψ
+      rows.push_back({Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1),
+                      za - (p.z() + t.z())});
+    }
+    if (rows.size() < static_cast<std::size_t>(config.min_overlap_cells)) break;
+    absr.resize(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) absr[i] = std::abs(rows[i].r);
+    const std::size_t keep =
+        std::max<std::size_t>(1, static_cast<std::size_t>(config.inlier_fraction * rows.size()));
+    std::nth_element(absr.begin(), absr.begin() + static_cast<std::ptrdiff_t>(keep - 1),
+                     absr.end());
+    const double cut = absr[keep - 1];
+    Eigen::Matrix4d H = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+    double sum = 0;
+    std::size_t used = 0;
+    for (const Row& row : rows) {
+      if (std::abs(row.r) > cut) continue;
+      H += row.j * row.j.transpose();
+      rhs -= row.j * row.r;
+      sum += std::abs(row.r);
+      ++used;
+    }
+    gn_cost = sum / static_cast<double>(used);
+    gn_used = used;
+    H.diagonal() += Eigen::Vector4d::Constant(1e-9 * H.trace() + 1e-12);  // a flat seabed
+    const Eigen::Vector4d delta = H.ldlt().solve(rhs);
+    if (!delta.allFinite()) break;
+    // Steps bounded by the basin of the coarse search (a coarse cell, a yaw step).
+    const double step_yaw = std::clamp(delta[0], -config.yaw_step_deg * kDeg,
+                                       config.yaw_step_deg * kDeg);
+    yaw += step_yaw;
+    t += Eigen::Vector3d(std::clamp(delta[1], -config.yaw_cell_m, config.yaw_cell_m),
+                         std::clamp(delta[2], -config.yaw_cell_m, config.yaw_cell_m), delta[3]);
+    if (std::abs(step_yaw) < 1e-6 && delta.segment<3>(1).norm() < 1e-4) break;
+  }
+  // Kept only when it stays within the coarse search's basin and lowers the shift search's own
+  // cost (mean |A − B| over the inlier fraction at cell_m): on maps that are not rigidly alike
+  // (dead reckoning distorts each survey differently), the least-squares optimum can sit
+  // elsewhere than the robust one.
+  bool refined = gn_used > 0 && std::abs(yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
+                 (t - best.t).head<2>().norm() <= config.yaw_cell_m;
+  if (refined) {
+    Eigen::Isometry3d T = turn(yaw);
+    T.translation() += t;
+    std::size_t overlap = 0;
+    const double cost =
+        registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
+                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
+    refined = cost < best.cost;
+    if (refined) gn_cost = cost, gn_used = overlap;
+  }
   ChangeRegistration out;
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
-  shift.translation() = best.t;
-  out.T_a_b = shift * turn(best.yaw);
-  out.method = "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, coarse to fine";
-  out.yaw_deg = best.yaw / kDeg;
-  out.rms_m = best.cost;
-  out.overlap_cells = best.overlap;
+  shift.translation() = refined ? t : best.t;
+  out.T_a_b = shift * turn(refined ? yaw : best.yaw);
+  out.method = refined ? "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, then "
+                         "trimmed Gauss-Newton of heights (yaw, shift, height)"
+                       : "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
+  out.yaw_deg = (refined ? yaw : best.yaw) / kDeg;
+  out.rms_m = refined ? gn_cost : best.cost;
+  out.overlap_cells = refined ? gn_used : best.overlap;
   out.seconds = seconds_since(t0);
   return out;
 }
@@ -400,19 +495,21 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   th.turn_tol_deg = config.turn_tol_deg;
   th.match_radius_m = config.match_radius_m;
 
-  // A cell changed when B's height lies beyond the range of A's heights in the 3×3 cells around
-  // it, or A's beyond B's, by more than the threshold: a wall that moved by less than a cell
-  // between the maps is no change. (The two cannot disagree in sign.)
+  // A cell changed when B's height lies beyond the range of A's heights in the cells within
+  // tolerance_m around it (at least the 3×3), or A's beyond B's, by more than the threshold: a
+  // wall that the two maps place less than that apart is no change. (The two tests cannot
+  // disagree in sign.)
   const int rows = a.rows, cols = a.cols;
   std::vector<int8_t> sign(a.z.size(), 0);
   const float med = static_cast<float>(th.median_m), thr = static_cast<float>(th.change_m);
+  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
   tbb::parallel_for(0, rows, [&](int row) {
     for (int col = 0; col < cols; ++col) {
       const std::size_t i = a.index(row, col);
       if (!(d.z[i] == d.z[i])) continue;
       float alo = std::numeric_limits<float>::infinity(), ahi = -alo, blo = alo, bhi = -alo;
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
+      for (int dr = -reach; dr <= reach; ++dr) {
+        for (int dc = -reach; dc <= reach; ++dc) {
           const int rr = row + dr, cc = col + dc;
           if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
           const std::size_t k = a.index(rr, cc);
@@ -474,11 +571,14 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
     reg.id = static_cast<int>(r->regions.size());
     r->regions.push_back(reg);
   }
-  // The registration's residual: the RMS of B − A where nothing changed.
+  // The registration's residual: the RMS of B − A over the cells within the threshold of the
+  // median (the noise; steps at walls and the changes left out).
   double ss = 0;
   std::size_t m = 0;
   for (std::size_t i = 0; i < d.z.size(); ++i) {
-    if (d.z[i] == d.z[i] && sign[i] == 0) ss += static_cast<double>(d.z[i]) * d.z[i], ++m;
+    if (d.z[i] == d.z[i] && std::abs(d.z[i] - med) <= thr) {
+      ss += static_cast<double>(d.z[i]) * d.z[i], ++m;
+    }
   }
   r->registration.rms_m = m > 0 ? std::sqrt(ss / static_cast<double>(m)) : 0;
   r->change_map = std::move(d);
@@ -508,6 +608,36 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
   for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
   r.objects = compare_placements(pa, pb_in_a, symmetries, config);
   compare_geometry(a_world, transformed(b_world, r.registration.T_a_b), config, &r);
+  // An object change the heights do not show is the recognition's, not the site's: a moved,
+  // added or removed object needs a region of change within confirm_radius_m of where it was or
+  // is, unless both surveys observed less than half of that disc (then the placements decide).
+  const ElevationMap& d = r.change_map;
+  const int reach = static_cast<int>(std::ceil(config.confirm_radius_m / d.cell_m));
+  for (ObjectChange& o : r.objects) {
+    if (o.status == ObjectStatus::Unchanged) continue;
+    std::vector<Eigen::Vector2d> at;
+    if (o.in_a) at.push_back(o.T_world_model_a.translation().head<2>());
+    if (o.in_b) at.push_back(o.T_world_model_b_in_a.translation().head<2>());
+    bool confirmed = false, observed = false;
+    for (const Eigen::Vector2d& p : at) {
+      for (const ChangeRegion& g : r.regions) {
+        confirmed |= (g.centroid.head<2>() - p).norm() <= config.confirm_radius_m;
+      }
+      const int c0 = static_cast<int>(std::floor((p.x() - d.origin_xy.x()) / d.cell_m));
+      const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - p.y()) / d.cell_m));
+      std::size_t in_disc = 0, seen = 0;
+      for (int dr = -reach; dr <= reach; ++dr) {
+        for (int dc = -reach; dc <= reach; ++dc) {
+          if (dr * dr + dc * dc > reach * reach) continue;
+          ++in_disc;
+          const int rr = r0 + dr, cc = c0 + dc;
+          seen += rr >= 0 && cc >= 0 && rr < d.rows && cc < d.cols && d.valid(rr, cc);
+        }
+      }
+      observed |= 2 * seen >= in_disc;
+    }
+    if (observed && !confirmed) o.status = ObjectStatus::Unchanged;
+  }
   r.seconds = seconds_since(t0);
   return r;
 }

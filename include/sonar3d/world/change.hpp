@@ -62,9 +62,9 @@ struct ChangeRegistration {
   Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
   std::string method;  // how T_a_b was found
   double yaw_deg = 0;  // the yaw of T_a_b, degrees
-  // RMS of the height differences B − A over the overlap at the change map's cell, leaving out
-  // the cells of significant change, m (set by diff_surveys; the registration alone gives the
-  // RMS of its inlier fraction at its own cell).
+  // RMS of the height differences B − A over the change map's cells within the change threshold
+  // of their median (the noise: height steps and changes left out), m. Set by diff_surveys;
+  // register_surveys alone gives the mean |A − B| of its inlier fraction at its own cell.
   double rms_m = 0;
   std::size_t overlap_cells = 0;  // cells observed in both surveys (change map)
   double seconds = 0;
@@ -89,6 +89,11 @@ struct ChangeConfig {
   // survey's heights in the 3×3 cells around (a cell's worth of misregistration at a wall is
   // no change).
   double k_sigma = 5;
+  // The horizontal misalignment tolerated between the two maps after registration, m: each
+  // survey's dead reckoning distorts its map differently (docs/mapping.md: a 0.7 % shrink, a
+  // 0.4° shear on the field), which no rigid T_a_b takes out; a height step (wall, rock edge)
+  // that the maps place closer than this is no change. At least one cell.
+  double tolerance_m = 0.1;
   // The robust sigma: the quantile `sigma_quantile` of |d − median d| over the overlap, divided
   // by the normal distribution's quantile there (0.8: a sigma when at most 20 % of the overlap has
   // changed); never below min_sigma_m (noise-free simulations).
@@ -104,6 +109,11 @@ struct ChangeConfig {
   double match_radius_m = 1.0;
   double shift_tol_m = 0.1;
   double turn_tol_deg = 3;
+  // A moved, added or removed object must be confirmed by a region of height change within this
+  // of its origin in A or B (when both surveys observed at least half of that disc); otherwise
+  // the difference is the recognition's (a placement off by 15 cm, a structure missed) and the
+  // object is unchanged, m.
+  double confirm_radius_m = 1.5;
   void validate() const;
 };
 
@@ -163,7 +173,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
                                              const ChangeConfig& config);
 
 // The whole comparison: B registered onto A, its placements (if any) moved into A's frame and
-// compared with A's, and the height change map with its regions. `pa`, `pb` may both be empty
+// compared with A's, the height change map with its regions, and each object change confirmed by
+// a region near it (ChangeConfig::confirm_radius_m). `pa`, `pb` may both be empty
 // (geometry only).
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
