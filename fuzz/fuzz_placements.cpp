@@ -5,8 +5,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   sonar3d::fuzz::run([&] {
-    const auto p = sonar3d::parse_placements(
-        std::string(reinterpret_cast<const char*>(data), size), "placements.json");
+    const auto p = sonar3d::parse_placements(std::string(reinterpret_cast<const char*>(data), size),
+                                             "placements.json");
     auto moved = p;
     for (auto& m : moved) m.T_world_model.translation().x() += 0.2;
     sonar3d::compare_placements(p, moved, {}, sonar3d::ChangeConfig{});

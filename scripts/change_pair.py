@@ -8,9 +8,10 @@ Survey A is the site as it was; survey B is the same site later, with:
   - B's whole world frame offset from A's (as two surveys navigated from different fixes): the
     site seen in B's frame is A's site moved by T_b_a = Trans(shift) * Rz(yaw);
   - another seed (ray jitter, navigation bias walk) and other dead-reckoning errors.
-`--kind same` writes the same site twice (only the frame offset, seeds and drift differ).
+`same` writes the same site twice (only the frame offset, seeds and drift differ); `drift` is
+`changed` with ten times the navigation bias walk in B (a DVL bias wandering 10x faster).
 
-Usage: scripts/change_pair.py {small|field} {changed|same} OUT_DIR
+Usage: scripts/change_pair.py {small|field} {changed|same|drift} OUT_DIR
   writes OUT_DIR/change_a.yaml, OUT_DIR/change_b.yaml and OUT_DIR/truth.json (T_a_b, changes).
 """
 import json
@@ -93,10 +94,14 @@ def pose(p):
 def scene(site, which, kind):
     t = site["T_b_a"] if which == "b" else (0.0, 0.0, 0.0, 0.0)
     seed = site["seeds"][0 if which == "a" else 1]
+    nav = site["nav_" + which]
+    if which == "b" and kind == "drift":
+        nav = nav.replace("bias_walk: 0.00005", "bias_walk: 0.0005")
     lines = ["# written by scripts/change_pair.py: survey %s of a change-detection pair (%s)"
              % (which.upper(), kind),
              "seed: %d" % seed,
-             "navigation_error: " + site["nav_" + which]]
+             "navigation_error: " + nav]
+    kind = "changed" if kind == "drift" else kind
     lines += site["header"]
     lines.append("objects:")
     lines.append("  - {name: seabed, primitive: %s, pose: %s, reflectivity: 0.3}"
@@ -121,7 +126,7 @@ def scene(site, which, kind):
 
 
 def main():
-    if len(sys.argv) != 4 or sys.argv[1] not in SITES or sys.argv[2] not in ("changed", "same"):
+    if len(sys.argv) != 4 or sys.argv[1] not in SITES or sys.argv[2] not in ("changed", "same", "drift"):
         sys.exit(__doc__)
     site, kind, out = SITES[sys.argv[1]], sys.argv[2], sys.argv[3]
     for which in ("a", "b"):
@@ -135,7 +140,7 @@ def main():
     T_a_b = [R[0] + [tt[0]], R[1] + [tt[1]], R[2] + [tt[2]], [0, 0, 0, 1]]
     truth = {"T_a_b": [v for row in T_a_b for v in row],
              "changes": {"riser": "moved 0.3 m, turned 10 deg", "pillar": "removed",
-                         "tank": "added"} if kind == "changed" else {}}
+                         "tank": "added"} if kind != "same" else {}}
     with open(out + "/truth.json", "w") as f:
         json.dump(truth, f, indent=1)
 

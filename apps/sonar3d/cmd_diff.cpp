@@ -116,22 +116,23 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
           t.x(), t.y(), t.z(), r.registration.yaw_deg, r.registration.rms_m,
           r.registration.overlap_cells);
       for (const ObjectChange& ob : r.objects) {
-        const Eigen::Vector3d p = (ob.in_a ? ob.T_world_model_a : ob.T_world_model_b_in_a)
-                                      .translation();
+        const Eigen::Vector3d p =
+            (ob.in_a ? ob.T_world_model_a : ob.T_world_model_b_in_a).translation();
         fmt::print("  {} ({}): {} at E {:.2f} N {:.2f}", ob.id, ob.model,
                    object_status_name(ob.status), p.x(), p.y());
-        if (ob.in_a && ob.in_b) fmt::print(", shift {:.3f} m, turn {:.1f} deg", ob.shift_m,
-                                           ob.turn_deg);
+        if (ob.in_a && ob.in_b)
+          fmt::print(", shift {:.3f} m, turn {:.1f} deg", ob.shift_m, ob.turn_deg);
         fmt::print("\n");
       }
       fmt::print("  threshold {:.3f} m (k {:.1f} x sigma {:.4f} m), min area {:.3f} m2\n",
                  r.thresholds.change_m, r.thresholds.k_sigma, r.thresholds.sigma_m,
                  r.thresholds.min_area_m2);
       for (const ChangeRegion& reg : r.regions) {
-        fmt::print("  region {}: {} at E {:.2f} N {:.2f}, {:.2f} m2, max |change| {:.3f} m, mean "
-                   "{:+.3f} m\n",
-                   reg.id, reg.raised ? "raised" : "lowered", reg.centroid.x(), reg.centroid.y(),
-                   reg.area_m2, reg.max_abs_change_m, reg.mean_change_m);
+        fmt::print(
+            "  region {}: {} at E {:.2f} N {:.2f}, {:.2f} m2, max |change| {:.3f} m, mean "
+            "{:+.3f} m\n",
+            reg.id, reg.raised ? "raised" : "lowered", reg.centroid.x(), reg.centroid.y(),
+            reg.area_m2, reg.max_abs_change_m, reg.mean_change_m);
       }
       fmt::print("{} objects, {} regions of change in {:.1f} s -> {}\n", r.objects.size(),
                  r.regions.size(), r.seconds, o->output);

@@ -233,5 +233,6 @@ void bind_recon(py::module_& m);
 void bind_eval(py::module_& m);
 void bind_mapping(py::module_& m);
 void bind_recog(py::module_& m);
+void bind_change(py::module_& m);
 
 }  // namespace sonar3d::python

@@ -1,7 +1,8 @@
 // The compiled part of the `sonar3d` Python package (sonar3d/_sonar3d). One file per area:
 // core.cpp (sensor, poses, clouds, meshes), io.cpp (datasets, imports), sim.cpp (simulation),
 // recon.cpp (denoise, carve, deconvolve), eval.cpp (metrics), mapping.cpp (elevation maps, swath
-// registration, field surveys), recog.cpp (CAD-model recognition). No algorithm lives here.
+// registration, field surveys), recog.cpp (CAD-model recognition), change.cpp (change detection
+// between surveys). No algorithm lives here.
 #include "common.hpp"
 #include "sonar3d/version.hpp"
 
@@ -22,4 +23,5 @@ PYBIND11_MODULE(_sonar3d, m) {
   sonar3d::python::bind_eval(m);
   sonar3d::python::bind_mapping(m);
   sonar3d::python::bind_recog(m);
+  sonar3d::python::bind_change(m);
 }

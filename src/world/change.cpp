@@ -61,8 +61,8 @@ ElevationMap map_on_grid(const PointCloud& cloud, const ElevationMap& like) {
 }
 
 ElevationMap map_of(const PointCloud& cloud, double cell_m, const char* which) {
-  require(!cloud.empty(), std::string("change detection: survey ") + which +
-                              " has no points (nothing to compare)");
+  require(!cloud.empty(),
+          std::string("change detection: survey ") + which + " has no points (nothing to compare)");
   ElevationMapConfig cfg;
   cfg.cell_m = cell_m;
   return elevation_map_from_points(cloud, cfg);
@@ -208,8 +208,7 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   };
   // B turned by `yaw`, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's search
   // (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
-  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior,
-                   double search) {
+  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior, double search) {
     Trial tr;
     tr.yaw = yaw;
     Eigen::Isometry3d T = turn(yaw);
@@ -239,20 +238,22 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   Trial best;
   const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
   for (int k = -n; k <= n; ++k) {
-    const Trial tr = trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(),
-                           config.search_m);
+    const Trial tr =
+        trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(), config.search_m);
     if (tr.cost < best.cost) best = tr;
   }
   require(std::isfinite(best.cost),
           "change detection: the surveys do not overlap (no yaw within ±" +
               std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
               std::to_string(config.search_m) + " m leaves " +
-              std::to_string(config.min_overlap_cells) + " cells observed in both; " +
-              last_error + ")");
+              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
+              ")");
   // 2. At cell_m, the shift refined within a coarse cell of the coarse one (sub-cell).
   best = trial(a_fine, best.yaw, best.t, config.yaw_cell_m);
-  require(std::isfinite(best.cost), "change detection: the surveys do not overlap at the fine "
-                                    "cell (" + last_error + ")");
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap at the fine "
+          "cell (" +
+              last_error + ")");
   // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
   // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
   // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
@@ -308,8 +309,8 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       Eigen::Vector2d g;
       if (!sample(qx, qy, &za, &g)) continue;
       const double dqx = -sn * dx - cs * dy, dqy = cs * dx - sn * dy;  // ∂q/∂ψ
-      rows.push_back({Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1),
-                      za - (p.z() + t.z())});
+      rows.push_back(
+          {Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1), za - (p.z() + t.z())});
     }
     if (rows.size() < static_cast<std::size_t>(config.min_overlap_cells)) break;
     absr.resize(rows.size());
@@ -336,8 +337,8 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     const Eigen::Vector4d delta = H.ldlt().solve(rhs);
     if (!delta.allFinite()) break;
     // Steps bounded by the basin of the coarse search (a coarse cell, a yaw step).
-    const double step_yaw = std::clamp(delta[0], -config.yaw_step_deg * kDeg,
-                                       config.yaw_step_deg * kDeg);
+    const double step_yaw =
+        std::clamp(delta[0], -config.yaw_step_deg * kDeg, config.yaw_step_deg * kDeg);
     yaw += step_yaw;
     t += Eigen::Vector3d(std::clamp(delta[1], -config.yaw_cell_m, config.yaw_cell_m),
                          std::clamp(delta[2], -config.yaw_cell_m, config.yaw_cell_m), delta[3]);
@@ -353,9 +354,8 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     Eigen::Isometry3d T = turn(yaw);
     T.translation() += t;
     std::size_t overlap = 0;
-    const double cost =
-        registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
-                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
+    const double cost = registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
+                                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
     refined = cost < best.cost;
     if (refined) gn_cost = cost, gn_used = overlap;
   }
@@ -385,9 +385,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
   auto symmetry_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
     if (symmetries.empty()) return Symmetry::None;
     const auto it = symmetries.find(p.model);
-    require(it != symmetries.end(), std::string("placements of survey ") + which +
-                                        ": placement " + std::to_string(i) + " is a model '" +
-                                        printable(p.model) +
+    require(it != symmetries.end(), std::string("placements of survey ") + which + ": placement " +
+                                        std::to_string(i) + " is a model '" + printable(p.model) +
                                         "' that the catalogue does not list");
     return it->second;
   };
@@ -410,9 +409,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
       if (d <= config.match_radius_m) pairs.push_back({d, i, j});
     }
   }
-  std::stable_sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) {
-    return x.d < y.d;
-  });
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
   std::vector<long> match_a(a.size(), -1), match_b(b_in_a.size(), -1);
   for (const Pair& p : pairs) {
     if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
@@ -438,8 +436,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
               .norm();
       // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
       const double period = sym_a[i] == Symmetry::Half ? 180 : 360;
-      double turn = std::fmod(
-          std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
+      double turn =
+          std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
       turn = std::min(turn, period - turn);
       c.turn_deg = sym_a[i] == Symmetry::Full ? 0 : turn;
       c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
@@ -514,7 +512,8 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
           if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
           const std::size_t k = a.index(rr, cc);
           if (a.z[k] == a.z[k]) alo = std::min(alo, a.z[k]), ahi = std::max(ahi, a.z[k]);
-          if (b.z[k] == b.z[k]) blo = std::min(blo, b.z[k] - med), bhi = std::max(bhi, b.z[k] - med);
+          if (b.z[k] == b.z[k])
+            blo = std::min(blo, b.z[k] - med), bhi = std::max(bhi, b.z[k] - med);
         }
       }
       const float zb = b.z[i] - med, za = a.z[i];
@@ -749,10 +748,9 @@ std::vector<SurveyPlacement> parse_placements(const std::string& text, const std
           "placements '" + source + "': key 'placements' (a list) missing");
   std::vector<SurveyPlacement> out;
   const nlohmann::json& list = j["placements"];
-  require(list.size() <= kMaxPlacements, "placements '" + source + "': " +
-                                             std::to_string(list.size()) +
-                                             " placements; at most " +
-                                             std::to_string(kMaxPlacements) + " are compared");
+  require(list.size() <= kMaxPlacements,
+          "placements '" + source + "': " + std::to_string(list.size()) + " placements; at most " +
+              std::to_string(kMaxPlacements) + " are compared");
   for (std::size_t i = 0; i < list.size(); ++i) {
     const std::string where = "placements '" + source + "', placement " + std::to_string(i);
     const nlohmann::json& p = list[i];

@@ -49,7 +49,7 @@ struct ChangeRegistrationConfig {
   double search_m = 0.6;        // ± horizontal shift searched (East, North), m
   double yaw_search_deg = 2;    // ± yaw searched, degrees
   double yaw_step_deg = 0.25;   // yaw step of the coarse search, degrees
-  int coarse_factor = 4;       // the shift search's coarse-to-fine factor (swath_registration.hpp)
+  int coarse_factor = 4;        // the shift search's coarse-to-fine factor (swath_registration.hpp)
   int min_overlap_cells = 500;  // fewer cells observed in both maps: the surveys do not overlap
   // Fraction of the overlap whose height differences score a yaw (the smallest ones): the changes
   // themselves must not decide the registration.
@@ -143,10 +143,10 @@ struct ChangeRegion {
 
 struct ChangeThresholds {
   double cell_m = 0;
-  double median_m = 0;   // median of B − A over the overlap (a height offset left), m
-  double sigma_m = 0;    // the robust sigma of B − A, m
+  double median_m = 0;  // median of B − A over the overlap (a height offset left), m
+  double sigma_m = 0;   // the robust sigma of B − A, m
   double k_sigma = 0;
-  double change_m = 0;   // the height change threshold: k_sigma · sigma_m, m
+  double change_m = 0;  // the height change threshold: k_sigma · sigma_m, m
   double min_area_m2 = 0;
   double shift_tol_m = 0, turn_tol_deg = 0, match_radius_m = 0;
 };
