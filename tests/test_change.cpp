@@ -99,8 +99,11 @@ TEST(ChangeRegistration, RecoversAKnownOffset) {
   const PointCloud b = survey({kStay}, 0.008, 2, kTbA);
   const ChangeRegistration r = register_surveys(a, b, test_config().registration);
   const Eigen::Isometry3d err = r.T_a_b * kTbA;  // identity when exact
-  EXPECT_LT(err.translation().head<2>().norm(), 0.01) << err.matrix();
-  EXPECT_NEAR(err.translation().z(), 0, 0.005);
+  // Within 2.5 cm horizontally (the site's edges are 5 m from its centre: 0.1° is 0.9 cm there)
+  // and 1 cm vertically: each map keeps the highest of ~6 noisy points per 5 cm cell, which
+  // raises A by ~6 mm and B by ~10 mm.
+  EXPECT_LT(err.translation().head<2>().norm(), 0.025) << err.matrix();
+  EXPECT_NEAR(err.translation().z(), 0, 0.01);
   EXPECT_NEAR(r.yaw_deg, -1.2, 0.1);
   EXPECT_GT(r.overlap_cells, 4000u);  // of the 8 × 6 m site at 10 cm
 }
@@ -124,7 +127,7 @@ TEST(ChangeDetection, IdenticalSurveysWithDifferentNoiseGiveNoChange) {
   ASSERT_EQ(r.objects.size(), 3u);
   for (const ObjectChange& o : r.objects) {
     EXPECT_EQ(o.status, ObjectStatus::Unchanged) << o.id;
-    EXPECT_LT(o.shift_m, 0.03) << o.id;
+    EXPECT_LT(o.shift_m, 0.05) << o.id;  // 1.1 cm of recognition noise + registration
     EXPECT_LT(o.turn_deg, 1.0) << o.id;
   }
   EXPECT_LT(r.registration.rms_m, 0.03);

@@ -11,7 +11,9 @@ import sonar3d
 def site(box=None, offset=(0.0, 0.0, 0.0), yaw_deg=0.0, noise=0.005, seed=1, step=0.02):
     xs, ys = np.meshgrid(np.arange(-4, 4, step), np.arange(-3, 3, step))
     z = 0.2 * np.sin(0.6 * xs) * np.cos(0.45 * ys) + 0.08 * np.sin(1.7 * xs + 1.1 * ys)
-    for rx, ry, h in [(-2.5, 1.5, 0.15), (1.0, -1.8, 0.2), (2.8, 2.0, 0.12), (-1.0, -0.5, 0.18)]:
+    rocks = [(-2.5, 1.5, 0.15), (1.0, -1.8, 0.2), (2.8, 2.0, 0.12), (-1.0, -0.5, 0.18), (3.5, -0.8, 0.1),
+             (-3.2, -2.2, 0.14)]
+    for rx, ry, h in rocks:
         z += h * np.exp(-((xs - rx) ** 2 + (ys - ry) ** 2) / (2 * 0.15**2))
     if box is not None:  # (x, y, half size, height)
         bx, by, hs, h = box

@@ -120,6 +120,7 @@ double normal_two_sided_quantile(double q) {
 void ChangeRegistrationConfig::validate() const {
   require_positive(cell_m, "registration cell_m", "m");
   require_positive(yaw_cell_m, "yaw_cell_m", "m");
+  require(yaw_cell_m >= cell_m, "yaw_cell_m must be at least the registration's cell_m");
   require_positive(search_m, "search_m", "m");
   require_non_negative(yaw_search_deg, "yaw_search_deg", "degrees");
   require(yaw_search_deg <= 45, "yaw_search_deg must be at most 45 degrees");
@@ -177,12 +178,19 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     hi = hi.cwiseMax(p);
   }
   const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
-  const ElevationMap a_coarse = map_of(a_world, config.yaw_cell_m, "A");
+  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
+  // The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells
+  // (on a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m.
+  const double observed_m2 =
+      static_cast<double>(a_fine.num_valid()) * config.cell_m * config.cell_m;
+  const double yaw_cell =
+      std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
+  const ElevationMap a_coarse = map_of(a_world, yaw_cell, "A");
   // The yaw search turns B's map at a fifth of its cell as points (one per cell: its highest),
   // not every point of B (4.4 M on the field; the map keeps only the highest per cell anyway).
   PointCloud b_thin;
   {
-    const ElevationMap m = map_of(b_world, config.yaw_cell_m / 5, "B");
+    const ElevationMap m = map_of(b_world, yaw_cell / 5, "B");
     for (int r = 0; r < m.rows; ++r) {
       for (int c = 0; c < m.cols; ++c) {
         if (!m.valid(r, c)) continue;
@@ -192,7 +200,6 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       }
     }
   }
-  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
 
   struct Trial {
     double yaw = 0, cost = std::numeric_limits<double>::infinity();
@@ -213,8 +220,8 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     tr.yaw = yaw;
     Eigen::Isometry3d T = turn(yaw);
     T.translation() += prior;
-    const bool coarse = &a == &a_coarse;
-    const ElevationMap b = map_of(transformed(coarse ? b_thin : b_world, T), a.cell_m, "B");
+    const ElevationMap b =
+        map_of(transformed(&a == &a_coarse ? b_thin : b_world, T), a.cell_m, "B");
     if (!maps_may_overlap(a, b, search)) {
       last_error = "their extents do not meet";
       return tr;
@@ -224,7 +231,9 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     sw.min_overlap_cells = config.min_overlap_cells;
     sw.coarse_factor = config.coarse_factor;
     sw.num_threads = config.num_threads;
-    sw.subcell = !coarse;  // the fine stage refines the shift
+    // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
+    // fine stage refines the shift); on small sites the yaw cell is cell_m.
+    sw.subcell = a.cell_m <= config.cell_m;
     try {
       const SwathTie tie = register_elevation_maps(a, b, sw);
       tr.t = prior + tie.t;
@@ -248,12 +257,10 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
               std::to_string(config.search_m) + " m leaves " +
               std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
               ")");
-  // 2. At cell_m, the shift refined within a coarse cell of the coarse one (sub-cell).
-  best = trial(a_fine, best.yaw, best.t, config.yaw_cell_m);
+  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
+  best = trial(a_fine, best.yaw, best.t, yaw_cell);
   require(std::isfinite(best.cost),
-          "change detection: the surveys do not overlap at the fine "
-          "cell (" +
-              last_error + ")");
+          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
   // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
   // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
   // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
@@ -340,8 +347,8 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     const double step_yaw =
         std::clamp(delta[0], -config.yaw_step_deg * kDeg, config.yaw_step_deg * kDeg);
     yaw += step_yaw;
-    t += Eigen::Vector3d(std::clamp(delta[1], -config.yaw_cell_m, config.yaw_cell_m),
-                         std::clamp(delta[2], -config.yaw_cell_m, config.yaw_cell_m), delta[3]);
+    t += Eigen::Vector3d(std::clamp(delta[1], -yaw_cell, yaw_cell),
+                         std::clamp(delta[2], -yaw_cell, yaw_cell), delta[3]);
     if (std::abs(step_yaw) < 1e-6 && delta.segment<3>(1).norm() < 1e-4) break;
   }
   // Kept only when it stays within the coarse search's basin and lowers the shift search's own
@@ -349,7 +356,7 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   // (dead reckoning distorts each survey differently), the least-squares optimum can sit
   // elsewhere than the robust one.
   bool refined = gn_used > 0 && std::abs(yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
-                 (t - best.t).head<2>().norm() <= config.yaw_cell_m;
+                 (t - best.t).head<2>().norm() <= yaw_cell;
   if (refined) {
     Eigen::Isometry3d T = turn(yaw);
     T.translation() += t;

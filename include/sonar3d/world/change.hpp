@@ -42,8 +42,9 @@ std::vector<SurveyPlacement> read_placements(const std::string& path);
 std::vector<SurveyPlacement> parse_placements(const std::string& text, const std::string& source);
 
 struct ChangeRegistrationConfig {
-  // The yaw window is searched on maps of yaw_cell_m (every yaw, the shift over ±search_m), the
-  // winner refined on maps of cell_m (the shift within ±yaw_cell_m of the coarse one).
+  // The yaw window is searched on maps of yaw_cell_m (every yaw, the shift over ±search_m), or
+  // finer down to cell_m on sites too small to keep ~20,000 observed cells at yaw_cell_m; the
+  // winner is refined on maps of cell_m (the shift within a yaw cell of the coarse one).
   double yaw_cell_m = 0.25;
   double cell_m = 0.1;
   double search_m = 0.6;        // ± horizontal shift searched (East, North), m
@@ -70,14 +71,14 @@ struct ChangeRegistration {
   double seconds = 0;
 };
 
-// Survey B registered onto survey A (both clouds in their own worlds) on elevation maps: for
+// Survey B registered onto survey A (both clouds in their own worlds) on elevation maps: (1) for
 // each yaw ψ in ±yaw_search_deg every yaw_step_deg (B turned about the centre of its extent), on
-// maps of yaw_cell_m, the shift (dx, dy) and height offset dz come from sec. 6.2.2.1's search
-// (register_elevation_maps: eq. 6.1's signed median for dz, eq. 6.2's score, sub-cell), and the
-// yaw whose registered maps leave the smallest mean |A − B| over the inlier fraction of the
-// overlap wins. Then on maps of cell_m: the winner and half a step either side (shift within
-// ±yaw_cell_m of the coarse one), and the vertex of the parabola through their costs; the best
-// of these. Throws Error when the maps do not overlap.
+// maps of the yaw cell (ChangeRegistrationConfig), the shift (dx, dy) and height offset dz come
+// from sec. 6.2.2.1's search (register_elevation_maps: eq. 6.1's signed median for dz, eq. 6.2's
+// score, sub-cell), and the yaw whose registered maps leave the smallest mean |A − B| over the
+// inlier fraction of the overlap wins; (2) the shift again at cell_m; (3) yaw, shift and height
+// by trimmed Gauss-Newton of B's heights onto A's bilinear height field at cell_m / 2, kept when
+// it lowers (1)'s cost at cell_m. Throws Error when the maps do not overlap.
 ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
                                     const ChangeRegistrationConfig& config);
 
