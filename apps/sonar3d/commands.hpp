@@ -40,5 +40,6 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_world(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run);
 
 }  // namespace sonar3d::cli

@@ -63,6 +63,7 @@ int main(int argc, char** argv) {
   add_recognize(app, g, run);
   add_texture(app, g, run);
   add_world(app, g, run);
+  add_diff(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

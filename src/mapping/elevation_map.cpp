@@ -84,7 +84,9 @@ ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
     hi = -lo;
     for (std::size_t i = 0; i < cloud_world.size(); ++i) {
       const Eigen::Vector3f& p = cloud_world.points[i];
-      require(p.allFinite(), "elevation map: point " + std::to_string(i) + " is not finite");
+      if (!p.allFinite()) {  // (the message is built only on failure: this loop is hot)
+        throw Error("elevation map: point " + std::to_string(i) + " is not finite");
+      }
       lo = lo.cwiseMin(p.head<2>().cast<double>());
       hi = hi.cwiseMax(p.head<2>().cast<double>());
     }
@@ -109,7 +111,7 @@ ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
   map.z.assign(static_cast<std::size_t>(map.rows) * map.cols, ElevationMap::kNoData);
   for (std::size_t i = 0; i < cloud_world.size(); ++i) {
     const Eigen::Vector3f& p = cloud_world.points[i];
-    require(p.allFinite(), "elevation map: point " + std::to_string(i) + " is not finite");
+    if (!p.allFinite()) throw Error("elevation map: point " + std::to_string(i) + " is not finite");
     const double col = cell_index(p.x(), c) - kx0;
     const double row = ky1 - cell_index(p.y(), c);
     if (col < 0 || row < 0 || col >= map.cols || row >= map.rows) continue;  // outside region

@@ -10,6 +10,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/recog/catalogue.hpp"
@@ -135,9 +136,23 @@ nlohmann::json num_or_null(double v) {
 
 }  // namespace
 
-PlacementsFile read_placements(const std::string& path) {
-  const nlohmann::json j = parse_json_file(path, "placements");
-  const std::string where = "placements '" + path + "'";
+PlacementsFile parse_placements(const std::string& text, const std::string& source) {
+  const std::string where = "placements '" + source + "'";
+  // Nesting bounded while parsing (as io/holoocean.cpp does): a value nested 100,000 levels deep
+  // would overflow the stack when copied or destroyed.
+  const nlohmann::json::parser_callback_t depth_guard =
+      [&where](int depth, nlohmann::json::parse_event_t event, nlohmann::json&) {
+        if ((event == nlohmann::json::parse_event_t::object_start ||
+             event == nlohmann::json::parse_event_t::array_start) &&
+            depth >= limits::kMaxNestingDepth) {
+          throw Error(where + ": JSON nested more than " +
+                      std::to_string(limits::kMaxNestingDepth) + " levels deep");
+        }
+        return true;
+      };
+  const nlohmann::json j = nlohmann::json::parse(text, depth_guard, /*allow_exceptions=*/false);
+  require(!j.is_discarded(), where + ": not valid JSON");
+  require(j.is_object(), where + ": the top level is not a JSON object");
   require(j.contains("format") && j["format"].is_string() &&
               j["format"].get<std::string>() == "sonar3d-placements",
           where + ": no \"format\": \"sonar3d-placements\" (write it with sonar3d recognize)");
@@ -150,7 +165,7 @@ PlacementsFile read_placements(const std::string& path) {
   require(list.size() <= kMaxPlacements,
           where + ": more than " + std::to_string(kMaxPlacements) + " placements");
   PlacementsFile out;
-  out.path = path;
+  out.path = source;
   out.map = optional_string(j, "map");
   out.catalogue = optional_string(j, "catalogue");
   for (std::size_t i = 0; i < list.size(); ++i) {
@@ -168,6 +183,18 @@ PlacementsFile read_placements(const std::string& path) {
     out.placements.push_back(p);
   }
   return out;
+}
+
+PlacementsFile read_placements(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    throw Error("placements '" + path +
+                "': " + (fs::exists(path, ec) ? "not a file" : "no such file"));
+  }
+  const std::uintmax_t size = fs::file_size(path, ec);
+  require(!ec && size <= kMaxJsonBytes,
+          "placements '" + path + "': larger than 64 MB, not a file sonar3d wrote");
+  return parse_placements(read_text_file(path), path);
 }
 
 void SeabedConfig::validate() const {

@@ -43,6 +43,9 @@ constexpr std::size_t kMaxPlacements = 10'000;
 // non-string model, a T_world_model that is not 4×4 finite numbers with a rotation block
 // (orthonormal, determinant +1, within 1e-3) and a last row of 0 0 0 1.
 PlacementsFile read_placements(const std::string& path);
+// The same on a file's text (`source` names it in errors). Nesting deeper than
+// limits::kMaxNestingDepth is refused.
+PlacementsFile parse_placements(const std::string& text, const std::string& source);
 
 // A placed CAD model of the world model.
 struct WorldObject {

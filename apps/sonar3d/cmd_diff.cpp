@@ -1,0 +1,144 @@
+#include <fmt/core.h>
+
+#include <cmath>
+#include <memory>
+
+#include "commands.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/world/change.hpp"
+
+namespace sonar3d::cli {
+
+void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
+  auto* cmd = app.add_subcommand(
+      "diff",
+      "Change detection between two surveys of one site: register B onto A (elevation-map shift "
+      "search, eq. 6.1-6.2, over a yaw search), compare the placed catalogue models (unchanged, "
+      "moved, added, removed) and the heights cell by cell (regions of significant change). "
+      "Writes OUTPUT/changes.json, change_map.tif (B - A, metres) and change_points.ply, all in "
+      "A's frame.");
+  struct Opts {
+    std::string a, b, output, catalogue, placements_a, placements_b;
+    ChangeConfig cfg;
+    RecognitionConfig recog;
+  };
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("a", o->a, "survey A (the reference): a map directory (sonar3d map) or a .ply")
+      ->required()
+      ->check(CLI::ExistingPath);
+  cmd->add_option("b", o->b, "survey B (the later one): a map directory or a .ply")
+      ->required()
+      ->check(CLI::ExistingPath);
+  cmd->add_option("-o,--output", o->output, "change directory to create (must not exist)")
+      ->required();
+  cmd->add_option("--catalogue", o->catalogue,
+                  "catalogue YAML (docs/recognition.md): symmetries for the turns; without "
+                  "placements, each survey is recognised with it first")
+      ->check(CLI::ExistingFile);
+  auto* pa = cmd->add_option("--placements-a", o->placements_a,
+                             "survey A's placements.json (sonar3d recognize)")
+                 ->check(CLI::ExistingFile);
+  auto* pb = cmd->add_option("--placements-b", o->placements_b, "survey B's placements.json")
+                 ->check(CLI::ExistingFile);
+  pa->needs(pb);
+  pb->needs(pa);
+  ChangeConfig& c = o->cfg;
+  cmd->add_option("--cell", c.cell_m, "height change map cell, metres")->capture_default_str();
+  cmd->add_option("--k-sigma", c.k_sigma,
+                  "significant change: more than this times the robust sigma of B - A")
+      ->capture_default_str();
+  cmd->add_option("--tolerance", c.tolerance_m,
+                  "horizontal misalignment of the maps tolerated at height steps, metres")
+      ->capture_default_str();
+  cmd->add_option("--min-area", c.min_area_m2, "smallest region of change reported, square metres")
+      ->capture_default_str();
+  cmd->add_option("--registration-cell", c.registration.cell_m,
+                  "cell of the maps of the final registration, metres")
+      ->capture_default_str();
+  cmd->add_option("--yaw-cell", c.registration.yaw_cell_m,
+                  "cell of the maps of the yaw search, metres")
+      ->capture_default_str();
+  cmd->add_option("--search", c.registration.search_m,
+                  "half-width of the searched horizontal shift of B, metres")
+      ->capture_default_str();
+  cmd->add_option("--yaw-search-deg", c.registration.yaw_search_deg,
+                  "half-width of the searched yaw of B, degrees")
+      ->capture_default_str();
+  cmd->add_option("--yaw-step-deg", c.registration.yaw_step_deg,
+                  "yaw step of the coarse search (then refined), degrees")
+      ->capture_default_str();
+  cmd->add_option("--match-radius", c.match_radius_m,
+                  "placements of one model closer than this are one object, metres")
+      ->capture_default_str();
+  cmd->add_option("--shift-tol", c.shift_tol_m,
+                  "an object moved by at most this is unchanged, metres")
+      ->capture_default_str();
+  cmd->add_option("--turn-tol-deg", c.turn_tol_deg,
+                  "an object turned by at most this (modulo its symmetry) is unchanged, degrees")
+      ->capture_default_str();
+  cmd->add_option("--confirm-radius", c.confirm_radius_m,
+                  "an object change needs a region of height change within this of the object, "
+                  "metres")
+      ->capture_default_str();
+  cmd->add_option("--threads", c.registration.num_threads, "worker threads (0 = all cores)")
+      ->capture_default_str();
+  cmd->callback([&run, &g, o] {
+    run = [o, &g] {
+      ChangeConfig cfg = o->cfg;
+      cfg.validate();
+      Catalogue cat;
+      std::map<std::string, Symmetry> symmetries;
+      if (!o->catalogue.empty()) {
+        cat = read_catalogue(o->catalogue);
+        symmetries = catalogue_symmetries(cat);
+      }
+      const PointCloud a = read_survey_cloud(o->a), b = read_survey_cloud(o->b);
+      std::vector<SurveyPlacement> pa, pb;
+      if (!o->placements_a.empty()) {
+        pa = read_placements(o->placements_a).placements;
+        pb = read_placements(o->placements_b).placements;
+      } else if (!o->catalogue.empty()) {
+        RecognitionConfig rc = o->recog;
+        rc.num_threads = cfg.registration.num_threads;
+        rc.scan.num_threads = rc.num_threads;
+        rc.validate();
+        if (!g.quiet) fmt::print("recognising the catalogue's models in A and in B...\n");
+        pa = recognize_placements(a, cat, rc);
+        pb = recognize_placements(b, cat, rc);
+      }
+      const ChangeResult r = diff_surveys(a, b, pa, pb, symmetries, cfg);
+      write_change_directory(o->output, r);
+      const Eigen::Vector3d t = r.registration.T_a_b.translation();
+      fmt::print(
+          "B onto A: shift E {:+.3f} N {:+.3f} U {:+.3f} m, yaw {:+.2f} deg; rms {:.3f} m over "
+          "{} cells\n",
+          t.x(), t.y(), t.z(), r.registration.yaw_deg, r.registration.rms_m,
+          r.registration.overlap_cells);
+      for (const ObjectChange& ob : r.objects) {
+        const Eigen::Vector3d p =
+            (ob.in_a ? ob.T_world_model_a : ob.T_world_model_b_in_a).translation();
+        fmt::print("  {} ({}): {} at E {:.2f} N {:.2f}", ob.id, ob.model,
+                   object_status_name(ob.status), p.x(), p.y());
+        if (ob.in_a && ob.in_b)
+          fmt::print(", shift {:.3f} m, turn {:.1f} deg", ob.shift_m, ob.turn_deg);
+        fmt::print("\n");
+      }
+      fmt::print("  threshold {:.3f} m (k {:.1f} x sigma {:.4f} m), min area {:.3f} m2\n",
+                 r.thresholds.change_m, r.thresholds.k_sigma, r.thresholds.sigma_m,
+                 r.thresholds.min_area_m2);
+      for (const ChangeRegion& reg : r.regions) {
+        fmt::print(
+            "  region {}: {} at E {:.2f} N {:.2f}, {:.2f} m2, max |change| {:.3f} m, mean "
+            "{:+.3f} m\n",
+            reg.id, reg.raised ? "raised" : "lowered", reg.centroid.x(), reg.centroid.y(),
+            reg.area_m2, reg.max_abs_change_m, reg.mean_change_m);
+      }
+      fmt::print("{} objects, {} regions of change in {:.1f} s -> {}\n", r.objects.size(),
+                 r.regions.size(), r.seconds, o->output);
+      return 0;
+    };
+  });
+}
+
+}  // namespace sonar3d::cli

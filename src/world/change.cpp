@@ -1,0 +1,758 @@
+// Change detection between two surveys (include/sonar3d/world/change.hpp, docs/change.md).
+#include "sonar3d/world/change.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/recog/model.hpp"
+
+namespace sonar3d {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
+
+// The cloud's points moved by T.
+PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  PointCloud out;
+  out.points.resize(cloud.size());
+  const Eigen::Matrix3f R = T.linear().cast<float>();
+  const Eigen::Vector3f t = T.translation().cast<float>();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 1 << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                        out.points[i] = R * cloud.points[i] + t;
+                      }
+                    });
+  return out;
+}
+
+// An elevation map of `cloud` on the grid of `like` (same cell, origin and size).
+ElevationMap map_on_grid(const PointCloud& cloud, const ElevationMap& like) {
+  ElevationMapConfig cfg;
+  cfg.cell_m = like.cell_m;
+  const double c = like.cell_m;
+  cfg.region_min_xy = {like.origin_xy.x() + 0.5 * c, like.origin_xy.y() - (like.rows - 0.5) * c};
+  cfg.region_max_xy = {like.origin_xy.x() + (like.cols - 0.5) * c, like.origin_xy.y() - 0.5 * c};
+  ElevationMap m = elevation_map_from_points(cloud, cfg);
+  if (m.rows != like.rows || m.cols != like.cols ||
+      (m.origin_xy - like.origin_xy).norm() > 1e-6 * c) {
+    throw Error("change detection: internal grid mismatch");  // cannot happen: same cell grid
+  }
+  return m;
+}
+
+ElevationMap map_of(const PointCloud& cloud, double cell_m, const char* which) {
+  require(!cloud.empty(),
+          std::string("change detection: survey ") + which + " has no points (nothing to compare)");
+  ElevationMapConfig cfg;
+  cfg.cell_m = cell_m;
+  return elevation_map_from_points(cloud, cfg);
+}
+
+// Mean |A − B(x − dx, y − dy) − dz| over the smallest `fraction` of the overlap (nearest cell of
+// B), and the overlap's size.
+double registered_cost(const ElevationMap& a, const ElevationMap& b, const Eigen::Vector3d& t,
+                       double fraction, std::size_t* overlap) {
+  std::vector<float> d;
+  d.reserve(a.z.size() / 4);
+  const double c = b.cell_m;
+  for (int r = 0; r < a.rows; ++r) {
+    for (int col = 0; col < a.cols; ++col) {
+      const float za = a.at(r, col);
+      if (!(za == za)) continue;
+      const Eigen::Vector2d p = a.cell_center_xy(r, col) - t.head<2>();
+      const int bc = static_cast<int>(std::floor((p.x() - b.origin_xy.x()) / c));
+      const int br = static_cast<int>(std::floor((b.origin_xy.y() - p.y()) / c));
+      if (bc < 0 || br < 0 || bc >= b.cols || br >= b.rows) continue;
+      const float zb = b.at(br, bc);
+      if (!(zb == zb)) continue;
+      d.push_back(std::abs(static_cast<float>(za - zb - t.z())));
+    }
+  }
+  *overlap = d.size();
+  if (d.empty()) return std::numeric_limits<double>::infinity();
+  const std::size_t k = std::max<std::size_t>(1, static_cast<std::size_t>(fraction * d.size()));
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k - 1), d.end());
+  double sum = 0;
+  for (std::size_t i = 0; i < k; ++i) sum += d[i];
+  return sum / static_cast<double>(k);
+}
+
+// The quantile q of the values (partially reorders them).
+double quantile(std::vector<float>& v, double q) {
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// The normal distribution's two-sided quantile: P(|x| < z·sigma) = q.
+double normal_two_sided_quantile(double q) {
+  double lo = 0, hi = 10;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erf(mid / std::sqrt(2.0)) < q ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+void ChangeRegistrationConfig::validate() const {
+  require_positive(cell_m, "registration cell_m", "m");
+  require_positive(yaw_cell_m, "yaw_cell_m", "m");
+  require(yaw_cell_m >= cell_m, "yaw_cell_m must be at least the registration's cell_m");
+  require_positive(search_m, "search_m", "m");
+  require_non_negative(yaw_search_deg, "yaw_search_deg", "degrees");
+  require(yaw_search_deg <= 45, "yaw_search_deg must be at most 45 degrees");
+  require_positive(yaw_step_deg, "yaw_step_deg", "degrees");
+  require(yaw_search_deg / yaw_step_deg <= 1000,
+          "yaw_search_deg / yaw_step_deg must be at most 1000 (yaws searched)");
+  require(coarse_factor >= 1, "coarse_factor must be >= 1");
+  require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
+  require(inlier_fraction > 0 && inlier_fraction <= 1, "inlier_fraction must be in (0, 1]");
+  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+}
+
+void ChangeConfig::validate() const {
+  registration.validate();
+  require_positive(cell_m, "cell_m", "m");
+  require_positive(k_sigma, "k_sigma");
+  require(sigma_quantile > 0.5 && sigma_quantile < 1, "sigma_quantile must be in (0.5, 1)");
+  require_non_negative(min_sigma_m, "min_sigma_m", "m");
+  require_non_negative(min_area_m2, "min_area_m2", "m²");
+  require_non_negative(link_m, "link_m", "m");
+  require_non_negative(tolerance_m, "tolerance_m", "m");
+  require(tolerance_m <= 20 * cell_m, "tolerance_m must be at most 20 cells");
+  require(link_m <= 100 * cell_m, "link_m must be at most 100 cells");
+  require_positive(match_radius_m, "match_radius_m", "m");
+  require_non_negative(confirm_radius_m, "confirm_radius_m", "m");
+  require(confirm_radius_m <= 1000 * cell_m, "confirm_radius_m must be at most 1000 cells");
+  require_non_negative(shift_tol_m, "shift_tol_m", "m");
+  require_non_negative(turn_tol_deg, "turn_tol_deg", "degrees");
+}
+
+const char* object_status_name(ObjectStatus s) {
+  switch (s) {
+    case ObjectStatus::Unchanged:
+      return "unchanged";
+    case ObjectStatus::Moved:
+      return "moved";
+    case ObjectStatus::Added:
+      return "added";
+    case ObjectStatus::Removed:
+      return "removed";
+  }
+  return "?";
+}
+
+ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                                    const ChangeRegistrationConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
+  // B turns about the centre of its extent.
+  Eigen::Vector3f lo = b_world.points[0], hi = lo;
+  for (const auto& p : b_world.points) {
+    if (!p.allFinite()) throw Error("change detection: survey B has a point that is not finite");
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
+  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
+  // The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells
+  // (on a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m.
+  const double observed_m2 =
+      static_cast<double>(a_fine.num_valid()) * config.cell_m * config.cell_m;
+  const double yaw_cell =
+      std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
+  const ElevationMap a_coarse = map_of(a_world, yaw_cell, "A");
+  // The yaw search turns B's map at a fifth of its cell as points (one per cell: its highest),
+  // not every point of B (4.4 M on the field; the map keeps only the highest per cell anyway).
+  PointCloud b_thin;
+  {
+    const ElevationMap m = map_of(b_world, yaw_cell / 5, "B");
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        if (!m.valid(r, c)) continue;
+        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+        b_thin.points.emplace_back(static_cast<float>(xy.x()), static_cast<float>(xy.y()),
+                                   m.at(r, c));
+      }
+    }
+  }
+
+  struct Trial {
+    double yaw = 0, cost = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
+    std::size_t overlap = 0;
+  };
+  std::string last_error;
+  auto turn = [&](double yaw) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.translation() = pivot - T.linear() * pivot;
+    return T;
+  };
+  // B turned by `yaw`, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's search
+  // (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
+  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior, double search) {
+    Trial tr;
+    tr.yaw = yaw;
+    Eigen::Isometry3d T = turn(yaw);
+    T.translation() += prior;
+    const ElevationMap b =
+        map_of(transformed(&a == &a_coarse ? b_thin : b_world, T), a.cell_m, "B");
+    if (!maps_may_overlap(a, b, search)) {
+      last_error = "their extents do not meet";
+      return tr;
+    }
+    SwathRegistrationConfig sw;
+    sw.search_m = search;
+    sw.min_overlap_cells = config.min_overlap_cells;
+    sw.coarse_factor = config.coarse_factor;
+    sw.num_threads = config.num_threads;
+    // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
+    // fine stage refines the shift); on small sites the yaw cell is cell_m.
+    sw.subcell = a.cell_m <= config.cell_m;
+    try {
+      const SwathTie tie = register_elevation_maps(a, b, sw);
+      tr.t = prior + tie.t;
+      tr.cost = registered_cost(a, b, tie.t, config.inlier_fraction, &tr.overlap);
+    } catch (const Error& e) {
+      last_error = e.what();
+    }
+    return tr;
+  };
+  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
+  Trial best;
+  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
+  for (int k = -n; k <= n; ++k) {
+    const Trial tr =
+        trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(), config.search_m);
+    if (tr.cost < best.cost) best = tr;
+  }
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap (no yaw within ±" +
+              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
+              std::to_string(config.search_m) + " m leaves " +
+              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
+              ")");
+  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
+  best = trial(a_fine, best.yaw, best.t, yaw_cell);
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
+  // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
+  // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
+  // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
+  // inlier_fraction of |r| kept each iteration.
+  const double gn_cell = 0.5 * config.cell_m;
+  const ElevationMap a_gn = map_of(a_world, gn_cell, "A");
+  std::vector<Eigen::Vector3d> pts;
+  {
+    const ElevationMap m = map_of(b_world, gn_cell, "B");
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        if (!m.valid(r, c)) continue;
+        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+        pts.emplace_back(xy.x(), xy.y(), m.at(r, c));
+      }
+    }
+  }
+  // A's height and gradient at (x, y), bilinear between the four surrounding cell centres.
+  auto sample = [&](double x, double y, double* z, Eigen::Vector2d* g) {
+    const double u = (x - a_gn.origin_xy.x()) / gn_cell - 0.5;
+    const double v = (a_gn.origin_xy.y() - y) / gn_cell - 0.5;
+    const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
+    if (c0 < 0 || r0 < 0 || c0 + 1 >= a_gn.cols || r0 + 1 >= a_gn.rows) return false;
+    const float z00 = a_gn.at(r0, c0), z01 = a_gn.at(r0, c0 + 1), z10 = a_gn.at(r0 + 1, c0),
+                z11 = a_gn.at(r0 + 1, c0 + 1);
+    if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
+    const double fu = u - c0, fv = v - r0;
+    *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
+    const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
+    const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
+    *g = {dzdu / gn_cell, -dzdv / gn_cell};  // rows run southward
+    return true;
+  };
+  double yaw = best.yaw;
+  Eigen::Vector3d t = best.t;
+  // B's points were turned about the pivot, then shifted: q = R(ψ)(p − c) + c + t.
+  std::vector<double> absr;
+  double gn_cost = best.cost;
+  std::size_t gn_used = 0;
+  for (int it = 0; it < 30; ++it) {
+    const double cs = std::cos(yaw), sn = std::sin(yaw);
+    struct Row {
+      Eigen::Vector4d j;
+      double r;
+    };
+    std::vector<Row> rows;
+    rows.reserve(pts.size());
+    for (const Eigen::Vector3d& p : pts) {
+      const double dx = p.x() - pivot.x(), dy = p.y() - pivot.y();
+      const double qx = cs * dx - sn * dy + pivot.x() + t.x();
+      const double qy = sn * dx + cs * dy + pivot.y() + t.y();
+      double za;
+      Eigen::Vector2d g;
+      if (!sample(qx, qy, &za, &g)) continue;
+      const double dqx = -sn * dx - cs * dy, dqy = cs * dx - sn * dy;  // ∂q/∂ψ
+      rows.push_back(
+          {Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1), za - (p.z() + t.z())});
+    }
+    if (rows.size() < static_cast<std::size_t>(config.min_overlap_cells)) break;
+    absr.resize(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) absr[i] = std::abs(rows[i].r);
+    const std::size_t keep =
+        std::max<std::size_t>(1, static_cast<std::size_t>(config.inlier_fraction * rows.size()));
+    std::nth_element(absr.begin(), absr.begin() + static_cast<std::ptrdiff_t>(keep - 1),
+                     absr.end());
+    const double cut = absr[keep - 1];
+    Eigen::Matrix4d H = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+    double sum = 0;
+    std::size_t used = 0;
+    for (const Row& row : rows) {
+      if (std::abs(row.r) > cut) continue;
+      H += row.j * row.j.transpose();
+      rhs -= row.j * row.r;
+      sum += std::abs(row.r);
+      ++used;
+    }
+    gn_cost = sum / static_cast<double>(used);
+    gn_used = used;
+    H.diagonal() += Eigen::Vector4d::Constant(1e-9 * H.trace() + 1e-12);  // a flat seabed
+    const Eigen::Vector4d delta = H.ldlt().solve(rhs);
+    if (!delta.allFinite()) break;
+    // Steps bounded by the basin of the coarse search (a coarse cell, a yaw step).
+    const double step_yaw =
+        std::clamp(delta[0], -config.yaw_step_deg * kDeg, config.yaw_step_deg * kDeg);
+    yaw += step_yaw;
+    t += Eigen::Vector3d(std::clamp(delta[1], -yaw_cell, yaw_cell),
+                         std::clamp(delta[2], -yaw_cell, yaw_cell), delta[3]);
+    if (std::abs(step_yaw) < 1e-6 && delta.segment<3>(1).norm() < 1e-4) break;
+  }
+  // Kept only when it stays within the coarse search's basin and lowers the shift search's own
+  // cost (mean |A − B| over the inlier fraction at cell_m): on maps that are not rigidly alike
+  // (dead reckoning distorts each survey differently), the least-squares optimum can sit
+  // elsewhere than the robust one.
+  bool refined = gn_used > 0 && std::abs(yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
+                 (t - best.t).head<2>().norm() <= yaw_cell;
+  if (refined) {
+    Eigen::Isometry3d T = turn(yaw);
+    T.translation() += t;
+    std::size_t overlap = 0;
+    const double cost = registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
+                                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
+    refined = cost < best.cost;
+    if (refined) gn_cost = cost, gn_used = overlap;
+  }
+  ChangeRegistration out;
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation() = refined ? t : best.t;
+  out.T_a_b = shift * turn(refined ? yaw : best.yaw);
+  out.method = refined ? "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, then "
+                         "trimmed Gauss-Newton of heights (yaw, shift, height)"
+                       : "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
+  out.yaw_deg = (refined ? yaw : best.yaw) / kDeg;
+  out.rms_m = refined ? gn_cost : best.cost;
+  out.overlap_cells = refined ? gn_used : best.overlap;
+  out.seconds = seconds_since(t0);
+  return out;
+}
+
+std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
+                                             const std::vector<SurveyPlacement>& b_in_a,
+                                             const std::map<std::string, Symmetry>& symmetries,
+                                             const ChangeConfig& config) {
+  config.validate();
+  // Pairs are formed among placements of one model within the match radius: bounded by n².
+  require(a.size() <= kMaxComparedPlacements && b_in_a.size() <= kMaxComparedPlacements,
+          "change detection: at most " + std::to_string(kMaxComparedPlacements) +
+              " placements per survey are compared");
+  auto symmetry_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
+    if (symmetries.empty()) return Symmetry::None;
+    const auto it = symmetries.find(p.model);
+    require(it != symmetries.end(), std::string("placements of survey ") + which + ": placement " +
+                                        std::to_string(i) + " is a model '" + printable(p.model) +
+                                        "' that the catalogue does not list");
+    return it->second;
+  };
+  std::vector<Symmetry> sym_a(a.size()), sym_b(b_in_a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) sym_a[i] = symmetry_of(a[i], "A", i);
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) sym_b[j] = symmetry_of(b_in_a[j], "B", j);
+
+  // Same model within the match radius: nearest pairs first.
+  struct Pair {
+    double d;
+    std::size_t i, j;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+      if (a[i].model != b_in_a[j].model) continue;
+      const double d = (a[i].T_world_model.translation().head<2>() -
+                        b_in_a[j].T_world_model.translation().head<2>())
+                           .norm();
+      if (d <= config.match_radius_m) pairs.push_back({d, i, j});
+    }
+  }
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
+  std::vector<long> match_a(a.size(), -1), match_b(b_in_a.size(), -1);
+  for (const Pair& p : pairs) {
+    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
+    match_a[p.i] = static_cast<long>(p.j);
+    match_b[p.j] = static_cast<long>(p.i);
+  }
+  std::map<std::string, int> count;
+  std::vector<ObjectChange> out;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ObjectChange c;
+    c.model = a[i].model;
+    c.id = c.model + "_" + std::to_string(count[c.model]++);
+    c.in_a = true;
+    c.T_world_model_a = a[i].T_world_model;
+    if (match_a[i] < 0) {
+      c.status = ObjectStatus::Removed;
+    } else {
+      const SurveyPlacement& b = b_in_a[static_cast<std::size_t>(match_a[i])];
+      c.in_b = true;
+      c.T_world_model_b_in_a = b.T_world_model;
+      c.shift_m =
+          (b.T_world_model.translation().head<2>() - a[i].T_world_model.translation().head<2>())
+              .norm();
+      // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
+      const double period = sym_a[i] == Symmetry::Half ? 180 : 360;
+      double turn =
+          std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
+      turn = std::min(turn, period - turn);
+      c.turn_deg = sym_a[i] == Symmetry::Full ? 0 : turn;
+      c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
+                     ? ObjectStatus::Unchanged
+                     : ObjectStatus::Moved;
+    }
+    out.push_back(c);
+  }
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+    if (match_b[j] >= 0) continue;
+    ObjectChange c;
+    c.model = b_in_a[j].model;
+    c.id = c.model + "_" + std::to_string(count[c.model]++);
+    c.status = ObjectStatus::Added;
+    c.in_b = true;
+    c.T_world_model_b_in_a = b_in_a[j].T_world_model;
+    out.push_back(c);
+  }
+  return out;
+}
+
+namespace {
+
+// The height change map, its threshold and regions (fills the geometry part of `r`).
+void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
+                      const ChangeConfig& config, ChangeResult* r) {
+  const ElevationMap a = map_of(a_world, config.cell_m, "A");
+  const ElevationMap b = map_on_grid(b_in_a, a);
+  ElevationMap d = a;
+  std::vector<float> values;
+  for (std::size_t i = 0; i < a.z.size(); ++i) {
+    const bool both = a.z[i] == a.z[i] && b.z[i] == b.z[i];
+    d.z[i] = both ? b.z[i] - a.z[i] : ElevationMap::kNoData;
+    if (both) values.push_back(d.z[i]);
+  }
+  r->registration.overlap_cells = values.size();
+  require(values.size() >= static_cast<std::size_t>(config.registration.min_overlap_cells),
+          "change detection: the registered surveys overlap on " + std::to_string(values.size()) +
+              " cells of " + std::to_string(config.cell_m) + " m only (min_overlap_cells = " +
+              std::to_string(config.registration.min_overlap_cells) + ")");
+  // The noise of both surveys and what registration left, from the differences themselves: a
+  // robust sigma about their median (changes are outliers of it).
+  ChangeThresholds& th = r->thresholds;
+  th.cell_m = config.cell_m;
+  th.median_m = quantile(values, 0.5);
+  for (float& v : values) v = std::abs(v - static_cast<float>(th.median_m));
+  th.sigma_m = std::max(config.min_sigma_m, quantile(values, config.sigma_quantile) /
+                                                normal_two_sided_quantile(config.sigma_quantile));
+  th.k_sigma = config.k_sigma;
+  th.change_m = config.k_sigma * th.sigma_m;
+  th.min_area_m2 = config.min_area_m2;
+  th.shift_tol_m = config.shift_tol_m;
+  th.turn_tol_deg = config.turn_tol_deg;
+  th.match_radius_m = config.match_radius_m;
+
+  // A cell changed when B's height lies beyond the range of A's heights in the cells within
+  // tolerance_m around it (at least the 3×3), or A's beyond B's, by more than the threshold: a
+  // wall that the two maps place less than that apart is no change. (The two tests cannot
+  // disagree in sign.)
+  const int rows = a.rows, cols = a.cols;
+  std::vector<int8_t> sign(a.z.size(), 0);
+  const float med = static_cast<float>(th.median_m), thr = static_cast<float>(th.change_m);
+  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
+  tbb::parallel_for(0, rows, [&](int row) {
+    for (int col = 0; col < cols; ++col) {
+      const std::size_t i = a.index(row, col);
+      if (!(d.z[i] == d.z[i])) continue;
+      float alo = std::numeric_limits<float>::infinity(), ahi = -alo, blo = alo, bhi = -alo;
+      for (int dr = -reach; dr <= reach; ++dr) {
+        for (int dc = -reach; dc <= reach; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+          const std::size_t k = a.index(rr, cc);
+          if (a.z[k] == a.z[k]) alo = std::min(alo, a.z[k]), ahi = std::max(ahi, a.z[k]);
+          if (b.z[k] == b.z[k])
+            blo = std::min(blo, b.z[k] - med), bhi = std::max(bhi, b.z[k] - med);
+        }
+      }
+      const float zb = b.z[i] - med, za = a.z[i];
+      // Raised: B above all of A around, or A below all of B around (a thin tube, a cell or two
+      // wide, passes one of the two); a sub-cell shift of a wall passes neither.
+      if (zb - ahi > thr || blo - za > thr) sign[i] = 1;
+      if (alo - zb > thr || za - bhi > thr) sign[i] = -1;
+    }
+  });
+  // Regions: changed cells of one sign linked when within link_m of each other (a moved frame of
+  // thin tubes changes in strips that the 3×3 test above breaks apart).
+  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
+  std::vector<int> label(a.z.size(), -1);
+  std::vector<std::size_t> stack;
+  const double cell_area = config.cell_m * config.cell_m;
+  for (std::size_t seed = 0; seed < a.z.size(); ++seed) {
+    if (sign[seed] == 0 || label[seed] >= 0) continue;
+    ChangeRegion reg;
+    reg.raised = sign[seed] > 0;
+    const int id = static_cast<int>(seed);  // provisional
+    label[seed] = id;
+    stack.assign(1, seed);
+    double sx = 0, sy = 0, sz = 0, sd = 0;
+    while (!stack.empty()) {
+      const std::size_t i = stack.back();
+      stack.pop_back();
+      const int row = static_cast<int>(i / static_cast<std::size_t>(cols));
+      const int col = static_cast<int>(i % static_cast<std::size_t>(cols));
+      const Eigen::Vector2d c = a.cell_center_xy(row, col);
+      sx += c.x();
+      sy += c.y();
+      sz += 0.5 * (a.z[i] + b.z[i]);
+      sd += d.z[i];
+      reg.max_abs_change_m = std::max(reg.max_abs_change_m, std::abs(static_cast<double>(d.z[i])));
+      ++reg.cells;
+      for (int dr = -link; dr <= link; ++dr) {
+        for (int dc = -link; dc <= link; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+          const std::size_t k = a.index(rr, cc);
+          if (sign[k] == sign[seed] && label[k] < 0) {
+            label[k] = id;
+            stack.push_back(k);
+          }
+        }
+      }
+    }
+    r->significant_cells += reg.cells;
+    const double n = static_cast<double>(reg.cells);
+    reg.area_m2 = n * cell_area;
+    if (reg.area_m2 < config.min_area_m2) continue;
+    reg.centroid = {sx / n, sy / n, sz / n};
+    reg.mean_change_m = sd / n;
+    reg.id = static_cast<int>(r->regions.size());
+    r->regions.push_back(reg);
+  }
+  // The registration's residual: the RMS of B − A over the cells within the threshold of the
+  // median (the noise; steps at walls and the changes left out).
+  double ss = 0;
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < d.z.size(); ++i) {
+    if (d.z[i] == d.z[i] && std::abs(d.z[i] - med) <= thr) {
+      ss += static_cast<double>(d.z[i]) * d.z[i], ++m;
+    }
+  }
+  r->registration.rms_m = m > 0 ? std::sqrt(ss / static_cast<double>(m)) : 0;
+  r->change_map = std::move(d);
+  r->height_b = b;
+}
+
+nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
+  nlohmann::json j = nlohmann::json::array();
+  for (int row = 0; row < 4; ++row) {
+    for (int col = 0; col < 4; ++col) j.push_back(T.matrix()(row, col));
+  }
+  return j;
+}
+
+}  // namespace
+
+ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                          const std::vector<SurveyPlacement>& pa,
+                          const std::vector<SurveyPlacement>& pb,
+                          const std::map<std::string, Symmetry>& symmetries,
+                          const ChangeConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  ChangeResult r;
+  r.registration = register_surveys(a_world, b_world, config.registration);
+  std::vector<SurveyPlacement> pb_in_a = pb;
+  for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
+  r.objects = compare_placements(pa, pb_in_a, symmetries, config);
+  compare_geometry(a_world, transformed(b_world, r.registration.T_a_b), config, &r);
+  // An object change the heights do not show is the recognition's, not the site's: a moved,
+  // added or removed object needs a region of change within confirm_radius_m of where it was or
+  // is, unless both surveys observed less than half of that disc (then the placements decide).
+  const ElevationMap& d = r.change_map;
+  const int reach = static_cast<int>(std::ceil(config.confirm_radius_m / d.cell_m));
+  for (ObjectChange& o : r.objects) {
+    if (o.status == ObjectStatus::Unchanged) continue;
+    std::vector<Eigen::Vector2d> at;
+    if (o.in_a) at.push_back(o.T_world_model_a.translation().head<2>());
+    if (o.in_b) at.push_back(o.T_world_model_b_in_a.translation().head<2>());
+    bool confirmed = false, observed = false;
+    for (const Eigen::Vector2d& p : at) {
+      for (const ChangeRegion& g : r.regions) {
+        confirmed |= (g.centroid.head<2>() - p).norm() <= config.confirm_radius_m;
+      }
+      const int c0 = static_cast<int>(std::floor((p.x() - d.origin_xy.x()) / d.cell_m));
+      const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - p.y()) / d.cell_m));
+      std::size_t in_disc = 0, seen = 0;
+      for (int dr = -reach; dr <= reach; ++dr) {
+        for (int dc = -reach; dc <= reach; ++dc) {
+          if (dr * dr + dc * dc > reach * reach) continue;
+          ++in_disc;
+          const int rr = r0 + dr, cc = c0 + dc;
+          seen += rr >= 0 && cc >= 0 && rr < d.rows && cc < d.cols && d.valid(rr, cc);
+        }
+      }
+      observed |= 2 * seen >= in_disc;
+    }
+    if (observed && !confirmed) o.status = ObjectStatus::Unchanged;
+  }
+  r.seconds = seconds_since(t0);
+  return r;
+}
+
+std::string changes_json(const ChangeResult& r) {
+  auto num_or_null = [](bool has, double v) { return has ? nlohmann::json(v) : nlohmann::json(); };
+  nlohmann::json j;
+  j["format"] = "sonar3d-changes";
+  j["version"] = 1;
+  j["T_a_b"] = matrix_json(r.registration.T_a_b);
+  j["registration"] = {{"method", r.registration.method},
+                       {"rms_m", r.registration.rms_m},
+                       {"overlap_cells", r.registration.overlap_cells}};
+  nlohmann::json objects = nlohmann::json::array();
+  for (const ObjectChange& o : r.objects) {
+    const bool both = o.in_a && o.in_b;
+    objects.push_back(
+        {{"id", o.id},
+         {"model", o.model},
+         {"status", object_status_name(o.status)},
+         {"T_world_model_a", o.in_a ? matrix_json(o.T_world_model_a) : nlohmann::json()},
+         {"T_world_model_b_in_a", o.in_b ? matrix_json(o.T_world_model_b_in_a) : nlohmann::json()},
+         {"shift_m", num_or_null(both, o.shift_m)},
+         {"turn_deg", num_or_null(both, o.turn_deg)}});
+  }
+  j["objects"] = objects;
+  nlohmann::json regions = nlohmann::json::array();
+  for (const ChangeRegion& g : r.regions) {
+    regions.push_back({{"id", g.id},
+                       {"centroid", {g.centroid.x(), g.centroid.y(), g.centroid.z()}},
+                       {"area_m2", g.area_m2},
+                       {"max_abs_change_m", g.max_abs_change_m},
+                       {"mean_change_m", g.mean_change_m},
+                       {"kind", g.raised ? "raised" : "lowered"}});
+  }
+  j["regions"] = regions;
+  const ChangeThresholds& t = r.thresholds;
+  j["thresholds"] = {{"cell_m", t.cell_m},
+                     {"median_change_m", t.median_m},
+                     {"sigma_m", t.sigma_m},
+                     {"k_sigma", t.k_sigma},
+                     {"change_m", t.change_m},
+                     {"min_area_m2", t.min_area_m2},
+                     {"significant_cells", r.significant_cells},
+                     {"shift_tol_m", t.shift_tol_m},
+                     {"turn_tol_deg", t.turn_tol_deg},
+                     {"match_radius_m", t.match_radius_m},
+                     {"yaw_deg", r.registration.yaw_deg},
+                     {"registration_seconds", r.registration.seconds}};
+  j["seconds"] = r.seconds;
+  return j.dump(1) + "\n";
+}
+
+PointCloud change_points(const ChangeResult& r) {
+  PointCloud cloud;
+  PointProperty change{"change_m", {}};
+  const ElevationMap& d = r.change_map;
+  for (int row = 0; row < d.rows; ++row) {
+    for (int col = 0; col < d.cols; ++col) {
+      if (!d.valid(row, col)) continue;
+      const Eigen::Vector2d c = d.cell_center_xy(row, col);
+      cloud.points.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()),
+                                r.height_b.at(row, col));
+      change.values.push_back(d.at(row, col));
+    }
+  }
+  cloud.properties.push_back(std::move(change));
+  return cloud;
+}
+
+void write_change_directory(const std::string& dir, const ChangeResult& result) {
+  require(!fs::exists(dir),
+          "change detection: '" + dir + "' already exists: choose a new output directory");
+  require(!result.change_map.empty(), "change detection: no change map to write");
+  AtomicPath out(dir);
+  fs::create_directories(out.temp());
+  write_elevation_geotiff((out.temp() / "change_map.tif").string(), result.change_map);
+  write_ply((out.temp() / "change_points.ply").string(), change_points(result));
+  write_text_file((out.temp() / "changes.json").string(), changes_json(result));
+  out.commit();
+}
+
+PointCloud read_survey_cloud(const std::string& path) {
+  if (fs::is_regular_file(path)) return read_ply(path);
+  if (fs::is_directory(path) && fs::is_regular_file(fs::path(path) / "merged.ply")) {
+    return read_ply((fs::path(path) / "merged.ply").string());
+  }
+  throw Error("survey '" + path +
+              "': neither a point cloud (.ply) nor a map directory of sonar3d map (merged.ply)");
+}
+
+std::map<std::string, Symmetry> catalogue_symmetries(const Catalogue& catalogue) {
+  std::map<std::string, Symmetry> out;
+  for (const CatalogueModel& m : catalogue.models) out[m.name] = m.symmetry;
+  return out;
+}
+
+std::vector<SurveyPlacement> recognize_placements(const PointCloud& cloud_world,
+                                                  const Catalogue& catalogue,
+                                                  const RecognitionConfig& config) {
+  std::vector<ModelTemplate> models;
+  for (const CatalogueModel& m : catalogue.models) {
+    models.push_back(make_model_template(m.name, load_catalogue_mesh(catalogue, m), m.symmetry,
+                                         m.expected, config.sampling));
+  }
+  const RecognitionResult r = recognize_2d(cloud_world, models, config);
+  std::vector<SurveyPlacement> out;
+  for (const Placement& p : r.placements) out.push_back({p.model, p.T_world_model});
+  return out;
+}
+
+}  // namespace sonar3d

@@ -1,0 +1,347 @@
+// world/change: change detection between two surveys (docs/change.md): registration of B onto A,
+// placements compared (symmetry-aware), height change regions; synthetic pairs with known
+// changes and offsets, a simulated pair end to end through the CLI, bad inputs.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/world/change.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace sonar3d;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180;
+
+// A box standing on the seabed: centre (x, y), size (sx, sy), yaw, height above the seabed.
+struct Box {
+  double x, y, sx, sy, yaw_deg, h;
+  bool covers(double px, double py, double margin = 0) const {
+    const double c = std::cos(yaw_deg * kDeg), s = std::sin(yaw_deg * kDeg);
+    const double u = c * (px - x) + s * (py - y), v = -s * (px - x) + c * (py - y);
+    return std::abs(u) <= sx / 2 + margin && std::abs(v) <= sy / 2 + margin;
+  }
+};
+
+// A seabed with relief and rocks (height z at world x, y), m.
+double seabed(double x, double y) {
+  double z = 0.2 * std::sin(0.6 * x) * std::cos(0.45 * y) + 0.08 * std::sin(1.7 * x + 1.1 * y);
+  const double rocks[][3] = {{-2.5, 1.5, 0.15},  {1.0, -1.8, 0.2}, {2.8, 2.0, 0.12},
+                             {-1.0, -0.5, 0.18}, {3.5, -0.8, 0.1}, {-3.2, -2.2, 0.14}};
+  for (const auto& r : rocks) {
+    const double q = (x - r[0]) * (x - r[0]) + (y - r[1]) * (y - r[1]);
+    z += r[2] * std::exp(-q / (2 * 0.15 * 0.15));
+  }
+  return z;
+}
+
+// A survey of the site [−4, 4] × [−3, 3] m with `boxes` as seen from above (points every 2 cm,
+// the highest surface), height noise `noise_m` (seeded), in a world frame where the site lies at
+// T_world_site.
+PointCloud survey(const std::vector<Box>& boxes, double noise_m, unsigned seed,
+                  const Eigen::Isometry3d& T_world_site = Eigen::Isometry3d::Identity()) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, noise_m);
+  PointCloud c;
+  for (double x = -4; x <= 4; x += 0.02) {
+    for (double y = -3; y <= 3; y += 0.02) {
+      double z = seabed(x, y);
+      for (const Box& b : boxes) {
+        if (b.covers(x, y)) z = std::max(z, seabed(b.x, b.y) + b.h);
+      }
+      c.points.push_back((T_world_site * Eigen::Vector3d(x, y, z + n(rng))).cast<float>());
+    }
+  }
+  return c;
+}
+
+Eigen::Isometry3d pose(double x, double y, double z, double yaw_deg) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
+SurveyPlacement placed(const std::string& model, const Box& b) {
+  return {model, pose(b.x, b.y, seabed(b.x, b.y), b.yaw_deg)};
+}
+
+// B's world: the site moved by a navigation offset (yaw 1.2°, 23 cm East, −17 cm North, 6 cm up).
+const Eigen::Isometry3d kTbA = pose(0.23, -0.17, 0.06, 1.2);
+
+ChangeConfig test_config() {
+  ChangeConfig c;
+  c.registration.num_threads = 2;
+  return c;
+}
+
+const Box kStay{-2.0, 1.0, 1.0, 0.6, 20, 0.4};   // untouched
+const Box kMoveA{1.5, 1.2, 1.2, 0.5, 30, 0.35};  // moved 30 cm East and turned 10°
+const Box kMoveB{1.8, 1.2, 1.2, 0.5, 40, 0.35};
+const Box kRemoved{-1.8, -1.6, 0.6, 0.6, 0, 0.3};  // in A only
+const Box kAdded{2.2, -1.5, 0.5, 0.5, 0, 0.5};     // in B only
+
+}  // namespace
+
+// Registration recovers a known offset of B's frame (yaw, shift, height) within a centimetre and
+// a tenth of a degree, with different noise in each survey.
+TEST(ChangeRegistration, RecoversAKnownOffset) {
+  const PointCloud a = survey({kStay}, 0.005, 1);
+  const PointCloud b = survey({kStay}, 0.008, 2, kTbA);
+  const ChangeRegistration r = register_surveys(a, b, test_config().registration);
+  const Eigen::Isometry3d err = r.T_a_b * kTbA;  // identity when exact
+  // Within 2.5 cm horizontally (the site's edges are 5 m from its centre: 0.1° is 0.9 cm there)
+  // and 1 cm vertically: each map keeps the highest of ~6 noisy points per 5 cm cell, which
+  // raises A by ~6 mm and B by ~10 mm.
+  EXPECT_LT(err.translation().head<2>().norm(), 0.025) << err.matrix();
+  EXPECT_NEAR(err.translation().z(), 0, 0.01);
+  EXPECT_NEAR(r.yaw_deg, -1.2, 0.1);
+  EXPECT_GT(r.overlap_cells, 4000u);  // of the 8 × 6 m site at 10 cm
+}
+
+// The same site surveyed twice with different noise, a navigation offset and placements that
+// differ by recognition noise (1 cm, 0.5°): no change at all.
+TEST(ChangeDetection, IdenticalSurveysWithDifferentNoiseGiveNoChange) {
+  const std::vector<Box> site{kStay, kMoveA, kRemoved};
+  const PointCloud a = survey(site, 0.005, 3);
+  const PointCloud b = survey(site, 0.01, 4, kTbA);
+  std::vector<SurveyPlacement> pa{placed("frame", kStay), placed("frame", kMoveA),
+                                  placed("crate", kRemoved)};
+  std::vector<SurveyPlacement> pb;
+  for (const SurveyPlacement& p : pa) {
+    pb.push_back({p.model, kTbA * pose(0.01, -0.005, 0, 0.5) * p.T_world_model});
+  }
+  const std::map<std::string, Symmetry> sym{{"frame", Symmetry::Half}, {"crate", Symmetry::None}};
+  const ChangeResult r = diff_surveys(a, b, pa, pb, sym, test_config());
+  EXPECT_TRUE(r.regions.empty()) << r.regions.size() << " regions, the first at "
+                                 << r.regions[0].centroid.transpose();
+  ASSERT_EQ(r.objects.size(), 3u);
+  for (const ObjectChange& o : r.objects) {
+    EXPECT_EQ(o.status, ObjectStatus::Unchanged) << o.id;
+    EXPECT_LT(o.shift_m, 0.05) << o.id;  // 1.1 cm of recognition noise + registration
+    EXPECT_LT(o.turn_deg, 1.0) << o.id;
+  }
+  EXPECT_LT(r.registration.rms_m, 0.03);
+  EXPECT_GT(r.thresholds.sigma_m, 0.005);  // derived from the noise of both
+}
+
+// One structure moved 30 cm and turned 10°, one added, one removed, the rest untouched: exactly
+// those objects change, and every region of height change lies on one of them.
+TEST(ChangeDetection, SyntheticPairGivesExactlyItsChanges) {
+  const PointCloud a = survey({kStay, kMoveA, kRemoved}, 0.005, 5);
+  const PointCloud b = survey({kStay, kMoveB, kAdded}, 0.008, 6, kTbA);
+  const std::vector<SurveyPlacement> pa{placed("frame", kStay), placed("frame", kMoveA),
+                                        placed("crate", kRemoved)};
+  const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", kStay).T_world_model},
+                                        {"frame", kTbA * placed("frame", kMoveB).T_world_model},
+                                        {"crate", kTbA * placed("crate", kAdded).T_world_model}};
+  const std::map<std::string, Symmetry> sym{{"frame", Symmetry::Half}, {"crate", Symmetry::None}};
+  const ChangeResult r = diff_surveys(a, b, pa, pb, sym, test_config());
+  ASSERT_EQ(r.objects.size(), 4u);
+  EXPECT_EQ(r.objects[0].id, "frame_0");
+  EXPECT_EQ(r.objects[0].status, ObjectStatus::Unchanged);
+  EXPECT_EQ(r.objects[1].id, "frame_1");
+  EXPECT_EQ(r.objects[1].status, ObjectStatus::Moved);
+  EXPECT_NEAR(r.objects[1].shift_m, 0.3, 0.02);
+  EXPECT_NEAR(r.objects[1].turn_deg, 10, 0.3);
+  EXPECT_EQ(r.objects[2].id, "crate_0");
+  EXPECT_EQ(r.objects[2].status, ObjectStatus::Removed);
+  EXPECT_EQ(r.objects[3].id, "crate_1");
+  EXPECT_EQ(r.objects[3].status, ObjectStatus::Added);
+
+  // Regions: raised where the moved box and the added one now stand, lowered where the removed
+  // one and the moved one stood; none elsewhere.
+  bool raised_added = false, lowered_removed = false, raised_moved = false, lowered_moved = false;
+  for (const ChangeRegion& g : r.regions) {
+    const double x = g.centroid.x(), y = g.centroid.y();
+    const bool on_changed = kAdded.covers(x, y, 0.1) || kRemoved.covers(x, y, 0.1) ||
+                            kMoveA.covers(x, y, 0.1) || kMoveB.covers(x, y, 0.1);
+    EXPECT_TRUE(on_changed) << "a region of change at " << g.centroid.transpose();
+    raised_added |= g.raised && kAdded.covers(x, y);
+    lowered_removed |= !g.raised && kRemoved.covers(x, y);
+    raised_moved |= g.raised && kMoveB.covers(x, y, 0.1);
+    lowered_moved |= !g.raised && kMoveA.covers(x, y, 0.1);
+    if (g.raised && kAdded.covers(x, y)) {
+      EXPECT_NEAR(g.area_m2, 0.25, 0.08);  // the 50 × 50 cm box, less a cell at its edge
+      EXPECT_NEAR(g.max_abs_change_m, 0.5, 0.06);
+    }
+  }
+  EXPECT_TRUE(raised_added && lowered_removed && raised_moved && lowered_moved);
+
+  // The outputs: a change directory, written once.
+  const fs::path dir = test::temp_dir("out");
+  write_change_directory((dir / "D").string(), r);
+  const nlohmann::json j = nlohmann::json::parse(read_text_file((dir / "D/changes.json").string()));
+  EXPECT_EQ(j["format"], "sonar3d-changes");
+  EXPECT_EQ(j["T_a_b"].size(), 16u);
+  EXPECT_EQ(j["objects"][3]["status"], "added");
+  EXPECT_TRUE(j["objects"][3]["T_world_model_a"].is_null());
+  EXPECT_TRUE(j["objects"][3]["shift_m"].is_null());
+  EXPECT_EQ(j["regions"].size(), r.regions.size());
+  const ElevationMap m = read_elevation_geotiff((dir / "D/change_map.tif").string());
+  EXPECT_EQ(m.num_valid(), r.registration.overlap_cells);
+  const PointCloud pts = read_ply((dir / "D/change_points.ply").string());
+  ASSERT_NE(pts.property("change_m"), nullptr);
+  EXPECT_EQ(pts.size(), r.registration.overlap_cells);
+  test::expect_error([&] { write_change_directory((dir / "D").string(), r); }, "already exists");
+}
+
+// Turns are compared modulo the model's symmetry; an object beyond the match radius is one
+// removed and one added.
+TEST(ChangeDetection, TurnsAreSymmetryAware) {
+  const std::map<std::string, Symmetry> sym{
+      {"tank", Symmetry::Full}, {"pillar", Symmetry::Half}, {"riser", Symmetry::None}};
+  const std::vector<SurveyPlacement> a{{"tank", pose(0, 0, 0, 0)},
+                                       {"pillar", pose(5, 0, 0, 10)},
+                                       {"riser", pose(10, 0, 0, 350)},
+                                       {"riser", pose(20, 0, 0, 0)}};
+  const std::vector<SurveyPlacement> b{{"tank", pose(0.02, 0, 0, 90)},
+                                       {"pillar", pose(5, 0.03, 0, 190)},
+                                       {"riser", pose(10, 0, 0, 5)},
+                                       {"riser", pose(22, 0, 0, 0)}};
+  const auto c = compare_placements(a, b, sym, test_config());
+  ASSERT_EQ(c.size(), 5u);
+  EXPECT_EQ(c[0].status, ObjectStatus::Unchanged);  // a tank turned 90°: the same tank
+  EXPECT_EQ(c[1].status, ObjectStatus::Unchanged);  // a pillar turned 180°
+  EXPECT_NEAR(c[1].turn_deg, 0, 1e-9);
+  EXPECT_EQ(c[2].status, ObjectStatus::Moved);  // 350° → 5°: turned by 15°
+  EXPECT_NEAR(c[2].turn_deg, 15, 1e-9);
+  EXPECT_EQ(c[3].status, ObjectStatus::Removed);  // 2 m away: another riser
+  EXPECT_EQ(c[4].status, ObjectStatus::Added);
+  EXPECT_EQ(c[4].id, "riser_2");
+}
+
+TEST(ChangeDetection, BadInputsGiveClearErrors) {
+  // A placement of a model the catalogue does not list.
+  test::expect_error(
+      [] {
+        compare_placements({{"tank", pose(0, 0, 0, 0)}}, {{"valve", pose(0, 0, 0, 0)}},
+                           {{"tank", Symmetry::Full}}, test_config());
+      },
+      "placement 0 is a model 'valve' that the catalogue does not list");
+  // Surveys that do not overlap.
+  const PointCloud a = survey({}, 0.005, 1);
+  const PointCloud far = survey({}, 0.005, 2, pose(30, 0, 0, 0));
+  test::expect_error([&] { register_surveys(a, far, test_config().registration); },
+                     "do not overlap");
+  test::expect_error([&] { register_surveys(a, PointCloud{}, test_config().registration); },
+                     "survey B has no points");
+  // Placements files (the reader is world_model.hpp's; its own tests are in test_world.cpp).
+  test::expect_error([] { read_placements("/nonexistent/p.json"); }, "no such file");
+  const std::string head = R"({"format": "sonar3d-placements", "version": 1, "placements": )";
+  test::expect_error(
+      [&] {
+        parse_placements(head +
+                             "[{\"model\": \"t\", \"T_world_model\": "
+                             "[2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}]}",
+                         "p.json");
+      },
+      "not a rotation");
+  const auto ok = parse_placements(
+      head + "[{\"model\": \"t\", \"T_world_model\": [[1,0,0,4],[0,1,0,5],[0,0,1,6],[0,0,0,1]]}]}",
+      "p.json");
+  ASSERT_EQ(ok.placements.size(), 1u);
+  EXPECT_EQ(ok.placements[0].T_world_model.translation(), Eigen::Vector3d(4, 5, 6));
+  test::expect_error([] { parse_placements(std::string(200000, '['), "deep.json"); },
+                     "nested more than");
+  ChangeConfig bad = test_config();
+  bad.cell_m = 0;
+  test::expect_error([&] { bad.validate(); }, "cell_m");
+}
+
+#ifdef SONAR3D_CLI
+// End to end on the simulated small pair (data/scenes/change_a.yaml, change_b.yaml, written by
+// scripts/change_pair.py small changed): each survey simulated with its own seed and dead
+// reckoning, mapped, recognised with the catalogue and compared. It must report exactly the
+// riser moved 30 cm and turned 10°, the pillar removed and a tank added, the other tank
+// unchanged; every region of height change on one of those.
+TEST(ChangeCli, SimulatedPairGivesExactlyItsChanges) {
+  const fs::path dir = test::temp_dir("cli");
+  const std::string src = SONAR3D_SOURCE_DIR;
+  {
+    std::ofstream(dir / "cat.yaml") << R"(models:
+  - {name: riser, reference: riser, symmetry: none}
+  - {name: tank, reference: tank, symmetry: full}
+  - {name: pillar, reference: pillar, symmetry: "180"}
+)";
+  }
+  for (const char* w : {"a", "b"}) {
+    test::CliRun r = test::run_cli(dir, "simulate " + src + "/data/scenes/change_" + w +
+                                            ".yaml -o " + (dir / w).string() + " -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    r = test::run_cli(
+        dir, "map " + (dir / w).string() + " -o " + (dir / w).string() + "_map --search 0.3 -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  const std::string args = "diff " + (dir / "a_map").string() + " " + (dir / "b_map").string() +
+                           " --catalogue " + (dir / "cat.yaml").string() + " -o ";
+  test::CliRun r = test::run_cli(dir, args + (dir / "D").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(read_text_file((dir / "D/changes.json").string()));
+  // T_a_b: the inverse of B's frame offset (scripts/change_pair.py: 1° yaw, 25 cm East, −15 cm
+  // North) composed with what each survey's dead reckoning did to its map (heading biases 0.2°
+  // and −0.1°): the rigid fit of each map's corrected navigation to its true one gives yaw
+  // −0.52°, shift (−0.278, 0.150) m; the maps themselves depart from rigid by 3–7 cm.
+  EXPECT_NEAR(j["T_a_b"][3].get<double>(), -0.278, 0.05) << r.out;
+  EXPECT_NEAR(j["T_a_b"][7].get<double>(), 0.150, 0.05) << r.out;
+  EXPECT_NEAR(std::atan2(j["T_a_b"][4].get<double>(), j["T_a_b"][0].get<double>()) / kDeg, -0.52,
+              0.4)
+      << r.out;
+  std::map<std::string, std::string> status;
+  for (const auto& o : j["objects"]) {
+    status[o["model"].get<std::string>() + ":" + o["status"].get<std::string>()] =
+        o["id"].get<std::string>();
+  }
+  EXPECT_EQ(status.size(), 4u) << r.out;
+  EXPECT_EQ(j["objects"].size(), 4u) << r.out;
+  EXPECT_TRUE(status.count("riser:moved")) << r.out;
+  EXPECT_TRUE(status.count("tank:unchanged")) << r.out;
+  EXPECT_TRUE(status.count("tank:added")) << r.out;
+  EXPECT_TRUE(status.count("pillar:removed")) << r.out;
+  // Every region within 1.5 m of a changed object (riser before/after, pillar, added tank; A's
+  // frame), and a region at each.
+  const std::vector<Eigen::Vector2d> changed{{-2.0, 1.0}, {-1.7, 1.0}, {1.8, 1.6}, {-1.2, -1.6}};
+  std::vector<bool> seen(changed.size(), false);
+  for (const auto& g : j["regions"]) {
+    const Eigen::Vector2d c(g["centroid"][0].get<double>(), g["centroid"][1].get<double>());
+    bool near = false;
+    for (std::size_t k = 0; k < changed.size(); ++k) {
+      if ((c - changed[k]).norm() < 1.5) near = true, seen[k] = true;
+    }
+    EXPECT_TRUE(near) << "a region of change at " << c.transpose() << "\n" << r.out;
+  }
+  EXPECT_TRUE(seen[2] && seen[3]) << r.out;  // the pillar's and the added tank's
+  EXPECT_TRUE(fs::exists(dir / "D/change_map.tif"));
+  EXPECT_TRUE(fs::exists(dir / "D/change_points.ply"));
+
+  // Bad inputs: one clear line, no output.
+  r = test::run_cli(dir, args + (dir / "D").string() + " -q");  // exists
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
+  r = test::run_cli(dir, "diff " + (dir / "a_map").string() + " " + (dir / "nothing").string() +
+                             " -o " + (dir / "E").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("nothing"), std::string::npos) << r.out;
+  {
+    std::ofstream(dir / "pa.json")
+        << R"({"format": "sonar3d-placements", "version": 1, "placements": [
+  {"model": "valve", "T_world_model": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})";
+  }
+  r = test::run_cli(dir, args + (dir / "E").string() + " --placements-a " +
+                             (dir / "pa.json").string() + " --placements-b " +
+                             (dir / "pa.json").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("'valve' that the catalogue does not list"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "E"));
+  fs::remove_all(dir);
+}
+#endif
