@@ -231,8 +231,21 @@ void bind_recon(py::module_& m) {
       "Returns a Reconstruction: points (N, 3) world frame, intensity = reflectivity bounds (N,), "
       "report = the carving statistics. progress: True (terminal bars) or progress(done, total).");
 
+  py::class_<VoxelDeconvConfig>(m, "VoxelDeconvConfig",
+                                "Voxel-mode deconvolution (any trajectory): voxel_size, "
+                                "max_iterations, tolerance, min_relative, min_observations")
+      .def(py::init(&from_kwargs<VoxelDeconvConfig>))
+      .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
+      .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
+      .def_readwrite("tolerance", &VoxelDeconvConfig::tolerance)
+      .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
+      .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
+      .def("__repr__", &fields_repr)
+      .def("validate", &VoxelDeconvConfig::validate);
+
   py::class_<DeconvConfig>(m, "DeconvConfig",
-                           "Deconvolution (ch. 5): beam ('sinc', 'flat', 'sensor'), "
+                           "Deconvolution (ch. 5): mode ('passes', 'voxel': any trajectory, "
+                           "'auto'), voxel (VoxelDeconvConfig), beam ('sinc', 'flat', 'sensor'), "
                            "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
                            "resolve_occlusions, kernel ('plain', 'normal', 'occlusion', "
                            "'normal+occlusion'), max_range, num_threads ...")
@@ -241,6 +254,11 @@ void bind_recon(py::module_& m) {
           "beam",
           [](const DeconvConfig& c) { return std::string(DeconvConfig::beam_name(c.beam)); },
           [](DeconvConfig& c, const std::string& s) { c.beam = DeconvConfig::parse_beam(s); })
+      .def_property(
+          "mode",
+          [](const DeconvConfig& c) { return std::string(DeconvConfig::mode_name(c.mode)); },
+          [](DeconvConfig& c, const std::string& s) { c.mode = DeconvConfig::parse_mode(s); })
+      .def_readwrite("voxel", &DeconvConfig::voxel)
       .def_property(
           "kernel",
           [](const DeconvConfig& c) { return std::string(DeconvConfig::kernel_name(c.kernel)); },
