@@ -302,6 +302,10 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "deconv, voxel mode: keep voxels whose reflectivity is at least this fraction of "
                   "the largest (0 = every non-zero voxel)")
       ->capture_default_str();
+  cmd->add_flag("--no-voxel-occlusion{false}", o->deconv.voxel.occlusion_aware,
+                "deconv, voxel mode: keep every candidate in every frame's model, also where "
+                "another candidate lies nearer on its ray (by default such a hidden candidate is "
+                "left out of that frame: sound does not cross a surface)");
   cmd->add_flag("--exact", o->deconv.exact,
                 "deconv: exact slant-range geometry on a (horizontal distance × height) grid per "
                 "bearing plane, for wide apertures (beyond the thesis' rectilinear model)");

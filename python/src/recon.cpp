@@ -231,15 +231,17 @@ void bind_recon(py::module_& m) {
       "Returns a Reconstruction: points (N, 3) world frame, intensity = reflectivity bounds (N,), "
       "report = the carving statistics. progress: True (terminal bars) or progress(done, total).");
 
-  py::class_<VoxelDeconvConfig>(m, "VoxelDeconvConfig",
-                                "Voxel-mode deconvolution (any trajectory): voxel_size, "
-                                "max_iterations, tolerance, min_relative, min_observations")
+  py::class_<VoxelDeconvConfig>(
+      m, "VoxelDeconvConfig",
+      "Voxel-mode deconvolution (any trajectory): voxel_size, "
+      "max_iterations, tolerance, min_relative, min_observations, occlusion_aware")
       .def(py::init(&from_kwargs<VoxelDeconvConfig>))
       .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
       .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
       .def_readwrite("tolerance", &VoxelDeconvConfig::tolerance)
       .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
       .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
+      .def_readwrite("occlusion_aware", &VoxelDeconvConfig::occlusion_aware)
       .def("__repr__", &fields_repr)
       .def("validate", &VoxelDeconvConfig::validate);
 

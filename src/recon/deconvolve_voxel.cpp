@@ -129,6 +129,11 @@ VoxelSystem build_system(const std::vector<SonarImage>& denoised,
     std::vector<float> value;
   };
   std::vector<FrameRows> per_frame(n);
+  const VoxelDeconvConfig& vc = config.voxel;
+  // Elevation cells of the occlusion test: a voxel's angular size at mid range.
+  const double cell_angle = vc.voxel_size / (0.5 * (spec.r_min + spec.r_max));
+  const int cells = std::max(1, static_cast<int>(std::ceil(2 * theta3 / cell_angle)));
+  const double occl_tol = 0.5 * spec.range_resolution() + vc.voxel_size;
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t f) {
     const SonarImage& im = denoised[f];
     const Eigen::Isometry3d T_sonar_world = T_world_sonar[f].inverse();
@@ -140,7 +145,12 @@ VoxelSystem build_system(const std::vector<SonarImage>& denoised,
         if (row[j] > 0.0f) first[j] = i;
       }
     }
-    std::vector<Entry> entries;
+    struct Seen {
+      std::uint32_t voxel;
+      int bin, beam, cell;
+      float range, elevation;
+    };
+    std::vector<Seen> seen;
     for (std::size_t b = 0; b + 1 < blocks.start.size(); ++b) {
       if (!block_visible(T_sonar_world * blocks.centre[b], blocks.radius, spec)) continue;
       for (std::uint32_t m = blocks.start[b]; m < blocks.start[b + 1]; ++m) {
@@ -150,11 +160,35 @@ VoxelSystem build_system(const std::vector<SonarImage>& denoised,
         const int i = spec.bin_of_range(q.range);
         const int j = spec.beam_of_bearing(q.bearing);
         if (i < 0 || j < 0) continue;
-        if (config.ignore_shadowed_zeros && i > first[j] && im.row_ptr(i)[j] <= 0.0f) continue;
-        const double w = pattern.power(q.elevation, theta3);
-        if (!(w > 0)) continue;
-        entries.push_back({static_cast<std::uint32_t>(i * beams + j), v, static_cast<float>(w)});
+        const int c = std::min(cells - 1, static_cast<int>((q.elevation + theta3) / cell_angle));
+        seen.push_back({v, i, j, c, static_cast<float>(q.range), static_cast<float>(q.elevation)});
       }
+    }
+    // Sound does not cross a surface: a candidate with another candidate nearer on its own ray
+    // (beam, elevation cell) is hidden in this frame (the occlusion kernel of sec. 5.6.7.2, with
+    // the occluders taken from carving's candidates instead of a first reconstruction).
+    std::vector<float> nearest;
+    if (vc.occlusion_aware) {
+      nearest.assign(static_cast<std::size_t>(beams) * cells, std::numeric_limits<float>::max());
+      for (const Seen& e : seen) {
+        float& n = nearest[static_cast<std::size_t>(e.beam) * cells + e.cell];
+        n = std::min(n, e.range);
+      }
+    }
+    std::vector<Entry> entries;
+    for (const Seen& e : seen) {
+      if (vc.occlusion_aware &&
+          e.range > nearest[static_cast<std::size_t>(e.beam) * cells + e.cell] + occl_tol) {
+        continue;
+      }
+      if (config.ignore_shadowed_zeros && e.bin > first[e.beam] &&
+          im.row_ptr(e.bin)[e.beam] <= 0.0f) {
+        continue;
+      }
+      const double w = pattern.power(e.elevation, theta3);
+      if (!(w > 0)) continue;
+      entries.push_back(
+          {static_cast<std::uint32_t>(e.bin * beams + e.beam), e.voxel, static_cast<float>(w)});
     }
     std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
       return a.pixel != b.pixel ? a.pixel < b.pixel : a.voxel < b.voxel;

@@ -61,6 +61,12 @@ struct VoxelDeconvConfig {
   // Carving parameters of the candidate set (docs/carving.md): candidates must be bounded by at
   // least this many frames (lowered automatically on sparse trajectories, as in carving).
   int min_observations = 2;
+  // A candidate with another candidate nearer on its ray (beam, elevation cell of one voxel at
+  // mid range, range tolerance Δr/2 + voxel) is left out of that frame's pixel: sound does not
+  // cross a surface (the occlusion kernel of sec. 5.6.7.2, occluders = carving's candidates).
+  // Measured (docs/deconvolution.md): lattice orbit median 29 → 4 cm, sphere orbit outliers
+  // 18 → 10 %, and 3–10× less solve time; false = every candidate in every frame.
+  bool occlusion_aware = true;
   void validate() const;  // throws Error naming the field
 };
 
