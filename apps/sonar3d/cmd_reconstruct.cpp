@@ -252,6 +252,17 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "carve a voxel only when this fraction of its half-diagonal around its centre "
                   "is free (0 = centre only, 1 = whole voxel)")
       ->capture_default_str();
+  cmd->add_option("--pose-sigma", o->carve.pose_sigma_position,
+                  "carving: standard deviation of each frame's position (m); a voxel is carved "
+                  "only when free for every pose within --pose-sigma-k standard deviations "
+                  "(navigation uncertainty; 0 = exact poses)")
+      ->capture_default_str();
+  cmd->add_option("--attitude-sigma-deg", o->carve.pose_sigma_attitude_deg,
+                  "carving: standard deviation of each frame's attitude (degrees), as --pose-sigma")
+      ->capture_default_str();
+  cmd->add_option("--pose-sigma-k", o->carve.pose_sigma_k,
+                  "carving: margin of the pose uncertainty, in standard deviations")
+      ->capture_default_str();
   cmd->add_option("--min-elevation-span", o->carve.min_elevation_span,
                   "keep candidates observed over at least this fraction of the vertical aperture "
                   "(drops the unbracketed arcs at the ends of a pass; 0 = off)")
