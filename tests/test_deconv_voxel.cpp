@@ -16,6 +16,7 @@
 #include "sonar3d/recon/deconvolve.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
 
@@ -40,14 +41,8 @@ SimRun simulate_sphere(const std::vector<Eigen::Isometry3d>& poses) {
   s.spec.r_max = 3.2;
   s.spec.range_bins = 70;
   s.spec.vertical_aperture_rad = 10 * kDeg;
-  Scene scene;
-  SceneObject o;
-  o.name = "sphere";
-  o.mesh_world = make_sphere(0.3, 48);
-  o.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.5)));
-  o.reflectivity = 0.8;
-  scene.objects.push_back(o);
-  s.truth = o.mesh_world;
+  const Scene scene = test::sphere_scene();
+  s.truth = scene.objects[0].mesh_world;
   SimulatorConfig sc;
   sc.elevation_step_rad = 0.02 * kDeg;
   sc.num_threads = 2;
