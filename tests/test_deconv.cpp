@@ -12,6 +12,7 @@
 #include "sonar3d/recon/nnls.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
 
@@ -531,16 +532,7 @@ SimPass simulate_pass(const Scene& scene, double aperture_deg, double z0, double
   return s;
 }
 
-Scene sphere_scene() {
-  Scene scene;
-  SceneObject o;
-  o.name = "sphere";
-  o.mesh_world = make_sphere(0.3, 48);
-  o.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.5)));
-  o.reflectivity = 0.8;
-  scene.objects.push_back(o);
-  return scene;
-}
+using test::sphere_scene;
 
 }  // namespace
 

@@ -12,8 +12,23 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
+#include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/sim/scene.hpp"
 
 namespace sonar3d::test {
+
+// A 30 cm sphere (48 segments) centred at (0, 0, 0.5), reflectivity 0.8: the small object of the
+// deconvolution tests.
+inline Scene sphere_scene() {
+  Scene scene;
+  SceneObject o;
+  o.name = "sphere";
+  o.mesh_world = make_sphere(0.3, 48);
+  o.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.5)));
+  o.reflectivity = 0.8;
+  scene.objects.push_back(o);
+  return scene;
+}
 
 // A fresh, empty directory for the running test: unique per suite, test and `name`, so that
 // ctest -j can run the test executables side by side.

@@ -27,6 +27,7 @@ struct ReconstructCliOptions {
   DeconvConfig deconv;
   BracketConfig bracket;
   std::string beam = "sinc";
+  std::string deconv_mode = "passes";
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
   bool allow_empty = false;
@@ -72,7 +73,10 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
 int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   DeconvConfig cfg = o.deconv;
   cfg.beam = DeconvConfig::parse_beam(o.beam);
-  if (cfg.exact_lambertian) cfg.exact = true;  // --exact-lambertian implies --exact
+  cfg.mode = DeconvConfig::parse_mode(o.deconv_mode);
+  cfg.voxel.voxel_size = o.carve.voxel_size;  // --voxel-size, --min-observations: the voxel mode's
+  cfg.voxel.min_observations = o.carve.min_observations;  // candidates are carving's
+  if (cfg.exact_lambertian) cfg.exact = true;             // --exact-lambertian implies --exact
   cfg.dering = !o.no_dering;
   cfg.resolve_occlusions = !o.no_occlusion;
   cfg.denoise = o.carve.denoise;
@@ -91,7 +95,7 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
   const BracketReport br = assess(cloud, ds, poses, o, roi);
   if (cloud.empty() && !o.allow_empty) {
-    if (report.passes.empty()) {
+    if (report.passes.empty() && report.mode == "passes") {
       std::string why;  // the passes' collapsed warnings
       for (const auto& w : summarize_pass_warnings(report.warnings)) {
         if (w != "no pass was reconstructed") why += (why.empty() ? "" : "; ") + w;
@@ -104,12 +108,14 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
       throw Error("deconvolution reconstructed no pass of the " + std::to_string(ds.size()) +
                   " frames" + (why.empty() ? "" : " (" + why + ")") +
                   ": it needs straight passes along the sonar's z axis that see something "
-                  "(docs/deconvolution.md); use --method carve for other trajectories, or pass "
-                  "--allow-empty to write the empty cloud");
+                  "(docs/deconvolution.md); use --deconv-mode voxel (or auto) or --method carve "
+                  "for other trajectories, or pass --allow-empty to write the empty cloud");
     }
     throw Error("deconvolution produced 0 points" +
-                (before_roi > 0
-                     ? " inside --roi (" + std::to_string(before_roi) + " outside)"
+                (before_roi > 0 ? " inside --roi (" + std::to_string(before_roi) + " outside)"
+                 : report.mode == "voxel"
+                     ? std::string(" in voxel mode from ") +
+                           std::to_string(report.voxel.candidates) + " candidate voxels"
                      : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
                 "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
   }
@@ -118,6 +124,7 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   if (!o.json.empty()) {
     nlohmann::json j;
     j["method"] = "deconv";
+    j["mode"] = report.mode;
     j["points"] = cloud.size();
     j["report"] = report.to_text();
     j["warnings"] = report.warnings;
@@ -245,6 +252,17 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "carve a voxel only when this fraction of its half-diagonal around its centre "
                   "is free (0 = centre only, 1 = whole voxel)")
       ->capture_default_str();
+  cmd->add_option("--pose-sigma", o->carve.pose_sigma_position,
+                  "carving: standard deviation of each frame's position (m); a voxel is carved "
+                  "only when free for every pose within --pose-sigma-k standard deviations "
+                  "(navigation uncertainty; 0 = exact poses)")
+      ->capture_default_str();
+  cmd->add_option("--attitude-sigma-deg", o->carve.pose_sigma_attitude_deg,
+                  "carving: standard deviation of each frame's attitude (degrees), as --pose-sigma")
+      ->capture_default_str();
+  cmd->add_option("--pose-sigma-k", o->carve.pose_sigma_k,
+                  "carving: margin of the pose uncertainty, in standard deviations")
+      ->capture_default_str();
   cmd->add_option("--min-elevation-span", o->carve.min_elevation_span,
                   "keep candidates observed over at least this fraction of the vertical aperture "
                   "(drops the unbracketed arcs at the ends of a pass; 0 = off)")
@@ -282,6 +300,23 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "(sonar.yaml's pattern)")
       ->check(CLI::IsMember({"sinc", "flat", "sensor"}))
       ->capture_default_str();
+  cmd->add_option("--deconv-mode", o->deconv_mode,
+                  "deconv: passes (the thesis: per column of straight passes along the sonar z "
+                  "axis), voxel (any trajectory and spacing: orbits, lawnmowers, irregular passes; "
+                  "non-negative least squares over carving's candidate voxels, --voxel-size) or "
+                  "auto (passes when every frame lies in an accepted pass, voxel otherwise)")
+      ->capture_default_str();
+  cmd->add_option("--voxel-iterations", o->deconv.voxel.max_iterations,
+                  "deconv, voxel mode: projected-gradient iterations at most")
+      ->capture_default_str();
+  cmd->add_option("--voxel-min-relative", o->deconv.voxel.min_relative,
+                  "deconv, voxel mode: keep voxels whose reflectivity is at least this fraction of "
+                  "the largest (0 = every non-zero voxel)")
+      ->capture_default_str();
+  cmd->add_flag("--no-voxel-occlusion{false}", o->deconv.voxel.occlusion_aware,
+                "deconv, voxel mode: keep every candidate in every frame's model, also where "
+                "another candidate lies nearer on its ray (by default such a hidden candidate is "
+                "left out of that frame: sound does not cross a surface)");
   cmd->add_flag("--exact", o->deconv.exact,
                 "deconv: exact slant-range geometry on a (horizontal distance × height) grid per "
                 "bearing plane, for wide apertures (beyond the thesis' rectilinear model)");

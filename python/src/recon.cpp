@@ -144,6 +144,9 @@ void bind_recon(py::module_& m) {
       .def_readwrite("resolve_occlusions", &CarveConfig::resolve_occlusions)
       .def_readwrite("static_threshold", &CarveConfig::static_threshold)
       .def_readwrite("carve_margin", &CarveConfig::carve_margin)
+      .def_readwrite("pose_sigma_position", &CarveConfig::pose_sigma_position)
+      .def_readwrite("pose_sigma_attitude_deg", &CarveConfig::pose_sigma_attitude_deg)
+      .def_readwrite("pose_sigma_k", &CarveConfig::pose_sigma_k)
       .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
       .def_readwrite("min_observations", &CarveConfig::min_observations)
       .def_readwrite("num_threads", &CarveConfig::num_threads)
@@ -231,8 +234,23 @@ void bind_recon(py::module_& m) {
       "Returns a Reconstruction: points (N, 3) world frame, intensity = reflectivity bounds (N,), "
       "report = the carving statistics. progress: True (terminal bars) or progress(done, total).");
 
+  py::class_<VoxelDeconvConfig>(
+      m, "VoxelDeconvConfig",
+      "Voxel-mode deconvolution (any trajectory): voxel_size, "
+      "max_iterations, tolerance, min_relative, min_observations, occlusion_aware")
+      .def(py::init(&from_kwargs<VoxelDeconvConfig>))
+      .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
+      .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
+      .def_readwrite("tolerance", &VoxelDeconvConfig::tolerance)
+      .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
+      .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
+      .def_readwrite("occlusion_aware", &VoxelDeconvConfig::occlusion_aware)
+      .def("__repr__", &fields_repr)
+      .def("validate", &VoxelDeconvConfig::validate);
+
   py::class_<DeconvConfig>(m, "DeconvConfig",
-                           "Deconvolution (ch. 5): beam ('sinc', 'flat', 'sensor'), "
+                           "Deconvolution (ch. 5): mode ('passes', 'voxel': any trajectory, "
+                           "'auto'), voxel (VoxelDeconvConfig), beam ('sinc', 'flat', 'sensor'), "
                            "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
                            "resolve_occlusions, kernel ('plain', 'normal', 'occlusion', "
                            "'normal+occlusion'), max_range, num_threads ...")
@@ -241,6 +259,11 @@ void bind_recon(py::module_& m) {
           "beam",
           [](const DeconvConfig& c) { return std::string(DeconvConfig::beam_name(c.beam)); },
           [](DeconvConfig& c, const std::string& s) { c.beam = DeconvConfig::parse_beam(s); })
+      .def_property(
+          "mode",
+          [](const DeconvConfig& c) { return std::string(DeconvConfig::mode_name(c.mode)); },
+          [](DeconvConfig& c, const std::string& s) { c.mode = DeconvConfig::parse_mode(s); })
+      .def_readwrite("voxel", &DeconvConfig::voxel)
       .def_property(
           "kernel",
           [](const DeconvConfig& c) { return std::string(DeconvConfig::kernel_name(c.kernel)); },

@@ -96,8 +96,8 @@ struct TaskOut {
 class FrameCarver {
  public:
   FrameCarver(const detail::SonarGeometry& g, const detail::FrameFootprint& fp,
-              const SonarImage& image, double voxel_size, double margin, const CoordBBox& clip,
-              bool track_span, int min_observations, bool span_filter)
+              const SonarImage& image, double voxel_size, double margin, double pose_margin,
+              const CoordBBox& clip, bool track_span, int min_observations, bool span_filter)
       : g_(g),
         fp_(fp),
         fr_(fp.frame()),
@@ -107,7 +107,7 @@ class FrameCarver {
         track_span_(track_span),
         min_span_needed_(span_filter),
         min_obs_(min_observations) {
-    delta_ = margin * 0.5 * kSqrt3 * vs_;
+    delta_ = margin * 0.5 * kSqrt3 * vs_ + pose_margin;
     // Steps of the sonar-frame position per voxel index along world x, y, z.
     step_[0] = fp.R_sonar_world.col(0) * vs_;
     step_[1] = fp.R_sonar_world.col(1) * vs_;
@@ -415,6 +415,17 @@ void CarveConfig::validate() const {
   require(std::isfinite(static_threshold), "parameter 'carve.static_threshold' must be finite");
   require(std::isfinite(carve_margin) && carve_margin >= 0 && carve_margin <= 1,
           "parameter 'carve.carve_margin' must lie in [0, 1], got " + std::to_string(carve_margin));
+  require(
+      std::isfinite(pose_sigma_position) && pose_sigma_position >= 0 && pose_sigma_position <= 10,
+      "parameter 'carve.pose_sigma_position' must lie in [0, 10] m, got " +
+          std::to_string(pose_sigma_position));
+  require(std::isfinite(pose_sigma_attitude_deg) && pose_sigma_attitude_deg >= 0 &&
+              pose_sigma_attitude_deg <= 30,
+          "parameter 'carve.pose_sigma_attitude_deg' must lie in [0, 30] deg, got " +
+              std::to_string(pose_sigma_attitude_deg));
+  require(
+      std::isfinite(pose_sigma_k) && pose_sigma_k > 0 && pose_sigma_k <= 10,
+      "parameter 'carve.pose_sigma_k' must lie in (0, 10], got " + std::to_string(pose_sigma_k));
   require(std::isfinite(min_elevation_span) && min_elevation_span >= 0 && min_elevation_span <= 1,
           "parameter 'carve.min_elevation_span' must lie in [0, 1], got " +
               std::to_string(min_elevation_span));
@@ -504,8 +515,12 @@ struct Carver::Impl {
       for (auto y = floor_div(box.min().y(), kTopDim) * kTopDim; y <= box.max().y(); y += kTopDim)
         for (auto z = floor_div(box.min().z(), kTopDim) * kTopDim; z <= box.max().z(); z += kTopDim)
           tops.emplace_back(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z));
-    const FrameCarver carver(*geom, fp, denoised, vs, cfg.carve_margin, roi, span != nullptr,
-                             cfg.min_observations, cfg.min_elevation_span > 0);
+    // Navigation uncertainty: the largest displacement the pose error causes in the footprint.
+    const double pose_margin =
+        cfg.pose_sigma_k *
+        (cfg.pose_sigma_position + spec.r_max * cfg.pose_sigma_attitude_deg * M_PI / 180.0);
+    const FrameCarver carver(*geom, fp, denoised, vs, cfg.carve_margin, pose_margin, roi,
+                             span != nullptr, cfg.min_observations, cfg.min_elevation_span > 0);
     std::vector<TaskOut> outs(tops.size());
     TreeT& tree = grid->tree();
     SpanTreeT scratch_span(0);

@@ -87,6 +87,41 @@ void DeconvConfig::validate() const {
   require(!(exact && kernel != Kernel::Plain),
           "parameter 'deconv.kernel': the multipass kernels (normal, occlusion) need the "
           "approximate (rectilinear) mode; drop --exact or use kernel 'plain'");
+  if (mode != Mode::Passes) voxel.validate();
+}
+
+void VoxelDeconvConfig::validate() const {
+  require(
+      std::isfinite(voxel_size) && voxel_size >= 1e-4 && voxel_size <= 10,
+      "parameter 'deconv.voxel.voxel_size' must lie in [0.0001, 10] m, got " + fmt(voxel_size, 4));
+  require(max_iterations >= 1 && max_iterations <= 100000,
+          "parameter 'deconv.voxel.max_iterations' must lie in [1, 100000], got " +
+              std::to_string(max_iterations));
+  require(std::isfinite(tolerance) && tolerance > 0 && tolerance < 1,
+          "parameter 'deconv.voxel.tolerance' must lie in (0, 1), got " + fmt(tolerance, 6));
+  require(std::isfinite(min_relative) && min_relative >= 0 && min_relative < 1,
+          "parameter 'deconv.voxel.min_relative' must lie in [0, 1), got " + fmt(min_relative, 4));
+  require(min_observations >= 1, "parameter 'deconv.voxel.min_observations' must be >= 1, got " +
+                                     std::to_string(min_observations));
+}
+
+DeconvConfig::Mode DeconvConfig::parse_mode(const std::string& s) {
+  if (s == "passes") return Mode::Passes;
+  if (s == "voxel") return Mode::Voxel;
+  if (s == "auto") return Mode::Auto;
+  throw Error("unknown deconvolution mode '" + s + "' (expected passes, voxel or auto)");
+}
+
+const char* DeconvConfig::mode_name(Mode m) {
+  switch (m) {
+    case Mode::Voxel:
+      return "voxel";
+    case Mode::Auto:
+      return "auto";
+    case Mode::Passes:
+    default:
+      return "passes";
+  }
 }
 
 DeconvConfig::Beam DeconvConfig::parse_beam(const std::string& s) {
@@ -665,7 +700,7 @@ std::size_t dering(const PassData& pd, std::vector<LayerPoint>& points) {
 // ---------------------------------------------------------------------------------------------
 // Driver
 
-namespace {
+namespace deconv_detail {
 
 BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
   switch (cfg.beam) {
@@ -684,6 +719,10 @@ BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
     }
   }
 }
+
+}  // namespace deconv_detail
+
+namespace {
 
 std::string frames_label(std::size_t index, std::size_t first, std::size_t count) {
   return "pass " + std::to_string(index + 1) + " (frames " + std::to_string(first) + "–" +
@@ -711,9 +750,46 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
                   " range bins × " + std::to_string(spec.beams()) + " beams");
     }
   }
+  if (config.mode == DeconvConfig::Mode::Auto) {
+    // Passes when every frame lies in an accepted pass, the voxel mode otherwise.
+    DeconvConfig pc = config;
+    pc.mode = DeconvConfig::Mode::Passes;
+    DeconvReport pr;
+    std::string why;
+    try {
+      PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
+      std::size_t in_passes = 0;
+      for (const PassReport& p : pr.passes) in_passes += p.frames;
+      if (in_passes == denoised.size()) {
+        if (report_out) *report_out = std::move(pr);
+        return cloud;
+      }
+      why = std::to_string(denoised.size() - in_passes) + " of " + std::to_string(denoised.size()) +
+            " frames in no accepted pass";
+    } catch (const Error& e) {
+      why = e.what();
+    }
+    DeconvConfig vc = config;
+    vc.mode = DeconvConfig::Mode::Voxel;
+    DeconvReport vr;
+    PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
+    vr.warnings.insert(
+        vr.warnings.begin(),
+        "mode auto: voxel deconvolution, the passes mode does not apply (" + why + ")");
+    if (report_out) *report_out = std::move(vr);
+    return cloud;
+  }
   DeconvReport report;
   report.frames = denoised.size();
   PointCloud cloud;
+  if (config.mode == DeconvConfig::Mode::Voxel) {
+    report.mode = "voxel";
+    cloud = deconvolve_voxels(denoised, T_world_sonar, spec, config, report, progress);
+    report.points = cloud.size();
+    report.seconds_total = seconds_since(t_start);
+    if (report_out) *report_out = std::move(report);
+    return cloud;
+  }
   const BeamPattern pattern = kernel_pattern(config, spec);
   const double theta3 = spec.theta_3db();
   const double dr = spec.range_resolution();
@@ -1063,8 +1139,22 @@ std::string DeconvReport::to_text() const {
     if (p.unconverged) os << ", " << p.unconverged << " unconverged";
     os << "\n";
   }
-  os << "deconvolution: " << frames << " frames, " << passes.size() << " passes, " << points
-     << " points";
+  if (mode == "voxel") {
+    os << "voxel deconvolution: " << voxel.candidates << " candidate voxels (" << voxel.unknowns
+       << " in a return pixel), " << voxel.equations << " equations, " << voxel.nonzeros
+       << " non-zeros, " << voxel.iterations << " iterations"
+       << (voxel.converged ? "" : " (iteration cap)") << ", residual "
+       << fmt(voxel.relative_residual, 3) << ", " << voxel.points_solved << " voxels kept ("
+       << fmt(voxel.seconds_carve, 2) << " s carving, " << fmt(voxel.seconds_build, 2)
+       << " s model, " << fmt(voxel.seconds_solve, 2) << " s solve)\n";
+  }
+  os << "deconvolution: " << frames << " frames, ";
+  if (mode == "voxel") {
+    os << "voxel mode, ";
+  } else {
+    os << passes.size() << " passes, ";
+  }
+  os << points << " points";
   if (points_before_occlusion != points) {
     os << " (" << points_before_occlusion << " before occlusion resolution)";
   }
@@ -1077,8 +1167,22 @@ std::string DeconvReport::to_text() const {
 
 std::string DeconvReport::to_json(int indent) const {
   nlohmann::ordered_json j;
+  j["mode"] = mode;
   j["frames"] = frames;
   j["points"] = points;
+  if (mode == "voxel") {
+    j["voxel"] = {{"candidates", voxel.candidates},
+                  {"unknowns", voxel.unknowns},
+                  {"equations", voxel.equations},
+                  {"nonzeros", voxel.nonzeros},
+                  {"iterations", voxel.iterations},
+                  {"converged", voxel.converged},
+                  {"relative_residual", voxel.relative_residual},
+                  {"points_solved", voxel.points_solved},
+                  {"seconds_carve", voxel.seconds_carve},
+                  {"seconds_build", voxel.seconds_build},
+                  {"seconds_solve", voxel.seconds_solve}};
+  }
   j["points_before_occlusion"] = points_before_occlusion;
   j["seconds"] = {{"total", seconds_total},         {"load", seconds_load},
                   {"solve", seconds_solve},         {"dering", seconds_dering},

@@ -76,6 +76,15 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
 std::unique_ptr<KernelScaler> make_multipass_scaler(const PassData& pd, const DeconvConfig& cfg,
                                                     const std::vector<LayerPoint>& first);
 
+// The kernel's beam pattern (DeconvConfig::beam).
+BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec);
+
+// Voxel mode (VoxelDeconvConfig): the whole reconstruction, occlusion resolution included.
+PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config,
+                             DeconvReport& report, bool progress);
+
 // Zeroes (removes) every point seen as free space by an unoccluded view of the pass (sec. 5.5.4).
 // Returns the number removed.
 std::size_t dering(const PassData& pd, std::vector<LayerPoint>& points);

@@ -56,6 +56,15 @@ struct CarveConfig {
   // measured best, docs/carving.md), 1 = the whole voxel (keeps the voxel whose centre falls just
   // in front of the return's range bin: surfaces one voxel thicker).
   double carve_margin = 0.0;
+  // Navigation uncertainty (issue 15 item 4, thesis future work): per-frame standard deviations
+  // of the sonar position (m) and attitude (deg). A voxel is carved only when the ball of radius
+  // pose_sigma_k·(σ_position + r_max·σ_attitude) around its centre (added to the carve_margin
+  // ball) lies in free space in the frame: the empty region is eroded by the displacement the
+  // pose error can cause, so a surface the pose error moves into an empty pixel is not carved.
+  // 0 = poses are exact (the thesis).
+  double pose_sigma_position = 0.0;
+  double pose_sigma_attitude_deg = 0.0;
+  double pose_sigma_k = 2.0;
   // Keep only candidates whose observations (return pixels) spread over at least this fraction
   // of the vertical aperture (in sin θ). The min-filter bounds a scatterer along the elevation
   // arc only where frames saw free space on both sides of it; at the edges of a pass (below the
