@@ -30,6 +30,22 @@ inline Scene sphere_scene() {
   return scene;
 }
 
+// A camera at `eye` looking at `target` in OpenCV axes (+z forward, +x right, +y down), the world
+// z up (its image's "up" is the world's +z where it can be).
+inline Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - eye).normalized();
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d x = z.cross(up).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = x;
+  T.linear().col(1) = y;
+  T.linear().col(2) = z;
+  T.translation() = eye;
+  return T;
+}
+
 // A fresh, empty directory for the running test: unique per suite, test and `name`, so that
 // ctest -j can run the test executables side by side.
 inline std::filesystem::path temp_dir(const std::string& name) {

@@ -64,20 +64,7 @@ objects:
 trajectory: {period: 0.1, type: straight, start: [-2, 0, 0.3], end: [-2, 0, 0.35], spacing: 0.05}
 )";
 
-// A camera at `eye` looking at `target`, OpenCV axes (+z forward, +y down, world z up).
-Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d x = z.cross(up).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = y;
-  T.linear().col(2) = z;
-  T.translation() = eye;
-  return T;
-}
+using test::look_at;
 
 std::array<int, 3> srgb8(const Eigen::Vector3f& linear) {
   return {int(std::lround(255 * linear_to_srgb(linear.x()))),
@@ -405,7 +392,7 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     EXPECT_GT(top, 50u);
     EXPECT_GT(under, 50u);
     // The same as glTF 2.0 (.glb): read back through Assimp (load_mesh turns glTF's y up back
-    // into z up), the same vertices; a second run needs --overwrite; a cloud cannot go to .glb.
+    // into z up), the same faces; a second run needs --overwrite; a cloud cannot go to .glb.
     const fs::path glb = tmp / "scene_coloured.glb";
     const std::string glb_args = "texture " + (tmp / "scene.obj").string() +
                                  " --mesh --texel 0.04 --neus " + npz.string() + " --images " +
@@ -413,7 +400,9 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     CliRun g = run(tmp, glb_args);
     ASSERT_EQ(g.code, 0) << g.err;
     const TriangleMesh back = load_mesh(glb.string());
-    EXPECT_EQ(back.vertices.size(), v.size());
+    // (Assimp joins the vertices that the seabed and the box's bottom share in place.)
+    EXPECT_LE(back.vertices.size(), v.size());
+    EXPECT_GT(back.vertices.size(), v.size() * 99 / 100);
     EXPECT_EQ(back.triangles.size(), faces.size());
     const Eigen::AlignedBox3f box_back = back.bounding_box();
     EXPECT_NEAR(box_back.max().z(), 0.6, 1e-4);

@@ -187,20 +187,8 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
   distorted.k1 = -0.12;
   distorted.k2 = 0.03;
   distorted.p1 = 0.002;
-  auto look_at = [](const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-    // OpenCV camera: +z forward, +y down (world z up).
-    const Eigen::Vector3d z = (target - eye).normalized();
-    Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ());
-    if (x.norm() < 1e-6) x = Eigen::Vector3d::UnitX();
-    x.normalize();
-    const Eigen::Vector3d y = z.cross(x);
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear().col(0) = x;
-    T.linear().col(1) = y;
-    T.linear().col(2) = z;
-    T.translation() = eye;
-    return T;
-  };
+  using test::look_at;
+
   RgbImage img;
   img.width = pinhole.width;
   img.height = pinhole.height;
