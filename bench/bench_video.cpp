@@ -63,18 +63,18 @@ void run_texture(benchmark::State& state, const sonar3d::TriangleMesh& mesh, dou
   state.counters["ray_share"] = tests > 0 ? static_cast<double>(texturer.rays_cast()) / tests : 0;
 }
 
+// range(0): threads 1 and 2; range(1): 0 = an Embree ray per vertex, 1 = the raster first.
+void threads_and_visibility(benchmark::internal::Benchmark* b) {
+  for (int raster : {0, 1}) {
+    for (int threads : {1, 2}) b->Args({threads, raster});
+  }
+  b->Unit(benchmark::kMillisecond)->UseRealTime();
+}
+
 void BM_TextureMesh1MTriangles1MP(benchmark::State& state) {
   run_texture(state, relief_grid(708, 10.0), 0);
 }
-BENCHMARK(BM_TextureMesh1MTriangles1MP)
-    ->Args({1, 0})
-    ->Args({2, 0})
-    ->Args({1, 1})
-    ->Args({2, 1})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
-
-}  // namespace
+BENCHMARK(BM_TextureMesh1MTriangles1MP)->Apply(threads_and_visibility);
 
 // The registered-CAD case of thesis sec. 6.4: a coarse model (a 90 × 90-quad relief grid, 16 200
 // triangles, as a CAD model has) subdivided to the texel size for its colours: 1.04 M textured
@@ -84,12 +84,8 @@ void BM_TextureCadModel1MTexelTriangles1MP(benchmark::State& state) {
   // three subdivision levels (0.157 m diagonals to 2 cm): 16 200 × 64 triangles
   run_texture(state, relief_grid(90, 10.0), 0.02);
 }
-BENCHMARK(BM_TextureCadModel1MTexelTriangles1MP)
-    ->Args({1, 0})
-    ->Args({2, 0})
-    ->Args({1, 1})
-    ->Args({2, 1})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+BENCHMARK(BM_TextureCadModel1MTexelTriangles1MP)->Apply(threads_and_visibility);
+
+}  // namespace
 
 BENCHMARK_MAIN();
