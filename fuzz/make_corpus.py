@@ -223,12 +223,11 @@ else:
 w('catalogue', 'field', "models:\n  - {name: riser, reference: riser, symmetry: none}\n  - {name: tank, reference: tank, symmetry: full, expected: 1}\n  - {name: pillar, reference: pillar, symmetry: \"180\", scale: 1.1}\n")
 w('catalogue', 'block', "models:\n  - name: panel\n    mesh: meshes/bop_panel.dae\n    symmetry: \"180\"\n    expected: 2\n  - name: sphere\n    reference: sphere\n    symmetry: full\n    scale: 0.5\n")
 w('catalogue', 'empty', "models: []\n")
-# Scene-page JSON of `sonar3d report` (fuzz_report_scene): first byte 0 graph.json, 1 changes.json,
-# 2 placements.json.
+# Scene-page JSON of `sonar3d report` (fuzz_report_scene): first byte even graph.json, odd
+# changes.json (placements.json: fuzz_placements, the one reader).
 I16 = '[1,0,0,2, 0,1,0,3, 0,0,1,0, 0,0,0,1]'
 w('report_scene', 'world', b'\x00' + ('{"format":"sonar3d-world","version":1,"objects":[{"id":"tank_0","model":"tank","kind":"structure","T_world_model":' + I16 + ',"score_m":0.02,"residual_median_m":null,"file":"models/tank_0.ply"},{"id":"riser_0","model":"riser","kind":"structure","T_world_model":' + I16 + ',"score_m":0.03,"residual_median_m":0.01,"file":"models/riser_0.ply"}],"connections":[{"from":"tank_0","to":"riser_0","kind":"pipeline","length_m":4.5}],"seabed":[{"lod":0,"file":"seabed_lod0.ply","cell_m":0.1,"triangles":800,"bytes":12000,"median_error_m":0.01},{"lod":1,"file":"seabed_lod1.ply","cell_m":0.4,"triangles":50,"bytes":900,"median_error_m":null}],"source":{"map":"m","placements":"p.json","catalogue":"c.yaml"},"bytes_total":20000,"cloud_bytes":6000000}').encode())
 w('report_scene', 'changes', b'\x01' + ('{"format":"sonar3d-changes","version":1,"T_a_b":' + I16 + ',"registration":{"method":"elevation","rms_m":0.01,"overlap_cells":1200},"objects":[{"id":"tank_0","model":"tank","status":"moved","T_world_model_a":' + I16 + ',"T_world_model_b_in_a":' + I16 + ',"shift_m":0.3,"turn_deg":10},{"id":"s","model":"sphere","status":"added","T_world_model_a":null,"T_world_model_b_in_a":' + I16 + ',"shift_m":null,"turn_deg":null}],"regions":[{"id":1,"centroid":[1,2,0],"area_m2":0.5,"max_abs_change_m":0.3,"mean_change_m":0.2,"kind":"raised"}],"thresholds":{"shift_m":0.05},"seconds":1.2}').encode())
-w('report_scene', 'placements', b'\x02' + '{"format":"sonar3d-placements","version":1,"map":"m","catalogue":"c.yaml","placements":[{"model":"tank","method":"2d","T_world_model":[[1,0,0,2],[0,1,0,3],[0,0,1,0],[0,0,0,1]],"score_m":0.01,"residual_median_m":0.012,"residual_mean_m":null}]}'.encode())
 
 # Placements of sonar3d recognize (fuzz_placements).
 I4 = "[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]"
@@ -236,4 +235,5 @@ w('placements', 'two', '{"format": "sonar3d-placements", "version": 1, "placemen
   ' {"model": "riser", "T_world_model": [[0.94, -0.34, 0, -12], [0.34, 0.94, 0, 6], [0, 0, 1, -0.1], [0, 0, 0, 1]]},\n'
   ' {"model": "tank", "T_world_model": ' + I4 + '}]}\n')
 w('placements', 'flat16', '{"format": "sonar3d-placements", "version": 1, "placements": [{"model": "t", "T_world_model": [1,0,0,1, 0,1,0,2, 0,0,1,3, 0,0,0,1]}]}\n')
+w('placements', 'method_mean', '{"format":"sonar3d-placements","version":1,"map":"m","catalogue":"c.yaml","placements":[{"model":"tank","method":"2d","T_world_model":[[1,0,0,2],[0,1,0,3],[0,0,1,0],[0,0,0,1]],"score_m":0.01,"residual_median_m":0.012,"residual_mean_m":null}]}')
 w('placements', 'empty', '{"format": "sonar3d-placements", "version": 1, "placements": []}\n')

@@ -1239,7 +1239,7 @@ TEST_F(SceneReportTest, MalformedInputsNameTheFile) {
   pc.catalogue = root_ / "catalogue.yaml";
   pc.output = root_ / "bad_map.html";
   write_text_file(bad_p.string(), "[1, 2");
-  expect_error([&] { write_report(root_ / "map", pc); }, {bad_p.string(), "malformed JSON"});
+  expect_error([&] { write_report(root_ / "map", pc); }, {bad_p.string(), "not valid JSON"});
   json pj = json::parse(read_text_file((root_ / "placements.json").string()));
   pj["placements"][1]["model"] = "riser";
   write_text_file(bad_p.string(), pj.dump());

@@ -137,27 +137,6 @@ std::string entry(const std::string& path, const std::string& list, std::size_t 
 
 }  // namespace
 
-std::vector<ReportPlacement> parse_placements_json(const std::string& text, const std::string& path,
-                                                   std::string* catalogue_source) {
-  const json j = parse(text, path);
-  const Obj o = top(j, path, "sonar3d-placements");
-  if (catalogue_source != nullptr) *catalogue_source = o.str_or("catalogue", "");
-  std::vector<ReportPlacement> out;
-  const json& list = o.array("placements");
-  for (std::size_t i = 0; i < list.size(); ++i) {
-    const Obj e(list[i], entry(path, "placements", i));
-    ReportPlacement p;
-    p.model = e.str("model");
-    p.method = e.str_or("method", "");
-    p.T_world_model = e.pose("T_world_model");
-    p.score_m = e.num("score_m");
-    p.residual_median_m = e.num("residual_median_m", true);
-    p.residual_mean_m = e.has("residual_mean_m") ? e.num("residual_mean_m", true) : kNaN;
-    out.push_back(p);
-  }
-  return out;
-}
-
 WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
   const json j = parse(text, path);
   const Obj o = top(j, path, "sonar3d-world");

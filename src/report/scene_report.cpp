@@ -17,6 +17,7 @@
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/report/scene_files.hpp"
+#include "sonar3d/world/world_model.hpp"
 
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
@@ -247,12 +248,6 @@ class Scene {
   std::map<std::string, std::string> model_colors_;
 };
 
-std::string read_file_named(const fs::path& path, const std::string& what) {
-  if (!fs::is_regular_file(path))
-    throw Error("report: " + what + " '" + path.string() + "' not found");
-  return read_text_file(path.string());
-}
-
 // Catalogue meshes by model name, loaded once; a model the catalogue lacks is an Error naming
 // the file that asked for it.
 class Models {
@@ -297,9 +292,10 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
   }
   if (cfg.placements.empty()) return;
   const std::string ppath = cfg.placements.string();
-  std::string catalogue_source;
-  const std::vector<ReportPlacement> placements = parse_placements_json(
-      read_file_named(cfg.placements, "placements file"), ppath, &catalogue_source);
+  // The one reader of placements.json (world/world_model.hpp), as `sonar3d world` and `diff`.
+  const PlacementsFile file = read_placements(ppath);
+  const std::vector<PlacementRecord>& placements = file.placements;
+  const std::string& catalogue_source = file.catalogue;
   fs::path cat = cfg.catalogue;
   if (cat.empty()) {
     // The catalogue the placements name: as written, or relative to the placements file.
@@ -317,14 +313,13 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
   Models models(cat);
   json rows = json::array(), focus = json::array();
   for (std::size_t i = 0; i < placements.size(); ++i) {
-    const ReportPlacement& p = placements[i];
+    const PlacementRecord& p = placements[i];
+    const Eigen::Matrix4d T = p.T_world_model.matrix();
     const std::string asked = "'" + ppath + "': placements[" + std::to_string(i) + "]";
     scene.mesh("placement_" + std::to_string(i), p.model + " #" + std::to_string(i + 1),
-               models.placed(p.model, p.T_world_model, asked), {}, scene.model_color(p.model), 0.45,
-               true);
+               models.placed(p.model, T, asked), {}, scene.model_color(p.model), 0.45, true);
     focus.push_back("placement_" + std::to_string(i));
-    rows.push_back({i + 1, p.model, p.T_world_model(0, 3), p.T_world_model(1, 3),
-                    p.T_world_model(2, 3), yaw_deg(p.T_world_model), p.score_m,
+    rows.push_back({i + 1, p.model, T(0, 3), T(1, 3), T(2, 3), yaw_deg(T), p.score_m,
                     num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method});
   }
   scene.table("placements", "Placements (" + ppath + ")",

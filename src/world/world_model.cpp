@@ -180,6 +180,8 @@ PlacementsFile parse_placements(const std::string& text, const std::string& sour
     p.T_world_model = parse_pose(e["T_world_model"], at + ": T_world_model");
     p.score_m = optional_number(e, "score_m", at);
     p.residual_median_m = optional_number(e, "residual_median_m", at);
+    p.residual_mean_m = optional_number(e, "residual_mean_m", at);
+    p.method = optional_string(e, "method");
     out.placements.push_back(p);
   }
   return out;

@@ -1,6 +1,7 @@
 #pragma once
 // Readers of the JSON files `sonar3d report` shows in 3D (formats: docs/formats.md, "World model
-// directory" and "Change directory"; placements: docs/recognition.md). Each parser takes the
+// directory" and "Change directory"; placements.json is read by read_placements in
+// world/world_model.hpp). Each parser takes the
 // file's text and the path to name in errors; every error is one line naming the file and the
 // key or entry at fault. Fuzzed: fuzz/fuzz_report_scene.cpp.
 #include <Eigen/Core>
@@ -8,16 +9,6 @@
 #include <vector>
 
 namespace sonar3d {
-
-// A placement of `sonar3d recognize` (placements.json, "format": "sonar3d-placements").
-struct ReportPlacement {
-  std::string model, method;
-  Eigen::Matrix4d T_world_model = Eigen::Matrix4d::Identity();
-  double score_m = 0;
-  double residual_median_m = 0, residual_mean_m = 0;  // NaN when null in the file
-};
-std::vector<ReportPlacement> parse_placements_json(const std::string& text, const std::string& path,
-                                                   std::string* catalogue_source = nullptr);
 
 // graph.json of `sonar3d world` ("format": "sonar3d-world", version 1).
 struct WorldGraphObject {

@@ -27,6 +27,8 @@ struct PlacementRecord {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
   double score_m = 0;
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();  // null in the file: NaN
+  double residual_mean_m = std::numeric_limits<double>::quiet_NaN();    // null or absent: NaN
+  std::string method{};  // "2d" or "3d" as recognize wrote it; empty when absent
 };
 
 struct PlacementsFile {
