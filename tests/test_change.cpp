@@ -11,7 +11,10 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/sim/simulation.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/change.hpp"
 #include "test_support.hpp"
 
@@ -89,6 +92,38 @@ const Box kMoveA{1.5, 1.2, 1.2, 0.5, 30, 0.35};  // moved 30 cm East and turned 
 const Box kMoveB{1.8, 1.2, 1.2, 0.5, 40, 0.35};
 const Box kRemoved{-1.8, -1.6, 0.6, 0.6, 0, 0.3};  // in A only
 const Box kAdded{2.2, -1.5, 0.5, 0.5, 0, 0.5};     // in B only
+
+// Colours (linear RGB) as a camera would map them onto a survey's cloud: the seabed sand with a
+// pattern of ±10 %, each box its own colour (the top of the highest box under a point), 3 % noise
+// per channel, all scaled by `light` (a lamp or altitude of that survey), 8-bit sRGB like
+// sonar3d texture writes. `boxes` and `colours` pair up; T_world_site as in survey().
+void colourise(PointCloud* cloud, const std::vector<Box>& boxes,
+               const std::vector<Eigen::Vector3d>& colours, double light, unsigned seed,
+               const Eigen::Isometry3d& T_world_site = Eigen::Isometry3d::Identity()) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, 0.03);
+  cloud->color.clear();
+  for (const Eigen::Vector3f& p : cloud->points) {
+    const Eigen::Vector3d s = T_world_site.inverse() * p.cast<double>();
+    Eigen::Vector3d c =
+        Eigen::Vector3d(0.7, 0.6, 0.3) * (1 + 0.1 * std::sin(2.3 * s.x()) * std::cos(1.9 * s.y()));
+    double top = seabed(s.x(), s.y()) + 0.02;
+    for (std::size_t k = 0; k < boxes.size(); ++k) {
+      const double h = seabed(boxes[k].x, boxes[k].y) + boxes[k].h;
+      if (boxes[k].covers(s.x(), s.y()) && h > top) top = h, c = colours[k];
+    }
+    std::array<std::uint8_t, 3> rgb{};
+    for (int k = 0; k < 3; ++k) {
+      const double v = std::clamp(light * c[k] * (1 + n(rng)), 0.0, 1.0);
+      rgb[static_cast<std::size_t>(k)] =
+          static_cast<std::uint8_t>(std::max(1L, std::lround(255 * linear_to_srgb(float(v)))));
+    }
+    cloud->color.push_back(rgb);
+  }
+}
+
+const Eigen::Vector3d kYellow(0.8, 0.7, 0.1), kRed(0.7, 0.08, 0.06), kGrey(0.4, 0.4, 0.4),
+    kBrown(0.35, 0.2, 0.08);
 
 }  // namespace
 
@@ -258,6 +293,114 @@ TEST(ChangeDetection, BadInputsGiveClearErrors) {
   test::expect_error([&] { bad.validate(); }, "cell_m");
 }
 
+// Marine growth: one box's colour changed (red to brown), nothing moved, survey B lit at 70 % of
+// A's brightness: exactly one region of colour change, on that box, and no height change.
+TEST(ColourChange, OneBoxRecolouredIsOneRegion) {
+  const std::vector<Box> site{kStay, kMoveA, kRemoved};
+  PointCloud a = survey(site, 0.005, 3);
+  PointCloud b = survey(site, 0.008, 4, kTbA);
+  colourise(&a, site, {kYellow, kRed, kGrey}, 1.0, 7);
+  colourise(&b, site, {kYellow, kBrown, kGrey}, 0.7, 8, kTbA);
+  const ChangeResult r = diff_surveys(a, b, {}, {}, {}, test_config(), &a, &b);
+  EXPECT_TRUE(r.regions.empty()) << r.regions.size() << " regions of height change";
+  const ColourChange& c = r.colour;
+  ASSERT_TRUE(c.compared);
+  EXPECT_EQ(c.space, ColourSpace::Chromaticity);
+  EXPECT_GT(c.compared_cells, 4000u);  // of the 8 × 6 m site at 10 cm
+  ASSERT_EQ(c.regions.size(), 1u) << "the second at " << c.regions[1].centroid.transpose();
+  const ColourRegion& g = c.regions[0];
+  EXPECT_TRUE(kMoveA.covers(g.centroid.x(), g.centroid.y())) << g.centroid.transpose();
+  EXPECT_NEAR(g.area_m2, 1.2 * 0.5, 0.15);      // the box's top, less its edge cells
+  EXPECT_GT(g.colour_a[0], 2 * g.colour_a[1]);  // red before
+  EXPECT_LT(g.colour_b[0], 2 * g.colour_b[1]);  // brown after: more green than red's
+  EXPECT_GT(g.colour_b[1], g.colour_b[2]);
+  EXPECT_GT(g.mean_delta, c.threshold);
+  EXPECT_GE(c.sigma, 1.0);  // at least the floor (percentage points)
+  // The change map of colour: no data outside the compared cells, the box above the threshold.
+  EXPECT_EQ(c.delta_map.num_valid(), c.compared_cells);
+  // In CIELAB the 30 % darker B is a lightness offset (the median, taken out) and the box is
+  // found too.
+  ChangeConfig lab = test_config();
+  lab.colour.space = ColourSpace::Lab;
+  const ChangeResult rl = diff_surveys(a, b, {}, {}, {}, lab, &a, &b);
+  ASSERT_EQ(rl.colour.offset.size(), 3u);
+  EXPECT_LT(rl.colour.offset[0], -5);  // L*: B darker
+  bool box = false;
+  for (const ColourRegion& q : rl.colour.regions)
+    box |= kMoveA.covers(q.centroid.x(), q.centroid.y());
+  EXPECT_TRUE(box);
+  // Written next to the geometry change map.
+  const fs::path dir = test::temp_dir("out");
+  write_change_directory((dir / "D").string(), r);
+  const nlohmann::json j = nlohmann::json::parse(read_text_file((dir / "D/changes.json").string()));
+  EXPECT_EQ(j["colour"]["space"], "chromaticity");
+  ASSERT_EQ(j["colour"]["regions"].size(), 1u);
+  EXPECT_EQ(j["colour"]["regions"][0]["colour_a"][0].get<int>(), g.colour_a[0]);
+  EXPECT_EQ(j["colour"]["offset"].size(), 2u);
+  const ElevationMap m = read_elevation_geotiff((dir / "D/colour_change_map.tif").string());
+  EXPECT_EQ(m.num_valid(), c.compared_cells);
+}
+
+// The moved/added/removed pair with unchanged colours (B darker): colour changes only where the
+// geometry changed, none on the untouched box.
+TEST(ColourChange, MovedAddedRemovedPairHasNoColourChangeOnUntouchedObjects) {
+  const std::vector<Box> sa{kStay, kMoveA, kRemoved}, sb{kStay, kMoveB, kAdded};
+  PointCloud a = survey(sa, 0.005, 5);
+  PointCloud b = survey(sb, 0.008, 6, kTbA);
+  colourise(&a, sa, {kYellow, kRed, kGrey}, 1.0, 9);
+  colourise(&b, sb, {kYellow, kRed, kGrey}, 0.8, 10, kTbA);
+  const ChangeResult r = diff_surveys(a, b, {}, {}, {}, test_config(), &a, &b);
+  ASSERT_TRUE(r.colour.compared);
+  bool on_moved = false;
+  for (const ColourRegion& g : r.colour.regions) {
+    const double x = g.centroid.x(), y = g.centroid.y();
+    EXPECT_FALSE(kStay.covers(x, y, 0.2)) << "colour change on the untouched box";
+    EXPECT_TRUE(kAdded.covers(x, y, 0.2) || kRemoved.covers(x, y, 0.2) ||
+                kMoveA.covers(x, y, 0.2) || kMoveB.covers(x, y, 0.2))
+        << "a colour region at " << g.centroid.transpose();
+    on_moved |= kMoveA.covers(x, y, 0.2) || kMoveB.covers(x, y, 0.2);
+  }
+  EXPECT_TRUE(on_moved);  // the red box left sand where it stood and covers sand where it stands
+  EXPECT_FALSE(r.regions.empty());
+}
+
+TEST(ColourChange, BadInputsGiveClearErrors) {
+  const std::vector<Box> site{kStay};
+  PointCloud a = survey(site, 0.005, 1);
+  PointCloud b = survey(site, 0.005, 2);
+  // A colour cloud without colour.
+  test::expect_error([&] { diff_surveys(a, b, {}, {}, {}, test_config(), &a, &b); },
+                     "colour cloud A has no colour");
+  colourise(&a, site, {kYellow}, 1.0, 3);
+  colourise(&b, site, {kYellow}, 1.0, 4);
+  // Only one survey's colour.
+  test::expect_error([&] { diff_surveys(a, b, {}, {}, {}, test_config(), &a, nullptr); },
+                     "a coloured cloud of each survey");
+  // Colour clouds that do not overlap (B's colours 30 m away).
+  PointCloud far = b;
+  for (Eigen::Vector3f& p : far.points) p.x() += 30;
+  test::expect_error([&] { compare_colour(a, far, test_config().colour); },
+                     "the colour clouds overlap on 0 cells");
+  // A NaN colour (a float colour property, as a PLY with float red/green/blue is read).
+  PointCloud nan = b;
+  nan.color.clear();
+  for (const char* ch : {"red", "green", "blue"}) {
+    nan.properties.push_back({ch, std::vector<float>(nan.size(), 0.5f)});
+  }
+  nan.properties[1].values[17] = std::nanf("");
+  test::expect_error([&] { check_colour_cloud(nan, "c.ply"); },
+                     "c.ply: vertex 17 has a colour that is not finite (green");
+  // Every point black: no camera saw any.
+  PointCloud black = b;
+  for (auto& c : black.color) c = {0, 0, 0};
+  test::expect_error([&] { check_colour_cloud(black, "black.ply"); }, "no coloured point");
+  ChangeConfig bad = test_config();
+  bad.colour.cell_m = -1;
+  test::expect_error([&] { bad.validate(); }, "colour cell_m");
+  test::expect_error([] { parse_colour_space("hsv", "--colour-space"); },
+                     "--colour-space: 'hsv' is none of chromaticity, lab");
+}
+
 #ifdef SONAR3D_CLI
 // End to end on the simulated small pair (data/scenes/change_a.yaml, change_b.yaml, written by
 // scripts/change_pair.py small changed): each survey simulated with its own seed and dead
@@ -341,6 +484,77 @@ TEST(ChangeCli, SimulatedPairGivesExactlyItsChanges) {
                              (dir / "pa.json").string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("'valve' that the catalogue does not list"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "E"));
+  fs::remove_all(dir);
+}
+
+// Colour change end to end: a site simulated twice with a camera (terrain, a yellow box and a red
+// box; in B the red box has turned brown — marine growth — and the lamp is weaker), each
+// survey's cloud (sampled from the truth) coloured by `sonar3d texture --dataset`, then
+// `sonar3d diff` with the coloured clouds as surveys and as --colour-a/--colour-b: exactly one
+// region of colour change, on the recoloured box, and no height change.
+TEST(ColourChangeCli, SimulatedRecolouredBoxIsTheOnlyColourChange) {
+  const fs::path dir = test::temp_dir("colour_cli");
+  auto scene = [](const char* red_box, double ambient) {
+    return std::string(R"(seed: 5
+sensor: {preset: sim-10deg, beams: 20, fov_deg: 40, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+simulation: {elevation_step_deg: 0.5}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [6, 6], cell: 0.05, relief: 0.15, wavelength: 3, trenches: 0, rocks: 5, seed: 3}, color: [0.7, 0.6, 0.3]}
+  - {name: yellow, primitive: {type: box, size: [0.6, 0.4, 0.4]}, pose: {translation: [-0.9, 0.4, 0.2], rpy_deg: [0, 0, 15]}, color: [0.8, 0.7, 0.1]}
+  - {name: growth, primitive: {type: box, size: [0.7, 0.5, 0.5]}, pose: {translation: [0.8, -0.3, 0.25], rpy_deg: [0, 0, -10]}, color: )") +
+           red_box + R"(}
+trajectory: {period: 0.1, type: straight, start: [-1.5, 0, 3], end: [1.5, 0, 3], spacing: 0.1}
+camera: {width: 240, height: 180, fx: 150, fy: 150, cx: 119.5, cy: 89.5, T_vehicle_camera: {rpy_deg: [180, 0, 0]}, rate_hz: 2, ambient: )" +
+           std::to_string(ambient) + R"(, attenuation_per_m: 0.05}
+)";
+  };
+  std::ofstream(dir / "a.yaml") << scene("[0.7, 0.08, 0.06]", 0.6);
+  std::ofstream(dir / "b.yaml") << scene("[0.35, 0.2, 0.08]", 0.4);
+  for (const char* w : {"a", "b"}) {
+    const fs::path ds = dir / (std::string(w) + "_ds");
+    test::CliRun r = test::run_cli(dir, "simulate " + (dir / (std::string(w) + ".yaml")).string() +
+                                            " -o " + ds.string() + " -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    PointCloud cloud;
+    for (const SceneObject& o : read_truth(ds)) {
+      const auto pts = sample_surface(o.mesh_world, o.name == "seabed" ? 120000 : 8000,
+                                      std::string(w) == "a" ? 1 : 2);
+      cloud.points.insert(cloud.points.end(), pts.begin(), pts.end());
+    }
+    write_ply((dir / (std::string(w) + ".ply")).string(), cloud);
+    r = test::run_cli(dir, "texture " + (dir / (std::string(w) + ".ply")).string() + " --dataset " +
+                               ds.string() + " --point-spacing 0.03 -q -o " +
+                               (dir / (std::string(w) + "_rgb.ply")).string());
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  const std::string a = (dir / "a_rgb.ply").string(), b = (dir / "b_rgb.ply").string();
+  const std::string args = "diff " + a + " " + b + " --colour-a " + a + " --colour-b " + b + " -o ";
+  test::CliRun r = test::run_cli(dir, args + (dir / "D").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("0 regions of change, 1 regions of colour change"), std::string::npos)
+      << r.out;
+  const nlohmann::json j = nlohmann::json::parse(read_text_file((dir / "D/changes.json").string()));
+  ASSERT_EQ(j["colour"]["regions"].size(), 1u) << r.out;
+  const auto& g = j["colour"]["regions"][0];
+  const Eigen::Vector2d c(g["centroid"][0].get<double>(), g["centroid"][1].get<double>());
+  EXPECT_LT((c - Eigen::Vector2d(0.8, -0.3)).norm(), 0.15) << r.out;
+  EXPECT_GT(g["area_m2"].get<double>(), 0.15) << r.out;  // of the 0.35 m² top
+  EXPECT_GT(g["colour_a"][0].get<int>(), 2 * g["colour_a"][1].get<int>()) << r.out;  // red
+  EXPECT_LT(g["colour_b"][0].get<int>(), 2 * g["colour_b"][1].get<int>()) << r.out;  // brown
+  EXPECT_TRUE(fs::exists(dir / "D/colour_change_map.tif"));
+
+  // Bad inputs: one line naming the file, no output.
+  r = test::run_cli(dir, args.substr(0, args.find(" --colour-b ")) + " --colour-b " +
+                             (dir / "a.ply").string() + " -o " + (dir / "E").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--colour-b '" + (dir / "a.ply").string() + "' has no colour"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  r = test::run_cli(dir,
+                    "diff " + a + " " + b + " --colour-a " + a + " -o " + (dir / "E").string());
+  EXPECT_EQ(r.code, 2) << r.out;  // --colour-a needs --colour-b
   EXPECT_FALSE(fs::exists(dir / "E"));
   fs::remove_all(dir);
 }

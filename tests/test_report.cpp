@@ -1092,6 +1092,39 @@ TEST_F(SceneReportTest, ChangesShowPointsObjectsAndRegions) {
   run_scene_browser_test(s.output, expect, "changes");
 }
 
+// Colour change (sonar3d diff --colour-a/--colour-b): its regions as a table with the colours
+// before and after and as rings in the 3D view; a colour out of 8-bit range is one clear error.
+TEST_F(SceneReportTest, ChangesShowColourRegions) {
+  const fs::path c = root_ / "colour_changes";
+  fs::remove_all(c);
+  fs::copy(root_ / "changes", c, fs::copy_options::recursive);
+  const std::string cj = (c / "changes.json").string();
+  json ch = json::parse(read_text_file(cj));
+  ch["colour"] = {{"space", "chromaticity"},
+                  {"regions",
+                   {{{"id", 0},
+                     {"centroid", {2.0, 1.5, 0.4}},
+                     {"area_m2", 0.5},
+                     {"max_delta", 30.1},
+                     {"mean_delta", 25.2},
+                     {"colour_a", {220, 80, 70}},
+                     {"colour_b", {150, 110, 60}}}}}};
+  write_text_file(cj, ch.dump());
+  ReportConfig cfg = config();
+  cfg.output = root_ / "colour_changes.html";
+  const ReportSummary s = write_report(c, cfg);
+  const json d = embedded_data(read_text_file(s.output.string()));
+  EXPECT_EQ(table_rows(d, "colour_regions"), 1u);
+  EXPECT_EQ(table_rows(d, "regions"), 2u);
+  const json* ring = layer(d, "colour_regions");
+  ASSERT_NE(ring, nullptr);
+  EXPECT_EQ((*ring)["count"], 24);  // one circle of 24 strokes
+  ch["colour"]["regions"][0]["colour_b"] = {150, 300, 60};
+  write_text_file(cj, ch.dump());
+  cfg.output = root_ / "colour_changes_bad.html";
+  expect_error([&] { write_report(c, cfg); }, {cj, "colour.regions[0]", "colour_b", "[0, 255]"});
+}
+
 // Textured outputs of `sonar3d texture`: a cloud and a mesh in their own colours; the mesh also
 // as an overlay over a map.
 TEST_F(SceneReportTest, TexturedPlyInItsOwnColours) {

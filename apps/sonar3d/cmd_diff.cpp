@@ -1,4 +1,5 @@
 #include <fmt/core.h>
+#include <fmt/format.h>
 
 #include <cmath>
 #include <memory>
@@ -17,9 +18,10 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "search, eq. 6.1-6.2, over a yaw search), compare the placed catalogue models (unchanged, "
       "moved, added, removed) and the heights cell by cell (regions of significant change). "
       "Writes OUTPUT/changes.json, change_map.tif (B - A, metres) and change_points.ply, all in "
-      "A's frame.");
+      "A's frame; with --colour-a/--colour-b also the colour change (colour_change_map.tif).");
   struct Opts {
-    std::string a, b, output, catalogue, placements_a, placements_b;
+    std::string a, b, output, catalogue, placements_a, placements_b, colour_a, colour_b;
+    std::string colour_space = "chromaticity";
     ChangeConfig cfg;
     RecognitionConfig recog;
   };
@@ -43,7 +45,33 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                  ->check(CLI::ExistingFile);
   pa->needs(pb);
   pb->needs(pa);
+  auto* ca = cmd->add_option("--colour-a", o->colour_a,
+                             "survey A's coloured cloud (.ply with red/green/blue, e.g. sonar3d "
+                             "texture of A's cloud) in A's world: compares colour too")
+                 ->check(CLI::ExistingFile);
+  auto* cb = cmd->add_option("--colour-b", o->colour_b,
+                             "survey B's coloured cloud in B's world (moved by the registration)")
+                 ->check(CLI::ExistingFile);
+  ca->needs(cb);
+  cb->needs(ca);
   ChangeConfig& c = o->cfg;
+  cmd->add_option("--colour-space", o->colour_space,
+                  "colour compared as chromaticity (brightness ignored) or lab (CIELAB)")
+      ->capture_default_str();
+  cmd->add_option("--colour-cell", c.colour.cell_m, "colour change cell, metres")
+      ->capture_default_str();
+  cmd->add_option("--colour-min-points", c.colour.min_points,
+                  "coloured points a cell needs in each survey to be compared")
+      ->capture_default_str();
+  cmd->add_option("--colour-top-layer", c.colour.top_layer_m,
+                  "only coloured points within this of their cell's highest count, metres")
+      ->capture_default_str();
+  cmd->add_option("--colour-k-sigma", c.colour.k_sigma,
+                  "significant colour change: more than this times the robust sigma")
+      ->capture_default_str();
+  cmd->add_option("--colour-min-area", c.colour.min_area_m2,
+                  "smallest region of colour change reported, square metres")
+      ->capture_default_str();
   cmd->add_option("--cell", c.cell_m, "height change map cell, metres")->capture_default_str();
   cmd->add_option("--k-sigma", c.k_sigma,
                   "significant change: more than this times the robust sigma of B - A")
@@ -86,6 +114,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
       ChangeConfig cfg = o->cfg;
+      cfg.colour.space = parse_colour_space(o->colour_space, "--colour-space");
       cfg.validate();
       Catalogue cat;
       std::map<std::string, Symmetry> symmetries;
@@ -107,7 +136,17 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         pa = recognize_placements(a, cat, rc);
         pb = recognize_placements(b, cat, rc);
       }
-      const ChangeResult r = diff_surveys(a, b, pa, pb, symmetries, cfg);
+      PointCloud colour_a, colour_b;
+      if (!o->colour_a.empty()) {
+        colour_a = read_survey_cloud(o->colour_a);
+        check_colour_cloud(colour_a, "--colour-a '" + o->colour_a + "'");
+        colour_b = read_survey_cloud(o->colour_b);
+        check_colour_cloud(colour_b, "--colour-b '" + o->colour_b + "'");
+      }
+      const bool colour = !o->colour_a.empty();
+      const ChangeResult r =
+          diff_surveys(a, b, pa, pb, symmetries, cfg, colour ? &colour_a : nullptr,
+                       colour ? &colour_b : nullptr);
       write_change_directory(o->output, r);
       const Eigen::Vector3d t = r.registration.T_a_b.translation();
       fmt::print(
@@ -134,8 +173,25 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
             reg.id, reg.raised ? "raised" : "lowered", reg.centroid.x(), reg.centroid.y(),
             reg.area_m2, reg.max_abs_change_m, reg.mean_change_m);
       }
-      fmt::print("{} objects, {} regions of change in {:.1f} s -> {}\n", r.objects.size(),
-                 r.regions.size(), r.seconds, o->output);
+      const ColourChange& cc = r.colour;
+      if (cc.compared) {
+        fmt::print("  colour ({}): threshold {:.2f} (k {:.1f} x sigma {:.3f}) over {} cells\n",
+                   colour_space_name(cc.space), cc.threshold, cc.k_sigma, cc.sigma,
+                   cc.compared_cells);
+        for (const ColourRegion& reg : cc.regions) {
+          fmt::print(
+              "  colour region {}: at E {:.2f} N {:.2f}, {:.2f} m2, max delta {:.2f}, mean "
+              "{:.2f}, RGB {},{},{} -> {},{},{}\n",
+              reg.id, reg.centroid.x(), reg.centroid.y(), reg.area_m2, reg.max_delta,
+              reg.mean_delta, reg.colour_a[0], reg.colour_a[1], reg.colour_a[2], reg.colour_b[0],
+              reg.colour_b[1], reg.colour_b[2]);
+        }
+      }
+      fmt::print("{} objects, {} regions of change{} in {:.1f} s -> {}\n", r.objects.size(),
+                 r.regions.size(),
+                 cc.compared ? fmt::format(", {} regions of colour change", cc.regions.size())
+                             : std::string(),
+                 r.seconds, o->output);
       return 0;
     };
   });

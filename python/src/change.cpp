@@ -7,6 +7,7 @@
 #include "common.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/video/texture_files.hpp"
 
 namespace sonar3d::python {
 
@@ -28,6 +29,36 @@ std::vector<SurveyPlacement> to_placements(const py::list& list, const char* whi
   return out;
 }
 
+// A coloured cloud given as (points (N, 3), colors (N, 3) linear RGB in [0, 1], as
+// sonar3d.texture_cloud returns; 0, 0, 0 = no colour) into a PointCloud with 8-bit sRGB.
+PointCloud to_colour_cloud(const py::object& arg, const std::string& which) {
+  const std::string what = "diff_surveys: " + which;
+  if (!py::isinstance<py::tuple>(arg) || py::len(arg) != 2) {
+    throw Error(what + " must be a tuple (points (N, 3), colors (N, 3) linear RGB in [0, 1])");
+  }
+  const py::tuple t = arg.cast<py::tuple>();
+  PointCloud c;
+  c.points = array_to_points(t[0].cast<carray<float>>(), what + " points");
+  const auto col = t[1].cast<carray<double>>();
+  if (col.ndim() != 2 || col.shape(1) != 3 || static_cast<std::size_t>(col.shape(0)) != c.size()) {
+    throw Error(what + " colors must be an N×3 array, one row per point");
+  }
+  c.color.resize(c.size());
+  const double* v = col.data();
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double x = v[3 * i + k];
+      if (!std::isfinite(x) || x < 0 || x > 1) {
+        throw Error(what + " colors: row " + std::to_string(i) + " has " + std::to_string(x) +
+                    ", not a linear RGB value in [0, 1]");
+      }
+      c.color[i][k] =
+          static_cast<std::uint8_t>(std::lround(255 * linear_to_srgb(static_cast<float>(x))));
+    }
+  }
+  return c;
+}
+
 }  // namespace
 
 void bind_change(py::module_& m) {
@@ -36,7 +67,8 @@ void bind_change(py::module_& m) {
       [](const carray<float>& points_a, const carray<float>& points_b, const py::list& placements_a,
          const py::list& placements_b, const std::string& catalogue, double cell_m, double k_sigma,
          double tolerance_m, double min_area_m2, double search_m, double yaw_search_deg,
-         int num_threads) {
+         int num_threads, const py::object& colour_a, const py::object& colour_b,
+         const std::string& colour_space, double colour_cell_m, double colour_k_sigma) {
         PointCloud a, b;
         a.points = array_to_points(points_a);
         b.points = array_to_points(points_b);
@@ -48,7 +80,19 @@ void bind_change(py::module_& m) {
         cfg.registration.search_m = search_m;
         cfg.registration.yaw_search_deg = yaw_search_deg;
         cfg.registration.num_threads = num_threads;
+        cfg.colour.space = parse_colour_space(colour_space, "colour_space");
+        cfg.colour.cell_m = colour_cell_m;
+        cfg.colour.k_sigma = colour_k_sigma;
         cfg.validate();
+        if (colour_a.is_none() != colour_b.is_none()) {
+          throw Error("diff_surveys: colour_a and colour_b go together (both surveys' colours)");
+        }
+        PointCloud ca, cb;
+        if (!colour_a.is_none()) {
+          ca = to_colour_cloud(colour_a, "colour_a");
+          cb = to_colour_cloud(colour_b, "colour_b");
+        }
+        const bool colour = !colour_a.is_none();
         const auto pa = to_placements(placements_a, "A");
         const auto pb = to_placements(placements_b, "B");
         std::map<std::string, Symmetry> symmetries;
@@ -56,21 +100,28 @@ void bind_change(py::module_& m) {
         ChangeResult r;
         {
           py::gil_scoped_release release;
-          r = diff_surveys(a, b, pa, pb, symmetries, cfg);
+          r = diff_surveys(a, b, pa, pb, symmetries, cfg, colour ? &ca : nullptr,
+                           colour ? &cb : nullptr);
         }
         py::dict out = py::module_::import("json").attr("loads")(changes_json(r));
         out["change_map"] = py::cast(r.change_map);
+        if (r.colour.compared) out["colour_change_map"] = py::cast(r.colour.delta_map);
         return out;
       },
       "points_a"_a, "points_b"_a, "placements_a"_a = py::list(), "placements_b"_a = py::list(),
       "catalogue"_a = "", "cell_m"_a = 0.04, "k_sigma"_a = 5.0, "tolerance_m"_a = 0.1,
       "min_area_m2"_a = 0.05, "search_m"_a = 0.6, "yaw_search_deg"_a = 2.0, "num_threads"_a = 0,
+      "colour_a"_a = py::none(), "colour_b"_a = py::none(), "colour_space"_a = "chromaticity",
+      "colour_cell_m"_a = 0.1, "colour_k_sigma"_a = 5.0,
       "Compare two surveys of one site ((N, 3) world-frame clouds, each in its own world): B "
       "registered onto A, placements (lists of dicts with model and T_world_model, as "
       "sonar3d.recognize returns; symmetries from the catalogue YAML if given) compared, heights "
       "compared cell by cell. Returns the changes.json content as a dict (T_a_b, registration, "
       "objects, regions, thresholds, seconds; docs/change.md) plus change_map, the ElevationMap "
-      "of B − A in A's frame (m).");
+      "of B − A in A's frame (m). colour_a, colour_b (both or neither): each survey's coloured "
+      "cloud in its own world as (points (N, 3), colors (N, 3) linear RGB in [0, 1], 0 = unseen; "
+      "what texture_cloud returns): the colour change is compared too (the dict's 'colour', and "
+      "colour_change_map, the colour difference per cell).");
 }
 
 }  // namespace sonar3d::python

@@ -48,3 +48,48 @@ def test_diff_surveys_refuses_a_model_outside_the_catalogue(tmp_path):
     p = [{"model": "valve", "T_world_model": np.eye(4)}]
     with pytest.raises(sonar3d.Error, match="'valve' that the catalogue does not list"):
         sonar3d.diff_surveys(a, a, placements_a=p, placements_b=p, catalogue=str(cat))
+
+
+def colours(points, box=None, box_rgb=(0.7, 0.08, 0.06), light=1.0, seed=3):
+    """Sand everywhere, `box_rgb` on the box (x, y, half size), linear RGB scaled by `light`."""
+    rgb = np.tile(np.array([0.7, 0.6, 0.3]), (len(points), 1))
+    if box is not None:
+        bx, by, hs = box
+        inside = (abs(points[:, 0] - bx) <= hs) & (abs(points[:, 1] - by) <= hs)
+        rgb[inside] = box_rgb
+    rgb *= light * (1 + np.random.default_rng(seed).normal(0, 0.03, rgb.shape))
+    return np.clip(rgb, 0.001, 1.0)
+
+
+def test_diff_surveys_finds_a_recoloured_box():
+    box = (1.5, 1.0, 0.3, 0.4)
+    a = site(box=box, seed=1)
+    b = site(box=box, seed=2)
+    ca = (a, colours(a, box[:3], seed=4))
+    cb = (b, colours(b, box[:3], box_rgb=(0.35, 0.2, 0.08), light=0.7, seed=5))
+    r = sonar3d.diff_surveys(a, b, num_threads=2, colour_a=ca, colour_b=cb)
+    assert r["regions"] == []
+    c = r["colour"]
+    assert c["space"] == "chromaticity"
+    assert len(c["regions"]) == 1
+    g = c["regions"][0]
+    assert g["centroid"][0] == pytest.approx(1.5, abs=0.1)
+    assert g["centroid"][1] == pytest.approx(1.0, abs=0.1)
+    assert g["area_m2"] == pytest.approx(0.36, abs=0.1)
+    assert r["colour_change_map"].num_valid() == c["compared_cells"]
+    # Without colours: no colour block.
+    assert sonar3d.diff_surveys(a, b, num_threads=2)["colour"] is None
+
+
+def test_diff_surveys_refuses_bad_colours():
+    a = site(seed=1)
+    good = colours(a)
+    bad = good.copy()
+    bad[5, 1] = np.nan
+    with pytest.raises(sonar3d.Error, match="colour_b colors: row 5 has nan"):
+        sonar3d.diff_surveys(a, a, colour_a=(a, good), colour_b=(a, bad))
+    with pytest.raises(sonar3d.Error, match="colour_a and colour_b go together"):
+        sonar3d.diff_surveys(a, a, colour_a=(a, good))
+    far = a + np.array([30, 0, 0], dtype=np.float32)
+    with pytest.raises(sonar3d.Error, match="the colour clouds overlap on 0 cells"):
+        sonar3d.diff_surveys(a, a, colour_a=(a, good), colour_b=(far, good))

@@ -135,6 +135,17 @@ std::string entry(const std::string& path, const std::string& list, std::size_t 
   return "report: '" + path + "': " + list + "[" + std::to_string(i) + "]: ";
 }
 
+// A region's "centroid": 3 finite numbers.
+Eigen::Vector3d centroid(const Obj& e) {
+  const json& ctr = e.array("centroid");
+  if (ctr.size() != 3 || !std::all_of(ctr.begin(), ctr.end(), [](const json& v) {
+        return v.is_number() && std::isfinite(v.get<double>());
+      })) {
+    e.fail("centroid", "must be 3 finite numbers [x, y, z]");
+  }
+  return Eigen::Vector3d(ctr[0].get<double>(), ctr[1].get<double>(), ctr[2].get<double>());
+}
+
 }  // namespace
 
 WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
@@ -240,19 +251,37 @@ ChangeSet parse_changes_json(const std::string& text, const std::string& path) {
       const Obj e(regions[i], entry(path, "regions", i));
       ChangedRegion r;
       r.id = e.integer("id");
-      const json& ctr = e.array("centroid");
-      if (ctr.size() != 3 || !std::all_of(ctr.begin(), ctr.end(), [](const json& v) {
-            return v.is_number() && std::isfinite(v.get<double>());
-          })) {
-        e.fail("centroid", "must be 3 finite numbers [x, y, z]");
-      }
-      r.centroid =
-          Eigen::Vector3d(ctr[0].get<double>(), ctr[1].get<double>(), ctr[2].get<double>());
+      r.centroid = centroid(e);
       r.area_m2 = e.num("area_m2");
       r.max_abs_change_m = e.num("max_abs_change_m");
       r.mean_change_m = e.num("mean_change_m");
       r.kind = e.str_or("kind", "");
       c.regions.push_back(r);
+    }
+  }
+  if (o.has("colour")) {
+    const Obj col(o.at("colour"), o.where() + "colour: ");
+    c.colour_space = col.str("space");
+    const json& regions = col.array("regions");
+    for (std::size_t i = 0; i < regions.size(); ++i) {
+      const Obj e(regions[i], entry(path, "colour.regions", i));
+      ChangedColourRegion r;
+      r.id = e.integer("id");
+      r.centroid = centroid(e);
+      r.area_m2 = e.num("area_m2");
+      r.max_delta = e.num("max_delta");
+      r.mean_delta = e.num("mean_delta");
+      for (const char* key : {"colour_a", "colour_b"}) {
+        const json& v = e.array(key);
+        if (v.size() != 3 || !std::all_of(v.begin(), v.end(), [](const json& x) {
+              return x.is_number_integer() && x.get<long long>() >= 0 && x.get<long long>() <= 255;
+            })) {
+          e.fail(key, "must be 3 integers in [0, 255] (8-bit sRGB)");
+        }
+        auto& rgb = std::string(key) == "colour_a" ? r.colour_a : r.colour_b;
+        for (std::size_t k = 0; k < 3; ++k) rgb[k] = v[k].get<int>();
+      }
+      c.colour_regions.push_back(r);
     }
   }
   return c;

@@ -486,6 +486,39 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
   scene.table("regions", "Changed regions",
               {"id", "kind", "centroid [m]", "area [m²]", "max |change| [m]", "mean change [m]"},
               region_rows);
+  // Colour change (when both surveys had video): a ring at each region in its colour after, a
+  // table with the colours before and after.
+  if (!c.colour_space.empty()) {
+    json colour_rows = json::array();
+    std::vector<Eigen::Vector3f> ring;
+    std::vector<Rgb> ring_colors;
+    for (const ChangedColourRegion& r : c.colour_regions) {
+      auto hex = [](const std::array<int, 3>& v) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "#%02x%02x%02x", v[0], v[1], v[2]);
+        return std::string(buf);
+      };
+      constexpr double kTwoPi = 6.283185307179586;
+      // A circle of the region's area around its centroid.
+      const float rad = std::max(0.05f, static_cast<float>(std::sqrt(2 * r.area_m2 / kTwoPi)));
+      const Eigen::Vector3f p = r.centroid.cast<float>();
+      for (int k = 0; k < 24; ++k) {
+        for (int e = 0; e < 2; ++e) {
+          const float t = static_cast<float>(kTwoPi * (k + e) / 24);
+          ring.push_back(p + rad * Eigen::Vector3f(std::cos(t), std::sin(t), 0));
+          ring_colors.push_back(hex_rgb(hex(r.colour_b)));
+        }
+      }
+      colour_rows.push_back({r.id, json{r.centroid.x(), r.centroid.y(), r.centroid.z()}, r.area_m2,
+                             r.max_delta, r.mean_delta, hex(r.colour_a), hex(r.colour_b)});
+    }
+    if (!ring.empty()) scene.lines("colour_regions", "colour change regions", ring, ring_colors);
+    scene.table("colour_regions", "Colour changes (" + c.colour_space + ")",
+                {"id", "centroid [m]", "area [m²]", "max difference", "mean difference",
+                 "colour before", "colour after"},
+                colour_rows);
+    scene.card("colour regions", c.colour_regions.size());
+  }
   scene.card("registration", c.registration_method.empty() ? "–" : c.registration_method);
   scene.card("registration rms [m]", num_or_null(c.registration_rms_m));
   for (const char* s : {"moved", "added", "removed", "unchanged"}) scene.card(s, counts[s]);

@@ -14,6 +14,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/recog/model.hpp"
+#include "sonar3d/video/texture_files.hpp"
 
 namespace sonar3d {
 
@@ -105,14 +106,55 @@ double quantile(std::vector<float>& v, double q) {
   return v[k];
 }
 
-// The normal distribution's two-sided quantile: P(|x| < z·sigma) = q.
-double normal_two_sided_quantile(double q) {
+// The quantile q of the length of a standard normal vector of `dims` (1, 2 or 3) components (the
+// chi distribution): P(|x| < z·sigma) = q. dims = 1 is the normal two-sided quantile.
+double chi_quantile(double q, int dims) {
+  auto cdf = [dims](double x) {
+    if (dims == 2) return 1 - std::exp(-0.5 * x * x);
+    const double p = std::erf(x / std::sqrt(2.0));
+    return dims == 1 ? p : p - std::sqrt(2 / kPi) * x * std::exp(-0.5 * x * x);
+  };
   double lo = 0, hi = 10;
   for (int i = 0; i < 100; ++i) {
     const double mid = 0.5 * (lo + hi);
-    (std::erf(mid / std::sqrt(2.0)) < q ? lo : hi) = mid;
+    (cdf(mid) < q ? lo : hi) = mid;
   }
   return 0.5 * (lo + hi);
+}
+
+// Connected components of the cells of one non-zero sign, cells within `link` cells (Chebyshev)
+// of each other linked; in the order of their first cell (row-major).
+std::vector<std::vector<std::size_t>> sign_components(const std::vector<int8_t>& sign, int rows,
+                                                      int cols, int link) {
+  std::vector<std::vector<std::size_t>> out;
+  std::vector<char> done(sign.size(), 0);
+  std::vector<std::size_t> stack;
+  for (std::size_t seed = 0; seed < sign.size(); ++seed) {
+    if (sign[seed] == 0 || done[seed]) continue;
+    std::vector<std::size_t> comp;
+    done[seed] = 1;
+    stack.assign(1, seed);
+    while (!stack.empty()) {
+      const std::size_t i = stack.back();
+      stack.pop_back();
+      comp.push_back(i);
+      const int row = static_cast<int>(i / static_cast<std::size_t>(cols));
+      const int col = static_cast<int>(i % static_cast<std::size_t>(cols));
+      for (int dr = -link; dr <= link; ++dr) {
+        for (int dc = -link; dc <= link; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+          const std::size_t k = static_cast<std::size_t>(rr) * static_cast<std::size_t>(cols) + cc;
+          if (sign[k] == sign[seed] && !done[k]) {
+            done[k] = 1;
+            stack.push_back(k);
+          }
+        }
+      }
+    }
+    out.push_back(std::move(comp));
+  }
+  return out;
 }
 
 }  // namespace
@@ -133,8 +175,34 @@ void ChangeRegistrationConfig::validate() const {
   require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
 }
 
+const char* colour_space_name(ColourSpace s) {
+  return s == ColourSpace::Lab ? "lab" : "chromaticity";
+}
+
+ColourSpace parse_colour_space(const std::string& name, const std::string& param) {
+  if (name == "chromaticity") return ColourSpace::Chromaticity;
+  if (name == "lab") return ColourSpace::Lab;
+  throw Error(param + ": '" + name + "' is none of chromaticity, lab");
+}
+
+void ColourChangeConfig::validate() const {
+  require_positive(cell_m, "colour cell_m", "m");
+  require(min_points >= 1, "colour min_points must be >= 1");
+  require_non_negative(top_layer_m, "colour top_layer_m", "m");
+  require_positive(k_sigma, "colour k_sigma");
+  require(sigma_quantile > 0.5 && sigma_quantile < 1, "colour sigma_quantile must be in (0.5, 1)");
+  require_non_negative(min_sigma, "colour min_sigma");
+  require_non_negative(tolerance_m, "colour tolerance_m", "m");
+  require(tolerance_m <= 20 * cell_m, "colour tolerance_m must be at most 20 colour cells");
+  require_non_negative(link_m, "colour link_m", "m");
+  require(link_m <= 100 * cell_m, "colour link_m must be at most 100 colour cells");
+  require_non_negative(min_area_m2, "colour min_area_m2", "m²");
+  require(min_overlap_cells >= 1, "colour min_overlap_cells must be >= 1");
+}
+
 void ChangeConfig::validate() const {
   registration.validate();
+  colour.validate();
   require_positive(cell_m, "cell_m", "m");
   require_positive(k_sigma, "k_sigma");
   require(sigma_quantile > 0.5 && sigma_quantile < 1, "sigma_quantile must be in (0.5, 1)");
@@ -492,7 +560,7 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   th.median_m = quantile(values, 0.5);
   for (float& v : values) v = std::abs(v - static_cast<float>(th.median_m));
   th.sigma_m = std::max(config.min_sigma_m, quantile(values, config.sigma_quantile) /
-                                                normal_two_sided_quantile(config.sigma_quantile));
+                                                chi_quantile(config.sigma_quantile, 1));
   th.k_sigma = config.k_sigma;
   th.change_m = config.k_sigma * th.sigma_m;
   th.min_area_m2 = config.min_area_m2;
@@ -533,20 +601,12 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   // Regions: changed cells of one sign linked when within link_m of each other (a moved frame of
   // thin tubes changes in strips that the 3×3 test above breaks apart).
   const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
-  std::vector<int> label(a.z.size(), -1);
-  std::vector<std::size_t> stack;
   const double cell_area = config.cell_m * config.cell_m;
-  for (std::size_t seed = 0; seed < a.z.size(); ++seed) {
-    if (sign[seed] == 0 || label[seed] >= 0) continue;
+  for (const std::vector<std::size_t>& comp : sign_components(sign, rows, cols, link)) {
     ChangeRegion reg;
-    reg.raised = sign[seed] > 0;
-    const int id = static_cast<int>(seed);  // provisional
-    label[seed] = id;
-    stack.assign(1, seed);
+    reg.raised = sign[comp[0]] > 0;
     double sx = 0, sy = 0, sz = 0, sd = 0;
-    while (!stack.empty()) {
-      const std::size_t i = stack.back();
-      stack.pop_back();
+    for (const std::size_t i : comp) {
       const int row = static_cast<int>(i / static_cast<std::size_t>(cols));
       const int col = static_cast<int>(i % static_cast<std::size_t>(cols));
       const Eigen::Vector2d c = a.cell_center_xy(row, col);
@@ -555,19 +615,8 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
       sz += 0.5 * (a.z[i] + b.z[i]);
       sd += d.z[i];
       reg.max_abs_change_m = std::max(reg.max_abs_change_m, std::abs(static_cast<double>(d.z[i])));
-      ++reg.cells;
-      for (int dr = -link; dr <= link; ++dr) {
-        for (int dc = -link; dc <= link; ++dc) {
-          const int rr = row + dr, cc = col + dc;
-          if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
-          const std::size_t k = a.index(rr, cc);
-          if (sign[k] == sign[seed] && label[k] < 0) {
-            label[k] = id;
-            stack.push_back(k);
-          }
-        }
-      }
     }
+    reg.cells = comp.size();
     r->significant_cells += reg.cells;
     const double n = static_cast<double>(reg.cells);
     reg.area_m2 = n * cell_area;
@@ -601,13 +650,247 @@ nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
 
 }  // namespace
 
+namespace {
+
+// Linear RGB (sRGB primaries, D65) to CIELAB (D65 white).
+Eigen::Vector3d linear_rgb_to_lab(const Eigen::Vector3d& rgb) {
+  Eigen::Matrix3d M;
+  M << 0.4124564, 0.3575761, 0.1804375, 0.2126729, 0.7151522, 0.0721750, 0.0193339, 0.1191920,
+      0.9503041;
+  const Eigen::Vector3d xyz = (M * rgb).cwiseQuotient(Eigen::Vector3d(0.95047, 1.0, 1.08883));
+  auto f = [](double t) {
+    constexpr double d = 6.0 / 29;
+    return t > d * d * d ? std::cbrt(t) : t / (3 * d * d) + 4.0 / 29;
+  };
+  const double fx = f(xyz.x()), fy = f(xyz.y()), fz = f(xyz.z());
+  return {116 * fy - 16, 500 * (fx - fy), 200 * (fy - fz)};
+}
+
+std::array<std::uint8_t, 3> to_srgb8(const Eigen::Vector3d& rgb) {
+  std::array<std::uint8_t, 3> out{};
+  for (int k = 0; k < 3; ++k) {
+    const double e = linear_to_srgb(static_cast<float>(std::clamp(rgb[k], 0.0, 1.0)));
+    out[static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(std::lround(255 * e));
+  }
+  return out;
+}
+
+// A coloured cloud binned on a grid: per cell the mean linear RGB and z of its coloured points.
+struct ColourGrid {
+  std::vector<Eigen::Vector3d> rgb;
+  std::vector<double> z;
+  std::vector<int> count;
+};
+
+// Only the coloured points within `top_layer_m` of the highest coloured point of their cell count:
+// the top a camera looking down sees, not the sides of an object and the seabed beside it, whose
+// mix in a cell at an edge differs between two surveys.
+ColourGrid bin_colours(const PointCloud& cloud, const ElevationMap& grid, double top_layer_m) {
+  ColourGrid g;
+  g.rgb.assign(grid.z.size(), Eigen::Vector3d::Zero());
+  g.z.assign(grid.z.size(), 0);
+  g.count.assign(grid.z.size(), 0);
+  float lut[256];
+  for (int v = 0; v < 256; ++v) lut[v] = srgb_to_linear(static_cast<float>(v) / 255.0f);
+  // The cell of each coloured point (or none), and the top of each cell.
+  std::vector<std::int64_t> cell(cloud.size(), -1);
+  std::vector<float> top(grid.z.size(), -std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const auto& c = cloud.color[i];
+    if (c[0] == 0 && c[1] == 0 && c[2] == 0) continue;  // no camera saw it (sonar3d texture)
+    const Eigen::Vector3f& p = cloud.points[i];
+    const double u = std::floor((p.x() - grid.origin_xy.x()) / grid.cell_m);
+    const double v = std::floor((grid.origin_xy.y() - p.y()) / grid.cell_m);
+    if (!(u >= 0 && v >= 0 && u < grid.cols && v < grid.rows)) continue;
+    const std::size_t k = grid.index(static_cast<int>(v), static_cast<int>(u));
+    cell[i] = static_cast<std::int64_t>(k);
+    top[k] = std::max(top[k], p.z());
+  }
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cell[i] < 0) continue;
+    const std::size_t k = static_cast<std::size_t>(cell[i]);
+    const Eigen::Vector3f& p = cloud.points[i];
+    if (p.z() < top[k] - top_layer_m) continue;
+    const auto& c = cloud.color[i];
+    g.rgb[k] += Eigen::Vector3d(lut[c[0]], lut[c[1]], lut[c[2]]);
+    g.z[k] += p.z();
+    ++g.count[k];
+  }
+  for (std::size_t k = 0; k < g.count.size(); ++k) {
+    if (g.count[k] > 0) g.rgb[k] /= g.count[k], g.z[k] /= g.count[k];
+  }
+  return g;
+}
+
+}  // namespace
+
+void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
+  for (const char* channel : {"red", "green", "blue"}) {
+    const PointProperty* p = cloud.property(channel);
+    if (p == nullptr) continue;
+    for (std::size_t i = 0; i < p->values.size(); ++i) {
+      for (const char* ch : {"red", "green", "blue"}) {
+        const PointProperty* q = cloud.property(ch);
+        if (q != nullptr && i < q->values.size() && !std::isfinite(q->values[i])) {
+          throw Error(name + ": vertex " + std::to_string(i) +
+                      " has a colour that is not finite (" + ch + " = " +
+                      std::to_string(q->values[i]) + ")");
+        }
+      }
+    }
+    throw Error(name + ": its colours are not uchar red/green/blue (as sonar3d texture writes)");
+  }
+  require(!cloud.empty(), name + " has no points");
+  require(cloud.has_color(),
+          name + " has no colour (uchar red, green, blue): colour it with sonar3d texture first");
+  bool any = false;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (!cloud.points[i].allFinite()) {
+      throw Error(name + ": point " + std::to_string(i) + " is not finite");
+    }
+    const auto& c = cloud.color[i];
+    any |= c[0] != 0 || c[1] != 0 || c[2] != 0;
+  }
+  require(any, name + " has no coloured point (all black: no camera saw any)");
+}
+
+// Colour change (issue 13 item 4, beyond the thesis, whose sec. 6.4 maps video onto the sonar
+// cloud; here the two surveys' mapped colours are compared like the heights of compare_geometry).
+ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour_b_in_a,
+                            const ColourChangeConfig& config) {
+  config.validate();
+  check_colour_cloud(colour_a, "colour cloud A");
+  check_colour_cloud(colour_b_in_a, "colour cloud B");
+  ColourChange out;
+  out.compared = true;
+  out.space = config.space;
+  out.cell_m = config.cell_m;
+  out.k_sigma = config.k_sigma;
+  out.min_area_m2 = config.min_area_m2;
+  const ElevationMap grid = map_of(colour_a, config.cell_m, "A");
+  const ColourGrid ga = bin_colours(colour_a, grid, config.top_layer_m),
+                   gb = bin_colours(colour_b_in_a, grid, config.top_layer_m);
+  const int dims = config.space == ColourSpace::Lab ? 3 : 2;
+  // Each cell's colour in the space (chromaticity in percentage points); valid when the cell has
+  // min_points coloured points and, for chromaticity, any light at all.
+  auto to_space = [&](const ColourGrid& g, std::vector<Eigen::Vector3d>* v, std::vector<char>* ok) {
+    v->assign(g.rgb.size(), Eigen::Vector3d::Zero());
+    ok->assign(g.rgb.size(), 0);
+    for (std::size_t k = 0; k < g.rgb.size(); ++k) {
+      if (g.count[k] < config.min_points) continue;
+      const Eigen::Vector3d& c = g.rgb[k];
+      if (config.space == ColourSpace::Lab) {
+        (*v)[k] = linear_rgb_to_lab(c);
+      } else {
+        const double sum = c.sum();
+        if (!(sum > 1e-6)) continue;
+        (*v)[k] = Eigen::Vector3d(100 * c.x() / sum, 100 * c.y() / sum, 0);
+      }
+      (*ok)[k] = 1;
+    }
+  };
+  std::vector<Eigen::Vector3d> va, vb;
+  std::vector<char> oka, okb;
+  to_space(ga, &va, &oka);
+  to_space(gb, &vb, &okb);
+  std::vector<std::size_t> both;
+  for (std::size_t k = 0; k < va.size(); ++k) {
+    if (oka[k] && okb[k]) both.push_back(k);
+  }
+  out.compared_cells = both.size();
+  require(both.size() >= static_cast<std::size_t>(config.min_overlap_cells),
+          "change detection: the colour clouds overlap on " + std::to_string(both.size()) +
+              " cells of " + std::to_string(config.cell_m) + " m with at least " +
+              std::to_string(config.min_points) + " coloured points in each (colour " +
+              "min_overlap_cells = " + std::to_string(config.min_overlap_cells) +
+              "): do they cover the same site, each in its own survey's world frame?");
+  // The offset: the median of B − A per component (a lighting or white balance shift of the
+  // whole survey); the sigma: robust, of the length of what is left (chi with `dims` components).
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  std::vector<float> values(both.size());
+  for (int c = 0; c < dims; ++c) {
+    for (std::size_t n = 0; n < both.size(); ++n) {
+      values[n] = static_cast<float>(vb[both[n]][c] - va[both[n]][c]);
+    }
+    offset[c] = quantile(values, 0.5);
+    out.offset.push_back(offset[c]);
+  }
+  for (std::size_t n = 0; n < both.size(); ++n) {
+    values[n] = static_cast<float>((vb[both[n]] - offset - va[both[n]]).norm());
+  }
+  out.sigma = std::max(config.min_sigma, quantile(values, config.sigma_quantile) /
+                                             chi_quantile(config.sigma_quantile, dims));
+  out.threshold = config.k_sigma * out.sigma;
+  // A cell changed when B's colour (offset removed) differs from every colour of A within
+  // tolerance_m (at least the 3×3 cells) by more than the threshold, or A's from every one of B's:
+  // a colour edge that the maps place less than that apart is no change.
+  ElevationMap delta = grid;
+  std::fill(delta.z.begin(), delta.z.end(), ElevationMap::kNoData);
+  const int rows = grid.rows, cols = grid.cols;
+  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
+  std::vector<int8_t> changed(va.size(), 0);
+  for (const std::size_t k : both) {
+    delta.z[k] = static_cast<float>((vb[k] - offset - va[k]).norm());
+    const int row = static_cast<int>(k / static_cast<std::size_t>(cols));
+    const int col = static_cast<int>(k % static_cast<std::size_t>(cols));
+    double to_a = std::numeric_limits<double>::infinity(), to_b = to_a;
+    for (int dr = -reach; dr <= reach; ++dr) {
+      for (int dc = -reach; dc <= reach; ++dc) {
+        const int rr = row + dr, cc = col + dc;
+        if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+        const std::size_t j = grid.index(rr, cc);
+        if (oka[j]) to_a = std::min(to_a, (vb[k] - offset - va[j]).norm());
+        if (okb[j]) to_b = std::min(to_b, (va[k] + offset - vb[j]).norm());
+      }
+    }
+    if (to_a > out.threshold || to_b > out.threshold) changed[k] = 1;
+  }
+  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
+  const double cell_area = config.cell_m * config.cell_m;
+  for (const std::vector<std::size_t>& comp : sign_components(changed, rows, cols, link)) {
+    out.significant_cells += comp.size();
+    ColourRegion reg;
+    reg.cells = comp.size();
+    reg.area_m2 = static_cast<double>(comp.size()) * cell_area;
+    if (reg.area_m2 < config.min_area_m2) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), rgb_a = sum, rgb_b = sum;
+    double sd = 0;
+    for (const std::size_t k : comp) {
+      const Eigen::Vector2d c =
+          grid.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cols)),
+                              static_cast<int>(k % static_cast<std::size_t>(cols)));
+      sum += Eigen::Vector3d(c.x(), c.y(), 0.5 * (ga.z[k] + gb.z[k]));
+      rgb_a += ga.rgb[k];
+      rgb_b += gb.rgb[k];
+      sd += delta.z[k];
+      reg.max_delta = std::max(reg.max_delta, static_cast<double>(delta.z[k]));
+    }
+    const double n = static_cast<double>(comp.size());
+    reg.centroid = sum / n;
+    reg.mean_delta = sd / n;
+    reg.colour_a = to_srgb8(rgb_a / n);
+    reg.colour_b = to_srgb8(rgb_b / n);
+    reg.id = static_cast<int>(out.regions.size());
+    out.regions.push_back(reg);
+  }
+  out.delta_map = std::move(delta);
+  return out;
+}
+
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
                           const std::vector<SurveyPlacement>& pb,
                           const std::map<std::string, Symmetry>& symmetries,
-                          const ChangeConfig& config) {
+                          const ChangeConfig& config, const PointCloud* colour_a,
+                          const PointCloud* colour_b) {
   config.validate();
   const auto t0 = std::chrono::steady_clock::now();
+  require((colour_a == nullptr) == (colour_b == nullptr),
+          "change detection: colour needs a coloured cloud of each survey (A and B), not one");
+  if (colour_a != nullptr) {
+    check_colour_cloud(*colour_a, "colour cloud A");
+    check_colour_cloud(*colour_b, "colour cloud B");
+  }
   ChangeResult r;
   r.registration = register_surveys(a_world, b_world, config.registration);
   std::vector<SurveyPlacement> pb_in_a = pb;
@@ -643,6 +926,11 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
       observed |= 2 * seen >= in_disc;
     }
     if (observed && !confirmed) o.status = ObjectStatus::Unchanged;
+  }
+  if (colour_a != nullptr) {
+    PointCloud b_in_a = transformed(*colour_b, r.registration.T_a_b);
+    b_in_a.color = colour_b->color;
+    r.colour = compare_colour(*colour_a, b_in_a, config.colour);
   }
   r.seconds = seconds_since(t0);
   return r;
@@ -693,6 +981,34 @@ std::string changes_json(const ChangeResult& r) {
                      {"match_radius_m", t.match_radius_m},
                      {"yaw_deg", r.registration.yaw_deg},
                      {"registration_seconds", r.registration.seconds}};
+  j["colour"] = nullptr;
+  if (r.colour.compared) {
+    const ColourChange& c = r.colour;
+    auto rgb = [](const std::array<std::uint8_t, 3>& v) {
+      return nlohmann::json{v[0], v[1], v[2]};
+    };
+    nlohmann::json cregions = nlohmann::json::array();
+    for (const ColourRegion& g : c.regions) {
+      cregions.push_back({{"id", g.id},
+                          {"centroid", {g.centroid.x(), g.centroid.y(), g.centroid.z()}},
+                          {"area_m2", g.area_m2},
+                          {"cells", g.cells},
+                          {"max_delta", g.max_delta},
+                          {"mean_delta", g.mean_delta},
+                          {"colour_a", rgb(g.colour_a)},
+                          {"colour_b", rgb(g.colour_b)}});
+    }
+    j["colour"] = {{"space", colour_space_name(c.space)},
+                   {"cell_m", c.cell_m},
+                   {"offset", c.offset},
+                   {"sigma", c.sigma},
+                   {"k_sigma", c.k_sigma},
+                   {"threshold", c.threshold},
+                   {"min_area_m2", c.min_area_m2},
+                   {"compared_cells", c.compared_cells},
+                   {"significant_cells", c.significant_cells},
+                   {"regions", cregions}};
+  }
   j["seconds"] = r.seconds;
   return j.dump(1) + "\n";
 }
@@ -722,6 +1038,10 @@ void write_change_directory(const std::string& dir, const ChangeResult& result) 
   fs::create_directories(out.temp());
   write_elevation_geotiff((out.temp() / "change_map.tif").string(), result.change_map);
   write_ply((out.temp() / "change_points.ply").string(), change_points(result));
+  if (result.colour.compared) {
+    write_elevation_geotiff((out.temp() / "colour_change_map.tif").string(),
+                            result.colour.delta_map);
+  }
   write_text_file((out.temp() / "changes.json").string(), changes_json(result));
   out.commit();
 }

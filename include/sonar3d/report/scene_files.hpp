@@ -5,6 +5,7 @@
 // file's text and the path to name in errors; every error is one line naming the file and the
 // key or entry at fault. Fuzzed: fuzz/fuzz_report_scene.cpp.
 #include <Eigen/Core>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,12 @@ struct ChangedRegion {
   double area_m2 = 0, max_abs_change_m = 0, mean_change_m = 0;
   std::string kind;  // raised | lowered
 };
+struct ChangedColourRegion {  // changes.json "colour" "regions" (sonar3d diff --colour-a/-b)
+  long long id = 0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  double area_m2 = 0, max_delta = 0, mean_delta = 0;
+  std::array<int, 3> colour_a{0, 0, 0}, colour_b{0, 0, 0};  // 8-bit sRGB before / after
+};
 struct ChangeSet {
   Eigen::Matrix4d T_a_b = Eigen::Matrix4d::Identity();
   std::string registration_method;
@@ -57,6 +64,8 @@ struct ChangeSet {
   long long overlap_cells = 0;
   std::vector<ChangedObject> objects;
   std::vector<ChangedRegion> regions;
+  std::string colour_space;  // empty: no colour compared ("colour" null or absent)
+  std::vector<ChangedColourRegion> colour_regions;
 };
 ChangeSet parse_changes_json(const std::string& text, const std::string& path);
 

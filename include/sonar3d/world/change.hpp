@@ -7,8 +7,11 @@
 // Frames: each survey's world is local ENU (x East, y North, z up); T_a_b maps survey B's world
 // into survey A's, and every output is in A's frame. Elevation maps follow sec. 6.2.1 (the highest
 // point per cell); the registration reuses sec. 6.2.2.1's shift search (eq. 6.1–6.2) over a yaw
-// search.
+// search. Colour change (where both surveys have video) compares coloured clouds (sonar3d texture's
+// output) cell by cell after the same registration.
 #include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -74,8 +77,41 @@ struct ChangeRegistration {
 ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
                                     const ChangeRegistrationConfig& config);
 
+// The space colours are compared in (docs/change.md "Colour change" measures both):
+// chromaticity — r = R/(R+G+B), g = G/(R+G+B) of linear RGB, in percentage points — ignores
+// brightness, so a lamp, an altitude or a water attenuation that differs between the surveys is
+// no change; CIELAB (D65, from linear RGB) also counts lightness, in ΔE*ab.
+enum class ColourSpace { Chromaticity, Lab };
+const char* colour_space_name(ColourSpace s);  // "chromaticity", "lab"
+// "chromaticity" or "lab"; anything else is an Error naming `param`.
+ColourSpace parse_colour_space(const std::string& name, const std::string& param);
+
+struct ColourChangeConfig {
+  ColourSpace space = ColourSpace::Chromaticity;
+  double cell_m = 0.1;  // cell of the colour comparison, m
+  // A cell is compared when each survey has at least this many coloured points in it (points
+  // coloured (0, 0, 0) are the ones no camera saw: sonar3d texture writes them black).
+  int min_points = 4;
+  // Only the coloured points within this of the highest coloured point of their cell count (the
+  // top a downward camera sees; at an object's edge the mix of its side and the seabed beside it
+  // differs between surveys), m. Infinity: every point of the cell.
+  double top_layer_m = 0.05;
+  // Significant colour change: the difference, after the median offset of all compared cells
+  // (a white balance or lighting shift between the surveys), beyond k_sigma × the robust sigma
+  // of those differences, and beyond every colour of the other survey within tolerance_m.
+  double k_sigma = 5;
+  double sigma_quantile = 0.8;  // as ChangeConfig's: a sigma while at most 20 % changed
+  double min_sigma = 1.0;       // floor of the sigma, in the space's units (pp or ΔE*ab)
+  double tolerance_m = 0.1;     // registration/drift left between the maps (colour edges), m
+  double link_m = 0.1;          // changed cells closer than this form one region, m
+  double min_area_m2 = 0.05;    // smaller regions are dropped, m²
+  int min_overlap_cells = 20;   // fewer cells compared: the colour clouds do not overlap
+  void validate() const;
+};
+
 struct ChangeConfig {
   ChangeRegistrationConfig registration;
+  ColourChangeConfig colour;
   double cell_m = 0.04;  // cell of the height change map, m
   // Significant height change: |B − A| over k_sigma × the robust sigma of the differences of the
   // whole overlap (derived from both surveys' noise, below), and over the range of the other
@@ -134,6 +170,34 @@ struct ChangeRegion {
   bool raised = true;           // B higher than A (something added or grown), else lowered
 };
 
+// A connected region of significant colour change.
+struct ColourRegion {
+  int id = 0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // x, y: mean cell centre; z: mean point z
+  std::size_t cells = 0;
+  double area_m2 = 0;
+  double max_delta = 0;   // largest colour difference of its cells (offset removed), space units
+  double mean_delta = 0;  // mean colour difference of its cells
+  // Mean colour of its cells before (A) and after (B), 8-bit sRGB (B's with the offset left in:
+  // as its camera saw it).
+  std::array<std::uint8_t, 3> colour_a{0, 0, 0}, colour_b{0, 0, 0};
+};
+
+struct ColourChange {
+  bool compared = false;  // false: no colour clouds given (then nothing below is set)
+  ColourSpace space = ColourSpace::Chromaticity;
+  double cell_m = 0;
+  std::vector<double> offset;  // median of B − A per component of the space (2 or 3)
+  double sigma = 0;            // robust sigma of |B − A − offset|, space units
+  double k_sigma = 0;
+  double threshold = 0;  // k_sigma · sigma
+  double min_area_m2 = 0;
+  std::size_t compared_cells = 0, significant_cells = 0;
+  std::vector<ColourRegion> regions;
+  // |B − A − offset| per cell on A's colour grid, no data where either lacks colour.
+  ElevationMap delta_map;
+};
+
 struct ChangeThresholds {
   double cell_m = 0;
   double median_m = 0;  // median of B − A over the overlap (a height offset left), m
@@ -154,8 +218,23 @@ struct ChangeResult {
   // The later survey's height (B in A's frame) on the same grid, for the change points.
   ElevationMap height_b;
   std::size_t significant_cells = 0;  // before the minimum area
+  ColourChange colour;                // colour change, when both surveys' colour clouds were given
   double seconds = 0;
 };
+
+// Checks a coloured cloud for the colour comparison (`name` names it in errors, e.g. the file):
+// it must have uchar red/green/blue (float colour properties, finite or not, are an error naming
+// the first bad vertex) and finite points.
+void check_colour_cloud(const PointCloud& cloud, const std::string& name);
+
+// Colour change between coloured clouds of A (A's world) and B (already moved into A's frame by
+// T_a_b), per cell of config.cell_m over the cells where both have min_points coloured points:
+// the mean linear RGB of each cell in the space, the median offset B − A removed, the robust
+// sigma of the differences, cells changed beyond k_sigma × sigma (and beyond every colour of the
+// other survey within tolerance_m), connected regions. Throws Error when fewer than
+// min_overlap_cells cells can be compared.
+ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour_b_in_a,
+                            const ColourChangeConfig& config);
 
 // Placements compared (B's already in A's frame). `symmetries`: per model name its symmetry
 // (turns are compared modulo it); empty = every model without symmetry. A placement of a model
@@ -168,12 +247,15 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
 // The whole comparison: B registered onto A, its placements (if any) moved into A's frame and
 // compared with A's, the height change map with its regions, and each object change confirmed by
 // a region near it (ChangeConfig::confirm_radius_m). `pa`, `pb` may both be empty
-// (geometry only).
+// (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each survey in
+// its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
+// compare_colour after B's is moved by T_a_b.
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
                           const std::vector<SurveyPlacement>& pb,
                           const std::map<std::string, Symmetry>& symmetries,
-                          const ChangeConfig& config);
+                          const ChangeConfig& config, const PointCloud* colour_a = nullptr,
+                          const PointCloud* colour_b = nullptr);
 
 // changes.json (docs/formats.md, "Change directory").
 std::string changes_json(const ChangeResult& result);
@@ -183,7 +265,8 @@ std::string changes_json(const ChangeResult& result);
 PointCloud change_points(const ChangeResult& result);
 
 // Writes the change directory `dir` (must not exist; written under a temporary name and renamed
-// when complete): changes.json, change_map.tif (float32 GeoTIFF), change_points.ply.
+// when complete): changes.json, change_map.tif (float32 GeoTIFF), change_points.ply, and with
+// colour compared colour_change_map.tif (float32, the colour difference per colour cell).
 void write_change_directory(const std::string& dir, const ChangeResult& result);
 
 // Per catalogue model its symmetry (for compare_placements).
