@@ -315,7 +315,8 @@ TEST(ColourChange, OneBoxRecolouredIsOneRegion) {
   EXPECT_LT(g.colour_b[0], 2 * g.colour_b[1]);  // brown after: more green than red's
   EXPECT_GT(g.colour_b[1], g.colour_b[2]);
   EXPECT_GT(g.mean_delta, c.threshold);
-  EXPECT_GE(c.sigma, 1.0);  // at least the floor (percentage points)
+  EXPECT_EQ(g.height_change_fraction, 0.0);  // the surface changed, not the geometry
+  EXPECT_GE(c.sigma, 1.0);                   // at least the floor (percentage points)
   // The change map of colour: no data outside the compared cells, the box above the threshold.
   EXPECT_EQ(c.delta_map.num_valid(), c.compared_cells);
   // In CIELAB the 30 % darker B is a lightness offset (the median, taken out) and the box is
@@ -359,6 +360,9 @@ TEST(ColourChange, MovedAddedRemovedPairHasNoColourChangeOnUntouchedObjects) {
                 kMoveA.covers(x, y, 0.2) || kMoveB.covers(x, y, 0.2))
         << "a colour region at " << g.centroid.transpose();
     on_moved |= kMoveA.covers(x, y, 0.2) || kMoveB.covers(x, y, 0.2);
+    if (kAdded.covers(x, y) || kRemoved.covers(x, y)) {
+      EXPECT_GT(g.height_change_fraction, 0.5) << g.centroid.transpose();  // geometry changed
+    }
   }
   EXPECT_TRUE(on_moved);  // the red box left sand where it stood and covers sand where it stands
   EXPECT_FALSE(r.regions.empty());
@@ -542,6 +546,8 @@ camera: {width: 240, height: 180, fx: 150, fy: 150, cx: 119.5, cy: 89.5, T_vehic
   EXPECT_GT(g["area_m2"].get<double>(), 0.15) << r.out;  // of the 0.35 m² top
   EXPECT_GT(g["colour_a"][0].get<int>(), 2 * g["colour_a"][1].get<int>()) << r.out;  // red
   EXPECT_LT(g["colour_b"][0].get<int>(), 2 * g["colour_b"][1].get<int>()) << r.out;  // brown
+  EXPECT_EQ(g["height_change_fraction"].get<double>(), 0.0) << r.out;
+  EXPECT_NE(r.out.find("surface only"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::exists(dir / "D/colour_change_map.tif"));
 
   // Bad inputs: one line naming the file, no output.

@@ -1107,6 +1107,7 @@ TEST_F(SceneReportTest, ChangesShowColourRegions) {
                      {"area_m2", 0.5},
                      {"max_delta", 30.1},
                      {"mean_delta", 25.2},
+                     {"height_change_fraction", 0.0},
                      {"colour_a", {220, 80, 70}},
                      {"colour_b", {150, 110, 60}}}}}};
   write_text_file(cj, ch.dump());
@@ -1115,6 +1116,11 @@ TEST_F(SceneReportTest, ChangesShowColourRegions) {
   const ReportSummary s = write_report(c, cfg);
   const json d = embedded_data(read_text_file(s.output.string()));
   EXPECT_EQ(table_rows(d, "colour_regions"), 1u);
+  for (const auto& t : d["tables"]) {
+    if (t["id"] != "colour_regions") continue;
+    EXPECT_EQ(t["rows"][0][5], "#dc5046");  // the colour before, as hex
+    EXPECT_EQ(t["rows"][0][7], 0.0);        // surface only: no height change with it
+  }
   EXPECT_EQ(table_rows(d, "regions"), 2u);
   const json* ring = layer(d, "colour_regions");
   ASSERT_NE(ring, nullptr);

@@ -181,10 +181,13 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         for (const ColourRegion& reg : cc.regions) {
           fmt::print(
               "  colour region {}: at E {:.2f} N {:.2f}, {:.2f} m2, max delta {:.2f}, mean "
-              "{:.2f}, RGB {},{},{} -> {},{},{}\n",
+              "{:.2f}, RGB {},{},{} -> {},{},{}, {}\n",
               reg.id, reg.centroid.x(), reg.centroid.y(), reg.area_m2, reg.max_delta,
               reg.mean_delta, reg.colour_a[0], reg.colour_a[1], reg.colour_a[2], reg.colour_b[0],
-              reg.colour_b[1], reg.colour_b[2]);
+              reg.colour_b[1], reg.colour_b[2],
+              reg.height_change_fraction > 0 ? fmt::format("with height change ({:.0f} % of it)",
+                                                           100 * reg.height_change_fraction)
+                                             : std::string("surface only"));
         }
       }
       fmt::print("{} objects, {} regions of change{} in {:.1f} s -> {}\n", r.objects.size(),

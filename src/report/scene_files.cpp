@@ -271,6 +271,8 @@ ChangeSet parse_changes_json(const std::string& text, const std::string& path) {
       r.area_m2 = e.num("area_m2");
       r.max_delta = e.num("max_delta");
       r.mean_delta = e.num("mean_delta");
+      r.height_change_fraction =
+          e.has("height_change_fraction") ? e.num("height_change_fraction") : kNaN;
       for (const char* key : {"colour_a", "colour_b"}) {
         const json& v = e.array(key);
         if (v.size() != 3 || !std::all_of(v.begin(), v.end(), [](const json& x) {

@@ -510,12 +510,13 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
         }
       }
       colour_rows.push_back({r.id, json{r.centroid.x(), r.centroid.y(), r.centroid.z()}, r.area_m2,
-                             r.max_delta, r.mean_delta, hex(r.colour_a), hex(r.colour_b)});
+                             r.max_delta, r.mean_delta, hex(r.colour_a), hex(r.colour_b),
+                             num_or_null(100 * r.height_change_fraction)});
     }
     if (!ring.empty()) scene.lines("colour_regions", "colour change regions", ring, ring_colors);
     scene.table("colour_regions", "Colour changes (" + c.colour_space + ")",
                 {"id", "centroid [m]", "area [m²]", "max difference", "mean difference",
-                 "colour before", "colour after"},
+                 "colour before", "colour after", "with height change [%]"},
                 colour_rows);
     scene.card("colour regions", c.colour_regions.size());
   }

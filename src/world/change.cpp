@@ -602,6 +602,7 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   // thin tubes changes in strips that the 3×3 test above breaks apart).
   const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
   const double cell_area = config.cell_m * config.cell_m;
+  r->region_cell.assign(a.z.size(), -1);
   for (const std::vector<std::size_t>& comp : sign_components(sign, rows, cols, link)) {
     ChangeRegion reg;
     reg.raised = sign[comp[0]] > 0;
@@ -624,6 +625,7 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
     reg.centroid = {sx / n, sy / n, sz / n};
     reg.mean_change_m = sd / n;
     reg.id = static_cast<int>(r->regions.size());
+    for (const std::size_t i : comp) r->region_cell[i] = reg.id;
     r->regions.push_back(reg);
   }
   // The registration's residual: the RMS of B − A over the cells within the threshold of the
@@ -870,6 +872,7 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
     reg.mean_delta = sd / n;
     reg.colour_a = to_srgb8(rgb_a / n);
     reg.colour_b = to_srgb8(rgb_b / n);
+    reg.cell_indices = comp;
     reg.id = static_cast<int>(out.regions.size());
     out.regions.push_back(reg);
   }
@@ -931,6 +934,31 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
     PointCloud b_in_a = transformed(*colour_b, r.registration.T_a_b);
     b_in_a.color = colour_b->color;
     r.colour = compare_colour(*colour_a, b_in_a, config.colour);
+    // Each colour region's share of cells with a region of height change within the colour
+    // tolerance: 0 = the surface itself changed (growth, paint), not the geometry.
+    const ElevationMap& cm = r.colour.delta_map;
+    const double reach = 0.5 * cm.cell_m + config.colour.tolerance_m;
+    for (ColourRegion& g : r.colour.regions) {
+      std::size_t with = 0;
+      for (const std::size_t k : g.cell_indices) {
+        const Eigen::Vector2d c =
+            cm.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cm.cols)),
+                              static_cast<int>(k % static_cast<std::size_t>(cm.cols)));
+        const int c0 = static_cast<int>(std::floor((c.x() - reach - d.origin_xy.x()) / d.cell_m));
+        const int c1 = static_cast<int>(std::floor((c.x() + reach - d.origin_xy.x()) / d.cell_m));
+        const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - c.y() - reach) / d.cell_m));
+        const int r1 = static_cast<int>(std::floor((d.origin_xy.y() - c.y() + reach) / d.cell_m));
+        bool found = false;
+        for (int rr = std::max(0, r0); rr <= std::min(d.rows - 1, r1) && !found; ++rr) {
+          for (int cc = std::max(0, c0); cc <= std::min(d.cols - 1, c1) && !found; ++cc) {
+            found = r.region_cell[d.index(rr, cc)] >= 0;
+          }
+        }
+        with += found;
+      }
+      g.height_change_fraction =
+          g.cell_indices.empty() ? 0 : static_cast<double>(with) / g.cell_indices.size();
+    }
   }
   r.seconds = seconds_since(t0);
   return r;
@@ -995,6 +1023,7 @@ std::string changes_json(const ChangeResult& r) {
                           {"cells", g.cells},
                           {"max_delta", g.max_delta},
                           {"mean_delta", g.mean_delta},
+                          {"height_change_fraction", g.height_change_fraction},
                           {"colour_a", rgb(g.colour_a)},
                           {"colour_b", rgb(g.colour_b)}});
     }

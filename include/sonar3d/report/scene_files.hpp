@@ -55,6 +55,7 @@ struct ChangedColourRegion {  // changes.json "colour" "regions" (sonar3d diff -
   long long id = 0;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   double area_m2 = 0, max_delta = 0, mean_delta = 0;
+  double height_change_fraction = 0;                        // NaN when absent
   std::array<int, 3> colour_a{0, 0, 0}, colour_b{0, 0, 0};  // 8-bit sRGB before / after
 };
 struct ChangeSet {

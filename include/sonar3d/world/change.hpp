@@ -181,6 +181,11 @@ struct ColourRegion {
   // Mean colour of its cells before (A) and after (B), 8-bit sRGB (B's with the offset left in:
   // as its camera saw it).
   std::array<std::uint8_t, 3> colour_a{0, 0, 0}, colour_b{0, 0, 0};
+  // Share of its cells with a reported region of height change within the colour tolerance
+  // (set by diff_surveys): 0 = the surface itself changed (growth, paint, corrosion), not the
+  // geometry; a moved, added or removed object changes both.
+  double height_change_fraction = 0;
+  std::vector<std::size_t> cell_indices;  // its cells on delta_map's grid
 };
 
 struct ColourChange {
@@ -218,7 +223,9 @@ struct ChangeResult {
   // The later survey's height (B in A's frame) on the same grid, for the change points.
   ElevationMap height_b;
   std::size_t significant_cells = 0;  // before the minimum area
-  ColourChange colour;                // colour change, when both surveys' colour clouds were given
+  // Per cell of change_map: the id of the reported height region it belongs to, or −1.
+  std::vector<int> region_cell;
+  ColourChange colour;  // colour change, when both surveys' colour clouds were given
   double seconds = 0;
 };
 
