@@ -76,6 +76,7 @@ def test_diff_surveys_finds_a_recoloured_box():
     assert g["centroid"][0] == pytest.approx(1.5, abs=0.1)
     assert g["centroid"][1] == pytest.approx(1.0, abs=0.1)
     assert g["area_m2"] == pytest.approx(0.36, abs=0.1)
+    assert g["height_change_fraction"] == 0  # the surface changed, not the geometry
     assert r["colour_change_map"].num_valid() == c["compared_cells"]
     # Without colours: no colour block.
     assert sonar3d.diff_surveys(a, b, num_threads=2)["colour"] is None
