@@ -5,6 +5,7 @@
 Sites:
   small   the small site of scripts/change_pair.py (riser, tank, pillar; its `changed` or `same`
           geometry) with colours: sand seabed, yellow riser, red tanks, grey pillar.
+  field   the field of scripts/change_pair.py (54 x 38 m), coloured alike (pipelines grey).
   blocks  another site: 10 x 8 m terrain with rocks, five primitives (boxes, a cylinder, a
           sphere) of five colours, three lines at 3.5 m (A) and 4.2 m (B) altitude, no
           navigation drift between the frames but each survey its own seed.
@@ -12,7 +13,7 @@ GROWTH (yes|no): in B the tank (small) or the red box (blocks) has turned brown 
 Each survey's camera has its own lighting: A ambient 0.5, attenuation 0.05 / m; B ambient 0.25,
 attenuation 0.1 / m (a weaker lamp, murkier water).
 
-Usage: scripts/colour_change_pair.py {small|blocks} {changed|same} {yes|no} OUT_DIR
+Usage: scripts/colour_change_pair.py {small|field|blocks} {changed|same} {yes|no} OUT_DIR
   writes OUT_DIR/change_a.yaml and OUT_DIR/change_b.yaml.
 """
 import os
@@ -33,9 +34,10 @@ def camera(which):
             "ambient: %g, attenuation_per_m: %g}\n" % (ambient, attenuation))
 
 
-def small(which, kind, growth):
-    text = change_pair.scene(change_pair.SITES["small"], which, kind)
-    colours = {"seabed": SAND, "riser": YELLOW, "tank": RED, "tank_added": RED, "pillar": GREY}
+def small(which, kind, growth, site="small"):
+    text = change_pair.scene(change_pair.SITES[site], which, kind)
+    colours = {"seabed": SAND, "riser": YELLOW, "tank": RED, "tank_added": RED, "pillar": GREY,
+               "pipeline_a": GREY, "pipeline_b": GREY}
     if growth and which == "b":
         colours["tank"] = BROWN
     out = []
@@ -78,14 +80,17 @@ def blocks(which, kind, growth):
 
 
 def main():
-    if len(sys.argv) != 5 or sys.argv[1] not in ("small", "blocks") or \
+    if len(sys.argv) != 5 or sys.argv[1] not in ("small", "field", "blocks") or \
             sys.argv[2] not in ("changed", "same") or sys.argv[3] not in ("yes", "no"):
         sys.exit(__doc__)
     site, kind, growth, out = sys.argv[1], sys.argv[2], sys.argv[3] == "yes", sys.argv[4]
     os.makedirs(out, exist_ok=True)
     for which in ("a", "b"):
         with open("%s/change_%s.yaml" % (out, which), "w") as f:
-            f.write((small if site == "small" else blocks)(which, kind, growth))
+            if site == "blocks":
+                f.write(blocks(which, kind, growth))
+            else:
+                f.write(small(which, kind, growth, site))
 
 
 if __name__ == "__main__":

@@ -398,6 +398,11 @@ TEST(ColourChange, BadInputsGiveClearErrors) {
   PointCloud black = b;
   for (auto& c : black.color) c = {0, 0, 0};
   test::expect_error([&] { check_colour_cloud(black, "black.ply"); }, "no coloured point");
+  // A colour cell so small that the grid would take gigabytes: refused before allocating.
+  ColourChangeConfig tiny = test_config().colour;
+  tiny.cell_m = 1e-4;
+  tiny.tolerance_m = tiny.link_m = 0;
+  test::expect_error([&] { compare_colour(a, b, tiny); }, "colour cell_m too small");
   ChangeConfig bad = test_config();
   bad.colour.cell_m = -1;
   test::expect_error([&] { bad.validate(); }, "colour cell_m");

@@ -677,6 +677,8 @@ std::array<std::uint8_t, 3> to_srgb8(const Eigen::Vector3d& rgb) {
   return out;
 }
 
+constexpr std::size_t kMaxColourCells = 20'000'000;
+
 // A coloured cloud binned on a grid: per cell the mean linear RGB and z of its coloured points.
 struct ColourGrid {
   std::vector<Eigen::Vector3d> rgb;
@@ -769,7 +771,17 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
   out.cell_m = config.cell_m;
   out.k_sigma = config.k_sigma;
   out.min_area_m2 = config.min_area_m2;
-  const ElevationMap grid = map_of(colour_a, config.cell_m, "A");
+  // The grid: A's extent at the colour cell, at most kMaxColourCells (36 bytes each below).
+  ElevationMapConfig gc;
+  gc.cell_m = config.cell_m;
+  gc.max_cells = kMaxColourCells;
+  ElevationMap grid;
+  try {
+    grid = elevation_map_from_points(colour_a, gc);
+  } catch (const Error& e) {
+    throw Error(std::string("change detection: colour cell_m too small for the site (") + e.what() +
+                ")");
+  }
   const ColourGrid ga = bin_colours(colour_a, grid, config.top_layer_m),
                    gb = bin_colours(colour_b_in_a, grid, config.top_layer_m);
   const int dims = config.space == ColourSpace::Lab ? 3 : 2;
