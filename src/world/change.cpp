@@ -677,7 +677,7 @@ std::array<std::uint8_t, 3> to_srgb8(const Eigen::Vector3d& rgb) {
   return out;
 }
 
-constexpr std::size_t kMaxColourCells = 20'000'000;
+constexpr std::size_t kMaxColourCells = 5'000'000;
 
 // A coloured cloud binned on a grid: per cell the mean linear RGB and z of its coloured points.
 struct ColourGrid {
@@ -771,7 +771,8 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
   out.cell_m = config.cell_m;
   out.k_sigma = config.k_sigma;
   out.min_area_m2 = config.min_area_m2;
-  // The grid: A's extent at the colour cell, at most kMaxColourCells (36 bytes each below).
+  // The grid: A's extent at the colour cell, at most kMaxColourCells (~130 bytes each below:
+  // a 220 × 220 m site at 10 cm).
   ElevationMapConfig gc;
   gc.cell_m = config.cell_m;
   gc.max_cells = kMaxColourCells;

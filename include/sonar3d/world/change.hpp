@@ -94,7 +94,7 @@ struct ColourChangeConfig {
   int min_points = 4;
   // Only the coloured points within this of the highest coloured point of their cell count (the
   // top a downward camera sees; at an object's edge the mix of its side and the seabed beside it
-  // differs between surveys), m. Infinity: every point of the cell.
+  // differs between surveys), m. A large value: every point of the cell.
   double top_layer_m = 0.05;
   // Significant colour change: the difference, after the median offset of all compared cells
   // (a white balance or lighting shift between the surveys), beyond k_sigma × the robust sigma
