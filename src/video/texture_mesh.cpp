@@ -5,8 +5,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <ctime>  // PROFILE-TMP
-#include <cstdio>  // PROFILE-TMP
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -158,9 +156,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const auto& V = impl_->mesh.vertices;
   const double max_range = impl_->config.max_range_m, max_range2 = max_range * max_range;
   detail::VisibilityRaster* raster = impl_->raster.get();
-  timespec prof0; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &prof0);  // PROFILE-TMP
   if (raster) raster->render(cam, T_camera_world);
-  timespec prof1; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &prof1);  // PROFILE-TMP
   std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
   const float* const rgb = view.image->rgb.data();
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
@@ -255,14 +251,6 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   });
   impl_->raster_decided += decided.load();
   impl_->rays_cast += rays.load();
-  {  // PROFILE-TMP
-    static double tr = 0, tl = 0;  // PROFILE-TMP
-    static int nf = 0;  // PROFILE-TMP
-    timespec prof2; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &prof2);  // PROFILE-TMP
-    tr += (prof1.tv_sec - prof0.tv_sec) + 1e-9 * (prof1.tv_nsec - prof0.tv_nsec);  // PROFILE-TMP
-    tl += (prof2.tv_sec - prof1.tv_sec) + 1e-9 * (prof2.tv_nsec - prof1.tv_nsec);  // PROFILE-TMP
-    if (++nf % 20 == 0) fprintf(stderr, "PROFILE render %.2f ms loop %.2f ms\n", 1e3 * tr / nf, 1e3 * tl / nf);  // PROFILE-TMP
-  }  // PROFILE-TMP
   return coloured.load();
 }
 
