@@ -224,3 +224,56 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
     EXPECT_EQ(by_rays.raster_decided(), 0u);
   }
 }
+
+// Colours weighted by view (the default): a red frame 1 m over a plane, head-on, and a blue frame
+// from 3.6 m at a slant. Each vertex both see takes (w_red·red + w_blue·blue) / (w_red + w_blue)
+// with w = |cos θ| / range², here mostly red; with weight_by_view = false the plain mean.
+TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
+  const TriangleMesh plane = make_plane(2, 2);  // z = 0, normal +z
+  CameraIntrinsics cam;
+  cam.width = 320;
+  cam.height = 240;
+  cam.fx = cam.fy = 260;
+  cam.cx = 159.5;
+  cam.cy = 119.5;
+  auto uniform = [&](const Eigen::Vector3f& c) {
+    RgbImage img;
+    img.width = cam.width;
+    img.height = cam.height;
+    img.rgb.resize(3u * cam.width * cam.height);
+    for (std::size_t k = 0; k < img.rgb.size(); ++k) img.rgb[k] = c[static_cast<int>(k % 3)];
+    return img;
+  };
+  const Eigen::Vector3f red(0.8f, 0.1f, 0.1f), blue(0.1f, 0.1f, 0.8f);
+  const RgbImage red_img = uniform(red), blue_img = uniform(blue);
+  const Eigen::Vector3d eye_red(0, 0, 1), eye_blue(0, -3, 2);
+  const std::vector<CameraView> views = {{cam, test::look_at(eye_red, {0, 0, 0}), &red_img},
+                                         {cam, test::look_at(eye_blue, {0, 0, 0}), &blue_img}};
+  for (const bool weighted : {true, false}) {
+    MeshTextureConfig mc;
+    mc.texel_m = 0.05;
+    mc.weight_by_view = weighted;
+    const TexturedMesh t = texture_mesh(plane, views, mc);
+    std::size_t both = 0;
+    double red_share_min = 1;
+    for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
+      if (t.views[i] != 2) continue;
+      const Eigen::Vector3d p = t.mesh.vertices[i].cast<double>();
+      auto weight = [&](const Eigen::Vector3d& eye) {
+        const double r = (p - eye).norm();
+        return weighted ? std::max(0.01, std::abs((p - eye).z()) / r) / (r * r) : 1.0;
+      };
+      const double wr = weight(eye_red), wb = weight(eye_blue);
+      const Eigen::Vector3f expected = ((wr * red.cast<double>() + wb * blue.cast<double>()) /
+                                        (wr + wb))
+                                           .cast<float>();
+      ASSERT_NEAR((t.color[i] - expected).norm(), 0, 1e-4) << p.transpose();
+      red_share_min = std::min(red_share_min, wr / (wr + wb));
+      ++both;
+    }
+    EXPECT_GT(both, 100u);
+    if (weighted) {
+      EXPECT_GT(red_share_min, 0.85);  // the near, head-on frame dominates
+    }
+  }
+}

@@ -71,6 +71,10 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--texel", job->mesh.texel_m,
                   "with --mesh: subdivide until every edge is at most this long, m (0: as is)")
       ->capture_default_str();
+  cmd->add_flag_callback(
+      "--plain-mean", [job] { job->mesh.weight_by_view = false; },
+      "with --mesh: average the frames' colours plainly (default: each weighted by "
+                "|cos θ| / range², near head-on views counting most)");
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
@@ -87,6 +91,9 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
     }
     if (job->is_mesh && job->drop_uncoloured) {
       throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
+    }
+    if (!job->is_mesh && !job->mesh.weight_by_view) {
+      throw CLI::ValidationError("--plain-mean", "applies to --mesh only");
     }
     run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset] {
       job->cloud = *cloud;

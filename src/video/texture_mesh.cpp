@@ -83,8 +83,10 @@ struct MeshTexturer::Impl {
   TriangleMesh mesh;
   MeshTextureConfig config;
   RTCScene scene = nullptr;
-  std::vector<Eigen::Vector3d> sum;
+  std::vector<Eigen::Vector3d> sum;  // Σ weight · colour
+  std::vector<double> weight;        // Σ weight
   std::vector<std::uint32_t> views;
+  std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
   std::unique_ptr<detail::VisibilityRaster> raster;
   std::size_t raster_decided = 0, rays_cast = 0;
   ~Impl() {
@@ -106,6 +108,19 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
   impl_->mesh = subdivide_to_edge(mesh, config.texel_m, config.max_vertices);
   detail::sort_vertices_spatially(impl_->mesh);
   impl_->sum.assign(impl_->mesh.vertices.size(), Eigen::Vector3d::Zero());
+  impl_->weight.assign(impl_->mesh.vertices.size(), 0.0);
+  if (config.weight_by_view) {
+    // Area-weighted face normals summed at the vertices (the cross products' lengths are twice
+    // the areas); only their direction is used.
+    const TriangleMesh& m = impl_->mesh;
+    impl_->normal.assign(m.vertices.size(), Eigen::Vector3f::Zero());
+    for (const auto& tri : m.triangles) {
+      const Eigen::Vector3f n = (m.vertices[tri[1]] - m.vertices[tri[0]])
+                                    .cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+      for (int k = 0; k < 3; ++k) impl_->normal[tri[k]] += n;
+    }
+    for (auto& n : impl_->normal) n = n.stableNormalized();
+  }
   impl_->views.assign(impl_->mesh.vertices.size(), 0);
 }
 
@@ -159,6 +174,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   if (raster) raster->render(cam, T_camera_world);
   std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
   const float* const rgb = view.image->rgb.data();
+  const bool weighted = impl_->config.weight_by_view;
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 8192), [&](const tbb::blocked_range<
                                                                                std::size_t>& r) {
@@ -240,7 +256,15 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
           rtcOccluded1(impl_->scene, &ctx, &ray);
           if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
         }
-        impl_->sum[c.i] += sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
+        // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
+        const double w =
+            weighted ? std::max(0.01, std::abs(impl_->normal[c.i].cast<double>().dot(
+                                          c.p_world - origin)) /
+                                          c.range) /
+                           (c.range * c.range)
+                     : 1.0;
+        impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
+        impl_->weight[c.i] += w;
         ++impl_->views[c.i];
         ++local;
       }
@@ -260,7 +284,7 @@ TexturedMesh MeshTexturer::result() const {
   out.views = impl_->views;
   out.color.assign(out.mesh.vertices.size(), Eigen::Vector3f::Zero());
   for (std::size_t i = 0; i < out.color.size(); ++i) {
-    if (out.views[i] > 0) out.color[i] = (impl_->sum[i] / out.views[i]).cast<float>();
+    if (out.views[i] > 0) out.color[i] = (impl_->sum[i] / impl_->weight[i]).cast<float>();
   }
   return out;
 }
