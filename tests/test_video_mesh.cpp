@@ -264,9 +264,8 @@ TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
         return weighted ? std::max(0.01, std::abs((p - eye).z()) / r) / (r * r) : 1.0;
       };
       const double wr = weight(eye_red), wb = weight(eye_blue);
-      const Eigen::Vector3f expected = ((wr * red.cast<double>() + wb * blue.cast<double>()) /
-                                        (wr + wb))
-                                           .cast<float>();
+      const Eigen::Vector3f expected =
+          ((wr * red.cast<double>() + wb * blue.cast<double>()) / (wr + wb)).cast<float>();
       ASSERT_NEAR((t.color[i] - expected).norm(), 0, 1e-4) << p.transpose();
       red_share_min = std::min(red_share_min, wr / (wr + wb));
       ++both;

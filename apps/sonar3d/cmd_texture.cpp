@@ -74,7 +74,7 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag_callback(
       "--plain-mean", [job] { job->mesh.weight_by_view = false; },
       "with --mesh: average the frames' colours plainly (default: each weighted by "
-                "|cos θ| / range², near head-on views counting most)");
+      "|cos θ| / range², near head-on views counting most)");
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");

@@ -115,8 +115,8 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
     const TriangleMesh& m = impl_->mesh;
     impl_->normal.assign(m.vertices.size(), Eigen::Vector3f::Zero());
     for (const auto& tri : m.triangles) {
-      const Eigen::Vector3f n = (m.vertices[tri[1]] - m.vertices[tri[0]])
-                                    .cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+      const Eigen::Vector3f n =
+          (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
       for (int k = 0; k < 3; ++k) impl_->normal[tri[k]] += n;
     }
     for (auto& n : impl_->normal) n = n.stableNormalized();
@@ -176,103 +176,105 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const float* const rgb = view.image->rgb.data();
   const bool weighted = impl_->config.weight_by_view;
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 8192), [&](const tbb::blocked_range<
-                                                                               std::size_t>& r) {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    std::size_t local = 0, local_decided = 0, local_rays = 0;
-    // Blocks of vertices in two passes: first where each falls (prefetching its raster pixels and
-    // image pixels), then the tests — so that the memory latency of one vertex overlaps the others'.
-    constexpr std::size_t kBlock = 64;
-    struct Candidate {
-      Eigen::Vector3d p_world;
-      Eigen::Vector2d px;
-      double range;
-      std::ptrdiff_t cell;
-      std::size_t i;
-    };
-    Candidate cand[kBlock];
-    for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
-      const std::size_t stop = std::min(r.end(), start + kBlock);
-      std::size_t n = 0;
-      for (std::size_t i = start; i != stop; ++i) {
-        const Eigen::Vector3d p_world = V[i].cast<double>();
-        const Eigen::Vector3d p = R * p_world + t;
-        if (!(p.z() > 0)) continue;
-        const double range2 = p.squaredNorm();
-        if (!(range2 <= max_range2)) continue;
-        const double iz = 1.0 / p.z(), xn = p.x() * iz, yn = p.y() * iz;
-        Eigen::Vector2d px;
-        if (pinhole) {
-          px = {cam.fx * xn + cam.cx, cam.fy * yn + cam.cy};
-        } else {
-          const auto q = project(cam, p);
-          if (!q) continue;
-          px = *q;
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, V.size(), 8192),
+      [&](const tbb::blocked_range<std::size_t>& r) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        std::size_t local = 0, local_decided = 0, local_rays = 0;
+        // Blocks of vertices in two passes: first where each falls (prefetching its raster pixels
+        // and image pixels), then the tests — so that the memory latency of one vertex overlaps the
+        // others'.
+        constexpr std::size_t kBlock = 64;
+        struct Candidate {
+          Eigen::Vector3d p_world;
+          Eigen::Vector2d px;
+          double range;
+          std::ptrdiff_t cell;
+          std::size_t i;
+        };
+        Candidate cand[kBlock];
+        for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
+          const std::size_t stop = std::min(r.end(), start + kBlock);
+          std::size_t n = 0;
+          for (std::size_t i = start; i != stop; ++i) {
+            const Eigen::Vector3d p_world = V[i].cast<double>();
+            const Eigen::Vector3d p = R * p_world + t;
+            if (!(p.z() > 0)) continue;
+            const double range2 = p.squaredNorm();
+            if (!(range2 <= max_range2)) continue;
+            const double iz = 1.0 / p.z(), xn = p.x() * iz, yn = p.y() * iz;
+            Eigen::Vector2d px;
+            if (pinhole) {
+              px = {cam.fx * xn + cam.cx, cam.fy * yn + cam.cy};
+            } else {
+              const auto q = project(cam, p);
+              if (!q) continue;
+              px = *q;
+            }
+            // in_image(): the pixel squares' outer edges
+            if (!(px.x() >= -0.5 && px.y() >= -0.5 && px.x() < umax && px.y() < vmax)) continue;
+            Candidate& c = cand[n++];
+            c.p_world = p_world;
+            c.px = px;
+            c.range = std::sqrt(range2);
+            c.cell = raster ? raster->locate(xn, yn, p.z()) : -1;
+            if (raster) raster->prefetch(c.cell);
+            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0, px.y())) * row_floats +
+                                      3 * static_cast<std::size_t>(std::max(0.0, px.x()));
+            __builtin_prefetch(rgb + pixel);
+            __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+            c.i = i;
+          }
+          for (std::size_t k = 0; k < n; ++k) {
+            const Candidate& c = cand[k];
+            const auto verdict = raster ? raster->test(c.p_world, c.cell, c.range)
+                                        : detail::VisibilityRaster::Verdict::Unknown;
+            if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
+              ++local_decided;
+              continue;
+            }
+            if (verdict == detail::VisibilityRaster::Verdict::Visible) {
+              ++local_decided;
+            } else {
+              // Occluded when the mesh crosses the ray short of the vertex: stop a hair before it
+              // (relative, for float precision at range) so its own triangles do not count.
+              ++local_rays;
+              const double dist = c.range;
+              const Eigen::Vector3d d = (c.p_world - origin) / dist;
+              RTCRay ray;
+              ray.org_x = static_cast<float>(origin.x());
+              ray.org_y = static_cast<float>(origin.y());
+              ray.org_z = static_cast<float>(origin.z());
+              ray.dir_x = static_cast<float>(d.x());
+              ray.dir_y = static_cast<float>(d.y());
+              ray.dir_z = static_cast<float>(d.z());
+              ray.tnear = 0.0f;
+              ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
+              ray.mask = 0xFFFFFFFFu;
+              ray.flags = 0;
+              ray.time = 0.0f;
+              rtcOccluded1(impl_->scene, &ctx, &ray);
+              if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
+            }
+            // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
+            const double w =
+                weighted
+                    ? std::max(0.01,
+                               std::abs(impl_->normal[c.i].cast<double>().dot(c.p_world - origin)) /
+                                   c.range) /
+                          (c.range * c.range)
+                    : 1.0;
+            impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
+            impl_->weight[c.i] += w;
+            ++impl_->views[c.i];
+            ++local;
+          }
         }
-        // in_image(): the pixel squares' outer edges
-        if (!(px.x() >= -0.5 && px.y() >= -0.5 && px.x() < umax && px.y() < vmax)) continue;
-        Candidate& c = cand[n++];
-        c.p_world = p_world;
-        c.px = px;
-        c.range = std::sqrt(range2);
-        c.cell = raster ? raster->locate(xn, yn, p.z()) : -1;
-        if (raster) raster->prefetch(c.cell);
-        const std::size_t pixel =
-            static_cast<std::size_t>(std::max(0.0, px.y())) * row_floats +
-            3 * static_cast<std::size_t>(std::max(0.0, px.x()));
-        __builtin_prefetch(rgb + pixel);
-        __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
-        c.i = i;
-      }
-      for (std::size_t k = 0; k < n; ++k) {
-        const Candidate& c = cand[k];
-        const auto verdict = raster ? raster->test(c.p_world, c.cell, c.range)
-                                    : detail::VisibilityRaster::Verdict::Unknown;
-        if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
-          ++local_decided;
-          continue;
-        }
-        if (verdict == detail::VisibilityRaster::Verdict::Visible) {
-          ++local_decided;
-        } else {
-          // Occluded when the mesh crosses the ray short of the vertex: stop a hair before it
-          // (relative, for float precision at range) so its own triangles do not count.
-          ++local_rays;
-          const double dist = c.range;
-          const Eigen::Vector3d d = (c.p_world - origin) / dist;
-          RTCRay ray;
-          ray.org_x = static_cast<float>(origin.x());
-          ray.org_y = static_cast<float>(origin.y());
-          ray.org_z = static_cast<float>(origin.z());
-          ray.dir_x = static_cast<float>(d.x());
-          ray.dir_y = static_cast<float>(d.y());
-          ray.dir_z = static_cast<float>(d.z());
-          ray.tnear = 0.0f;
-          ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
-          ray.mask = 0xFFFFFFFFu;
-          ray.flags = 0;
-          ray.time = 0.0f;
-          rtcOccluded1(impl_->scene, &ctx, &ray);
-          if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
-        }
-        // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
-        const double w =
-            weighted ? std::max(0.01, std::abs(impl_->normal[c.i].cast<double>().dot(
-                                          c.p_world - origin)) /
-                                          c.range) /
-                           (c.range * c.range)
-                     : 1.0;
-        impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
-        impl_->weight[c.i] += w;
-        ++impl_->views[c.i];
-        ++local;
-      }
-    }
-    coloured.fetch_add(local, std::memory_order_relaxed);
-    decided.fetch_add(local_decided, std::memory_order_relaxed);
-    rays.fetch_add(local_rays, std::memory_order_relaxed);
-  });
+        coloured.fetch_add(local, std::memory_order_relaxed);
+        decided.fetch_add(local_decided, std::memory_order_relaxed);
+        rays.fetch_add(local_rays, std::memory_order_relaxed);
+      });
   impl_->raster_decided += decided.load();
   impl_->rays_cast += rays.load();
   return coloured.load();

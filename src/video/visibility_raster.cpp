@@ -150,7 +150,8 @@ inline int floor_small(float x) {
 }
 
 // The pixel centres of rows y0 … y1 − 1 inside the triangle's bounding box.
-inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* v, int y0, int y1) const {
+inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* v, int y0,
+                                                   int y1) const {
   const float lo_x = -1.0f, hi_x = static_cast<float>(width_);
   const float lo_y = static_cast<float>(y0) - 1.0f, hi_y = static_cast<float>(y1);
   const float umin = std::clamp(std::min(u[0], std::min(u[1], u[2])), lo_x, hi_x);
@@ -162,7 +163,7 @@ inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* 
 }
 
 inline void VisibilityRaster::fill(const float* u, const float* v, const float* w, int tri,
-                            const Box& b) {
+                                   const Box& b) {
   if (b.xa > b.xb || b.ya > b.yb) return;
   // Edge functions (barycentric weights) over those centres, affine in x along a row; w = 1/z is
   // affine in screen space, so it interpolates with the same weights.
@@ -236,10 +237,9 @@ void VisibilityRaster::raster_triangle(int t, int y0, int y1) {
 void VisibilityRaster::prefetch_block(int blk) const {
   const char* tris = reinterpret_cast<const char*>(mesh_.triangles.data() + blk * kBlock);
   const std::size_t tri_bytes =
-      sizeof(Eigen::Vector3i) * static_cast<std::size_t>(
-                                    std::min<std::ptrdiff_t>(kBlock, static_cast<std::ptrdiff_t>(
-                                                                         mesh_.triangles.size()) -
-                                                                         blk * kBlock));
+      sizeof(Eigen::Vector3i) *
+      static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+          kBlock, static_cast<std::ptrdiff_t>(mesh_.triangles.size()) - blk * kBlock));
   for (std::size_t o = 0; o < tri_bytes; o += 64) __builtin_prefetch(tris + o);
   const auto [first, last] = block_vertices_[blk];
   if (last - first > 4 * kBlock) return;  // scattered: not worth it
@@ -299,7 +299,7 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
       vmin = std::min(vmin, v);
       vmax = std::max(vmax, v);
     }
-    if (behind == 8) continue;  // wholly behind the near plane
+    if (behind == 8) continue;       // wholly behind the near plane
     int ba = 0, bb_end = bands - 1;  // crossing it: its clipped triangles may reach any band
     if (behind == 0) {
       // A pixel centre inside a triangle lies inside the projection of the box (margin: 1 px).

@@ -98,11 +98,11 @@ class VisibilityRaster {
   // Per pixel centre: (bits of 1/z of the nearest surface) << 32 | its triangle; 0: none.
   std::vector<std::uint64_t> cell_;
   std::size_t cells_ = 0;
-  std::vector<Projected> projected_;  // per frame, per occluder vertex
+  std::vector<Projected> projected_;            // per frame, per occluder vertex
   std::vector<Eigen::AlignedBox3f> block_box_;  // world bounding box of each block of triangles
   std::vector<std::pair<int, int>> block_vertices_;  // the vertices each block uses lie in [a, b)
   std::vector<std::vector<std::int32_t>> band_blocks_;  // per frame: the blocks each band draws
-  Eigen::Matrix3f R_ = Eigen::Matrix3f::Identity();      // per frame: world to camera
+  Eigen::Matrix3f R_ = Eigen::Matrix3f::Identity();     // per frame: world to camera
   Eigen::Vector3f t_ = Eigen::Vector3f::Zero();
   Eigen::Vector3d origin_world_ = Eigen::Vector3d::Zero();
   double near_ = 1e-3;
@@ -119,8 +119,7 @@ inline std::ptrdiff_t VisibilityRaster::locate(double x_over_z, double y_over_z,
 }
 
 inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p_world,
-                                                        std::ptrdiff_t cell,
-                                                        double range_m) const {
+                                                        std::ptrdiff_t cell, double range_m) const {
   if (cell < 0) return Verdict::Unknown;
   // The vertex's ray: origin + s·d, the vertex at s = 1. The Embree test's allowance: a surface
   // within max(1e-4 m, 1e-5·range) of the vertex is its own.
@@ -132,7 +131,9 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
   for (int k = 0; k < 4; ++k) {
     if (keys[k] == 0) continue;  // open water there: no occluder
     const std::uint32_t t = static_cast<std::uint32_t>(keys[k]);
-    const auto same = [&](int j) { return keys[j] != 0 && static_cast<std::uint32_t>(keys[j]) == t; };
+    const auto same = [&](int j) {
+      return keys[j] != 0 && static_cast<std::uint32_t>(keys[j]) == t;
+    };
     if ((k > 0 && same(k - 1)) || (k == 3 && same(1)) || (k >= 2 && same(0))) {
       continue;  // the same triangle as another of the four: the same verdict
     }

@@ -46,7 +46,7 @@ struct TexturedMesh {
   // per vertex: linear RGB, the (weighted, MeshTextureConfig::weight_by_view) mean over the
   // frames; 0 if none
   std::vector<Eigen::Vector3f> color;
-  std::vector<std::uint32_t> views;    // per vertex: frames that saw it (0: no colour)
+  std::vector<std::uint32_t> views;  // per vertex: frames that saw it (0: no colour)
   std::size_t coloured() const;
 };
 
