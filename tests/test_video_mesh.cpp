@@ -27,6 +27,17 @@ SceneObject object(const std::string& name, TriangleMesh mesh, const Eigen::Vect
   return o;
 }
 
+// A pinhole `width` × `height` pixels with focal length `f` pixels, centred.
+CameraIntrinsics pinhole_camera(int width, int height, double f) {
+  CameraIntrinsics cam;
+  cam.width = width;
+  cam.height = height;
+  cam.fx = cam.fy = f;
+  cam.cx = 0.5 * (width - 1);
+  cam.cy = 0.5 * (height - 1);
+  return cam;
+}
+
 }  // namespace
 
 TEST(TextureMesh, SubdivisionBoundsEdgesAndKeepsTheSurface) {
@@ -51,12 +62,7 @@ TEST(TextureMesh, ColoursVisibleSurfacesAndNothingBehind) {
   Scene scene;
   scene.objects = {object("wall", wall, {0.1f, 0.2f, 0.9f}),
                    object("plate", plate, {0.9f, 0.1f, 0.1f})};
-  CameraIntrinsics cam;
-  cam.width = 400;
-  cam.height = 300;
-  cam.fx = cam.fy = 300;
-  cam.cx = 199.5;
-  cam.cy = 149.5;
+  const CameraIntrinsics cam = pinhole_camera(400, 300, 300);
   CameraRenderConfig rc;
   rc.ambient = 1.0;
   rc.attenuation_per_m = 0.0;
@@ -177,12 +183,7 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
   scene_mesh.append(sphere);
   scene_mesh.append(plate);
 
-  CameraIntrinsics pinhole;
-  pinhole.width = 320;
-  pinhole.height = 240;
-  pinhole.fx = pinhole.fy = 260;
-  pinhole.cx = 159.5;
-  pinhole.cy = 119.5;
+  const CameraIntrinsics pinhole = pinhole_camera(320, 240, 260);
   CameraIntrinsics distorted = pinhole;
   distorted.k1 = -0.12;
   distorted.k2 = 0.03;
@@ -230,12 +231,7 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
 // with w = |cos θ| / range², here mostly red; with weight_by_view = false the plain mean.
 TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
   const TriangleMesh plane = make_plane(2, 2);  // z = 0, normal +z
-  CameraIntrinsics cam;
-  cam.width = 320;
-  cam.height = 240;
-  cam.fx = cam.fy = 260;
-  cam.cx = 159.5;
-  cam.cy = 119.5;
+  const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
   auto uniform = [&](const Eigen::Vector3f& c) {
     RgbImage img;
     img.width = cam.width;
