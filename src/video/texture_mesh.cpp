@@ -258,12 +258,13 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
               if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
             }
             // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
+            const double inv_range = 1.0 / c.range;
             const double w =
                 weighted
                     ? std::max(0.01,
-                               std::abs(impl_->normal[c.i].cast<double>().dot(c.p_world - origin)) /
-                                   c.range) /
-                          (c.range * c.range)
+                               std::abs(impl_->normal[c.i].cast<double>().dot(c.p_world - origin)) *
+                                   inv_range) *
+                          (inv_range * inv_range)
                     : 1.0;
             impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
             impl_->weight[c.i] += w;

@@ -133,8 +133,7 @@ void VisibilityRaster::setup_raster(const CameraIntrinsics& c) {
   oy_ = -ymin * sy_ - 0.5;
   width_ = std::max(1, static_cast<int>(std::ceil((xmax - xmin) * sx_)));
   height_ = std::max(1, static_cast<int>(std::ceil((ymax - ymin) * sy_)));
-  cells_ = static_cast<std::size_t>(width_) * height_;
-  cell_.assign(cells_, 0);
+  id_.assign(static_cast<std::size_t>(width_) * height_, kNone);
   raster_for_ = c;
   have_raster_ = true;
 }
@@ -163,7 +162,7 @@ inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* 
 }
 
 inline void VisibilityRaster::fill(const float* u, const float* v, const float* w, int tri,
-                                   const Box& b) {
+                                   const Box& b, std::uint64_t* band, int y0) {
   if (b.xa > b.xb || b.ya > b.yb) return;
   // Edge functions (barycentric weights) over those centres, affine in x along a row; w = 1/z is
   // affine in screen space, so it interpolates with the same weights.
@@ -176,7 +175,7 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
     // b0, b1 at x = 0 of this row.
     const float r0 = (u[1] * (v[2] - py) - u[2] * (v[1] - py)) * inv_area;
     const float r1 = (u[2] * (v[0] - py) - u[0] * (v[2] - py)) * inv_area;
-    std::uint64_t* row = cell_.data() + static_cast<std::size_t>(y) * width_;
+    std::uint64_t* row = band + static_cast<std::size_t>(y - y0) * width_;
     for (int x = b.xa; x <= b.xb; ++x) {
       const float px = static_cast<float>(x);
       const float b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
@@ -192,14 +191,14 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
   }
 }
 
-void VisibilityRaster::raster_triangle(int t, int y0, int y1) {
+void VisibilityRaster::raster_triangle(int t, int y0, int y1, std::uint64_t* band) {
   const auto& tri = mesh_.triangles[t];
   const Projected& a = projected_[tri[0]];
   const Projected& b = projected_[tri[1]];
   const Projected& c = projected_[tri[2]];
   if (a.w > 0 && b.w > 0 && c.w > 0) {  // all in front of the near plane
     const float u[3] = {a.u, b.u, c.u}, v[3] = {a.v, b.v, c.v}, w[3] = {a.w, b.w, c.w};
-    fill(u, v, w, t, box(u, v, y0, y1));
+    fill(u, v, w, t, box(u, v, y0, y1), band, y0);
     return;
   }
   const float nz = static_cast<float>(near_);
@@ -230,7 +229,7 @@ void VisibilityRaster::raster_triangle(int t, int y0, int y1) {
   for (int k = 1; k + 1 < n; ++k) {
     const float tu[3] = {u[0], u[k], u[k + 1]}, tv[3] = {v[0], v[k], v[k + 1]},
                 tw[3] = {w[0], w[k], w[k + 1]};
-    fill(tu, tv, tw, t, box(tu, tv, y0, y1));
+    fill(tu, tv, tw, t, box(tu, tv, y0, y1), band, y0);
   }
 }
 
@@ -316,14 +315,20 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
   const int T = static_cast<int>(mesh_.triangles.size());
   tbb::parallel_for(0, bands, [&](int band) {
     const int y0 = band * kBandRows, y1 = std::min(height_, y0 + kBandRows);
-    std::fill(cell_.begin() + static_cast<std::ptrdiff_t>(y0) * width_,
-              cell_.begin() + static_cast<std::ptrdiff_t>(y1) * width_, 0);
+    const std::size_t n = static_cast<std::size_t>(y1 - y0) * width_;
+    std::vector<std::uint64_t>& cells = band_cells_.local();
+    cells.assign(n, 0);
     const auto& blocks = band_blocks_[band];
     for (std::size_t j = 0; j < blocks.size(); ++j) {
       if (j + 1 < blocks.size()) prefetch_block(blocks[j + 1]);  // hide its memory latency
       const int blk = blocks[j];
       const int end = std::min(T, (blk + 1) * kBlock);
-      for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1);
+      for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1, cells.data());
+    }
+    // The band's triangle ids out to the raster (the depths are needed no further).
+    std::uint32_t* ids = id_.data() + static_cast<std::size_t>(y0) * width_;
+    for (std::size_t k = 0; k < n; ++k) {
+      ids[k] = cells[k] != 0 ? static_cast<std::uint32_t>(cells[k]) : kNone;
     }
   });
 }

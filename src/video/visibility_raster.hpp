@@ -22,9 +22,12 @@
 // triangles are grouped in blocks of 64 with a world bounding box each: per frame the blocks (not
 // the triangles) are binned to bands of raster rows by projecting their boxes, and the bands are
 // rasterised in parallel, each clearing and writing its own rows, small enough to stay in the
-// cache. Each pixel holds one 64-bit word, the nearest surface's 1/z in the high half and its
-// triangle in the low half, so that the depth test is one maximum, whose result does not depend on
-// the order of the triangles.
+// cache. While a band is drawn each pixel holds one 64-bit word, the nearest surface's 1/z in the
+// high half and its triangle in the low half, so that the depth test is one maximum, whose result
+// does not depend on the order of the triangles; then only the triangle ids are kept (4 bytes a
+// pixel, read by test()).
+#include <tbb/enumerable_thread_specific.h>
+
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
@@ -58,8 +61,8 @@ class VisibilityRaster {
   // read in an order its prefetcher does not guess).
   void prefetch(std::ptrdiff_t cell) const {
     if (cell < 0) return;
-    __builtin_prefetch(cell_.data() + cell);
-    __builtin_prefetch(cell_.data() + cell + width_);
+    __builtin_prefetch(id_.data() + cell);
+    __builtin_prefetch(id_.data() + cell + width_);
   }
   // The verdict for a point on the textured mesh at `cell` (locate()), given in the world frame;
   // `range_m` is its distance from the camera centre.
@@ -83,9 +86,11 @@ class VisibilityRaster {
   Box box(const float* u, const float* v, int y0, int y1) const;
   // Rasterises triangle `tri` within rows y0 … y1 − 1 (clipped at the near plane), which no other
   // thread writes meanwhile.
-  void raster_triangle(int tri, int y0, int y1);
+  void raster_triangle(int tri, int y0, int y1, std::uint64_t* band);
   void prefetch_block(int block) const;
-  void fill(const float* u, const float* v, const float* w, int tri, const Box& box);
+  // Into `band`, the cells of rows y0 … (1/z bits << 32 | triangle, 0: none).
+  void fill(const float* u, const float* v, const float* w, int tri, const Box& box,
+            std::uint64_t* band, int y0);
 
   TriangleMesh mesh_;
   std::vector<Plane> plane_;
@@ -96,8 +101,11 @@ class VisibilityRaster {
   int width_ = 0, height_ = 0;
   double sx_ = 1, sy_ = 1, ox_ = 0, oy_ = 0;
   // Per pixel centre: (bits of 1/z of the nearest surface) << 32 | its triangle; 0: none.
-  std::vector<std::uint64_t> cell_;
-  std::size_t cells_ = 0;
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  std::vector<std::uint32_t> id_;  // per pixel centre: the nearest triangle, kNone: none
+  // Per thread: a band's cells while it is rasterised, (bits of 1/z of the nearest surface) << 32
+  // | its triangle, 0: none.
+  tbb::enumerable_thread_specific<std::vector<std::uint64_t>> band_cells_;
   std::vector<Projected> projected_;            // per frame, per occluder vertex
   std::vector<Eigen::AlignedBox3f> block_box_;  // world bounding box of each block of triangles
   std::vector<std::pair<int, int>> block_vertices_;  // the vertices each block uses lie in [a, b)
@@ -124,17 +132,14 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
   // The vertex's ray: origin + s·d, the vertex at s = 1. The Embree test's allowance: a surface
   // within max(1e-4 m, 1e-5·range) of the vertex is its own.
   const Eigen::Vector3d d = p_world - origin_world_;
-  const double eps = std::max(1e-4, 1e-5 * range_m) / range_m;
+  const double eps = std::max(1e-4 / range_m, 1e-5);
   bool on_front_surface = false, undecided = false;
-  const std::uint64_t* row = cell_.data() + cell;
-  const std::uint64_t keys[4] = {row[0], row[1], row[width_], row[width_ + 1]};
+  const std::uint32_t* row = id_.data() + cell;
+  const std::uint32_t ids[4] = {row[0], row[1], row[width_], row[width_ + 1]};
   for (int k = 0; k < 4; ++k) {
-    if (keys[k] == 0) continue;  // open water there: no occluder
-    const std::uint32_t t = static_cast<std::uint32_t>(keys[k]);
-    const auto same = [&](int j) {
-      return keys[j] != 0 && static_cast<std::uint32_t>(keys[j]) == t;
-    };
-    if ((k > 0 && same(k - 1)) || (k == 3 && same(1)) || (k >= 2 && same(0))) {
+    const std::uint32_t t = ids[k];
+    if (t == kNone) continue;  // open water there: no occluder
+    if ((k > 0 && t == ids[k - 1]) || (k == 3 && t == ids[1]) || (k >= 2 && t == ids[0])) {
       continue;  // the same triangle as another of the four: the same verdict
     }
     const Plane& pl = plane_[t];
