@@ -227,6 +227,66 @@ TEST(WorldConnections, APipelineRidgeJoinsTwoStructures) {
   EXPECT_TRUE(build_world_model(bare, objs, cfg).connections.empty());
 }
 
+// Connections the user gives: a pair also found keeps its measured length and is marked given;
+// a pair not found gets the distance between the footprint centres; bad files name file:line.
+TEST(WorldConnections, GivenConnectionsJoinTheFoundOnes) {
+  std::vector<WorldObject> objs;
+  const PointCloud c = pipeline_site(true, &objs);  // box_0 - box_1 joined; box_2 on its own
+  WorldModelConfig cfg;
+  cfg.seabed.lod_cells_m = {0.05};
+  WorldModel w = build_world_model(c, objs, cfg);
+  ASSERT_EQ(w.connections.size(), 1u);
+  const double found_length = w.connections[0].length_m;
+  const fs::path d = temp_dir("given");
+  write_text_file((d / "c.yaml").string(),
+                  "connections:\n"
+                  "  - {from: box_1, to: box_0}  # the pipeline found in the map\n"
+                  "  - {from: box_0, to: box_2, kind: cable}\n");
+  const std::vector<GivenConnection> given = read_given_connections((d / "c.yaml").string());
+  ASSERT_EQ(given.size(), 2u);
+  EXPECT_EQ(given[1].line, 3);
+  EXPECT_EQ(given[1].kind, "cable");
+  add_given_connections(w, given, (d / "c.yaml").string(), cfg.seabed.margin_m);
+  ASSERT_EQ(w.connections.size(), 2u);
+  EXPECT_TRUE(w.connections[0].found && w.connections[0].given);
+  EXPECT_DOUBLE_EQ(w.connections[0].length_m, found_length);
+  const Connection& cable = w.connections[1];
+  EXPECT_TRUE(cable.given && !cable.found);
+  EXPECT_EQ(cable.from, "box_0");
+  EXPECT_EQ(cable.to, "box_2");
+  EXPECT_EQ(cable.kind, "cable");
+  EXPECT_TRUE(std::isnan(cable.fraction));
+  const Eigen::Vector3d a =
+      w.objects[0].T_world_model * w.objects[0].mesh_model->bounding_box().center().cast<double>();
+  const Eigen::Vector3d b =
+      w.objects[2].T_world_model * w.objects[2].mesh_model->bounding_box().center().cast<double>();
+  EXPECT_NEAR(cable.length_m, (b - a).head<2>().norm(), 1e-9);
+
+  auto refused = [&](const std::string& text, std::initializer_list<const char*> needles) {
+    write_text_file((d / "bad.yaml").string(), text);
+    WorldModel copy = w;
+    for (const char* needle : needles) {
+      expect_error(
+          [&] {
+            add_given_connections(copy, read_given_connections((d / "bad.yaml").string()),
+                                  (d / "bad.yaml").string(), cfg.seabed.margin_m);
+          },
+          needle);
+    }
+  };
+  refused("connections:\n  - {from: box_0, to: tank_9}\n",
+          {"bad.yaml:2", "'tank_9' names no placed object", "box_0, box_1, box_2"});
+  refused("connections:\n  - {from: box_0, to: box_0}\n", {"bad.yaml:2", "to itself"});
+  refused("connections:\n  - {from: box_0, to: box_1}\n  - {from: box_1, to: box_0}\n",
+          {"bad.yaml:3", "given twice", "line 2"});
+  refused("connections:\n  - {from: box_0, too: box_1}\n", {"bad.yaml:2", "too"});
+  refused("connections:\n  - {from: box_0}\n", {"bad.yaml:2", "'from' and 'to'"});
+  refused("connections:\n  - [box_0, box_1]\n", {"bad.yaml:2", "is a map"});
+  refused("pipes: []\n", {"bad.yaml", "no 'connections' list"});
+  refused("connections: [\n", {"bad.yaml", "malformed YAML"});
+  expect_error([&] { read_given_connections((d / "none.yaml").string()); }, "none.yaml");
+}
+
 // A small world written to disk: three boxes on the synthetic terrain.
 struct SmallWorld {
   WorldModel world;
@@ -508,6 +568,13 @@ TEST(WorldCli, BuildsAWorldModelAndRefusesBadInputs) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("holds no points"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(d / "W4"));
+  // A connection given that names no object: refused, nothing written.
+  write_text_file((d / "con.yaml").string(), "connections:\n  - {from: tank_0, to: riser_0}\n");
+  r = test::run_cli(d, "world " + common + " --connections " + (d / "con.yaml").string() + " -o " +
+                           (d / "W5").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("con.yaml:2: 'riser_0' names no placed object"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "W5"));
 }
 #endif
 

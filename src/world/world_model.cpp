@@ -13,6 +13,7 @@
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/world/gltf.hpp"
@@ -463,6 +464,7 @@ std::vector<Connection> find_connections(const ElevationMap& seabed,
       c.to = objects[j].id;
       c.length_m = last - first + config.station_m;
       c.fraction = fraction;
+      c.found = true;
       out.push_back(c);
     }
   }
@@ -533,6 +535,72 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   w.objects = std::move(objects);
   w.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return w;
+}
+
+std::vector<GivenConnection> read_given_connections(const std::string& path) {
+  const YAML::Node root = yaml::load_file(path);  // size limit, syntax errors with file:line
+  require(root.IsMap() && root["connections"] && root["connections"].IsSequence(),
+          "connections '" + path + "': no 'connections' list (connections: - {from: ID, to: ID})");
+  const YAML::Node list = root["connections"];
+  require(list.size() <= kMaxGivenConnections, "connections '" + path + "': more than " +
+                                                   std::to_string(kMaxGivenConnections) +
+                                                   " connections");
+  std::vector<GivenConnection> out;
+  for (const YAML::Node& e : list) {
+    const std::string at = path + ":" + std::to_string(e.Mark().line + 1);
+    require(e.IsMap(), at + ": a connection is a map {from: ID, to: ID, kind: KIND}");
+    yaml::check_keys(e, {"from", "to", "kind"}, path, "connection");
+    GivenConnection c;
+    c.line = e.Mark().line + 1;
+    c.from = yaml::get_string(e, "from", "", path, "connection");
+    c.to = yaml::get_string(e, "to", "", path, "connection");
+    c.kind = yaml::get_string(e, "kind", c.kind, path, "connection");
+    require(!c.from.empty() && !c.to.empty(), at + ": 'from' and 'to' must name objects");
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+void add_given_connections(WorldModel& world, const std::vector<GivenConnection>& given,
+                           const std::string& source, double margin_m) {
+  std::map<std::string, std::size_t> index;
+  for (std::size_t i = 0; i < world.objects.size(); ++i) index[world.objects[i].id] = i;
+  const std::vector<PlacedBox> boxes = placed_boxes(world.objects, margin_m);
+  std::map<std::pair<std::string, std::string>, int> seen;  // unordered pair → line
+  for (const GivenConnection& g : given) {
+    const std::string at = source + ":" + std::to_string(g.line);
+    for (const std::string* id : {&g.from, &g.to}) {
+      if (!index.count(*id)) {
+        std::string ids;
+        for (const WorldObject& o : world.objects) ids += (ids.empty() ? "" : ", ") + o.id;
+        throw Error(at + ": '" + *id +
+                    "' names no placed object (the objects: " + (ids.empty() ? "none" : ids) + ")");
+      }
+    }
+    require(g.from != g.to, at + ": a connection from '" + g.from + "' to itself");
+    const auto key = std::minmax(g.from, g.to);
+    const auto [it, fresh] = seen.emplace(std::make_pair(key.first, key.second), g.line);
+    require(fresh, at + ": " + g.from + " - " + g.to + " is given twice (also on line " +
+                       std::to_string(it->second) + ")");
+    Connection* match = nullptr;
+    for (Connection& c : world.connections) {
+      if (std::minmax(c.from, c.to) == key && c.kind == g.kind) match = &c;
+    }
+    if (match != nullptr) {
+      match->given = true;
+      continue;
+    }
+    const std::size_t i = index[g.from], j = index[g.to];
+    const Eigen::Vector2d a = (world.objects[i].T_world_model * boxes[i].box.center()).head<2>();
+    const Eigen::Vector2d b = (world.objects[j].T_world_model * boxes[j].box.center()).head<2>();
+    Connection c;
+    c.from = g.from;
+    c.to = g.to;
+    c.kind = g.kind;
+    c.length_m = (b - a).norm();
+    c.given = true;
+    world.connections.push_back(c);
+  }
 }
 
 std::optional<SeabedTruth> find_seabed_truth(const fs::path& map_path, const fs::path& dataset) {
@@ -693,8 +761,13 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
 
   nlohmann::json connections = nlohmann::json::array();
   for (const Connection& c : world.connections) {
-    connections.push_back(
-        {{"from", c.from}, {"to", c.to}, {"kind", c.kind}, {"length_m", c.length_m}});
+    connections.push_back({{"from", c.from},
+                           {"to", c.to},
+                           {"kind", c.kind},
+                           {"length_m", c.length_m},
+                           {"fraction", num_or_null(c.fraction)},
+                           {"found", c.found},
+                           {"given", c.given}});
   }
   r.bytes_total = r.glb_bytes + r.models_bytes;
   for (std::uintmax_t b : r.seabed_bytes) r.bytes_total += b;
