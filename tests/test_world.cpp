@@ -17,6 +17,7 @@
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/gltf.hpp"
 #include "sonar3d/world/world_model.hpp"
 #include "test_support.hpp"
@@ -406,6 +407,71 @@ TEST(WorldGltf, AllLevelsOfDetailOnRequest) {
   scene.nodes[1].mesh = 0;
   scene.meshes[0].colors.pop_back();
   expect_error([&] { write_glb(temp_dir("glbbad2") / "x.glb", scene); }, "7 colours for 8");
+}
+
+// Video colours of a coloured cloud (sonar3d texture) carried to the seabed: each vertex the
+// mean of its cell's coloured points; black points (no frame saw them) and a placed model's
+// points give none; written to the PLYs, world.glb (COLOR_0) and graph.json.
+TEST(WorldSeabed, VideoColoursOfTheCloudColourTheSeabed) {
+  PointCloud c = surface_points(0, 8, 0, 6, 0.03, terrain);
+  for (const Eigen::Vector3f& p : c.points) {
+    // West half sand-red, east half blue; the strip 6 < y no frame saw (black).
+    const bool unseen = p.y() > 5.0f;
+    c.color.push_back(unseen         ? std::array<std::uint8_t, 3>{0, 0, 0}
+                      : p.x() < 4.0f ? std::array<std::uint8_t, 3>{200, 60, 40}
+                                     : std::array<std::uint8_t, 3>{30, 70, 220});
+  }
+  const std::vector<WorldObject> objs = {object("box_0", cube(), pose(2, 2, terrain(2, 2), 0))};
+  const std::size_t before = c.size();
+  add_model_points(c, *objs[0].mesh_model, objs[0].T_world_model);
+  c.color.resize(c.size(), {0, 255, 0});  // the box is green: it must not reach the seabed
+  WorldModelConfig cfg;
+  cfg.seabed.lod_cells_m = {0.1, 0.5};
+  const WorldModel w = build_world_model(c, objs, cfg);
+  EXPECT_GT(w.coloured_seabed_points, before / 2);
+  for (const SeabedLod& lod : w.seabed) {
+    ASSERT_EQ(lod.color.size(), lod.mesh.vertices.size());
+    std::size_t red = 0, blue = 0, none = 0;
+    for (std::size_t v = 0; v < lod.mesh.vertices.size(); ++v) {
+      const Eigen::Vector3f& p = lod.mesh.vertices[v];
+      const bool edge = std::abs(p.x() - 4.0f) < lod.cell_m || std::abs(p.y() - 5.0f) < lod.cell_m;
+      if (edge) continue;  // cells straddling a colour boundary average both
+      if (p.y() > 5.0f) {
+        EXPECT_EQ(lod.color_points[v], 0u) << p.transpose();
+        ++none;
+        continue;
+      }
+      if (lod.color_points[v] == 0) continue;  // a cell filled under the box
+      const Eigen::Vector3f want =
+          p.x() < 4.0f ? Eigen::Vector3f(200, 60, 40) : Eigen::Vector3f(30, 70, 220);
+      Eigen::Vector3f srgb;
+      for (int k = 0; k < 3; ++k) srgb[k] = 255.0f * linear_to_srgb(lod.color[v][k]);
+      EXPECT_LT((srgb - want).cwiseAbs().maxCoeff(), 1.0f) << p.transpose();
+      ++(p.x() < 4.0f ? red : blue);
+    }
+    EXPECT_GT(red, 10u);
+    EXPECT_GT(blue, 10u);
+    EXPECT_GT(none, 10u);
+  }
+  const fs::path dir = temp_dir("colours") / "W";
+  write_world_model(dir, w, {});
+  std::vector<std::vector<std::uint32_t>> faces;
+  const PointCloud ply = read_ply_faces((dir / "seabed_lod0.ply").string(), &faces);
+  ASSERT_TRUE(ply.has_color());
+  EXPECT_EQ(faces.size(), w.seabed[0].mesh.triangles.size());
+  const nlohmann::json g = nlohmann::json::parse(read_text_file((dir / "graph.json").string()));
+  EXPECT_EQ(g["seabed"][1]["coloured_vertices"], w.seabed[1].coloured_vertices());
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile((dir / "world.glb").string(), 0);
+  ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+  const aiNode* seabed = find_node(scene->mRootNode, "seabed_lod1");
+  ASSERT_NE(seabed, nullptr);
+  ASSERT_EQ(seabed->mNumMeshes, 1u);
+  EXPECT_TRUE(scene->mMeshes[seabed->mMeshes[0]]->HasVertexColors(0));
+
+  // A cloud without colours gives none.
+  c.color.clear();
+  EXPECT_TRUE(build_world_model(c, objs, cfg).seabed[0].color.empty());
 }
 
 TEST(WorldGraph, JsonFieldsAndFiles) {

@@ -122,6 +122,10 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
 
       fmt::print("map: {} points, {} on the seabed; {} placed models; {} cells filled under them\n",
                  w.cloud_points, w.seabed_points, w.objects.size(), w.filled_cells);
+      if (w.coloured_seabed_points > 0) {
+        fmt::print("  {} seabed points carry a video colour: the seabed meshes are coloured\n",
+                   w.coloured_seabed_points);
+      }
       for (std::size_t k = 0; k < w.seabed.size(); ++k) {
         const SeabedLod& lod = w.seabed[k];
         std::string err;
@@ -129,6 +133,11 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
           err = fmt::format("; median error {:.3f} m ({:.3f} m as mapped{})", errors[k].median_m,
                             errors[k].median_as_mapped_m,
                             truth->has_alignment ? ", before taking out the map's placement" : "");
+        }
+        if (!lod.color.empty()) {
+          err += fmt::format("; video colour on {:.1f} % of its vertices",
+                             100.0 * static_cast<double>(lod.coloured_vertices()) /
+                                 static_cast<double>(std::max<std::size_t>(1, lod.color.size())));
         }
         fmt::print(
             "  seabed lod{}: {} m cells, {} triangles, {} bytes ({:.0f}x smaller than the "

@@ -104,6 +104,13 @@ struct SeabedLod {
   double cell_m = 0;
   ElevationMap heights;  // the height field meshed (world z per cell)
   TriangleMesh mesh;     // world frame: a vertex per valid cell centre
+  // Video colours (thesis sec. 6.4) when the map's cloud carries them (`sonar3d texture`), one
+  // per mesh vertex: the linear-RGB mean of the coloured seabed points in the vertex's cell, and
+  // how many there were (0: no colour; cells filled under structures have none). Empty when the
+  // cloud has no colours.
+  std::vector<Eigen::Vector3f> color;
+  std::vector<std::uint32_t> color_points;
+  std::size_t coloured_vertices() const;
 };
 
 struct Connection {
@@ -124,6 +131,10 @@ struct WorldModel {
   std::vector<SeabedLod> seabed;
   std::size_t cloud_points = 0, seabed_points = 0;  // seabed: the points no model explains
   std::size_t filled_cells = 0;                     // finest LOD cells filled under footprints
+  // Seabed points with a video colour: a cloud's point is coloured when its colour is not black
+  // (`sonar3d texture` writes black where no frame saw a point) or, if the cloud has a `views`
+  // property, when that is > 0.
+  std::size_t coloured_seabed_points = 0;
   double seconds = 0;
 };
 
