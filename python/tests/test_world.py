@@ -75,3 +75,30 @@ def test_world_model_given_connections(tmp_path):
     with pytest.raises(sonar3d.Error, match="c.yaml:2: 'tank_7' names no placed object"):
         sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
                             connections=str(given))
+
+
+def test_world_model_seabed_colours(tmp_path):
+    # A flat seabed, red west of x = 3 and blue east of it, every 5 cm: 20 cm vertices take the
+    # colour of their half (linear mean of sRGB bytes); no colours, no seabed colours.
+    step = 0.05
+    xs, ys = np.meshgrid(np.arange(0, 6, step), np.arange(0, 4, step))
+    pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
+    colors = np.where(pts[:, :1] < 3, [[200, 40, 30]], [[20, 60, 210]]).astype(np.uint8)
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({"format": "sonar3d-placements", "version": 1,
+                                      "placements": []}))
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2], colors=colors)
+    lod = w["seabed"][0]
+    assert lod["colors"].shape == lod["vertices"].shape
+    assert (lod["color_points"] > 0).all()
+    west = lod["vertices"][:, 0] < 2.8
+    east = lod["vertices"][:, 0] > 3.2
+    to_srgb = lambda c: np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055) * 255
+    np.testing.assert_allclose(to_srgb(lod["colors"][west]), [[200, 40, 30]] * west.sum(), atol=1)
+    np.testing.assert_allclose(to_srgb(lod["colors"][east]), [[20, 60, 210]] * east.sum(), atol=1)
+    plain = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2])
+    assert plain["seabed"][0]["colors"].shape == (0, 3)
+    with pytest.raises(sonar3d.Error, match="colors must be an N×3 uint8 array"):
+        sonar3d.world_model(pts, str(placements), str(cat), colors=colors[:5])
