@@ -163,6 +163,14 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
   EXPECT_GT(hidden, 200u);
   EXPECT_GT(sand_ok, 5000u);
   EXPECT_GT(red_ok, 200u);
+  // `views` counts the frames that coloured each point: 0 exactly where the colour is black.
+  const PointProperty* views = nullptr;
+  for (const PointProperty& pr : got.properties) views = pr.name == "views" ? &pr : views;
+  ASSERT_NE(views, nullptr);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(views->values[i] > 0, got.color[i] != black) << i;
+    EXPECT_LE(views->values[i], 2.0f);
+  }
   // The command reports how many took colour: the same count as the file's non-black points.
   EXPECT_NE(
       r.out.find("coloured " + std::to_string(coloured) + " of " + std::to_string(cloud.size())),

@@ -469,6 +469,20 @@ TEST(WorldSeabed, VideoColoursOfTheCloudColourTheSeabed) {
   ASSERT_EQ(seabed->mNumMeshes, 1u);
   EXPECT_TRUE(scene->mMeshes[seabed->mMeshes[0]]->HasVertexColors(0));
 
+  // With a `views` property (sonar3d texture writes it) a black point seen by a camera is a
+  // black surface, not an unseen one: the strip takes colour (black).
+  PointProperty views{"views", std::vector<float>(c.size(), 1.0f)};
+  c.properties.push_back(views);
+  const WorldModel seen = build_world_model(c, objs, cfg);
+  EXPECT_EQ(seen.coloured_seabed_points, seen.seabed_points);
+  for (std::size_t v = 0; v < seen.seabed[0].mesh.vertices.size(); ++v) {
+    if (seen.seabed[0].mesh.vertices[v].y() > 5.1f) {
+      EXPECT_GT(seen.seabed[0].color_points[v], 0u);
+      EXPECT_EQ(seen.seabed[0].color[v], Eigen::Vector3f::Zero());
+    }
+  }
+  c.properties.clear();
+
   // A cloud without colours gives none.
   c.color.clear();
   EXPECT_TRUE(build_world_model(c, objs, cfg).seabed[0].color.empty());

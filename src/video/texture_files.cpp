@@ -309,7 +309,15 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   }
   const TexturedCloud t = cloud_texturer->result();
   PointCloud out;
-  for (const auto& pr : cloud.properties) out.properties.push_back({pr.name, {}});
+  // `views`: the frames that coloured each point (0: none, the colour is then black), so that a
+  // black surface seen on video is not taken for an unseen one (sonar3d world, diff). A `views`
+  // the input already had is replaced.
+  std::size_t views_k = cloud.properties.size();
+  for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
+    out.properties.push_back({cloud.properties[k].name, {}});
+    if (cloud.properties[k].name == "views") views_k = k;
+  }
+  if (views_k == cloud.properties.size()) out.properties.push_back({"views", {}});
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const bool seen = t.views[i] > 0;
     r.coloured += seen ? 1 : 0;
@@ -317,8 +325,9 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
     out.points.push_back(cloud.points[i]);
     if (cloud.has_intensity()) out.intensity.push_back(cloud.intensity[i]);
     for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
-      out.properties[k].values.push_back(cloud.properties[k].values[i]);
+      if (k != views_k) out.properties[k].values.push_back(cloud.properties[k].values[i]);
     }
+    out.properties[views_k].values.push_back(static_cast<float>(t.views[i]));
     std::array<std::uint8_t, 3> c{0, 0, 0};
     if (seen) {
       for (int k = 0; k < 3; ++k) {

@@ -131,9 +131,9 @@ struct WorldModel {
   std::vector<SeabedLod> seabed;
   std::size_t cloud_points = 0, seabed_points = 0;  // seabed: the points no model explains
   std::size_t filled_cells = 0;                     // finest LOD cells filled under footprints
-  // Seabed points with a video colour: a cloud's point is coloured when its colour is not black
-  // (`sonar3d texture` writes black where no frame saw a point) or, if the cloud has a `views`
-  // property, when that is > 0.
+  // Seabed points with a video colour: a cloud's point is coloured when its `views` property
+  // (sonar3d texture: the frames that coloured it) is > 0, or, without that property, when its
+  // colour is not black (texture writes black where no frame saw a point).
   std::size_t coloured_seabed_points = 0;
   double seconds = 0;
 };
