@@ -648,6 +648,29 @@ TEST(WorldCli, BuildsAWorldModelAndRefusesBadInputs) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("holds no points"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(d / "W4"));
+  // --colours: the map's cloud coloured (as sonar3d texture writes it) colours the seabed; a
+  // cloud with other points is refused.
+  PointCloud coloured = c;
+  coloured.color.assign(c.size(), {120, 100, 60});
+  write_ply((d / "coloured.ply").string(), coloured);
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "coloured.ply").string() + " -o " +
+                           (d / "W6").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("seabed points carry a video colour"), std::string::npos) << r.out;
+  EXPECT_TRUE(read_ply((d / "W6" / "seabed_lod0.ply").string()).has_color());
+  coloured.points.pop_back();
+  coloured.color.pop_back();
+  write_ply((d / "fewer.ply").string(), coloured);
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "fewer.ply").string() + " -o " +
+                           (d / "W7").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("fewer.ply' holds"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "W7"));
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "map.ply").string() + " -o " +
+                           (d / "W8").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("carries no colours"), std::string::npos) << r.out;
+
   // A connection given that names no object: refused, nothing written.
   write_text_file((d / "con.yaml").string(), "connections:\n  - {from: tank_0, to: riser_0}\n");
   r = test::run_cli(d, "world " + common + " --connections " + (d / "con.yaml").string() + " -o " +

@@ -27,7 +27,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     std::string map, placements, catalogue, output, truth;
     WorldModelConfig cfg;
     bool glb_all_lods = false, no_connections = false;
-    std::string connections;
+    std::string connections, colours;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
@@ -70,6 +70,10 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                   "connections you know, YAML: 'connections: [{from: riser_0, to: tank_0, kind: "
                   "pipeline}]' (ids as graph.json names the objects: <model>_<n>)")
       ->check(CLI::ExistingFile);
+  cmd->add_option("--colours", o->colours,
+                  "the map's cloud as coloured by sonar3d texture (same points): its video "
+                  "colours go onto the seabed")
+      ->check(CLI::ExistingFile);
   cmd->add_flag("--glb-all-lods", o->glb_all_lods,
                 "world.glb carries every seabed level of detail (default: the coarsest)");
   cmd->add_option("--truth", o->truth,
@@ -99,8 +103,9 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       if (!o->connections.empty()) given = read_given_connections(o->connections);
       const PlacementsFile placements = read_placements(o->placements);
       std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
-      const PointCloud cloud = read_ply(cloud_path.string());
+      PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
+      if (!o->colours.empty()) take_video_colours(cloud, read_ply(o->colours), o->colours);
       WorldModel w = build_world_model(cloud, std::move(objects), cfg);
       add_given_connections(w, given, o->connections, cfg.seabed.margin_m);
 

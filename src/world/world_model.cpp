@@ -599,6 +599,33 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   return w;
 }
 
+void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source) {
+  require(coloured.has_color(), "'" + source +
+                                    "' carries no colours (red green blue): colour the map's "
+                                    "cloud with sonar3d texture first");
+  require(coloured.size() == cloud.size(),
+          "'" + source + "' holds " + std::to_string(coloured.size()) + " points, the map " +
+              std::to_string(cloud.size()) +
+              ": give the map's cloud as coloured by sonar3d texture (without --drop-uncoloured)");
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (!(coloured.points[i] - cloud.points[i]).isZero(1e-4f)) {
+      throw Error("'" + source + "' point " + std::to_string(i) +
+                  " is not the map's: give the map's own cloud as coloured by sonar3d texture");
+    }
+  }
+  cloud.color = coloured.color;
+  for (const PointProperty& p : coloured.properties) {
+    if (p.name != "views") continue;
+    auto same = std::find_if(cloud.properties.begin(), cloud.properties.end(),
+                             [](const PointProperty& q) { return q.name == "views"; });
+    if (same != cloud.properties.end()) {
+      same->values = p.values;
+    } else {
+      cloud.properties.push_back(p);
+    }
+  }
+}
+
 std::vector<GivenConnection> read_given_connections(const std::string& path) {
   const YAML::Node root = yaml::load_file(path);  // size limit, syntax errors with file:line
   require(root.IsMap() && root["connections"] && root["connections"].IsSequence(),

@@ -197,6 +197,11 @@ std::vector<GivenConnection> read_given_connections(const std::string& path);
 void add_given_connections(WorldModel& world, const std::vector<GivenConnection>& given,
                            const std::string& source, double margin_m);
 
+// Takes the video colours (and `views`) of `coloured` — the same cloud coloured by `sonar3d
+// texture`, read from `source` — into `cloud`. The two must hold the same points in the same
+// order (texture without --drop-uncoloured keeps them); otherwise an Error naming `source`.
+void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source);
+
 // The whole world model from a world-frame cloud and its placed objects. An empty cloud, or a
 // cloud that every placed model explains entirely, is an Error.
 WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObject> objects,
