@@ -17,6 +17,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/video/camera_dataset.hpp"
 #include "sonar3d/video/colmap.hpp"
@@ -186,8 +187,14 @@ std::vector<Frame> list_frames(const TextureFilesJob& job) {
       int(!job.neus_file.empty()) + int(!job.colmap_dir.empty()) + int(!job.dataset_dir.empty()) ==
           1,
       "texture: give one source of camera poses: a COLMAP model, a NeuS file or a dataset");
+  require(job.navigation_file.empty() || !job.dataset_dir.empty(),
+          "texture: a navigation file places a dataset's camera frames: give --dataset");
   if (!job.dataset_dir.empty()) {
-    const CameraDataset ds = read_camera_dataset(job.dataset_dir);
+    CameraDataset ds = read_camera_dataset(job.dataset_dir);
+    if (!job.navigation_file.empty()) {
+      ds.navigation = read_tum(job.navigation_file.string());
+      ds.navigation.validate(job.navigation_file.string());
+    }
     require(ds.size() > 0, "texture: '" + (job.dataset_dir / "camera" / "frames.csv").string() +
                                "' lists no frame");
     for (std::size_t i = 0; i < ds.size(); ++i) {
