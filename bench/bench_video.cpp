@@ -34,7 +34,8 @@ sonar3d::TriangleMesh relief_grid(int n, double size) {
 // One 1000 × 1000-pixel frame, 8 m above the model looking down (it sees all of it), added
 // repeatedly; counters: frames/s, the model's and the textured mesh's triangles, the vertices
 // seen and the share of visibility tests decided by Embree rays rather than the raster.
-void run_texture(benchmark::State& state, const sonar3d::TriangleMesh& mesh, double texel_m) {
+void run_texture(benchmark::State& state, const sonar3d::TriangleMesh& mesh, double texel_m,
+                 const Eigen::Isometry3d& T_world_camera) {
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
                               static_cast<std::size_t>(state.range(0)));
   sonar3d::MeshTextureConfig cfg;
@@ -48,12 +49,9 @@ void run_texture(benchmark::State& state, const sonar3d::TriangleMesh& mesh, dou
   sonar3d::RgbImage img;
   img.width = img.height = 1000;
   img.rgb.assign(3u * 1000 * 1000, 0.5f);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::Vector3d(1, -1, -1).asDiagonal();  // looking down (+z_cam = −z_world)
-  T.translation() = Eigen::Vector3d(0, 0, 8);
   std::size_t coloured = 0;
   for (auto _ : state) {
-    coloured = texturer.add(sonar3d::CameraView{cam, T, &img});
+    coloured = texturer.add(sonar3d::CameraView{cam, T_world_camera, &img});
   }
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
   state.counters["occluder_triangles"] = static_cast<double>(mesh.triangles.size());
@@ -61,6 +59,28 @@ void run_texture(benchmark::State& state, const sonar3d::TriangleMesh& mesh, dou
   state.counters["vertices_seen"] = static_cast<double>(coloured);
   const double tests = static_cast<double>(texturer.raster_decided() + texturer.rays_cast());
   state.counters["ray_share"] = tests > 0 ? static_cast<double>(texturer.rays_cast()) / tests : 0;
+}
+
+// 8 m above the model looking down: it sees all of it.
+Eigen::Isometry3d looking_down() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Vector3d(1, -1, -1).asDiagonal();  // +z_cam = −z_world
+  T.translation() = Eigen::Vector3d(0, 0, 8);
+  return T;
+}
+
+// 1.5 m above the model's edge looking across it, 20° down (as from a vehicle's forward camera):
+// part of the model in view, much of it behind the camera or beside the frame, triangles of the
+// near part crossing the near plane or covering many pixels.
+Eigen::Isometry3d oblique_low() {
+  const Eigen::Vector3d eye(-5.5, 0, 1.5), forward(std::cos(0.35), 0, -std::sin(0.35));
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = right;                 // x_cam: right
+  T.linear().col(1) = forward.cross(right);  // y_cam: down in the image
+  T.linear().col(2) = forward;               // z_cam: the optical axis
+  T.translation() = eye;
+  return T;
 }
 
 // range(0): threads 1 and 2; range(1): 0 = an Embree ray per vertex, 1 = the raster first.
@@ -72,9 +92,15 @@ void threads_and_visibility(benchmark::internal::Benchmark* b) {
 }
 
 void BM_TextureMesh1MTriangles1MP(benchmark::State& state) {
-  run_texture(state, relief_grid(708, 10.0), 0);
+  run_texture(state, relief_grid(708, 10.0), 0, looking_down());
 }
 BENCHMARK(BM_TextureMesh1MTriangles1MP)->Apply(threads_and_visibility);
+
+// The same model from a low oblique camera: a frame of a survey rather than an overview.
+void BM_TextureMesh1MTrianglesOblique1MP(benchmark::State& state) {
+  run_texture(state, relief_grid(708, 10.0), 0, oblique_low());
+}
+BENCHMARK(BM_TextureMesh1MTrianglesOblique1MP)->Apply(threads_and_visibility);
 
 // The registered-CAD case of thesis sec. 6.4: a coarse model (a 90 × 90-quad relief grid, 16 200
 // triangles, as a CAD model has) subdivided to the texel size for its colours: 1.04 M textured
@@ -82,7 +108,7 @@ BENCHMARK(BM_TextureMesh1MTriangles1MP)->Apply(threads_and_visibility);
 // and frame. range(0): threads; range(1): raster visibility.
 void BM_TextureCadModel1MTexelTriangles1MP(benchmark::State& state) {
   // three subdivision levels (0.157 m diagonals to 2 cm): 16 200 × 64 triangles
-  run_texture(state, relief_grid(90, 10.0), 0.02);
+  run_texture(state, relief_grid(90, 10.0), 0.02, looking_down());
 }
 BENCHMARK(BM_TextureCadModel1MTexelTriangles1MP)->Apply(threads_and_visibility);
 

@@ -237,4 +237,7 @@ w('placements', 'two', '{"format": "sonar3d-placements", "version": 1, "placemen
   ' {"model": "tank", "T_world_model": ' + I4 + '}]}\n')
 w('placements', 'flat16', '{"format": "sonar3d-placements", "version": 1, "placements": [{"model": "t", "T_world_model": [1,0,0,1, 0,1,0,2, 0,0,1,3, 0,0,0,1]}]}\n')
 w('placements', 'method_mean', '{"format":"sonar3d-placements","version":1,"map":"m","catalogue":"c.yaml","placements":[{"model":"tank","method":"2d","T_world_model":[[1,0,0,2],[0,1,0,3],[0,0,1,0],[0,0,0,1]],"score_m":0.01,"residual_median_m":0.012,"residual_mean_m":null}]}')
+w('connections', 'two', "connections:\n  - {from: box_0, to: box_1}\n  - {from: box_1, to: box_0, kind: cable}\n")
+w('connections', 'block', "connections:\n  - from: box_0\n    to: box_1\n    kind: pipeline\n")
+w('connections', 'unknown', "connections:\n  - {from: box_0, to: tank_3}\n")
 w('placements', 'empty', '{"format": "sonar3d-placements", "version": 1, "placements": []}\n')

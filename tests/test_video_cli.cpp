@@ -9,7 +9,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
@@ -163,6 +165,14 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
   EXPECT_GT(hidden, 200u);
   EXPECT_GT(sand_ok, 5000u);
   EXPECT_GT(red_ok, 200u);
+  // `views` counts the frames that coloured each point: 0 exactly where the colour is black.
+  const PointProperty* views = nullptr;
+  for (const PointProperty& pr : got.properties) views = pr.name == "views" ? &pr : views;
+  ASSERT_NE(views, nullptr);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(views->values[i] > 0, got.color[i] != black) << i;
+    EXPECT_LE(views->values[i], 2.0f);
+  }
   // The command reports how many took colour: the same count as the file's non-black points.
   EXPECT_NE(
       r.out.find("coloured " + std::to_string(coloured) + " of " + std::to_string(cloud.size())),
@@ -415,6 +425,9 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
                                        " --quiet --overwrite -o " + (tmp / "other.glb").string()),
                           "not a glTF file sonar3d wrote");
     expect_one_line_error(run(tmp, args + (tmp / "cloud.glb").string()), "needs --mesh");
+    const CliRun plain = run(tmp, args + (tmp / "cloud.ply").string() + " --plain-mean");
+    EXPECT_EQ(plain.code, 2) << plain.err;  // a usage error
+    EXPECT_NE(plain.err.find("--plain-mean: applies to --mesh only"), std::string::npos);
   }
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");
@@ -542,7 +555,38 @@ camera:
   EXPECT_NE(r.err.find("--images: does not apply to --dataset"), std::string::npos) << r.err;
   r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + tmp.string());
   expect_one_line_error(r, "camera/camera.yaml is missing");
-  for (const char* name : {"o1.ply", "o2.ply", "o3.ply", "o4.ply", "o5.ply"}) {
+
+  // --navigation places the frames on another navigation (a map's corrected one): moved 0.5 m
+  // east, the box's red lands 0.5 m east of the box (on seabed points), and the box's top,
+  // seen from 0.5 m off, takes sand where it took red.
+  Trajectory moved = cams.navigation;
+  for (Eigen::Isometry3d& T : moved.poses) T.pretranslate(Eigen::Vector3d(0.5, 0, 0));
+  write_tum((tmp / "moved.tum").string(), moved);
+  r = run(tmp, args + (tmp / "moved.ply").string() + " --dataset " + ds.string() +
+                   " --navigation " + (tmp / "moved.tum").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const PointCloud shifted = read_ply((tmp / "moved.ply").string());
+  std::size_t red_east = 0, top_not_red = 0;
+  for (std::size_t i = 0; i < shifted.size(); ++i) {
+    const Eigen::Vector3f& p = shifted.points[i];
+    const bool top =
+        i >= n_seabed && p.z() > 0.59 && std::max(std::abs(p.x()), std::abs(p.y())) < 0.25;
+    if (i < n_seabed && p.x() > 0.55 && p.x() < 0.7 && std::abs(p.y()) < 0.2) {
+      red_east += near(shifted.color[i], red, 40) ? 1 : 0;
+    }
+    if (top && p.x() < -0.05) top_not_red += near(shifted.color[i], red, 40) ? 0 : 1;
+  }
+  EXPECT_GT(red_east, 20u);
+  EXPECT_GT(top_not_red, 20u);
+  r = run(tmp, args + (tmp / "o6.ply").string() + " --colmap " + tmp.string() + " --images " +
+                   tmp.string() + " --navigation " + (tmp / "moved.tum").string());
+  EXPECT_EQ(r.code, 2) << r.err;  // a usage error: --navigation needs --dataset
+  EXPECT_NE(r.err.find("--navigation"), std::string::npos) << r.err;
+  write_text_file((tmp / "bad.tum").string(), "0 0 0 0 0 0 0 1\nnot a pose\n");
+  r = run(tmp, args + (tmp / "o7.ply").string() + " --dataset " + ds.string() + " --navigation " +
+                   (tmp / "bad.tum").string());
+  expect_one_line_error(r, "bad.tum");
+  for (const char* name : {"o1.ply", "o2.ply", "o3.ply", "o4.ply", "o5.ply", "o6.ply", "o7.ply"}) {
     EXPECT_FALSE(fs::exists(tmp / name)) << name;
   }
 }

@@ -27,6 +27,17 @@ SceneObject object(const std::string& name, TriangleMesh mesh, const Eigen::Vect
   return o;
 }
 
+// A pinhole `width` × `height` pixels with focal length `f` pixels, centred.
+CameraIntrinsics pinhole_camera(int width, int height, double f) {
+  CameraIntrinsics cam;
+  cam.width = width;
+  cam.height = height;
+  cam.fx = cam.fy = f;
+  cam.cx = 0.5 * (width - 1);
+  cam.cy = 0.5 * (height - 1);
+  return cam;
+}
+
 }  // namespace
 
 TEST(TextureMesh, SubdivisionBoundsEdgesAndKeepsTheSurface) {
@@ -51,12 +62,7 @@ TEST(TextureMesh, ColoursVisibleSurfacesAndNothingBehind) {
   Scene scene;
   scene.objects = {object("wall", wall, {0.1f, 0.2f, 0.9f}),
                    object("plate", plate, {0.9f, 0.1f, 0.1f})};
-  CameraIntrinsics cam;
-  cam.width = 400;
-  cam.height = 300;
-  cam.fx = cam.fy = 300;
-  cam.cx = 199.5;
-  cam.cy = 149.5;
+  const CameraIntrinsics cam = pinhole_camera(400, 300, 300);
   CameraRenderConfig rc;
   rc.ambient = 1.0;
   rc.attenuation_per_m = 0.0;
@@ -177,12 +183,7 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
   scene_mesh.append(sphere);
   scene_mesh.append(plate);
 
-  CameraIntrinsics pinhole;
-  pinhole.width = 320;
-  pinhole.height = 240;
-  pinhole.fx = pinhole.fy = 260;
-  pinhole.cx = 159.5;
-  pinhole.cy = 119.5;
+  const CameraIntrinsics pinhole = pinhole_camera(320, 240, 260);
   CameraIntrinsics distorted = pinhole;
   distorted.k1 = -0.12;
   distorted.k2 = 0.03;
@@ -222,5 +223,52 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
     // The raster decides most tests; rays only at silhouettes and sub-pixel triangles.
     EXPECT_GT(by_raster.raster_decided(), 4 * by_raster.rays_cast());
     EXPECT_EQ(by_rays.raster_decided(), 0u);
+  }
+}
+
+// Colours weighted by view (the default): a red frame 1 m over a plane, head-on, and a blue frame
+// from 3.6 m at a slant. Each vertex both see takes (w_red·red + w_blue·blue) / (w_red + w_blue)
+// with w = |cos θ| / range², here mostly red; with weight_by_view = false the plain mean.
+TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
+  const TriangleMesh plane = make_plane(2, 2);  // z = 0, normal +z
+  const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
+  auto uniform = [&](const Eigen::Vector3f& c) {
+    RgbImage img;
+    img.width = cam.width;
+    img.height = cam.height;
+    img.rgb.resize(3u * cam.width * cam.height);
+    for (std::size_t k = 0; k < img.rgb.size(); ++k) img.rgb[k] = c[static_cast<int>(k % 3)];
+    return img;
+  };
+  const Eigen::Vector3f red(0.8f, 0.1f, 0.1f), blue(0.1f, 0.1f, 0.8f);
+  const RgbImage red_img = uniform(red), blue_img = uniform(blue);
+  const Eigen::Vector3d eye_red(0, 0, 1), eye_blue(0, -3, 2);
+  const std::vector<CameraView> views = {{cam, test::look_at(eye_red, {0, 0, 0}), &red_img},
+                                         {cam, test::look_at(eye_blue, {0, 0, 0}), &blue_img}};
+  for (const bool weighted : {true, false}) {
+    MeshTextureConfig mc;
+    mc.texel_m = 0.05;
+    mc.weight_by_view = weighted;
+    const TexturedMesh t = texture_mesh(plane, views, mc);
+    std::size_t both = 0;
+    double red_share_min = 1;
+    for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
+      if (t.views[i] != 2) continue;
+      const Eigen::Vector3d p = t.mesh.vertices[i].cast<double>();
+      auto weight = [&](const Eigen::Vector3d& eye) {
+        const double r = (p - eye).norm();
+        return weighted ? std::max(0.01, std::abs((p - eye).z()) / r) / (r * r) : 1.0;
+      };
+      const double wr = weight(eye_red), wb = weight(eye_blue);
+      const Eigen::Vector3f expected =
+          ((wr * red.cast<double>() + wb * blue.cast<double>()) / (wr + wb)).cast<float>();
+      ASSERT_NEAR((t.color[i] - expected).norm(), 0, 1e-4) << p.transpose();
+      red_share_min = std::min(red_share_min, wr / (wr + wb));
+      ++both;
+    }
+    EXPECT_GT(both, 100u);
+    if (weighted) {
+      EXPECT_GT(red_share_min, 0.85);  // the near, head-on frame dominates
+    }
   }
 }

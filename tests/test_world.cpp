@@ -17,6 +17,7 @@
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/gltf.hpp"
 #include "sonar3d/world/world_model.hpp"
 #include "test_support.hpp"
@@ -227,6 +228,66 @@ TEST(WorldConnections, APipelineRidgeJoinsTwoStructures) {
   EXPECT_TRUE(build_world_model(bare, objs, cfg).connections.empty());
 }
 
+// Connections the user gives: a pair also found keeps its measured length and is marked given;
+// a pair not found gets the distance between the footprint centres; bad files name file:line.
+TEST(WorldConnections, GivenConnectionsJoinTheFoundOnes) {
+  std::vector<WorldObject> objs;
+  const PointCloud c = pipeline_site(true, &objs);  // box_0 - box_1 joined; box_2 on its own
+  WorldModelConfig cfg;
+  cfg.seabed.lod_cells_m = {0.05};
+  WorldModel w = build_world_model(c, objs, cfg);
+  ASSERT_EQ(w.connections.size(), 1u);
+  const double found_length = w.connections[0].length_m;
+  const fs::path d = temp_dir("given");
+  write_text_file((d / "c.yaml").string(),
+                  "connections:\n"
+                  "  - {from: box_1, to: box_0}  # the pipeline found in the map\n"
+                  "  - {from: box_0, to: box_2, kind: cable}\n");
+  const std::vector<GivenConnection> given = read_given_connections((d / "c.yaml").string());
+  ASSERT_EQ(given.size(), 2u);
+  EXPECT_EQ(given[1].line, 3);
+  EXPECT_EQ(given[1].kind, "cable");
+  add_given_connections(w, given, (d / "c.yaml").string(), cfg.seabed.margin_m);
+  ASSERT_EQ(w.connections.size(), 2u);
+  EXPECT_TRUE(w.connections[0].found && w.connections[0].given);
+  EXPECT_DOUBLE_EQ(w.connections[0].length_m, found_length);
+  const Connection& cable = w.connections[1];
+  EXPECT_TRUE(cable.given && !cable.found);
+  EXPECT_EQ(cable.from, "box_0");
+  EXPECT_EQ(cable.to, "box_2");
+  EXPECT_EQ(cable.kind, "cable");
+  EXPECT_TRUE(std::isnan(cable.fraction));
+  const Eigen::Vector3d a =
+      w.objects[0].T_world_model * w.objects[0].mesh_model->bounding_box().center().cast<double>();
+  const Eigen::Vector3d b =
+      w.objects[2].T_world_model * w.objects[2].mesh_model->bounding_box().center().cast<double>();
+  EXPECT_NEAR(cable.length_m, (b - a).head<2>().norm(), 1e-9);
+
+  auto refused = [&](const std::string& text, std::initializer_list<const char*> needles) {
+    write_text_file((d / "bad.yaml").string(), text);
+    WorldModel copy = w;
+    for (const char* needle : needles) {
+      expect_error(
+          [&] {
+            add_given_connections(copy, read_given_connections((d / "bad.yaml").string()),
+                                  (d / "bad.yaml").string(), cfg.seabed.margin_m);
+          },
+          needle);
+    }
+  };
+  refused("connections:\n  - {from: box_0, to: tank_9}\n",
+          {"bad.yaml:2", "'tank_9' names no placed object", "box_0, box_1, box_2"});
+  refused("connections:\n  - {from: box_0, to: box_0}\n", {"bad.yaml:2", "to itself"});
+  refused("connections:\n  - {from: box_0, to: box_1}\n  - {from: box_1, to: box_0}\n",
+          {"bad.yaml:3", "given twice", "line 2"});
+  refused("connections:\n  - {from: box_0, too: box_1}\n", {"bad.yaml:2", "too"});
+  refused("connections:\n  - {from: box_0}\n", {"bad.yaml:2", "'from' and 'to'"});
+  refused("connections:\n  - [box_0, box_1]\n", {"bad.yaml:2", "is a map"});
+  refused("pipes: []\n", {"bad.yaml", "no 'connections' list"});
+  refused("connections: [\n", {"bad.yaml", "malformed YAML"});
+  expect_error([&] { read_given_connections((d / "none.yaml").string()); }, "none.yaml");
+}
+
 // A small world written to disk: three boxes on the synthetic terrain.
 struct SmallWorld {
   WorldModel world;
@@ -346,6 +407,85 @@ TEST(WorldGltf, AllLevelsOfDetailOnRequest) {
   scene.nodes[1].mesh = 0;
   scene.meshes[0].colors.pop_back();
   expect_error([&] { write_glb(temp_dir("glbbad2") / "x.glb", scene); }, "7 colours for 8");
+}
+
+// Video colours of a coloured cloud (sonar3d texture) carried to the seabed: each vertex the
+// mean of its cell's coloured points; black points (no frame saw them) and a placed model's
+// points give none; written to the PLYs, world.glb (COLOR_0) and graph.json.
+TEST(WorldSeabed, VideoColoursOfTheCloudColourTheSeabed) {
+  PointCloud c = surface_points(0, 8, 0, 6, 0.03, terrain);
+  for (const Eigen::Vector3f& p : c.points) {
+    // West half sand-red, east half blue; the strip 6 < y no frame saw (black).
+    const bool unseen = p.y() > 5.0f;
+    c.color.push_back(unseen         ? std::array<std::uint8_t, 3>{0, 0, 0}
+                      : p.x() < 4.0f ? std::array<std::uint8_t, 3>{200, 60, 40}
+                                     : std::array<std::uint8_t, 3>{30, 70, 220});
+  }
+  const std::vector<WorldObject> objs = {object("box_0", cube(), pose(2, 2, terrain(2, 2), 0))};
+  const std::size_t before = c.size();
+  add_model_points(c, *objs[0].mesh_model, objs[0].T_world_model);
+  c.color.resize(c.size(), {0, 255, 0});  // the box is green: it must not reach the seabed
+  WorldModelConfig cfg;
+  cfg.seabed.lod_cells_m = {0.1, 0.5};
+  const WorldModel w = build_world_model(c, objs, cfg);
+  EXPECT_GT(w.coloured_seabed_points, before / 2);
+  for (const SeabedLod& lod : w.seabed) {
+    ASSERT_EQ(lod.color.size(), lod.mesh.vertices.size());
+    std::size_t red = 0, blue = 0, none = 0;
+    for (std::size_t v = 0; v < lod.mesh.vertices.size(); ++v) {
+      const Eigen::Vector3f& p = lod.mesh.vertices[v];
+      const bool edge = std::abs(p.x() - 4.0f) < lod.cell_m || std::abs(p.y() - 5.0f) < lod.cell_m;
+      if (edge) continue;  // cells straddling a colour boundary average both
+      if (p.y() > 5.0f) {
+        EXPECT_EQ(lod.color_points[v], 0u) << p.transpose();
+        ++none;
+        continue;
+      }
+      if (lod.color_points[v] == 0) continue;  // a cell filled under the box
+      const Eigen::Vector3f want =
+          p.x() < 4.0f ? Eigen::Vector3f(200, 60, 40) : Eigen::Vector3f(30, 70, 220);
+      Eigen::Vector3f srgb;
+      for (int k = 0; k < 3; ++k) srgb[k] = 255.0f * linear_to_srgb(lod.color[v][k]);
+      EXPECT_LT((srgb - want).cwiseAbs().maxCoeff(), 1.0f) << p.transpose();
+      ++(p.x() < 4.0f ? red : blue);
+    }
+    EXPECT_GT(red, 10u);
+    EXPECT_GT(blue, 10u);
+    EXPECT_GT(none, 10u);
+  }
+  const fs::path dir = temp_dir("colours") / "W";
+  write_world_model(dir, w, {});
+  std::vector<std::vector<std::uint32_t>> faces;
+  const PointCloud ply = read_ply_faces((dir / "seabed_lod0.ply").string(), &faces);
+  ASSERT_TRUE(ply.has_color());
+  EXPECT_EQ(faces.size(), w.seabed[0].mesh.triangles.size());
+  const nlohmann::json g = nlohmann::json::parse(read_text_file((dir / "graph.json").string()));
+  EXPECT_EQ(g["seabed"][1]["coloured_vertices"], w.seabed[1].coloured_vertices());
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile((dir / "world.glb").string(), 0);
+  ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+  const aiNode* seabed = find_node(scene->mRootNode, "seabed_lod1");
+  ASSERT_NE(seabed, nullptr);
+  ASSERT_EQ(seabed->mNumMeshes, 1u);
+  EXPECT_TRUE(scene->mMeshes[seabed->mMeshes[0]]->HasVertexColors(0));
+
+  // With a `views` property (sonar3d texture writes it) a black point seen by a camera is a
+  // black surface, not an unseen one: the strip takes colour (black).
+  PointProperty views{"views", std::vector<float>(c.size(), 1.0f)};
+  c.properties.push_back(views);
+  const WorldModel seen = build_world_model(c, objs, cfg);
+  EXPECT_EQ(seen.coloured_seabed_points, seen.seabed_points);
+  for (std::size_t v = 0; v < seen.seabed[0].mesh.vertices.size(); ++v) {
+    if (seen.seabed[0].mesh.vertices[v].y() > 5.1f) {
+      EXPECT_GT(seen.seabed[0].color_points[v], 0u);
+      EXPECT_EQ(seen.seabed[0].color[v], Eigen::Vector3f::Zero());
+    }
+  }
+  c.properties.clear();
+
+  // A cloud without colours gives none.
+  c.color.clear();
+  EXPECT_TRUE(build_world_model(c, objs, cfg).seabed[0].color.empty());
 }
 
 TEST(WorldGraph, JsonFieldsAndFiles) {
@@ -508,6 +648,36 @@ TEST(WorldCli, BuildsAWorldModelAndRefusesBadInputs) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("holds no points"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(d / "W4"));
+  // --colours: the map's cloud coloured (as sonar3d texture writes it) colours the seabed; a
+  // cloud with other points is refused.
+  PointCloud coloured = c;
+  coloured.color.assign(c.size(), {120, 100, 60});
+  write_ply((d / "coloured.ply").string(), coloured);
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "coloured.ply").string() + " -o " +
+                           (d / "W6").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("seabed points carry a video colour"), std::string::npos) << r.out;
+  EXPECT_TRUE(read_ply((d / "W6" / "seabed_lod0.ply").string()).has_color());
+  coloured.points.pop_back();
+  coloured.color.pop_back();
+  write_ply((d / "fewer.ply").string(), coloured);
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "fewer.ply").string() + " -o " +
+                           (d / "W7").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("fewer.ply' holds"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "W7"));
+  r = test::run_cli(d, "world " + common + " --colours " + (d / "map.ply").string() + " -o " +
+                           (d / "W8").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("carries no colours"), std::string::npos) << r.out;
+
+  // A connection given that names no object: refused, nothing written.
+  write_text_file((d / "con.yaml").string(), "connections:\n  - {from: tank_0, to: riser_0}\n");
+  r = test::run_cli(d, "world " + common + " --connections " + (d / "con.yaml").string() + " -o " +
+                           (d / "W5").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("con.yaml:2: 'riser_0' names no placed object"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "W5"));
 }
 #endif
 

@@ -40,6 +40,13 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
           ->check(CLI::ExistingDirectory)
           ->excludes(colmap_opt)
           ->excludes(neus_opt);
+  auto navigation = std::make_shared<std::string>();
+  cmd->add_option("--navigation", *navigation,
+                  "with --dataset: place its camera frames on this navigation (TUM) instead of "
+                  "its own, e.g. MAP/navigation_corrected.tum of sonar3d map, so that the video "
+                  "lands where the corrected map is")
+      ->check(CLI::ExistingFile)
+      ->needs(dataset_opt);
   colmap_opt->excludes(neus_opt)->excludes(dataset_opt);
   neus_opt->excludes(dataset_opt);
   cmd->add_option("--neus-frame", *neus_frame,
@@ -71,40 +78,49 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--texel", job->mesh.texel_m,
                   "with --mesh: subdivide until every edge is at most this long, m (0: as is)")
       ->capture_default_str();
+  cmd->add_flag_callback(
+      "--plain-mean", [job] { job->mesh.weight_by_view = false; },
+      "with --mesh: average the frames' colours plainly (default: each weighted by "
+      "|cos θ| / range², near head-on views counting most)");
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
-  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset] {
-    if (colmap->empty() && neus->empty() && dataset->empty()) {
-      throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
-    }
-    if (dataset->empty() && images->empty()) {
-      throw CLI::ValidationError("--images", "required with --colmap or --neus");
-    }
-    if (!dataset->empty() && !images->empty()) {
-      throw CLI::ValidationError("--images",
-                                 "does not apply to --dataset (its camera/ holds them)");
-    }
-    if (job->is_mesh && job->drop_uncoloured) {
-      throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
-    }
-    run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset] {
-      job->cloud = *cloud;
-      job->mesh.max_range_m = job->config.max_range_m;
-      job->colmap_dir = *colmap;
-      job->neus_file = *neus;
-      job->dataset_dir = *dataset;
-      job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
-      job->images_dir = *images;
-      job->output = *output;
-      job->progress = !g.quiet;
-      const TextureFilesResult r = texture_cloud_files(*job);
-      const char* what = job->is_mesh ? "vertices" : "points";
-      fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured, r.points,
-                 what, r.frames, r.written, what, job->output.string());
-      return 0;
-    };
-  });
+  cmd->callback(
+      [&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
+        if (colmap->empty() && neus->empty() && dataset->empty()) {
+          throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
+        }
+        if (dataset->empty() && images->empty()) {
+          throw CLI::ValidationError("--images", "required with --colmap or --neus");
+        }
+        if (!dataset->empty() && !images->empty()) {
+          throw CLI::ValidationError("--images",
+                                     "does not apply to --dataset (its camera/ holds them)");
+        }
+        if (job->is_mesh && job->drop_uncoloured) {
+          throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
+        }
+        if (!job->is_mesh && !job->mesh.weight_by_view) {
+          throw CLI::ValidationError("--plain-mean", "applies to --mesh only");
+        }
+        run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
+          job->cloud = *cloud;
+          job->mesh.max_range_m = job->config.max_range_m;
+          job->colmap_dir = *colmap;
+          job->neus_file = *neus;
+          job->dataset_dir = *dataset;
+          job->navigation_file = *navigation;
+          job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
+          job->images_dir = *images;
+          job->output = *output;
+          job->progress = !g.quiet;
+          const TextureFilesResult r = texture_cloud_files(*job);
+          const char* what = job->is_mesh ? "vertices" : "points";
+          fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured,
+                     r.points, what, r.frames, r.written, what, job->output.string());
+          return 0;
+        };
+      });
 }
 
 }  // namespace sonar3d::cli

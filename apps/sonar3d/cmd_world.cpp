@@ -27,6 +27,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     std::string map, placements, catalogue, output, truth;
     WorldModelConfig cfg;
     bool glb_all_lods = false, no_connections = false;
+    std::string connections, colours;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
@@ -65,6 +66,14 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                   "pipeline search: fraction of cross-sections showing the ridge")
       ->capture_default_str();
   cmd->add_flag("--no-connections", o->no_connections, "do not search for pipelines");
+  cmd->add_option("--connections", o->connections,
+                  "connections you know, YAML: 'connections: [{from: riser_0, to: tank_0, kind: "
+                  "pipeline}]' (ids as graph.json names the objects: <model>_<n>)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--colours", o->colours,
+                  "the map's cloud as coloured by sonar3d texture (same points): its video "
+                  "colours go onto the seabed")
+      ->check(CLI::ExistingFile);
   cmd->add_flag("--glb-all-lods", o->glb_all_lods,
                 "world.glb carries every seabed level of detail (default: the coarsest)");
   cmd->add_option("--truth", o->truth,
@@ -90,11 +99,15 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
               "'" + out.string() +
                   "' exists: sonar3d world writes a new directory; choose "
                   "another output (-o) or remove it yourself");
+      std::vector<GivenConnection> given;
+      if (!o->connections.empty()) given = read_given_connections(o->connections);
       const PlacementsFile placements = read_placements(o->placements);
       std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
-      const PointCloud cloud = read_ply(cloud_path.string());
+      PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
-      const WorldModel w = build_world_model(cloud, std::move(objects), cfg);
+      if (!o->colours.empty()) take_video_colours(cloud, read_ply(o->colours), o->colours);
+      WorldModel w = build_world_model(cloud, std::move(objects), cfg);
+      add_given_connections(w, given, o->connections, cfg.seabed.margin_m);
 
       WorldWriteInfo info;
       info.map = o->map;
@@ -114,6 +127,10 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
 
       fmt::print("map: {} points, {} on the seabed; {} placed models; {} cells filled under them\n",
                  w.cloud_points, w.seabed_points, w.objects.size(), w.filled_cells);
+      if (w.coloured_seabed_points > 0) {
+        fmt::print("  {} seabed points carry a video colour: the seabed meshes are coloured\n",
+                   w.coloured_seabed_points);
+      }
       for (std::size_t k = 0; k < w.seabed.size(); ++k) {
         const SeabedLod& lod = w.seabed[k];
         std::string err;
@@ -122,6 +139,11 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                             errors[k].median_as_mapped_m,
                             truth->has_alignment ? ", before taking out the map's placement" : "");
         }
+        if (!lod.color.empty()) {
+          err += fmt::format("; video colour on {:.1f} % of its vertices",
+                             100.0 * static_cast<double>(lod.coloured_vertices()) /
+                                 static_cast<double>(std::max<std::size_t>(1, lod.color.size())));
+        }
         fmt::print(
             "  seabed lod{}: {} m cells, {} triangles, {} bytes ({:.0f}x smaller than the "
             "cloud){}\n",
@@ -129,8 +151,14 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
             static_cast<double>(info.cloud_bytes) / static_cast<double>(r.seabed_bytes[k]), err);
       }
       for (const Connection& c : w.connections) {
-        fmt::print("  {} {} -> {}: {:.2f} m ({:.0f} % of the cross-sections)\n", c.kind, c.from,
-                   c.to, c.length_m, 100 * c.fraction);
+        if (c.found) {
+          fmt::print("  {} {} -> {}: {:.2f} m ({:.0f} % of the cross-sections{})\n", c.kind, c.from,
+                     c.to, c.length_m, 100 * c.fraction, c.given ? "; given too" : "");
+        } else {
+          fmt::print(
+              "  {} {} -> {}: {:.2f} m between the footprints (given; not found in the map)\n",
+              c.kind, c.from, c.to, c.length_m);
+        }
       }
       fmt::print(
           "world.glb {} bytes; all files {} bytes against the cloud's {} ({:.0f}x); "

@@ -13,9 +13,20 @@ void bind_world(py::module_& m) {
       "world_model",
       [](const carray<float>& points, const std::string& placements, const std::string& catalogue,
          const std::vector<double>& lod_cells_m, double margin_m, bool fill_footprints,
-         bool find_connections, const std::string& output, bool glb_all_lods) {
+         bool find_connections, const std::string& connections_file, const std::string& output,
+         bool glb_all_lods, const std::optional<carray<std::uint8_t>>& colors) {
         PointCloud cloud;
         cloud.points = array_to_points(points);
+        if (colors) {
+          // sRGB bytes per point, as PLY red/green/blue (black: no colour, docs/world.md).
+          if (colors->ndim() != 2 || colors->shape(1) != 3 ||
+              static_cast<std::size_t>(colors->shape(0)) != cloud.points.size()) {
+            throw Error("colors must be an N×3 uint8 array, one row per point");
+          }
+          cloud.color.resize(cloud.points.size());
+          std::copy(colors->data(), colors->data() + colors->size(),
+                    cloud.color.empty() ? nullptr : cloud.color[0].data());
+        }
         WorldModelConfig cfg;
         cfg.seabed.lod_cells_m = lod_cells_m;
         cfg.seabed.margin_m = margin_m;
@@ -23,10 +34,13 @@ void bind_world(py::module_& m) {
         cfg.find_connections = find_connections;
         cfg.validate();
         const PlacementsFile p = read_placements(placements);
+        std::vector<GivenConnection> given;
+        if (!connections_file.empty()) given = read_given_connections(connections_file);
         WorldModel w;
         {
           py::gil_scoped_release release;
           w = build_world_model(cloud, world_objects(p, read_catalogue(catalogue)), cfg);
+          add_given_connections(w, given, connections_file, cfg.seabed.margin_m);
           if (!output.empty()) {
             WorldWriteInfo info;
             info.map = "(points)";
@@ -45,13 +59,18 @@ void bind_world(py::module_& m) {
         }
         for (const Connection& c : w.connections) {
           connections.append(py::dict("from"_a = c.from, "to"_a = c.to, "kind"_a = c.kind,
-                                      "length_m"_a = c.length_m, "fraction"_a = c.fraction));
+                                      "length_m"_a = c.length_m, "fraction"_a = c.fraction,
+                                      "found"_a = c.found, "given"_a = c.given));
         }
         for (SeabedLod& l : w.seabed) {
           const py::ssize_t nt = static_cast<py::ssize_t>(l.mesh.triangles.size());
+          const py::ssize_t nc = static_cast<py::ssize_t>(l.color_points.size());
           seabed.append(py::dict(
               "lod"_a = l.lod, "cell_m"_a = l.cell_m,
               "vertices"_a = points_to_array(std::move(l.mesh.vertices)),
+              "colors"_a = points_to_array(std::move(l.color)),
+              "color_points"_a =
+                  adopt<std::uint32_t, std::uint32_t>(std::move(l.color_points), {nc}),
               "triangles"_a = adopt<Eigen::Vector3i, int>(std::move(l.mesh.triangles), {nt, 3})));
         }
         return py::dict("objects"_a = objects, "connections"_a = connections, "seabed"_a = seabed,
@@ -59,15 +78,21 @@ void bind_world(py::module_& m) {
       },
       "points"_a, "placements"_a, "catalogue"_a,
       "lod_cells_m"_a = std::vector<double>{0.05, 0.2, 1.0}, "margin_m"_a = 0.1,
-      "fill_footprints"_a = true, "find_connections"_a = true, "output"_a = "",
-      "glb_all_lods"_a = false,
+      "fill_footprints"_a = true, "find_connections"_a = true, "connections"_a = "",
+      "output"_a = "", "glb_all_lods"_a = false, "colors"_a = py::none(),
       "A world model (thesis sec. 6.3.3) from an (N, 3) world-frame cloud, a placements JSON "
-      "(sonar3d.recognize / sonar3d recognize) and the catalogue YAML: the seabed (points no "
+      "(sonar3d.recognize / sonar3d recognize) and the catalogue YAML (colors: optional (N, 3) "
+      "uint8 "
+      "sRGB video colours per point, black = none: the seabed is then coloured): the seabed "
+      "(points no "
       "placed model explains) as height-field meshes at lod_cells_m (metres, finest first), the "
-      "placed models and the pipelines found between them. Returns a dict: objects (id, model, "
-      "kind, T_world_model 4×4, score_m, residual_median_m), connections (from, to, kind, "
-      "length_m, fraction), seabed (lod, cell_m, vertices (N, 3) float32, triangles (M, 3) "
-      "int32), seabed_points, filled_cells. With output, also writes that directory (world.glb, "
+      "placed models and the pipelines found between them, plus the connections given in the "
+      "YAML file `connections` (docs/world.md). Returns a dict: objects (id, model, kind, "
+      "T_world_model 4×4, score_m, residual_median_m), connections (from, to, kind, length_m, "
+      "fraction (NaN when not found), found, given), seabed (lod, cell_m, vertices (N, 3) float32, "
+      "triangles (M, 3) int32, colors (N, 3) float32 linear RGB and color_points (N,) uint32, "
+      "both empty without colors), seabed_points, filled_cells. With output, also writes that "
+      "directory (world.glb, "
       "seabed_lod<k>.ply, models/, graph.json; docs/formats.md).");
 }
 

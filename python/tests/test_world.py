@@ -46,3 +46,59 @@ def test_world_model_refuses_an_unknown_model(tmp_path):
         "placements": [{"model": "tank", "T_world_model": np.eye(4).tolist()}]}))
     with pytest.raises(sonar3d.Error, match="names model 'tank'"):
         sonar3d.world_model(pts, str(placements), str(cat))
+
+
+def test_world_model_given_connections(tmp_path):
+    # Two tanks on a flat seabed with no pipe between them: a connection given in YAML is kept,
+    # with the distance between the footprints, marked given and not found.
+    step = 0.05
+    xs, ys = np.meshgrid(np.arange(0, 12, step), np.arange(0, 4, step))
+    pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({
+        "format": "sonar3d-placements", "version": 1,
+        "placements": [{"model": "tank", "T_world_model": [[1, 0, 0, x], [0, 1, 0, 2],
+                                                           [0, 0, 1, -1], [0, 0, 0, 1]]}
+                       for x in (2, 10)]}))
+    given = tmp_path / "c.yaml"
+    given.write_text("connections:\n  - {from: tank_0, to: tank_1, kind: cable}\n")
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+                            connections=str(given))
+    assert len(w["connections"]) == 1
+    c = w["connections"][0]
+    assert (c["from"], c["to"], c["kind"], c["given"], c["found"]) == \
+        ("tank_0", "tank_1", "cable", True, False)
+    assert c["length_m"] == pytest.approx(8.0, abs=1e-6)
+    given.write_text("connections:\n  - {from: tank_0, to: tank_7}\n")
+    with pytest.raises(sonar3d.Error, match="c.yaml:2: 'tank_7' names no placed object"):
+        sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+                            connections=str(given))
+
+
+def test_world_model_seabed_colours(tmp_path):
+    # A flat seabed, red west of x = 3 and blue east of it, every 5 cm: 20 cm vertices take the
+    # colour of their half (linear mean of sRGB bytes); no colours, no seabed colours.
+    step = 0.05
+    xs, ys = np.meshgrid(np.arange(0, 6, step), np.arange(0, 4, step))
+    pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
+    colors = np.where(pts[:, :1] < 3, [[200, 40, 30]], [[20, 60, 210]]).astype(np.uint8)
+    cat = tmp_path / "cat.yaml"
+    cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({"format": "sonar3d-placements", "version": 1,
+                                      "placements": []}))
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2], colors=colors)
+    lod = w["seabed"][0]
+    assert lod["colors"].shape == lod["vertices"].shape
+    assert (lod["color_points"] > 0).all()
+    west = lod["vertices"][:, 0] < 2.8
+    east = lod["vertices"][:, 0] > 3.2
+    to_srgb = lambda c: np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055) * 255
+    np.testing.assert_allclose(to_srgb(lod["colors"][west]), [[200, 40, 30]] * west.sum(), atol=1)
+    np.testing.assert_allclose(to_srgb(lod["colors"][east]), [[20, 60, 210]] * east.sum(), atol=1)
+    plain = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2])
+    assert plain["seabed"][0]["colors"].shape == (0, 3)
+    with pytest.raises(sonar3d.Error, match="colors must be an N×3 uint8 array"):
+        sonar3d.world_model(pts, str(placements), str(cat), colors=colors[:5])

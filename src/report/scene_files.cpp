@@ -49,6 +49,12 @@ class Obj {
     return d;
   }
   double num_or(const std::string& key, double dflt) const { return has(key) ? num(key) : dflt; }
+  bool boolean_or(const std::string& key, bool dflt) const {
+    if (!has(key)) return dflt;
+    const json& v = at(key);
+    if (!v.is_boolean()) fail(key, "must be true or false");
+    return v.get<bool>();
+  }
   long long integer(const std::string& key) const {
     const json& v = at(key);
     if (!v.is_number_integer() && !v.is_number_unsigned()) fail(key, "must be an integer");
@@ -178,6 +184,8 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
     if (!ids.count(c.to)) e.fail("to", "names no object ('" + c.to + "')");
     c.kind = e.str_or("kind", "");
     c.length_m = e.has("length_m") ? e.num("length_m") : kNaN;
+    c.found = e.boolean_or("found", true);  // files before given connections: all found
+    c.given = e.boolean_or("given", false);
     g.connections.push_back(c);
   }
   const json& seabed = o.array("seabed");

@@ -374,7 +374,10 @@ void build_world(const fs::path& dir, Scene& scene) {
       ends.push_back(centre.at(c.to));
       colors.push_back(rgb);
       colors.push_back(rgb);
-      con_rows.push_back({c.from, c.to, c.kind, num_or_null(c.length_m)});
+      const std::string source = c.found && c.given ? "found and given"
+                                 : c.found          ? "found in the map"
+                                                    : "given";
+      con_rows.push_back({c.from, c.to, c.kind, num_or_null(c.length_m), source});
     }
     scene.lines("connections", "connections", ends, colors);
     scene.legend("#ff7f0e", "pipeline connection");
@@ -384,7 +387,8 @@ void build_world(const fs::path& dir, Scene& scene) {
               {"id", "model", "kind", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
                "residual median [m]", "vertex colours"},
               obj_rows, obj_focus);
-  scene.table("connections", "Connections", {"from", "to", "kind", "length [m]"}, con_rows);
+  scene.table("connections", "Connections", {"from", "to", "kind", "length [m]", "source"},
+              con_rows);
   scene.table("seabed", "Seabed levels of detail",
               {"lod", "file", "cell [m]", "triangles", "bytes", "median error [m]"}, lod_rows);
   scene.card("objects", g.objects.size());

@@ -17,6 +17,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/video/camera_dataset.hpp"
 #include "sonar3d/video/colmap.hpp"
@@ -186,8 +187,14 @@ std::vector<Frame> list_frames(const TextureFilesJob& job) {
       int(!job.neus_file.empty()) + int(!job.colmap_dir.empty()) + int(!job.dataset_dir.empty()) ==
           1,
       "texture: give one source of camera poses: a COLMAP model, a NeuS file or a dataset");
+  require(job.navigation_file.empty() || !job.dataset_dir.empty(),
+          "texture: a navigation file places a dataset's camera frames: give --dataset");
   if (!job.dataset_dir.empty()) {
-    const CameraDataset ds = read_camera_dataset(job.dataset_dir);
+    CameraDataset ds = read_camera_dataset(job.dataset_dir);
+    if (!job.navigation_file.empty()) {
+      ds.navigation = read_tum(job.navigation_file.string());
+      ds.navigation.validate(job.navigation_file.string());
+    }
     require(ds.size() > 0, "texture: '" + (job.dataset_dir / "camera" / "frames.csv").string() +
                                "' lists no frame");
     for (std::size_t i = 0; i < ds.size(); ++i) {
@@ -309,7 +316,15 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   }
   const TexturedCloud t = cloud_texturer->result();
   PointCloud out;
-  for (const auto& pr : cloud.properties) out.properties.push_back({pr.name, {}});
+  // `views`: the frames that coloured each point (0: none, the colour is then black), so that a
+  // black surface seen on video is not taken for an unseen one (sonar3d world, diff). A `views`
+  // the input already had is replaced.
+  std::size_t views_k = cloud.properties.size();
+  for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
+    out.properties.push_back({cloud.properties[k].name, {}});
+    if (cloud.properties[k].name == "views") views_k = k;
+  }
+  if (views_k == cloud.properties.size()) out.properties.push_back({"views", {}});
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const bool seen = t.views[i] > 0;
     r.coloured += seen ? 1 : 0;
@@ -317,8 +332,9 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
     out.points.push_back(cloud.points[i]);
     if (cloud.has_intensity()) out.intensity.push_back(cloud.intensity[i]);
     for (std::size_t k = 0; k < cloud.properties.size(); ++k) {
-      out.properties[k].values.push_back(cloud.properties[k].values[i]);
+      if (k != views_k) out.properties[k].values.push_back(cloud.properties[k].values[i]);
     }
+    out.properties[views_k].values.push_back(static_cast<float>(t.views[i]));
     std::array<std::uint8_t, 3> c{0, 0, 0};
     if (seen) {
       for (int k = 0; k < 3; ++k) {

@@ -79,54 +79,14 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
   return m;
 }
 
-namespace {
-
-// Spreads the low 21 bits of v to every third bit (Morton code).
-std::uint64_t spread3(std::uint64_t v) {
-  v &= 0x1fffff;
-  v = (v | v << 32) & 0x1f00000000ffffULL;
-  v = (v | v << 16) & 0x1f0000ff0000ffULL;
-  v = (v | v << 8) & 0x100f00f00f00f00fULL;
-  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-  v = (v | v << 2) & 0x1249249249249249ULL;
-  return v;
-}
-
-// Renumbers the vertices along a Morton curve, so that vertices near in the mesh are near in
-// memory and in every image: the per-frame loop then reads the raster and the image with few cache
-// misses (subdivision appends midpoints in an order scattered over the model).
-void sort_vertices_spatially(TriangleMesh& m) {
-  const Eigen::AlignedBox3f box = m.bounding_box();
-  const Eigen::Vector3f extent = (box.max() - box.min()).cwiseMax(1e-6f);
-  std::vector<std::pair<std::uint64_t, int>> key(m.vertices.size());
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-    const Eigen::Vector3f q = (m.vertices[i] - box.min()).cwiseQuotient(extent) * 2097151.0f;
-    key[i] = {spread3(static_cast<std::uint64_t>(q.x())) |
-                  spread3(static_cast<std::uint64_t>(q.y())) << 1 |
-                  spread3(static_cast<std::uint64_t>(q.z())) << 2,
-              static_cast<int>(i)};
-  }
-  std::sort(key.begin(), key.end());
-  std::vector<int> new_index(m.vertices.size());
-  std::vector<Eigen::Vector3f> vertices(m.vertices.size());
-  for (std::size_t k = 0; k < key.size(); ++k) {
-    new_index[key[k].second] = static_cast<int>(k);
-    vertices[k] = m.vertices[key[k].second];
-  }
-  m.vertices = std::move(vertices);
-  for (auto& t : m.triangles)
-    t = Eigen::Vector3i(new_index[t[0]], new_index[t[1]], new_index[t[2]]);
-}
-
-}  // namespace
-
 struct MeshTexturer::Impl {
   TriangleMesh mesh;
   MeshTextureConfig config;
   RTCScene scene = nullptr;
-  std::vector<Eigen::Vector3d> sum;
+  std::vector<Eigen::Vector3d> sum;  // Σ weight · colour
+  std::vector<double> weight;        // Σ weight
   std::vector<std::uint32_t> views;
-  TriangleMesh occluder;  // the mesh as given
+  std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
   std::unique_ptr<detail::VisibilityRaster> raster;
   std::size_t raster_decided = 0, rays_cast = 0;
   ~Impl() {
@@ -144,13 +104,23 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
   // The occluder is the mesh as given (attach_mesh validates it); colours go on its subdivision.
   detail::attach_mesh(impl_->scene, mesh, "texture mesh");
   rtcCommitScene(impl_->scene);
-  if (config.raster_visibility) {
-    impl_->occluder = mesh;
-    impl_->raster = std::make_unique<detail::VisibilityRaster>(impl_->occluder);
-  }
+  if (config.raster_visibility) impl_->raster = std::make_unique<detail::VisibilityRaster>(mesh);
   impl_->mesh = subdivide_to_edge(mesh, config.texel_m, config.max_vertices);
-  sort_vertices_spatially(impl_->mesh);
+  detail::sort_vertices_spatially(impl_->mesh);
   impl_->sum.assign(impl_->mesh.vertices.size(), Eigen::Vector3d::Zero());
+  impl_->weight.assign(impl_->mesh.vertices.size(), 0.0);
+  if (config.weight_by_view) {
+    // Area-weighted face normals summed at the vertices (the cross products' lengths are twice
+    // the areas); only their direction is used.
+    const TriangleMesh& m = impl_->mesh;
+    impl_->normal.assign(m.vertices.size(), Eigen::Vector3f::Zero());
+    for (const auto& tri : m.triangles) {
+      const Eigen::Vector3f n =
+          (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+      for (int k = 0; k < 3; ++k) impl_->normal[tri[k]] += n;
+    }
+    for (auto& n : impl_->normal) n = n.stableNormalized();
+  }
   impl_->views.assign(impl_->mesh.vertices.size(), 0);
 }
 
@@ -159,6 +129,28 @@ MeshTexturer::~MeshTexturer() = default;
 const TriangleMesh& MeshTexturer::mesh() const { return impl_->mesh; }
 std::size_t MeshTexturer::raster_decided() const { return impl_->raster_decided; }
 std::size_t MeshTexturer::rays_cast() const { return impl_->rays_cast; }
+
+namespace {
+
+// RgbImage::sample (bilinear between pixel centres, clamped at the edges) inlined, for a pixel
+// already known to lie in the image.
+inline Eigen::Vector3f sample_bilinear(const RgbImage& img, double x, double y) {
+  x = std::clamp(x, 0.0, static_cast<double>(img.width - 1));
+  y = std::clamp(y, 0.0, static_cast<double>(img.height - 1));
+  const int u0 = static_cast<int>(x), v0 = static_cast<int>(y);  // x, y ≥ 0: the floor
+  const int du = u0 + 1 < img.width ? 3 : 0;
+  const std::size_t dv = v0 + 1 < img.height ? 3 * static_cast<std::size_t>(img.width) : 0;
+  const float a = static_cast<float>(x - u0), b = static_cast<float>(y - v0);
+  const float w00 = (1 - a) * (1 - b), w10 = a * (1 - b), w01 = (1 - a) * b, w11 = a * b;
+  const float* p = img.rgb.data() + 3 * (static_cast<std::size_t>(v0) * img.width + u0);
+  Eigen::Vector3f c;
+  for (int k = 0; k < 3; ++k) {
+    c[k] = w00 * p[k] + w10 * p[du + k] + w01 * p[dv + k] + w11 * p[dv + du + k];
+  }
+  return c;
+}
+
+}  // namespace
 
 std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   view.camera.validate();
@@ -170,62 +162,120 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   require(view.T_world_camera.matrix().allFinite(),
           "texture mesh: frame " + std::to_string(f) + "'s pose is not finite");
   const Eigen::Isometry3d T_camera_world = view.T_world_camera.inverse();
+  const Eigen::Matrix3d R = T_camera_world.linear();
+  const Eigen::Vector3d t = T_camera_world.translation();
   const Eigen::Vector3d origin = view.T_world_camera.translation();
+  const CameraIntrinsics& cam = view.camera;
+  const bool pinhole = !cam.distorted();  // then project() is x/z, y/z scaled: done inline
+  const double umax = cam.width - 0.5, vmax = cam.height - 0.5;
   const auto& V = impl_->mesh.vertices;
-  const double max_range = impl_->config.max_range_m;
+  const double max_range = impl_->config.max_range_m, max_range2 = max_range * max_range;
   detail::VisibilityRaster* raster = impl_->raster.get();
-  if (raster) raster->render(view.camera, T_camera_world);
+  if (raster) raster->render(cam, T_camera_world);
   std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 4096),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      RTCIntersectContext ctx;
-                      rtcInitIntersectContext(&ctx);
-                      std::size_t local = 0, local_decided = 0, local_rays = 0;
-                      for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                        const Eigen::Vector3d p_world = V[i].cast<double>();
-                        const Eigen::Vector3d p = T_camera_world * p_world;
-                        if (!(p.z() > 0)) continue;
-                        const double dist = p.norm();
-                        if (dist > max_range) continue;
-                        const auto px = project(view.camera, p);
-                        if (!px || !in_image(view.camera, *px)) continue;
-                        const auto verdict = raster ? raster->test(p_world, p, dist)
-                                                    : detail::VisibilityRaster::Verdict::Unknown;
-                        if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
-                          ++local_decided;
-                          continue;
-                        }
-                        if (verdict == detail::VisibilityRaster::Verdict::Visible) {
-                          ++local_decided;
-                        } else {
-                          // Occluded when the mesh crosses the ray short of the vertex: stop a hair
-                          // before it (relative, for float precision at range) so its own triangles
-                          // do not count.
-                          ++local_rays;
-                          const Eigen::Vector3d d = (p_world - origin) / dist;
-                          RTCRay ray;
-                          ray.org_x = static_cast<float>(origin.x());
-                          ray.org_y = static_cast<float>(origin.y());
-                          ray.org_z = static_cast<float>(origin.z());
-                          ray.dir_x = static_cast<float>(d.x());
-                          ray.dir_y = static_cast<float>(d.y());
-                          ray.dir_z = static_cast<float>(d.z());
-                          ray.tnear = 0.0f;
-                          ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
-                          ray.mask = 0xFFFFFFFFu;
-                          ray.flags = 0;
-                          ray.time = 0.0f;
-                          rtcOccluded1(impl_->scene, &ctx, &ray);
-                          if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
-                        }
-                        impl_->sum[i] += view.image->sample(*px).cast<double>();
-                        ++impl_->views[i];
-                        ++local;
-                      }
-                      coloured.fetch_add(local, std::memory_order_relaxed);
-                      decided.fetch_add(local_decided, std::memory_order_relaxed);
-                      rays.fetch_add(local_rays, std::memory_order_relaxed);
-                    });
+  const float* const rgb = view.image->rgb.data();
+  const bool weighted = impl_->config.weight_by_view;
+  const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, V.size(), 8192),
+      [&](const tbb::blocked_range<std::size_t>& r) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        std::size_t local = 0, local_decided = 0, local_rays = 0;
+        // Blocks of vertices in two passes: first where each falls (prefetching its raster pixels
+        // and image pixels), then the tests — so that the memory latency of one vertex overlaps the
+        // others'.
+        constexpr std::size_t kBlock = 64;
+        struct Candidate {
+          Eigen::Vector3d p_world;
+          Eigen::Vector2d px;
+          double range;
+          std::ptrdiff_t cell;
+          std::size_t i;
+        };
+        Candidate cand[kBlock];
+        for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
+          const std::size_t stop = std::min(r.end(), start + kBlock);
+          std::size_t n = 0;
+          for (std::size_t i = start; i != stop; ++i) {
+            const Eigen::Vector3d p_world = V[i].cast<double>();
+            const Eigen::Vector3d p = R * p_world + t;
+            if (!(p.z() > 0)) continue;
+            const double range2 = p.squaredNorm();
+            if (!(range2 <= max_range2)) continue;
+            const double iz = 1.0 / p.z(), xn = p.x() * iz, yn = p.y() * iz;
+            Eigen::Vector2d px;
+            if (pinhole) {
+              px = {cam.fx * xn + cam.cx, cam.fy * yn + cam.cy};
+            } else {
+              const auto q = project(cam, p);
+              if (!q) continue;
+              px = *q;
+            }
+            // in_image(): the pixel squares' outer edges
+            if (!(px.x() >= -0.5 && px.y() >= -0.5 && px.x() < umax && px.y() < vmax)) continue;
+            Candidate& c = cand[n++];
+            c.p_world = p_world;
+            c.px = px;
+            c.range = std::sqrt(range2);
+            c.cell = raster ? raster->locate(xn, yn, p.z()) : -1;
+            if (raster) raster->prefetch(c.cell);
+            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0, px.y())) * row_floats +
+                                      3 * static_cast<std::size_t>(std::max(0.0, px.x()));
+            __builtin_prefetch(rgb + pixel);
+            __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+            c.i = i;
+          }
+          for (std::size_t k = 0; k < n; ++k) {
+            const Candidate& c = cand[k];
+            const auto verdict = raster ? raster->test(c.p_world, c.cell, c.range)
+                                        : detail::VisibilityRaster::Verdict::Unknown;
+            if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
+              ++local_decided;
+              continue;
+            }
+            if (verdict == detail::VisibilityRaster::Verdict::Visible) {
+              ++local_decided;
+            } else {
+              // Occluded when the mesh crosses the ray short of the vertex: stop a hair before it
+              // (relative, for float precision at range) so its own triangles do not count.
+              ++local_rays;
+              const double dist = c.range;
+              const Eigen::Vector3d d = (c.p_world - origin) / dist;
+              RTCRay ray;
+              ray.org_x = static_cast<float>(origin.x());
+              ray.org_y = static_cast<float>(origin.y());
+              ray.org_z = static_cast<float>(origin.z());
+              ray.dir_x = static_cast<float>(d.x());
+              ray.dir_y = static_cast<float>(d.y());
+              ray.dir_z = static_cast<float>(d.z());
+              ray.tnear = 0.0f;
+              ray.tfar = static_cast<float>(dist - std::max(1e-4, 1e-5 * dist));
+              ray.mask = 0xFFFFFFFFu;
+              ray.flags = 0;
+              ray.time = 0.0f;
+              rtcOccluded1(impl_->scene, &ctx, &ray);
+              if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
+            }
+            // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
+            const double inv_range = 1.0 / c.range;
+            const double w =
+                weighted
+                    ? std::max(0.01,
+                               std::abs(impl_->normal[c.i].cast<double>().dot(c.p_world - origin)) *
+                                   inv_range) *
+                          (inv_range * inv_range)
+                    : 1.0;
+            impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
+            impl_->weight[c.i] += w;
+            ++impl_->views[c.i];
+            ++local;
+          }
+        }
+        coloured.fetch_add(local, std::memory_order_relaxed);
+        decided.fetch_add(local_decided, std::memory_order_relaxed);
+        rays.fetch_add(local_rays, std::memory_order_relaxed);
+      });
   impl_->raster_decided += decided.load();
   impl_->rays_cast += rays.load();
   return coloured.load();
@@ -237,7 +287,7 @@ TexturedMesh MeshTexturer::result() const {
   out.views = impl_->views;
   out.color.assign(out.mesh.vertices.size(), Eigen::Vector3f::Zero());
   for (std::size_t i = 0; i < out.color.size(); ++i) {
-    if (out.views[i] > 0) out.color[i] = (impl_->sum[i] / out.views[i]).cast<float>();
+    if (out.views[i] > 0) out.color[i] = (impl_->sum[i] / impl_->weight[i]).cast<float>();
   }
   return out;
 }

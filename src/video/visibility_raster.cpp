@@ -5,19 +5,69 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
 namespace sonar3d::detail {
 
 namespace {
-constexpr int kChunks = 64;    // triangle chunks binned in parallel
-constexpr int kBandRows = 16;  // raster rows per band (the unit of parallel rasterisation)
 constexpr double kMaxRasterFactor = 4.0;  // raster pixels at most this times the image's
+constexpr int kBandRows = 32;  // raster rows per band (rasterised in parallel; ~256 KB at 1 MP)
+constexpr int kBlock = 64;     // triangles per block (consecutive in the spatial order)
+
+// Spreads the low 21 bits of v to every third bit (Morton code).
+std::uint64_t spread3(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+std::uint32_t float_bits(float x) {
+  std::uint32_t b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
 }  // namespace
 
+void sort_vertices_spatially(TriangleMesh& m) {
+  // One scale for the three axes (a cube around the mesh): a flat model (a seabed, a relief) then
+  // splits along its length first, so that consecutive vertices stay close in every direction.
+  const Eigen::AlignedBox3f box = m.bounding_box();
+  const float extent = std::max((box.max() - box.min()).maxCoeff(), 1e-6f);
+  std::vector<std::pair<std::uint64_t, int>> key(m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const Eigen::Vector3f q =
+        ((m.vertices[i] - box.min()) / extent * 2097151.0f).cwiseMax(0.0f).cwiseMin(2097151.0f);
+    key[i] = {spread3(static_cast<std::uint64_t>(q.x())) |
+                  spread3(static_cast<std::uint64_t>(q.y())) << 1 |
+                  spread3(static_cast<std::uint64_t>(q.z())) << 2,
+              static_cast<int>(i)};
+  }
+  std::sort(key.begin(), key.end());
+  std::vector<int> new_index(m.vertices.size());
+  std::vector<Eigen::Vector3f> vertices(m.vertices.size());
+  for (std::size_t k = 0; k < key.size(); ++k) {
+    new_index[key[k].second] = static_cast<int>(k);
+    vertices[k] = m.vertices[key[k].second];
+  }
+  m.vertices = std::move(vertices);
+  for (auto& t : m.triangles)
+    t = Eigen::Vector3i(new_index[t[0]], new_index[t[1]], new_index[t[2]]);
+}
+
 VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occluder) {
+  // Spatial order: vertices along the Morton curve, triangles by their first vertex in it.
+  sort_vertices_spatially(mesh_);
+  std::sort(mesh_.triangles.begin(), mesh_.triangles.end(),
+            [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
+              return a.minCoeff() < b.minCoeff();
+            });
   const auto& V = mesh_.vertices;
-  normal_world_.resize(mesh_.triangles.size());
-  offset_world_.resize(mesh_.triangles.size());
+  plane_.resize(mesh_.triangles.size());
   for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
     const auto& tri = mesh_.triangles[t];
     const Eigen::Vector3d a = V[tri[0]].cast<double>(), b = V[tri[1]].cast<double>(),
@@ -25,10 +75,20 @@ VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occlude
     Eigen::Vector3d n = (b - a).cross(c - a);
     const double len = n.norm();
     n = len > 0 && std::isfinite(len) ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
-    normal_world_[t] = n;
-    offset_world_[t] = n.dot(a);
+    plane_[t] = {n, n.dot(a)};
   }
-  bins_.assign(kChunks, {});
+  const std::size_t blocks = (mesh_.triangles.size() + kBlock - 1) / kBlock;
+  block_box_.resize(blocks);
+  block_vertices_.assign(blocks, {std::numeric_limits<int>::max(), 0});
+  for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
+    auto& range = block_vertices_[t / kBlock];
+    for (int k = 0; k < 3; ++k) {
+      const int i = mesh_.triangles[t][k];
+      block_box_[t / kBlock].extend(V[i]);
+      range.first = std::min(range.first, i);
+      range.second = std::max(range.second, i + 1);
+    }
+  }
 }
 
 void VisibilityRaster::setup_raster(const CameraIntrinsics& c) {
@@ -73,8 +133,7 @@ void VisibilityRaster::setup_raster(const CameraIntrinsics& c) {
   oy_ = -ymin * sy_ - 0.5;
   width_ = std::max(1, static_cast<int>(std::ceil((xmax - xmin) * sx_)));
   height_ = std::max(1, static_cast<int>(std::ceil((ymax - ymin) * sy_)));
-  inv_depth_.assign(static_cast<std::size_t>(width_) * height_, 0.0f);
-  id_.assign(inv_depth_.size(), -1);
+  id_.assign(static_cast<std::size_t>(width_) * height_, kNone);
   raster_for_ = c;
   have_raster_ = true;
 }
@@ -89,66 +148,74 @@ inline int floor_small(float x) {
   return i - (static_cast<float>(i) > x);
 }
 
-void VisibilityRaster::fill(const float* u, const float* v, const float* w, int tri, int y0,
-                            int y1) {
-  // The pixel centres inside the triangle's bounding box, clipped to the band; most triangles of
-  // a fine mesh cover at most one, many none (checked before any other work).
+// The pixel centres of rows y0 … y1 − 1 inside the triangle's bounding box.
+inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* v, int y0,
+                                                   int y1) const {
   const float lo_x = -1.0f, hi_x = static_cast<float>(width_);
   const float lo_y = static_cast<float>(y0) - 1.0f, hi_y = static_cast<float>(y1);
   const float umin = std::clamp(std::min(u[0], std::min(u[1], u[2])), lo_x, hi_x);
   const float umax = std::clamp(std::max(u[0], std::max(u[1], u[2])), lo_x, hi_x);
   const float vmin = std::clamp(std::min(v[0], std::min(v[1], v[2])), lo_y, hi_y);
   const float vmax = std::clamp(std::max(v[0], std::max(v[1], v[2])), lo_y, hi_y);
-  const int xa = std::max(0, ceil_small(umin)), xb = std::min(width_ - 1, floor_small(umax));
-  const int ya = std::max(y0, ceil_small(vmin)), yb = std::min(y1 - 1, floor_small(vmax));
-  if (xa > xb || ya > yb) return;
-  // Edge functions (barycentric weights) over those centres; w = 1/z is affine in screen space,
-  // so it interpolates with the same weights.
+  return {std::max(0, ceil_small(umin)), std::min(width_ - 1, floor_small(umax)),
+          std::max(y0, ceil_small(vmin)), std::min(y1 - 1, floor_small(vmax))};
+}
+
+inline void VisibilityRaster::fill(const float* u, const float* v, const float* w, int tri,
+                                   const Box& b, std::uint64_t* band, int y0) {
+  if (b.xa > b.xb || b.ya > b.yb) return;
+  // Edge functions (barycentric weights) over those centres, affine in x along a row; w = 1/z is
+  // affine in screen space, so it interpolates with the same weights.
   const float area = (u[1] - u[0]) * (v[2] - v[0]) - (u[2] - u[0]) * (v[1] - v[0]);
   if (!(std::abs(area) > 1e-12f)) return;  // edge-on: covers no area
   const float inv_area = 1.0f / area;
-  for (int y = ya; y <= yb; ++y) {
+  const float dx0 = (v[1] - v[2]) * inv_area, dx1 = (v[2] - v[0]) * inv_area;
+  for (int y = b.ya; y <= b.yb; ++y) {
     const float py = static_cast<float>(y);
-    float* depth = inv_depth_.data() + static_cast<std::size_t>(y) * width_;
-    std::int32_t* ids = id_.data() + static_cast<std::size_t>(y) * width_;
-    for (int x = xa; x <= xb; ++x) {
+    // b0, b1 at x = 0 of this row.
+    const float r0 = (u[1] * (v[2] - py) - u[2] * (v[1] - py)) * inv_area;
+    const float r1 = (u[2] * (v[0] - py) - u[0] * (v[2] - py)) * inv_area;
+    std::uint64_t* row = band + static_cast<std::size_t>(y - y0) * width_;
+    for (int x = b.xa; x <= b.xb; ++x) {
       const float px = static_cast<float>(x);
-      const float b0 = ((u[1] - px) * (v[2] - py) - (u[2] - px) * (v[1] - py)) * inv_area;
-      const float b1 = ((u[2] - px) * (v[0] - py) - (u[0] - px) * (v[2] - py)) * inv_area;
-      const float b2 = 1.0f - b0 - b1;
+      const float b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
       if (b0 < 0 || b1 < 0 || b2 < 0) continue;
       const float iz = b0 * w[0] + b1 * w[1] + b2 * w[2];
-      if (iz > depth[x]) {
-        depth[x] = iz;
-        ids[x] = tri;
-      }
+      if (!(iz > 0)) continue;
+      // Positive floats order as their bits do: the largest word is the nearest surface (ties:
+      // the larger triangle id), in whatever order the triangles come.
+      const std::uint64_t key =
+          static_cast<std::uint64_t>(float_bits(iz)) << 32 | static_cast<std::uint32_t>(tri);
+      row[x] = std::max(row[x], key);
     }
   }
 }
 
-void VisibilityRaster::raster_triangle(int t, int y0, int y1) {
+void VisibilityRaster::raster_triangle(int t, int y0, int y1, std::uint64_t* band) {
   const auto& tri = mesh_.triangles[t];
-  const Eigen::Vector3f* p[3] = {&p_camera_[tri[0]], &p_camera_[tri[1]], &p_camera_[tri[2]]};
-  const float nz = static_cast<float>(near_);
-  if (p[0]->z() > nz && p[1]->z() > nz && p[2]->z() > nz) {
-    const float u[3] = {screen_[tri[0]].x(), screen_[tri[1]].x(), screen_[tri[2]].x()};
-    const float v[3] = {screen_[tri[0]].y(), screen_[tri[1]].y(), screen_[tri[2]].y()};
-    const float w[3] = {1.0f / p[0]->z(), 1.0f / p[1]->z(), 1.0f / p[2]->z()};
-    fill(u, v, w, t, y0, y1);
+  const Projected& a = projected_[tri[0]];
+  const Projected& b = projected_[tri[1]];
+  const Projected& c = projected_[tri[2]];
+  if (a.w > 0 && b.w > 0 && c.w > 0) {  // all in front of the near plane
+    const float u[3] = {a.u, b.u, c.u}, v[3] = {a.v, b.v, c.v}, w[3] = {a.w, b.w, c.w};
+    fill(u, v, w, t, box(u, v, y0, y1), band, y0);
     return;
   }
+  const float nz = static_cast<float>(near_);
+  const Eigen::Vector3f p[3] = {R_ * mesh_.vertices[tri[0]] + t_, R_ * mesh_.vertices[tri[1]] + t_,
+                                R_ * mesh_.vertices[tri[2]] + t_};
   // Crossing the near plane: clip the polygon to z ≥ near (Sutherland–Hodgman, one plane), then
   // fan it into triangles.
   Eigen::Vector3f poly[4];
   int n = 0;
   for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3f& a = *p[k];
-    const Eigen::Vector3f& b = *p[(k + 1) % 3];
-    const bool ina = a.z() > nz, inb = b.z() > nz;
-    if (ina) poly[n++] = a;
+    const Eigen::Vector3f& pa = p[k];
+    const Eigen::Vector3f& pb = p[(k + 1) % 3];
+    const bool ina = pa.z() > nz, inb = pb.z() > nz;
+    if (ina) poly[n++] = pa;
     if (ina != inb) {
-      const float s = (nz - a.z()) / (b.z() - a.z());
-      poly[n++] = a + s * (b - a);
+      const float s = (nz - pa.z()) / (pb.z() - pa.z());
+      poly[n++] = pa + s * (pb - pa);
       poly[n - 1].z() = nz;
     }
   }
@@ -162,7 +229,22 @@ void VisibilityRaster::raster_triangle(int t, int y0, int y1) {
   for (int k = 1; k + 1 < n; ++k) {
     const float tu[3] = {u[0], u[k], u[k + 1]}, tv[3] = {v[0], v[k], v[k + 1]},
                 tw[3] = {w[0], w[k], w[k + 1]};
-    fill(tu, tv, tw, t, y0, y1);
+    fill(tu, tv, tw, t, box(tu, tv, y0, y1), band, y0);
+  }
+}
+
+void VisibilityRaster::prefetch_block(int blk) const {
+  const char* tris = reinterpret_cast<const char*>(mesh_.triangles.data() + blk * kBlock);
+  const std::size_t tri_bytes =
+      sizeof(Eigen::Vector3i) *
+      static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+          kBlock, static_cast<std::ptrdiff_t>(mesh_.triangles.size()) - blk * kBlock));
+  for (std::size_t o = 0; o < tri_bytes; o += 64) __builtin_prefetch(tris + o);
+  const auto [first, last] = block_vertices_[blk];
+  if (last - first > 4 * kBlock) return;  // scattered: not worth it
+  const char* verts = reinterpret_cast<const char*>(projected_.data() + first);
+  for (std::size_t o = 0; o < sizeof(Projected) * static_cast<std::size_t>(last - first); o += 64) {
+    __builtin_prefetch(verts + o);
   }
 }
 
@@ -173,17 +255,16 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
       camera.cy != raster_for_.cy || camera.k1 != raster_for_.k1 || camera.k2 != raster_for_.k2 ||
       camera.p1 != raster_for_.p1 || camera.p2 != raster_for_.p2 || camera.k3 != raster_for_.k3) {
     setup_raster(camera);
-  } else {
-    std::fill(inv_depth_.begin(), inv_depth_.end(), 0.0f);
-    std::fill(id_.begin(), id_.end(), -1);
   }
   near_ = near_m;
   origin_world_ = T_camera_world.inverse().translation();
   const auto& V = mesh_.vertices;
-  p_camera_.resize(V.size());
-  screen_.resize(V.size());
-  const Eigen::Matrix3f R = T_camera_world.linear().cast<float>();
-  const Eigen::Vector3f t = T_camera_world.translation().cast<float>();
+  projected_.resize(V.size());
+  R_ = T_camera_world.linear().cast<float>();
+  t_ = T_camera_world.translation().cast<float>();
+  const Eigen::Matrix3f& R = R_;
+  const Eigen::Vector3f& t = t_;
+  const float nz = static_cast<float>(near_);
   const float sx = static_cast<float>(sx_), sy = static_cast<float>(sy_),
               ox = static_cast<float>(ox_), oy = static_cast<float>(oy_);
   // Vertices to the camera frame and the raster.
@@ -191,105 +272,65 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t i = r.begin(); i != r.end(); ++i) {
                         const Eigen::Vector3f p = R * V[i] + t;
-                        p_camera_[i] = p;
-                        const float w = p.z() > 0 ? 1.0f / p.z() : 0.0f;
-                        screen_[i] = Eigen::Vector2f(sx * p.x() * w + ox, sy * p.y() * w + oy);
+                        const float w = p.z() > nz ? 1.0f / p.z() : 0.0f;
+                        projected_[i] = {sx * p.x() * w + ox, sy * p.y() * w + oy, w};
                       }
                     });
-  // Triangles binned by raster band, per chunk in parallel (no locks: each chunk its own bins).
+  // Blocks of triangles (consecutive in the spatial order, so compact) binned by raster band by
+  // the projection of their world bounding box; then the bands rasterised in parallel, each
+  // clearing and writing only its own rows (no atomics; ~256 KB, so they stay in the cache).
   const int bands = (height_ + kBandRows - 1) / kBandRows;
-  const std::size_t T = mesh_.triangles.size();
-  const float nz = static_cast<float>(near_);
-  tbb::parallel_for(0, kChunks, [&](int chunk) {
-    auto& bins = bins_[chunk];
-    bins.resize(bands);
-    for (auto& b : bins) b.clear();
-    const std::size_t begin = T * chunk / kChunks, end = T * (chunk + 1) / kChunks;
-    for (std::size_t k = begin; k < end; ++k) {
-      const auto& tri = mesh_.triangles[k];
-      const float z0 = p_camera_[tri[0]].z(), z1 = p_camera_[tri[1]].z(),
-                  z2 = p_camera_[tri[2]].z();
-      if (z0 <= nz && z1 <= nz && z2 <= nz) continue;  // wholly behind the near plane
-      float vmin = 0, vmax = static_cast<float>(height_);
-      float umin = 0, umax = static_cast<float>(width_);
-      if (z0 > nz && z1 > nz && z2 > nz) {
-        const float v0 = screen_[tri[0]].y(), v1 = screen_[tri[1]].y(), v2 = screen_[tri[2]].y();
-        const float u0 = screen_[tri[0]].x(), u1 = screen_[tri[1]].x(), u2 = screen_[tri[2]].x();
-        vmin = std::min({v0, v1, v2});
-        vmax = std::max({v0, v1, v2});
-        umin = std::min({u0, u1, u2});
-        umax = std::max({u0, u1, u2});
-        if (!(vmax >= -0.5f && vmin <= height_ - 0.5f && umax >= -0.5f && umin <= width_ - 0.5f)) {
-          continue;  // off the raster (or not finite)
-        }
+  band_blocks_.resize(bands);
+  for (auto& b : band_blocks_) b.clear();
+  for (std::size_t blk = 0; blk < block_box_.size(); ++blk) {
+    const Eigen::AlignedBox3f& bb = block_box_[blk];
+    float umin = 1e30f, umax = -1e30f, vmin = 1e30f, vmax = -1e30f;
+    int behind = 0;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3f p = R * bb.corner(static_cast<Eigen::AlignedBox3f::CornerType>(c)) + t;
+      if (!(p.z() > nz)) {
+        ++behind;
+        continue;
       }
-      // (A triangle crossing the near plane may reach anywhere: all bands.)
-      const int ba =
-          std::clamp(static_cast<int>(std::floor(std::max(vmin, 0.0f))) / kBandRows, 0, bands - 1);
-      const int bb = std::clamp(
-          static_cast<int>(std::ceil(std::min(vmax, static_cast<float>(height_)))) / kBandRows, 0,
-          bands - 1);
-      for (int b = ba; b <= bb; ++b) bins[b].push_back(static_cast<std::int32_t>(k));
+      const float u = sx * p.x() / p.z() + ox, v = sy * p.y() / p.z() + oy;
+      umin = std::min(umin, u);
+      umax = std::max(umax, u);
+      vmin = std::min(vmin, v);
+      vmax = std::max(vmax, v);
     }
-  });
-  // Bands rasterised in parallel; each takes its triangles chunk by chunk, in mesh order.
+    if (behind == 8) continue;       // wholly behind the near plane
+    int ba = 0, bb_end = bands - 1;  // crossing it: its clipped triangles may reach any band
+    if (behind == 0) {
+      // A pixel centre inside a triangle lies inside the projection of the box (margin: 1 px).
+      if (!(vmax >= -1.0f && vmin <= height_ && umax >= -1.0f && umin <= width_)) continue;
+      ba = std::clamp(static_cast<int>(std::floor(std::max(vmin - 1.0f, 0.0f))) / kBandRows, 0,
+                      bands - 1);
+      bb_end = std::clamp(
+          static_cast<int>(std::ceil(std::min(vmax + 1.0f, static_cast<float>(height_)))) /
+              kBandRows,
+          0, bands - 1);
+    }
+    for (int b = ba; b <= bb_end; ++b) band_blocks_[b].push_back(static_cast<std::int32_t>(blk));
+  }
+  const int T = static_cast<int>(mesh_.triangles.size());
   tbb::parallel_for(0, bands, [&](int band) {
     const int y0 = band * kBandRows, y1 = std::min(height_, y0 + kBandRows);
-    for (int chunk = 0; chunk < kChunks; ++chunk) {
-      for (const std::int32_t tri : bins_[chunk][band]) raster_triangle(tri, y0, y1);
+    const std::size_t n = static_cast<std::size_t>(y1 - y0) * width_;
+    std::vector<std::uint64_t>& cells = band_cells_.local();
+    cells.assign(n, 0);
+    const auto& blocks = band_blocks_[band];
+    for (std::size_t j = 0; j < blocks.size(); ++j) {
+      if (j + 1 < blocks.size()) prefetch_block(blocks[j + 1]);  // hide its memory latency
+      const int blk = blocks[j];
+      const int end = std::min(T, (blk + 1) * kBlock);
+      for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1, cells.data());
+    }
+    // The band's triangle ids out to the raster (the depths are needed no further).
+    std::uint32_t* ids = id_.data() + static_cast<std::size_t>(y0) * width_;
+    for (std::size_t k = 0; k < n; ++k) {
+      ids[k] = cells[k] != 0 ? static_cast<std::uint32_t>(cells[k]) : kNone;
     }
   });
-}
-
-VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p_world,
-                                                 const Eigen::Vector3d& p_camera,
-                                                 double range_m) const {
-  if (!(p_camera.z() > near_)) return Verdict::Unknown;
-  const double u = sx_ * p_camera.x() / p_camera.z() + ox_;
-  const double v = sy_ * p_camera.y() / p_camera.z() + oy_;
-  // The four pixel centres around the vertex's raster position.
-  if (!(u >= 0 && v >= 0 && u < width_ - 1 && v < height_ - 1)) return Verdict::Unknown;
-  const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
-  // The vertex's ray: origin + s·d, the vertex at s = 1. The Embree test's allowance: a surface
-  // within max(1e-4 m, 1e-5·range) of the vertex is its own.
-  const Eigen::Vector3d d = p_world - origin_world_;
-  const double dnorm = d.norm();
-  const double eps = std::max(1e-4, 1e-5 * range_m) / range_m;
-  bool on_front_surface = false, undecided = false;
-  const std::int32_t* row = id_.data() + static_cast<std::size_t>(j0) * width_ + i0;
-  const std::int32_t ids[4] = {row[0], row[1], row[width_], row[width_ + 1]};
-  for (int k = 0; k < 4; ++k) {
-    const std::int32_t t = ids[k];
-    if (t < 0) continue;  // open water there: no occluder
-    if ((k > 0 && t == ids[k - 1]) || (k == 3 && t == ids[1]) || (k >= 2 && t == ids[0])) {
-      continue;  // the same triangle as another of the four: the same verdict
-    }
-    const Eigen::Vector3d& n = normal_world_[t];
-    const double denom = n.dot(d);
-    if (!(std::abs(denom) > 1e-12 * dnorm)) {  // seen edge-on
-      undecided = true;
-      continue;
-    }
-    const double s = (offset_world_[t] - n.dot(origin_world_)) / denom;
-    if (std::abs(s - 1.0) <= eps) {
-      on_front_surface = true;  // the front surface at this centre passes through the vertex
-      continue;
-    }
-    if (!(s < 1.0 - eps) || !(s > 0)) continue;  // the front surface there lies behind it
-    // A front surface whose plane crosses the ray short of the vertex: hidden when the ray
-    // crosses the triangle itself (exact), undecided when only its plane.
-    const auto& tri = mesh_.triangles[t];
-    const Eigen::Vector3d h = origin_world_ + s * d;
-    const Eigen::Vector3d a = mesh_.vertices[tri[0]].cast<double>(),
-                          b = mesh_.vertices[tri[1]].cast<double>(),
-                          c = mesh_.vertices[tri[2]].cast<double>();
-    if (n.dot((b - a).cross(h - a)) >= 0 && n.dot((c - b).cross(h - b)) >= 0 &&
-        n.dot((a - c).cross(h - c)) >= 0) {
-      return Verdict::Hidden;
-    }
-    undecided = true;  // another of the four may still prove it hidden
-  }
-  return on_front_surface && !undecided ? Verdict::Visible : Verdict::Unknown;
 }
 
 }  // namespace sonar3d::detail

@@ -13,8 +13,11 @@
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/sim/simulation.hpp"
+#include "sonar3d/video/texture_files.hpp"
+#include "sonar3d/video/texture_mesh.hpp"
 #include "sonar3d/world/gltf.hpp"
 
 namespace sonar3d {
@@ -134,7 +137,58 @@ nlohmann::json num_or_null(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
+// Which points of a coloured cloud carry a video colour: `views` > 0 when the cloud has that
+// property, else any colour but black (sonar3d texture writes black where no frame saw a point).
+std::vector<std::uint8_t> coloured_points(const PointCloud& cloud) {
+  std::vector<std::uint8_t> out(cloud.size(), 0);
+  if (!cloud.has_color()) return out;
+  const PointProperty* views = nullptr;
+  for (const PointProperty& p : cloud.properties) {
+    if (p.name == "views") views = &p;
+  }
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const auto& c = cloud.color[i];
+    out[i] = views != nullptr ? views->values[i] > 0 : (c[0] | c[1] | c[2]) != 0;
+  }
+  return out;
+}
+
+// Per vertex of height_field_mesh(map) (a vertex per valid cell, row-major): the linear-RGB mean
+// of the coloured points falling in the vertex's cell, and their count.
+void seabed_colors(const ElevationMap& map, const PointCloud& seabed,
+                   const std::vector<std::uint8_t>& coloured, SeabedLod& lod) {
+  std::vector<int> vid(map.z.size(), -1);
+  int n = 0;
+  for (std::size_t k = 0; k < map.z.size(); ++k) {
+    if (map.z[k] == map.z[k]) vid[k] = n++;
+  }
+  lod.color.assign(static_cast<std::size_t>(n), Eigen::Vector3f::Zero());
+  lod.color_points.assign(static_cast<std::size_t>(n), 0);
+  std::array<float, 256> linear{};
+  for (int v = 0; v < 256; ++v) linear[v] = srgb_to_linear(static_cast<float>(v) / 255.0f);
+  for (std::size_t i = 0; i < seabed.size(); ++i) {
+    if (!coloured[i]) continue;
+    const Eigen::Vector3f& p = seabed.points[i];
+    const double c = std::floor((p.x() - map.origin_xy.x()) / map.cell_m);
+    const double r = std::floor((map.origin_xy.y() - p.y()) / map.cell_m);
+    if (!(c >= 0 && c < map.cols && r >= 0 && r < map.rows)) continue;
+    const int v = vid[map.index(static_cast<int>(r), static_cast<int>(c))];
+    if (v < 0) continue;
+    const auto& rgb = seabed.color[i];
+    lod.color[v] += Eigen::Vector3f(linear[rgb[0]], linear[rgb[1]], linear[rgb[2]]);
+    ++lod.color_points[v];
+  }
+  for (int v = 0; v < n; ++v) {
+    if (lod.color_points[v] > 0) lod.color[v] /= static_cast<float>(lod.color_points[v]);
+  }
+}
+
 }  // namespace
+
+std::size_t SeabedLod::coloured_vertices() const {
+  return static_cast<std::size_t>(std::count_if(color_points.begin(), color_points.end(),
+                                                [](std::uint32_t k) { return k > 0; }));
+}
 
 PlacementsFile parse_placements(const std::string& text, const std::string& source) {
   const std::string where = "placements '" + source + "'";
@@ -463,6 +517,7 @@ std::vector<Connection> find_connections(const ElevationMap& seabed,
       c.to = objects[j].id;
       c.length_m = last - first + config.station_m;
       c.fraction = fraction;
+      c.found = true;
       out.push_back(c);
     }
   }
@@ -478,14 +533,22 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   w.cloud_points = cloud_world.size();
   const std::vector<std::uint8_t> explained =
       explained_points(cloud_world, objects, config.seabed.margin_m);
+  const std::vector<std::uint8_t> coloured_all = coloured_points(cloud_world);
   PointCloud seabed;
+  std::vector<std::uint8_t> coloured;
   Eigen::Vector2f lo = Eigen::Vector2f::Constant(std::numeric_limits<float>::max()), hi = -lo;
   for (std::size_t i = 0; i < cloud_world.size(); ++i) {
     const Eigen::Vector3f& p = cloud_world.points[i];
     require(p.allFinite(), "the map's point " + std::to_string(i) + " is not finite");
     lo = lo.cwiseMin(p.head<2>());
     hi = hi.cwiseMax(p.head<2>());
-    if (!explained[i]) seabed.points.push_back(p);
+    if (explained[i]) continue;
+    seabed.points.push_back(p);
+    if (cloud_world.has_color()) {
+      seabed.color.push_back(cloud_world.color[i]);
+      coloured.push_back(coloured_all[i]);
+      w.coloured_seabed_points += coloured_all[i];
+    }
   }
   w.seabed_points = seabed.size();
   require(!seabed.empty(),
@@ -525,6 +588,7 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
       lod.cell_m = lod.heights.cell_m;
     }
     lod.mesh = height_field_mesh(lod.heights);
+    if (w.coloured_seabed_points > 0) seabed_colors(lod.heights, seabed, coloured, lod);
     w.seabed.push_back(std::move(lod));
   }
   if (config.find_connections) {
@@ -533,6 +597,99 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   w.objects = std::move(objects);
   w.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return w;
+}
+
+void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source) {
+  require(coloured.has_color(), "'" + source +
+                                    "' carries no colours (red green blue): colour the map's "
+                                    "cloud with sonar3d texture first");
+  require(coloured.size() == cloud.size(),
+          "'" + source + "' holds " + std::to_string(coloured.size()) + " points, the map " +
+              std::to_string(cloud.size()) +
+              ": give the map's cloud as coloured by sonar3d texture (without --drop-uncoloured)");
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (!(coloured.points[i] - cloud.points[i]).isZero(1e-4f)) {
+      throw Error("'" + source + "' point " + std::to_string(i) +
+                  " is not the map's: give the map's own cloud as coloured by sonar3d texture");
+    }
+  }
+  cloud.color = coloured.color;
+  for (const PointProperty& p : coloured.properties) {
+    if (p.name != "views") continue;
+    auto same = std::find_if(cloud.properties.begin(), cloud.properties.end(),
+                             [](const PointProperty& q) { return q.name == "views"; });
+    if (same != cloud.properties.end()) {
+      same->values = p.values;
+    } else {
+      cloud.properties.push_back(p);
+    }
+  }
+}
+
+std::vector<GivenConnection> read_given_connections(const std::string& path) {
+  const YAML::Node root = yaml::load_file(path);  // size limit, syntax errors with file:line
+  require(root.IsMap() && root["connections"] && root["connections"].IsSequence(),
+          "connections '" + path + "': no 'connections' list (connections: - {from: ID, to: ID})");
+  const YAML::Node list = root["connections"];
+  require(list.size() <= kMaxGivenConnections, "connections '" + path + "': more than " +
+                                                   std::to_string(kMaxGivenConnections) +
+                                                   " connections");
+  std::vector<GivenConnection> out;
+  for (const YAML::Node& e : list) {
+    const std::string at = path + ":" + std::to_string(e.Mark().line + 1);
+    require(e.IsMap(), at + ": a connection is a map {from: ID, to: ID, kind: KIND}");
+    yaml::check_keys(e, {"from", "to", "kind"}, path, "connection");
+    GivenConnection c;
+    c.line = e.Mark().line + 1;
+    c.from = yaml::get_string(e, "from", "", path, "connection");
+    c.to = yaml::get_string(e, "to", "", path, "connection");
+    c.kind = yaml::get_string(e, "kind", c.kind, path, "connection");
+    require(!c.from.empty() && !c.to.empty(), at + ": 'from' and 'to' must name objects");
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+void add_given_connections(WorldModel& world, const std::vector<GivenConnection>& given,
+                           const std::string& source, double margin_m) {
+  std::map<std::string, std::size_t> index;
+  for (std::size_t i = 0; i < world.objects.size(); ++i) index[world.objects[i].id] = i;
+  const std::vector<PlacedBox> boxes = placed_boxes(world.objects, margin_m);
+  std::map<std::pair<std::string, std::string>, int> seen;  // unordered pair → line
+  for (const GivenConnection& g : given) {
+    const std::string at = source + ":" + std::to_string(g.line);
+    for (const std::string* id : {&g.from, &g.to}) {
+      if (!index.count(*id)) {
+        std::string ids;
+        for (const WorldObject& o : world.objects) ids += (ids.empty() ? "" : ", ") + o.id;
+        throw Error(at + ": '" + *id +
+                    "' names no placed object (the objects: " + (ids.empty() ? "none" : ids) + ")");
+      }
+    }
+    require(g.from != g.to, at + ": a connection from '" + g.from + "' to itself");
+    const auto key = std::minmax(g.from, g.to);
+    const auto [it, fresh] = seen.emplace(std::make_pair(key.first, key.second), g.line);
+    require(fresh, at + ": " + g.from + " - " + g.to + " is given twice (also on line " +
+                       std::to_string(it->second) + ")");
+    Connection* match = nullptr;
+    for (Connection& c : world.connections) {
+      if (std::minmax(c.from, c.to) == key && c.kind == g.kind) match = &c;
+    }
+    if (match != nullptr) {
+      match->given = true;
+      continue;
+    }
+    const std::size_t i = index[g.from], j = index[g.to];
+    const Eigen::Vector2d a = (world.objects[i].T_world_model * boxes[i].box.center()).head<2>();
+    const Eigen::Vector2d b = (world.objects[j].T_world_model * boxes[j].box.center()).head<2>();
+    Connection c;
+    c.from = g.from;
+    c.to = g.to;
+    c.kind = g.kind;
+    c.length_m = (b - a).norm();
+    c.given = true;
+    world.connections.push_back(c);
+  }
 }
 
 std::optional<SeabedTruth> find_seabed_truth(const fs::path& map_path, const fs::path& dataset) {
@@ -635,7 +792,16 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                                            "triangle: use a finer cell",
                                            k, lod.cell_m));
     const std::string file = fmt::format("seabed_lod{}.ply", lod.lod);
-    save_mesh((tmp / file).string(), lod.mesh);
+    if (lod.color.empty()) {
+      save_mesh((tmp / file).string(), lod.mesh);
+    } else {
+      // Vertex colours, sRGB bytes, black where no coloured point fell (as sonar3d texture).
+      TexturedMesh tm;
+      tm.mesh = lod.mesh;
+      tm.color = lod.color;
+      tm.views = lod.color_points;
+      write_textured_mesh_ply(tmp / file, tm);
+    }
     r.seabed_bytes.push_back(fs::file_size(tmp / file));
     const double err = info.seabed_error_m.empty() ? std::numeric_limits<double>::quiet_NaN()
                                                    : info.seabed_error_m[k];
@@ -644,7 +810,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                       {"cell_m", lod.cell_m},
                       {"triangles", lod.mesh.triangles.size()},
                       {"bytes", r.seabed_bytes.back()},
-                      {"median_error_m", num_or_null(err)}});
+                      {"median_error_m", num_or_null(err)},
+                      {"coloured_vertices", lod.coloured_vertices()}});
   }
 
   // glTF: the root turns ENU (z up) into glTF's y up; under it the seabed and one node per
@@ -655,7 +822,18 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
   scene.roots = {0};
   const std::size_t first_lod = info.glb_all_lods ? 0 : world.seabed.size() - 1;
   for (std::size_t k = first_lod; k < world.seabed.size(); ++k) {
-    scene.meshes.push_back({fmt::format("seabed_lod{}", k), world.seabed[k].mesh, {}, sand});
+    const SeabedLod& lod = world.seabed[k];
+    std::vector<std::array<std::uint8_t, 3>> colors;
+    for (std::size_t v = 0; v < lod.color.size(); ++v) {
+      std::array<std::uint8_t, 3> c{0, 0, 0};
+      for (int j = 0; lod.color_points[v] > 0 && j < 3; ++j) {
+        c[j] = static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(lod.color[v][j])));
+      }
+      colors.push_back(c);
+    }
+    // With video colours the material is white, so that COLOR_0 shows as it is.
+    const Eigen::Vector4f base = colors.empty() ? sand : Eigen::Vector4f(1, 1, 1, 1);
+    scene.meshes.push_back({fmt::format("seabed_lod{}", k), lod.mesh, std::move(colors), base});
     scene.nodes.push_back({fmt::format("seabed_lod{}", k),
                            static_cast<int>(scene.meshes.size()) - 1,
                            Eigen::Matrix4d::Identity(),
@@ -693,8 +871,13 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
 
   nlohmann::json connections = nlohmann::json::array();
   for (const Connection& c : world.connections) {
-    connections.push_back(
-        {{"from", c.from}, {"to", c.to}, {"kind", c.kind}, {"length_m", c.length_m}});
+    connections.push_back({{"from", c.from},
+                           {"to", c.to},
+                           {"kind", c.kind},
+                           {"length_m", c.length_m},
+                           {"fraction", num_or_null(c.fraction)},
+                           {"found", c.found},
+                           {"given", c.given}});
   }
   r.bytes_total = r.glb_bytes + r.models_bytes;
   for (std::uintmax_t b : r.seabed_bytes) r.bytes_total += b;

@@ -20,6 +20,7 @@ struct WorldGraphObject {
 struct WorldConnection {
   std::string from, to, kind;
   double length_m = 0;
+  bool found = true, given = false;  // found in the map (sonar3d world) / given by the user
 };
 struct WorldSeabedLod {
   int lod = 0;

@@ -34,6 +34,9 @@ struct TextureFilesJob {
   std::filesystem::path colmap_dir;   // cameras.txt + images.txt, or
   std::filesystem::path neus_file;    // IDR/NeuS cameras_*.npz (world_mat_i for the i-th image), or
   std::filesystem::path dataset_dir;  // a dataset's camera frames, posed on its navigation
+  // With dataset_dir: place the frames on this navigation (TUM) instead of the dataset's, e.g. the
+  // navigation_corrected.tum of `sonar3d map`, so that the video lands where the corrected map is.
+  std::filesystem::path navigation_file;
   NeusFrame neus_frame = NeusFrame::World;
   // The images named in images.txt (not used with dataset_dir); with neus_file, the image files of
   // this directory (.png .jpg .jpeg .tif .tiff) in name order, one per world_mat_i, as IDR/NeuS

@@ -29,6 +29,10 @@ struct MeshTextureConfig {
   // visibility raster first, rays only where it does not decide (an occluder smaller than a pixel
   // that covers the vertex but no pixel centre is missed).
   bool raster_visibility = true;
+  // true: each frame's colour weighted by |cos θ| / range² (θ between the view ray and the vertex
+  // normal; the inverse of the surface area one pixel covers there, |cos θ| at least 0.01), so
+  // near, head-on views count most; false: a plain mean over the frames.
+  bool weight_by_view = true;
   void validate() const;  // throws Error naming the field
 };
 
@@ -39,8 +43,10 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
 
 struct TexturedMesh {
   TriangleMesh mesh;  // the subdivided mesh, its vertices renumbered in spatial (Morton) order
-  std::vector<Eigen::Vector3f> color;  // per vertex: linear RGB mean over the frames; 0 if none
-  std::vector<std::uint32_t> views;    // per vertex: frames that saw it (0: no colour)
+  // per vertex: linear RGB, the (weighted, MeshTextureConfig::weight_by_view) mean over the
+  // frames; 0 if none
+  std::vector<Eigen::Vector3f> color;
+  std::vector<std::uint32_t> views;  // per vertex: frames that saw it (0: no colour)
   std::size_t coloured() const;
 };
 

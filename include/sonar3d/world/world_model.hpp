@@ -104,13 +104,25 @@ struct SeabedLod {
   double cell_m = 0;
   ElevationMap heights;  // the height field meshed (world z per cell)
   TriangleMesh mesh;     // world frame: a vertex per valid cell centre
+  // Video colours (thesis sec. 6.4) when the map's cloud carries them (`sonar3d texture`), one
+  // per mesh vertex: the linear-RGB mean of the coloured seabed points in the vertex's cell, and
+  // how many there were (0: no colour; cells filled under structures have none). Empty when the
+  // cloud has no colours.
+  std::vector<Eigen::Vector3f> color;
+  std::vector<std::uint32_t> color_points;
+  std::size_t coloured_vertices() const;
 };
 
 struct Connection {
   std::string from, to;  // object ids
   std::string kind = "pipeline";
-  double length_m = 0;  // from the first to the last cross-section showing the ridge
-  double fraction = 0;  // of the cross-sections with data that show it
+  // Found: from the first to the last cross-section showing the ridge. Given only: the straight
+  // horizontal distance between the two footprint centres.
+  double length_m = 0;
+  double fraction = std::numeric_limits<double>::quiet_NaN();  // of the cross-sections with data
+                                                               // that show it; NaN: not found
+  bool found = false;                                          // by find_connections in the map
+  bool given = false;  // by the user (read_given_connections)
 };
 
 struct WorldModel {
@@ -119,6 +131,10 @@ struct WorldModel {
   std::vector<SeabedLod> seabed;
   std::size_t cloud_points = 0, seabed_points = 0;  // seabed: the points no model explains
   std::size_t filled_cells = 0;                     // finest LOD cells filled under footprints
+  // Seabed points with a video colour: a cloud's point is coloured when its `views` property
+  // (sonar3d texture: the frames that coloured it) is > 0, or, without that property, when its
+  // colour is not black (texture writes black where no frame saw a point).
+  std::size_t coloured_seabed_points = 0;
   double seconds = 0;
 };
 
@@ -159,6 +175,32 @@ std::size_t fill_holes(ElevationMap& map, const std::vector<std::uint8_t>& fill_
 std::vector<Connection> find_connections(const ElevationMap& seabed,
                                          const std::vector<WorldObject>& objects,
                                          const ConnectionConfig& config, double margin_m);
+
+// A connection the user knows (from drawings, or an earlier survey), in a YAML file:
+//   connections:
+//     - {from: riser_0, to: tank_0, kind: pipeline}   # kind optional, default pipeline
+// `from` and `to` are object ids as the world model names them ("<model>_<n>", graph.json).
+struct GivenConnection {
+  std::string from, to, kind = "pipeline";
+  int line = 0;  // 1-based line in the file, for errors
+};
+constexpr std::size_t kMaxGivenConnections = 100'000;
+// Errors (one line, naming the file and line): not YAML, no `connections` list, an entry that
+// is not a map, unknown keys, `from`/`to` missing or empty, more than kMaxGivenConnections.
+std::vector<GivenConnection> read_given_connections(const std::string& path);
+
+// Adds the given connections to the world's. An id that names no object, a connection from an
+// object to itself, or a pair given twice is an Error naming the file and line. A pair also found
+// in the map keeps its measured length and fraction and is marked given too; a pair not found
+// gets the straight horizontal distance between the footprint centres (SeabedConfig::margin_m
+// boxes) as its length.
+void add_given_connections(WorldModel& world, const std::vector<GivenConnection>& given,
+                           const std::string& source, double margin_m);
+
+// Takes the video colours (and `views`) of `coloured` — the same cloud coloured by `sonar3d
+// texture`, read from `source` — into `cloud`. The two must hold the same points in the same
+// order (texture without --drop-uncoloured keeps them); otherwise an Error naming `source`.
+void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source);
 
 // The whole world model from a world-frame cloud and its placed objects. An empty cloud, or a
 // cloud that every placed model explains entirely, is an Error.
