@@ -104,8 +104,10 @@ struct ColourChangeConfig {
   double min_sigma = 1.0;       // floor of the sigma, in the space's units (pp or ΔE*ab)
   double tolerance_m = 0.1;     // registration/drift left between the maps (colour edges), m
   double link_m = 0.1;          // changed cells closer than this form one region, m
-  double min_area_m2 = 0.05;    // smaller regions are dropped, m²
-  int min_overlap_cells = 20;   // fewer cells compared: the colour clouds do not overlap
+  // Smaller regions are dropped, m² (on the simulated pairs the false ones at colour edges were
+  // 0.05–0.08 m², docs/change.md).
+  double min_area_m2 = 0.1;
+  int min_overlap_cells = 20;  // fewer cells compared: the colour clouds do not overlap
   void validate() const;
 };
 
