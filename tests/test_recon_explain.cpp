@@ -20,18 +20,6 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-// A reduced 20° sensor: 30° × 20°, 60 beams, 1–4 m in 2 cm bins.
-SonarSpec spec20() {
-  SonarSpec s;
-  s.name = "test-20deg";
-  s.set_uniform_bearings(30 * kDeg, 60);
-  s.r_min = 1.0;
-  s.r_max = 4.0;
-  s.range_bins = 150;
-  s.vertical_aperture_rad = 20 * kDeg;
-  return s;
-}
-
 // An open frame 0.66 × 0.66 × 0.6 m of 6 cm members: four legs at (±0.3, ±0.3), a top ring and
 // a mid-height brace on the front and back faces.
 constexpr double kHalf = 0.3, kMember = 0.06, kHeight = 0.6;
@@ -59,13 +47,9 @@ Scene frame_scene() {
 // Two vertical passes 2.5 m from the front (−x) and left (−y) faces, from 0.3 m below the base
 // to 0.5 m above the top every 2 cm, carved at 2 cm voxels above the seabed.
 PointCloud carve_frame(bool explain, std::size_t* ghosts = nullptr) {
-  const SonarSpec spec = spec20();
+  const SonarSpec spec = test::reduced_spec_20deg();
   const Scene scene = frame_scene();
-  SimulatorConfig sc;
-  sc.elevation_step_rad = 0.05 * kDeg;
-  sc.jitter = true;
-  sc.gain = 2.0;
-  const Simulator sim(scene, spec, sc);
+  const Simulator sim(scene, spec, test::jittered_sim_config(0.05));
   CarveConfig cfg;
   cfg.voxel_size = 0.01;
   cfg.region =
@@ -127,7 +111,7 @@ TEST(Explain, GhostsOfAnOpenFrameGoMembersStay) {
 // Points no frame put in a return pixel, and a cloud without frames, are left alone; a sensor
 // mismatch is an error naming the frame.
 TEST(Explain, EdgeCases) {
-  const SonarSpec spec = spec20();
+  const SonarSpec spec = test::reduced_spec_20deg();
   PointCloud cloud;
   cloud.points = {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(2, 0, 0)};
   OcclusionConfig cfg;
