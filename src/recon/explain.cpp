@@ -1,16 +1,17 @@
 // Return explanation (beyond the thesis, issue 15): removes the map points that no return needs.
 // See include/sonar3d/recon/visibility.hpp (explain_returns) and docs/carving.md, "Interior
-// ghosts: returns explained by other points".
+// ghosts: returns explained by other surfaces".
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <unordered_map>
+#include <vector>
 
 #include "carve_footprint.hpp"
 #include "sonar3d/core/error.hpp"
@@ -134,9 +135,9 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
                                                : static_cast<int>(tbb::task_arena::automatic));
 
   // One pass over every frame: per return pixel, the live points lying in it, split into
-  // surfaces along the elevation arc. A pixel holding one surface needs it (`needed`); in a
-  // pixel holding several, a surface is explained away when another one holds a pinned point,
-  // and otherwise `kept` (its return may be its own).
+  // surfaces along the elevation arc. A surface alone in its pixel counts towards pinning its
+  // points (`alone`); in a pixel holding several, a surface is explained away when another one
+  // holds a pinned point, and `unexplained` otherwise (the return may be its own).
   auto pass = [&] {
     for (std::size_t n = 0; n < n_points; ++n) {
       in_return[n].store(0, std::memory_order_relaxed);
