@@ -21,18 +21,6 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-// A reduced 20° sensor: 30° × 20°, 60 beams, 1–4 m in 2 cm bins.
-SonarSpec spec20() {
-  SonarSpec s;
-  s.name = "test-20deg";
-  s.set_uniform_bearings(30 * kDeg, 60);
-  s.r_min = 1.0;
-  s.r_max = 4.0;
-  s.range_bins = 150;
-  s.vertical_aperture_rad = 20 * kDeg;
-  return s;
-}
-
 // A box 0.4 × 0.6 × 0.6 m standing on z = 0 (top at 0.6 m, front face at x = -0.2 m).
 constexpr double kTop = 0.6, kFront = -0.2, kSonarX = -2.5;
 TriangleMesh box_mesh() {
@@ -52,18 +40,14 @@ struct PassRun {
 
 // A vertical pass at x = -2.5 m from z0 to z1 every 2 cm, carved at 2 cm voxels above the seabed.
 PassRun carve_pass(double z0, double z1) {
-  const SonarSpec spec = spec20();
+  const SonarSpec spec = test::reduced_spec_20deg();
   Scene scene;
   SceneObject box;
   box.name = "box";
   box.mesh_world = box_mesh();
   box.reflectivity = 0.8;
   scene.objects.push_back(box);
-  SimulatorConfig sc;
-  sc.elevation_step_rad = 0.05 * kDeg;
-  sc.jitter = true;
-  sc.gain = 2.0;
-  const Simulator sim(scene, spec, sc);
+  const Simulator sim(scene, spec, test::jittered_sim_config(0.05));
   CarveConfig cfg;
   cfg.voxel_size = 0.02;
   cfg.region = region();
@@ -100,7 +84,8 @@ TEST(Bracket, PassStoppingShortWarnsWithTheRuleExtension) {
   const double end = kTop + rt;
   PassRun run = carve_pass(-0.3, end);
   ASSERT_FALSE(run.cloud.empty());
-  const BracketReport rep = assess_bracketing(run.cloud, run.poses, spec20(), {}, region());
+  const BracketReport rep =
+      assess_bracketing(run.cloud, run.poses, test::reduced_spec_20deg(), {}, region());
   ASSERT_EQ(rep.passes, 1u);
   const PassExtension* e = upper_extension(rep);
   ASSERT_NE(e, nullptr) << "no warning for a pass that stops short";
@@ -120,7 +105,8 @@ TEST(Bracket, PassStoppingShortWarnsWithTheRuleExtension) {
 // at least 1.1·r·tan(A_v/2), a lower bound of the rule's 2·r·tan(A_v/2) from the true top.
 TEST(Bracket, PassEndingAtTheTopWarnsWithALowerBound) {
   PassRun run = carve_pass(-0.3, kTop);
-  const BracketReport rep = assess_bracketing(run.cloud, run.poses, spec20(), {}, region());
+  const BracketReport rep =
+      assess_bracketing(run.cloud, run.poses, test::reduced_spec_20deg(), {}, region());
   const PassExtension* e = upper_extension(rep);
   ASSERT_NE(e, nullptr);
   const double rt = e->range * std::tan(10 * kDeg);
@@ -134,8 +120,10 @@ TEST(Bracket, PassEndingAtTheTopWarnsWithALowerBound) {
 TEST(Bracket, LongPassGivesNoWarningAndBracketsTheRegion) {
   PassRun longer = carve_pass(-0.3, kTop + 1.0);
   PassRun shorter = carve_pass(-0.3, kTop + 0.1);
-  const BracketReport a = assess_bracketing(longer.cloud, longer.poses, spec20(), {}, region());
-  const BracketReport b = assess_bracketing(shorter.cloud, shorter.poses, spec20(), {}, region());
+  const BracketReport a =
+      assess_bracketing(longer.cloud, longer.poses, test::reduced_spec_20deg(), {}, region());
+  const BracketReport b =
+      assess_bracketing(shorter.cloud, shorter.poses, test::reduced_spec_20deg(), {}, region());
   EXPECT_EQ(upper_extension(a), nullptr) << a.warnings().front();
   EXPECT_NE(upper_extension(b), nullptr);
   EXPECT_GT(a.region_samples, 1000u);
@@ -148,7 +136,8 @@ TEST(Bracket, LongPassGivesNoWarningAndBracketsTheRegion) {
 TEST(Bracket, PropertiesAndGhostFilter) {
   PassRun run = carve_pass(-0.3, kTop + 0.2);
   PointCloud all = run.cloud;
-  const BracketReport rep = assess_bracketing(all, run.poses, spec20(), {}, region());
+  const BracketReport rep =
+      assess_bracketing(all, run.poses, test::reduced_spec_20deg(), {}, region());
   ASSERT_EQ(rep.kept, all.size());
   const PointProperty* b = all.property("bracket");
   const PointProperty* v = all.property("views");
@@ -179,7 +168,8 @@ TEST(Bracket, PropertiesAndGhostFilter) {
   BracketConfig cfg;
   cfg.min_bracket = 0.5;
   PointCloud filtered = run.cloud;
-  const BracketReport fr = assess_bracketing(filtered, run.poses, spec20(), cfg, region());
+  const BracketReport fr =
+      assess_bracketing(filtered, run.poses, test::reduced_spec_20deg(), cfg, region());
   EXPECT_EQ(fr.kept, filtered.size());
   const EvalResult before = evaluate(all, box_mesh(), EvalConfig());
   const EvalResult after = evaluate(filtered, box_mesh(), EvalConfig());

@@ -14,6 +14,7 @@
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/scene.hpp"
+#include "sonar3d/sim/simulator.hpp"
 
 namespace sonar3d::test {
 
@@ -28,6 +29,27 @@ inline Scene sphere_scene() {
   o.reflectivity = 0.8;
   scene.objects.push_back(o);
   return scene;
+}
+
+// A reduced 20° sensor for fast carving tests: 30° × 20°, 60 beams, 1–4 m in 2 cm bins.
+inline SonarSpec reduced_spec_20deg() {
+  SonarSpec s;
+  s.name = "test-20deg";
+  s.set_uniform_bearings(30 * M_PI / 180, 60);
+  s.r_min = 1.0;
+  s.r_max = 4.0;
+  s.range_bins = 150;
+  s.vertical_aperture_rad = 20 * M_PI / 180;
+  return s;
+}
+
+// The simulator as the carving tests run it: rays every `step_deg` in elevation, jittered, gain 2.
+inline SimulatorConfig jittered_sim_config(double step_deg) {
+  SimulatorConfig c;
+  c.elevation_step_rad = step_deg * M_PI / 180;
+  c.jitter = true;
+  c.gain = 2.0;
+  return c;
 }
 
 // A camera at `eye` looking at `target` in OpenCV axes (+z forward, +x right, +y down), the world

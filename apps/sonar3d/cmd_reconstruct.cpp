@@ -180,6 +180,10 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
       st.frames, st.candidates, st.points, o.output, 1e3 * st.integrate_seconds / n,
       1e3 * st.occlusion_seconds / n, st.map_bytes / 1e6, st.frame_bytes / 1e6,
       peak_rss_bytes() / 1e6, integrate_peak / 1e6);
+  if (cfg.occlusion.explain_returns) {
+    fmt::print("  --explain-returns dropped {} points whose returns other surfaces explain\n",
+               st.ghosts);
+  }
   if (st.min_observations_used < cfg.min_observations) {
     fmt::print(
         "  note: a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need {} "
@@ -202,6 +206,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     j["leaves"] = st.leaves;
     j["candidate_voxels"] = st.candidate_voxels;
     j["occlusion_bytes"] = st.occlusion_bytes;
+    if (cfg.occlusion.explain_returns) j["ghosts_explained"] = st.ghosts;
     j["voxel_size"] = cfg.voxel_size;
     j["bracketing"] = nlohmann::json::parse(br.to_json());
     write_text_file(o.json, j.dump(2) + "\n");
@@ -291,6 +296,11 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "carving: keep the thesis' occlusion rule only (by default, beyond the thesis, "
                 "candidates that a frame saw in an empty pixel with nothing mapped nearer on their "
                 "own line of sight are dropped as free space, not shadow)");
+  cmd->add_flag("--explain-returns,!--no-explain-returns", o->carve.occlusion.explain_returns,
+                "carving, beyond the thesis: after occlusion resolution, drop the points whose "
+                "every return another surface explains (one alone in its pixel in 10 % of the "
+                "frames that see it), then refute again the free space they hid: interior ghosts "
+                "of open structures (docs/carving.md)");
   cmd->add_option("--lambda", o->deconv.lambda_fraction,
                   "deconv: L1 weight λ as a fraction of λ_max, in [0, 1] (eq. 5.28; 0.5 = "
                   "Table 5.1)")

@@ -133,7 +133,8 @@ void bind_recon(py::module_& m) {
   py::class_<CarveConfig>(m, "CarveConfig",
                           "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or "
                           "None), denoise (DenoiseConfig), resolve_occlusions, static_threshold, "
-                          "carve_margin, min_elevation_span, min_observations, num_threads (0 = "
+                          "carve_margin, explain_returns, min_elevation_span, min_observations, "
+                          "num_threads (0 = "
                           "all cores).")
       .def(py::init(&from_kwargs<CarveConfig>))
       .def_readwrite("voxel_size", &CarveConfig::voxel_size)
@@ -147,6 +148,9 @@ void bind_recon(py::module_& m) {
       .def_readwrite("pose_sigma_position", &CarveConfig::pose_sigma_position)
       .def_readwrite("pose_sigma_attitude_deg", &CarveConfig::pose_sigma_attitude_deg)
       .def_readwrite("pose_sigma_k", &CarveConfig::pose_sigma_k)
+      .def_property(
+          "explain_returns", [](const CarveConfig& c) { return c.occlusion.explain_returns; },
+          [](CarveConfig& c, bool v) { c.occlusion.explain_returns = v; })
       .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
       .def_readwrite("min_observations", &CarveConfig::min_observations)
       .def_readwrite("num_threads", &CarveConfig::num_threads)

@@ -45,6 +45,20 @@ def test_carve_a_sphere(sphere_dataset):
     assert abs(len(p2) - len(points)) <= 0.01 * len(points)
 
 
+def test_explain_returns_keeps_a_sphere(sphere_dataset):
+    # The return explanation (issue 15) removes only points other surfaces explain: a lone
+    # sphere keeps its surface.
+    ds = sonar3d.read_dataset(sphere_dataset)
+    cfg = sonar3d.CarveConfig(voxel_size=0.02, region=([-1, -1, -1], [1, 1, 1]))
+    assert not cfg.explain_returns
+    plain, _, _ = sonar3d.carve(ds, cfg)
+    cfg.explain_returns = True
+    points, _, _ = sonar3d.carve(ds, cfg)
+    assert 0.9 * len(plain) <= len(points) <= len(plain)
+    r = sonar3d.evaluate_dataset(points, sphere_dataset)["ball"]
+    assert r["median_error"] < 0.03
+
+
 def test_deconvolve_a_sphere(sphere_dataset):
     ds = sonar3d.read_dataset(sphere_dataset)
     points, b, report = sonar3d.deconvolve(ds, sonar3d.DeconvConfig(beam="sinc"))

@@ -775,6 +775,7 @@ PointCloud Carver::finalize(Progress* progress) {
       }
     }
   }
+  if (occ.explain_returns) out = drop_unexplained(out, m.frames, m.spec, occ, &m.stats.ghosts);
   m.stats.occlusion_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   m.stats.points = out.size();

@@ -54,6 +54,7 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     j["points"] = st.points;
     j["integrate_seconds"] = st.integrate_seconds;
     j["occlusion_seconds"] = st.occlusion_seconds;
+    if (cfg.occlusion.explain_returns) j["ghosts_explained"] = st.ghosts;
     j["map_bytes"] = st.map_bytes;
     j["frame_bytes"] = st.frame_bytes;
     j["min_observations_used"] = st.min_observations_used;

@@ -407,6 +407,7 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     out.points.push_back(candidates_world.points[n]);
     if (has_i) out.intensity.push_back(candidates_world.intensity[n]);
   }
+  if (config.explain_returns) return drop_unexplained(out, frames, spec, config);
   return out;
 }
 

@@ -100,6 +100,7 @@ struct CarveStats {
   std::size_t candidate_voxels = 0;
   std::size_t leaves = 0;
   std::size_t occlusion_bytes = 0;  // working memory of the last finalize()'s occlusion resolution
+  std::size_t ghosts = 0;           // points the last finalize()'s return explanation removed
 };
 
 class Carver {

@@ -73,6 +73,12 @@ struct OcclusionConfig {
   // 30° goes from 68 % outliers to 2 %; deconvolution keeps it off: there it costs coverage
   // (30°: 40 → 24 %) for a lower median (docs/carving.md, docs/deconvolution.md).
   bool refute_free = false;
+  // Beyond the thesis (issue 15): after the occlusion test, drop the points no return needs
+  // (explain_returns() below). A return fixes range and bearing but not elevation, so a point
+  // inside an open structure that lies, in every frame, on the elevation arc of a member's return
+  // is never carved nor refuted; it is a ghost when every return it lies in is explained by a
+  // point of another surface that some frame pins down. false = keep them (the thesis).
+  bool explain_returns = false;
   int num_threads = 0;    // 0 = all cores
   void validate() const;  // throws Error naming the field
 };
@@ -81,9 +87,42 @@ struct OcclusionConfig {
 // labels map points (candidates, world frame, intensity = carved bound) as observed or shadowed
 // by a nearer scatterer along the same elevation interval, and keeps the points observed in at
 // least one frame, one per voxel with the lowest bound (carving rule). Only candidates lying in a
-// pixel with a return take part in a frame. `progress`, when given, advances once per frame.
+// pixel with a return take part in a frame. With config.explain_returns, drop_unexplained()
+// follows. `progress`, when given, advances once per frame.
 PointCloud resolve_occlusions(const PointCloud& candidates_world,
                               const std::vector<FrameReturns>& frames, const SonarSpec& spec,
                               const OcclusionConfig& config, Progress* progress = nullptr);
+
+// Return explanation (beyond the thesis, issue 15). The occlusion rule (sec. 4.4.5) keeps every
+// point that is the nearest in its elevation interval, whatever else lies in its pixel; inside an
+// open structure a voxel can lie, in every frame, on the elevation arc of a member's return (a
+// bound, never carved) or behind one (a possible shadow, never refuted) and stays as a ghost.
+// Per frame and return pixel (range bin, beam), the points lying in it — up to 2 θ_3dB off the
+// image plane, where the beam's main lobe still returns (eq. 2.8) — are split into surfaces
+// along the pixel's elevation arc (runs without a gap longer than 3 voxels). A point is pinned
+// when its surface is the only one in its pixel in at least 10 % of the frames that put it in a
+// return pixel: nothing else can have returned there. A point that is not pinned is a ghost when
+// every return pixel it lies in, in every frame, also holds a pinned point of another surface:
+// each of its returns is explained without it. Ghosts are removed and the passes repeat (a
+// removal can leave a surface alone and pin it) until nothing changes, at most 8 passes. A
+// return pixel that held points keeps one (a pinned one): no observed return is left
+// unexplained. Returns per point 0 = ghost, 1 = kept, 2 = kept and pinned; config.voxel_size
+// sets the gap, config.num_threads the threads. Points no frame puts in a return pixel are kept.
+struct ExplainStats {
+  std::size_t removed = 0;  // ghosts
+  std::size_t pinned = 0;   // points alone in some return pixel
+  int iterations = 0;       // passes over the frames
+};
+std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
+                                          const std::vector<FrameReturns>& frames,
+                                          const SonarSpec& spec, const OcclusionConfig& config,
+                                          ExplainStats* stats = nullptr);
+// Rounds of explain_returns() and, with config.refute_free, occlusion resolution again over what
+// is left (the ghosts gone, the free space they hid refutes others; pinned points stay), until a
+// round removes nothing (at most 4). Returns the points kept with their intensities, colours
+// and properties; `removed` receives how many were dropped.
+PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
+                            const SonarSpec& spec, const OcclusionConfig& config,
+                            std::size_t* removed = nullptr);
 
 }  // namespace sonar3d

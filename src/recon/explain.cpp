@@ -1,0 +1,286 @@
+// Return explanation (beyond the thesis, issue 15): removes the map points that no return needs.
+// See include/sonar3d/recon/visibility.hpp (explain_returns) and docs/carving.md, "Interior
+// ghosts: returns explained by other surfaces".
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "carve_footprint.hpp"
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/recon/visibility.hpp"
+
+namespace sonar3d {
+
+namespace {
+
+// Points grouped in cubes of 8 voxels, so that a frame skips, in one test, the cubes that cannot
+// lie in one of its return pixels.
+struct PointBlock {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double radius = 0;
+  std::vector<std::uint32_t> points;
+};
+
+std::vector<PointBlock> group_points(const PointCloud& cloud, double voxel_size) {
+  struct Key {
+    std::int64_t x, y, z;
+    bool operator==(const Key& o) const { return x == o.x && y == o.y && z == o.z; }
+  };
+  struct Hash {
+    std::size_t operator()(const Key& k) const {
+      return static_cast<std::size_t>(k.x * 73856093 ^ k.y * 19349663 ^ k.z * 83492791);
+    }
+  };
+  const double inv = 1.0 / (8 * voxel_size);
+  std::unordered_map<Key, std::size_t, Hash> index;
+  std::vector<PointBlock> blocks;
+  std::vector<Eigen::AlignedBox3d> boxes;
+  for (std::size_t n = 0; n < cloud.size(); ++n) {
+    const Eigen::Vector3f& p = cloud.points[n];
+    if (!p.allFinite()) continue;
+    const Key k{static_cast<std::int64_t>(std::floor(p.x() * inv)),
+                static_cast<std::int64_t>(std::floor(p.y() * inv)),
+                static_cast<std::int64_t>(std::floor(p.z() * inv))};
+    auto [it, added] = index.emplace(k, blocks.size());
+    if (added) {
+      blocks.emplace_back();
+      boxes.emplace_back();
+    }
+    blocks[it->second].points.push_back(static_cast<std::uint32_t>(n));
+    boxes[it->second].extend(p.cast<double>());
+  }
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    blocks[b].centre = boxes[b].center();
+    blocks[b].radius = 0.5 * boxes[b].diagonal().norm() + 1e-6;
+  }
+  return blocks;
+}
+
+// The rule's constants (include/sonar3d/recon/visibility.hpp, explain_returns; measured in
+// docs/carving.md, "Interior ghosts").
+// Points of a pixel are split into surfaces at gaps along its elevation arc longer than this
+// (voxels): a face crossed at grazing incidence fills a long run of the arc.
+constexpr double kExplainGapVoxels = 3.0;
+// Points up to this many θ_3dB off the image plane may have returned into a pixel.
+constexpr double kExplainLobe = 2.0;
+// A point is pinned when its surface is alone in its pixel in at least this fraction of the
+// frames that put it in a return pixel (and in one at least).
+constexpr double kExplainPinFraction = 0.1;
+constexpr int kExplainMaxIterations = 8;  // explanation passes per round
+constexpr int kExplainMaxRounds = 4;      // rounds of explanation, then occlusion resolution
+
+struct Hit {
+  std::uint32_t pixel;  // range bin · beams + beam
+  float arc;            // r·θ (m): position along the pixel's elevation arc
+  std::uint32_t point;
+  bool in_aperture;  // |θ| <= θ_3dB: the pixel's return may be its own
+};
+
+}  // namespace
+
+std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
+                                          const std::vector<FrameReturns>& frames,
+                                          const SonarSpec& spec, const OcclusionConfig& config,
+                                          ExplainStats* stats) {
+  config.validate();
+  spec.validate();
+  const std::size_t n_points = points_world.size();
+  std::vector<std::uint8_t> alive(n_points, 1);
+  if (stats) *stats = {};
+  if (n_points == 0 || frames.empty()) return alive;
+  if (n_points > std::numeric_limits<std::uint32_t>::max()) {
+    throw Error("explain_returns: more than 2^32 points");
+  }
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (frames[f].range_bins != spec.range_bins || frames[f].beams != spec.beams()) {
+      throw Error("explain_returns: frame " + std::to_string(f) +
+                  " was summarized for another sonar (size differs from '" + spec.name + "')");
+    }
+  }
+  const detail::SonarGeometry g(spec);
+  const std::vector<PointBlock> blocks = group_points(points_world, config.voxel_size);
+  // Two points of a pixel belong to the same surface when no gap longer than this separates
+  // them along its elevation arc (a face crossed at grazing incidence fills a long run of it).
+  const double gap = kExplainGapVoxels * config.voxel_size;
+  std::vector<std::uint8_t> pinned(n_points, 0);
+  // Per point and pass: in how many frames it lies in a return pixel, in how many of those its
+  // surface is alone there, and whether in one of them no other surface holds a pinned point.
+  std::unique_ptr<std::atomic<int>[]> in_return(new std::atomic<int>[n_points]);
+  std::unique_ptr<std::atomic<int>[]> alone(new std::atomic<int>[n_points]);
+  std::unique_ptr<std::atomic<std::uint8_t>[]> unexplained(new std::atomic<std::uint8_t>[n_points]);
+  tbb::enumerable_thread_specific<std::vector<Hit>> scratch;
+  // Beyond the vertical aperture the beam pattern's main lobe still returns (sinc, eq. 2.8: first
+  // null at 2.26 θ_3dB): a point out there can explain a return, so it counts as another surface
+  // of the pixel, though the pixel says nothing about the point itself.
+  const double theta_lobe = std::min(kExplainLobe * g.theta3, 0.49 * M_PI);
+  auto outside_lobe = [&](const Eigen::Vector3d& c, double radius) {
+    const double d = c.norm();
+    if (d + radius < g.r_min || d - radius >= g.r_max) return true;
+    const double rho = std::sqrt(c.x() * c.x() + c.y() * c.y());
+    if (d <= 1.01 * radius || rho <= 1.01 * radius) return false;
+    const double alpha = std::asin(radius / d) + 1e-3;
+    if (std::abs(std::atan2(c.z(), rho)) - alpha > theta_lobe) return true;
+    const double beta = std::asin(radius / rho) + 1e-3, phi = std::atan2(c.y(), c.x());
+    return phi + beta < g.fov_min || phi - beta >= g.fov_max;
+  };
+  tbb::task_arena arena(config.num_threads > 0 ? config.num_threads
+                                               : static_cast<int>(tbb::task_arena::automatic));
+
+  // One pass over every frame: per return pixel, the live points lying in it, split into
+  // surfaces along the elevation arc. A surface alone in its pixel counts towards pinning its
+  // points (`alone`); in a pixel holding several, a surface is explained away when another one
+  // holds a pinned point, and `unexplained` otherwise (the return may be its own).
+  auto pass = [&] {
+    for (std::size_t n = 0; n < n_points; ++n) {
+      in_return[n].store(0, std::memory_order_relaxed);
+      alone[n].store(0, std::memory_order_relaxed);
+      unexplained[n].store(0, std::memory_order_relaxed);
+    }
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
+        const FrameReturns& fr = frames[f];
+        const detail::FrameFootprint fp(g, fr);
+        std::vector<Hit>& hits = scratch.local();
+        hits.clear();
+        for (const PointBlock& b : blocks) {
+          if (outside_lobe(fp.to_sonar(b.centre), b.radius)) continue;
+          for (std::uint32_t n : b.points) {
+            if (!alive[n]) continue;
+            const Eigen::Vector3d p = fp.to_sonar(points_world.points[n].cast<double>());
+            const double r2 = p.squaredNorm();
+            if (r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
+            const double r = std::sqrt(r2);
+            const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
+            const double theta = std::atan2(p.z(), rho);
+            if (std::abs(theta) > theta_lobe) continue;
+            const double phi = detail::fast_atan2(p.y(), p.x());
+            if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
+            const int j = g.beam(phi);
+            const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
+            if (!fr.has_return(i, j)) continue;
+            hits.push_back({static_cast<std::uint32_t>(i * g.beams + j),
+                            static_cast<float>(r * theta), n, std::abs(theta) <= g.theta3});
+          }
+        }
+        std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+          return a.pixel != b.pixel ? a.pixel < b.pixel : a.arc < b.arc;
+        });
+        for (std::size_t b = 0; b < hits.size();) {
+          std::size_t e = b + 1;
+          while (e < hits.size() && hits[e].pixel == hits[b].pixel) ++e;
+          std::size_t pixel_pinned = 0, surfaces = 1;
+          for (std::size_t k = b; k < e; ++k) {
+            pixel_pinned += pinned[hits[k].point];
+            if (k > b && hits[k].arc - hits[k - 1].arc > gap) ++surfaces;
+          }
+          for (std::size_t s0 = b; s0 < e;) {
+            std::size_t s1 = s0 + 1, own_pinned = pinned[hits[s0].point];
+            while (s1 < e && hits[s1].arc - hits[s1 - 1].arc <= gap)
+              own_pinned += pinned[hits[s1++].point];
+            const bool single = surfaces == 1;
+            const bool explained_elsewhere = pixel_pinned > own_pinned;
+            for (std::size_t k = s0; k < s1; ++k) {
+              if (!hits[k].in_aperture) continue;
+              const std::uint32_t n = hits[k].point;
+              in_return[n].fetch_add(1, std::memory_order_relaxed);
+              if (single) alone[n].fetch_add(1, std::memory_order_relaxed);
+              if (!explained_elsewhere) unexplained[n].store(1, std::memory_order_relaxed);
+            }
+            s0 = s1;
+          }
+          b = e;
+        }
+      });
+    });
+  };
+
+  std::size_t removed = 0;
+  int iterations = 0;
+  for (; iterations < kExplainMaxIterations; ++iterations) {
+    pass();
+    bool changed = false;
+    for (std::size_t n = 0; n < n_points; ++n) {
+      if (!alive[n]) continue;
+      const int seen = in_return[n].load(std::memory_order_relaxed);
+      const int single = alone[n].load(std::memory_order_relaxed);
+      if (!pinned[n] && single > 0 && single >= kExplainPinFraction * seen) {
+        pinned[n] = 1;
+        changed = true;
+      }
+      // Every return pixel it lies in holds a pinned point of another surface (a point no frame
+      // put in a return pixel stays: the explanation has nothing to say about it).
+      if (seen > 0 && !pinned[n] && !unexplained[n].load(std::memory_order_relaxed)) {
+        alive[n] = 0;
+        ++removed;
+        changed = true;
+      }
+    }
+    if (!changed) break;
+  }
+  if (stats) {
+    stats->removed = removed;
+    stats->iterations = iterations;
+    stats->pinned = static_cast<std::size_t>(std::count(pinned.begin(), pinned.end(), 1));
+  }
+  for (std::size_t n = 0; n < n_points; ++n) alive[n] += pinned[n];
+  return alive;
+}
+
+PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
+                            const SonarSpec& spec, const OcclusionConfig& config,
+                            std::size_t* removed) {
+  auto select = [](const PointCloud& in, const std::vector<std::uint8_t>& keep) {
+    PointCloud out;
+    out.properties = in.properties;
+    for (auto& p : out.properties) p.values.clear();
+    for (std::size_t n = 0; n < in.size(); ++n) {
+      if (!keep[n]) continue;
+      out.points.push_back(in.points[n]);
+      if (in.has_intensity()) out.intensity.push_back(in.intensity[n]);
+      if (in.has_color()) out.color.push_back(in.color[n]);
+      for (std::size_t a = 0; a < out.properties.size(); ++a)
+        out.properties[a].values.push_back(in.properties[a].values[n]);
+    }
+    return out;
+  };
+  OcclusionConfig plain = config;
+  plain.explain_returns = false;
+  PointCloud cur = points_world;
+  for (int round = 0; round < kExplainMaxRounds; ++round) {
+    ExplainStats st;
+    const std::vector<std::uint8_t> code = explain_returns(cur, frames, spec, config, &st);
+    std::vector<std::uint8_t> pinned;
+    for (std::uint8_t c : code)
+      if (c) pinned.push_back(c == 2);
+    cur = select(cur, code);
+    if ((st.removed == 0 && round > 0) || !config.refute_free) break;
+    // The ghosts gone, free space they hid may refute others (refute_free): a point in an empty
+    // pixel with nothing left nearer on its own line of sight. Pinned points stay.
+    // resolve_occlusions() keeps a subsequence of its input, in order.
+    const PointCloud resolved = resolve_occlusions(cur, frames, spec, plain);
+    std::vector<std::uint8_t> keep(cur.size(), 1);
+    std::size_t dropped = 0;
+    for (std::size_t n = 0, m = 0; n < cur.size(); ++n) {
+      if (m < resolved.size() && resolved.points[m] == cur.points[n]) {
+        ++m;
+      } else if (!pinned[n]) {
+        keep[n] = 0;
+        ++dropped;
+      }
+    }
+    if (dropped == 0) break;
+    cur = select(cur, keep);
+  }
+  if (removed) *removed = points_world.size() - cur.size();
+  return cur;
+}
+
+}  // namespace sonar3d
