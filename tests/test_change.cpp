@@ -398,6 +398,11 @@ TEST(ColourChange, BadInputsGiveClearErrors) {
   PointCloud black = b;
   for (auto& c : black.color) c = {0, 0, 0};
   test::expect_error([&] { check_colour_cloud(black, "black.ply"); }, "no coloured point");
+  // ... unless its `views` (sonar3d texture) say cameras saw them: a black surface.
+  black.properties.push_back({"views", std::vector<float>(black.size(), 2.0f)});
+  EXPECT_NO_THROW(check_colour_cloud(black, "black.ply"));
+  black.properties.back().values.assign(black.size(), 0.0f);
+  test::expect_error([&] { check_colour_cloud(black, "black.ply"); }, "no coloured point");
   // A colour cell so small that the grid would take gigabytes: refused before allocating.
   ColourChangeConfig tiny = test_config().colour;
   tiny.cell_m = 1e-4;

@@ -348,4 +348,15 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   return r;
 }
 
+std::vector<std::uint8_t> video_coloured(const PointCloud& cloud) {
+  std::vector<std::uint8_t> out(cloud.size(), 0);
+  if (!cloud.has_color()) return out;
+  const PointProperty* views = cloud.property("views");
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const auto& c = cloud.color[i];
+    out[i] = views != nullptr ? views->values[i] > 0 : (c[0] | c[1] | c[2]) != 0;
+  }
+  return out;
+}
+
 }  // namespace sonar3d

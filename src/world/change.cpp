@@ -699,9 +699,9 @@ ColourGrid bin_colours(const PointCloud& cloud, const ElevationMap& grid, double
   // The cell of each coloured point (or none), and the top of each cell.
   std::vector<std::int64_t> cell(cloud.size(), -1);
   std::vector<float> top(grid.z.size(), -std::numeric_limits<float>::infinity());
+  const std::vector<std::uint8_t> seen = video_coloured(cloud);
   for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const auto& c = cloud.color[i];
-    if (c[0] == 0 && c[1] == 0 && c[2] == 0) continue;  // no camera saw it (sonar3d texture)
+    if (!seen[i]) continue;  // no camera saw it (sonar3d texture)
     const Eigen::Vector3f& p = cloud.points[i];
     const double u = std::floor((p.x() - grid.origin_xy.x()) / grid.cell_m);
     const double v = std::floor((grid.origin_xy.y() - p.y()) / grid.cell_m);
@@ -747,15 +747,14 @@ void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
   require(!cloud.empty(), name + " has no points");
   require(cloud.has_color(),
           name + " has no colour (uchar red, green, blue): colour it with sonar3d texture first");
-  bool any = false;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (!cloud.points[i].allFinite()) {
       throw Error(name + ": point " + std::to_string(i) + " is not finite");
     }
-    const auto& c = cloud.color[i];
-    any |= c[0] != 0 || c[1] != 0 || c[2] != 0;
   }
-  require(any, name + " has no coloured point (all black: no camera saw any)");
+  const std::vector<std::uint8_t> seen = video_coloured(cloud);
+  require(std::find(seen.begin(), seen.end(), 1) != seen.end(),
+          name + " has no coloured point (all black or views 0: no camera saw any)");
 }
 
 // Colour change (issue 13 item 4, beyond the thesis, whose sec. 6.4 maps video onto the sonar
@@ -946,6 +945,7 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
   if (colour_a != nullptr) {
     PointCloud b_in_a = transformed(*colour_b, r.registration.T_a_b);
     b_in_a.color = colour_b->color;
+    b_in_a.properties = colour_b->properties;  // `views` (video_coloured)
     r.colour = compare_colour(*colour_a, b_in_a, config.colour);
     // Each colour region's share of cells with a region of height change within the colour
     // tolerance: 0 = the surface itself changed (growth, paint), not the geometry.

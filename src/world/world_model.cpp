@@ -137,22 +137,6 @@ nlohmann::json num_or_null(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
-// Which points of a coloured cloud carry a video colour: `views` > 0 when the cloud has that
-// property, else any colour but black (sonar3d texture writes black where no frame saw a point).
-std::vector<std::uint8_t> coloured_points(const PointCloud& cloud) {
-  std::vector<std::uint8_t> out(cloud.size(), 0);
-  if (!cloud.has_color()) return out;
-  const PointProperty* views = nullptr;
-  for (const PointProperty& p : cloud.properties) {
-    if (p.name == "views") views = &p;
-  }
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const auto& c = cloud.color[i];
-    out[i] = views != nullptr ? views->values[i] > 0 : (c[0] | c[1] | c[2]) != 0;
-  }
-  return out;
-}
-
 // Per vertex of height_field_mesh(map) (a vertex per valid cell, row-major): the linear-RGB mean
 // of the coloured points falling in the vertex's cell, and their count.
 void seabed_colors(const ElevationMap& map, const PointCloud& seabed,
@@ -533,7 +517,7 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   w.cloud_points = cloud_world.size();
   const std::vector<std::uint8_t> explained =
       explained_points(cloud_world, objects, config.seabed.margin_m);
-  const std::vector<std::uint8_t> coloured_all = coloured_points(cloud_world);
+  const std::vector<std::uint8_t> coloured_all = video_coloured(cloud_world);
   PointCloud seabed;
   std::vector<std::uint8_t> coloured;
   Eigen::Vector2f lo = Eigen::Vector2f::Constant(std::numeric_limits<float>::max()), hi = -lo;

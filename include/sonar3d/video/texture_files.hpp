@@ -28,6 +28,12 @@ RgbImage read_rgb_image(const std::filesystem::path& path);
 // Writes a 16-bit sRGB-encoded PNG (atomic). The inverse of read_rgb_image within 1e-5.
 void write_rgb_image(const std::filesystem::path& path, const RgbImage& image);
 
+// Which points of a coloured cloud carry a video colour: those whose `views` property (written by
+// sonar3d texture: the frames that coloured each point) is > 0, or, for a cloud without it, those
+// whose colour is not black (texture writes black where no frame saw a point). All 0 for a cloud
+// without colours. Read by sonar3d world (seabed colours) and sonar3d diff (colour change).
+std::vector<std::uint8_t> video_coloured(const PointCloud& cloud);
+
 struct TextureFilesJob {
   std::filesystem::path cloud;  // PLY, world frame
   // Poses in the cloud's frame, from one of:
