@@ -36,6 +36,15 @@ float linear_to_srgb(float l) {
   return l <= 0.0031308f ? 12.92f * l : 1.055f * std::pow(l, 1.0f / 2.4f) - 0.055f;
 }
 
+std::array<std::uint8_t, 3> linear_to_srgb8(const Eigen::Vector3f& linear) {
+  std::array<std::uint8_t, 3> out{};
+  for (int k = 0; k < 3; ++k) {
+    out[static_cast<std::size_t>(k)] =
+        static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(linear[k])));
+  }
+  return out;
+}
+
 RgbImage read_rgb_image(const fs::path& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw Error("image '" + path.string() + "' is not a file");
@@ -335,13 +344,7 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
       if (k != views_k) out.properties[k].values.push_back(cloud.properties[k].values[i]);
     }
     out.properties[views_k].values.push_back(static_cast<float>(t.views[i]));
-    std::array<std::uint8_t, 3> c{0, 0, 0};
-    if (seen) {
-      for (int k = 0; k < 3; ++k) {
-        c[k] = static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(t.color[i][k])));
-      }
-    }
-    out.color.push_back(c);
+    out.color.push_back(seen ? linear_to_srgb8(t.color[i]) : std::array<std::uint8_t, 3>{0, 0, 0});
   }
   r.written = out.size();
   write_ply(job.output.string(), out);

@@ -318,10 +318,10 @@ void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMe
     for (std::size_t i = 0; i < m.vertices.size(); ++i) {
       std::memcpy(p, m.vertices[i].data(), 12);
       p += 12;
-      for (int k = 0; k < 3; ++k) {
-        *p++ = static_cast<char>(tm.views[i] ? std::lround(255.0f * linear_to_srgb(tm.color[i][k]))
-                                             : 0);
-      }
+      const std::array<std::uint8_t, 3> c =
+          tm.views[i] ? linear_to_srgb8(tm.color[i]) : std::array<std::uint8_t, 3>{0, 0, 0};
+      std::memcpy(p, c.data(), 3);
+      p += 3;
     }
     for (const auto& t : m.triangles) {
       *p++ = 3;
@@ -345,10 +345,7 @@ void write_textured_mesh_glb(const std::filesystem::path& path, const TexturedMe
   mesh.base_color = Eigen::Vector4f(1, 1, 1, 1);  // the vertex colours as they are
   mesh.colors.resize(tm.color.size());
   for (std::size_t i = 0; i < tm.color.size(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      mesh.colors[i][k] = static_cast<std::uint8_t>(
-          tm.views[i] ? std::lround(255.0f * linear_to_srgb(tm.color[i][k])) : 0);
-    }
+    if (tm.views[i]) mesh.colors[i] = linear_to_srgb8(tm.color[i]);  // else black (resize)
   }
   scene.meshes.push_back(std::move(mesh));
   GltfNode node;

@@ -668,15 +668,6 @@ Eigen::Vector3d linear_rgb_to_lab(const Eigen::Vector3d& rgb) {
   return {116 * fy - 16, 500 * (fx - fy), 200 * (fy - fz)};
 }
 
-std::array<std::uint8_t, 3> to_srgb8(const Eigen::Vector3d& rgb) {
-  std::array<std::uint8_t, 3> out{};
-  for (int k = 0; k < 3; ++k) {
-    const double e = linear_to_srgb(static_cast<float>(std::clamp(rgb[k], 0.0, 1.0)));
-    out[static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(std::lround(255 * e));
-  }
-  return out;
-}
-
 constexpr std::size_t kMaxColourCells = 5'000'000;
 
 // A coloured cloud binned on a grid: per cell the mean linear RGB and z of its coloured points.
@@ -882,8 +873,8 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
     const double n = static_cast<double>(comp.size());
     reg.centroid = sum / n;
     reg.mean_delta = sd / n;
-    reg.colour_a = to_srgb8(rgb_a / n);
-    reg.colour_b = to_srgb8(rgb_b / n);
+    reg.colour_a = linear_to_srgb8((rgb_a / n).cast<float>());
+    reg.colour_b = linear_to_srgb8((rgb_b / n).cast<float>());
     reg.cell_indices = comp;
     reg.id = static_cast<int>(out.regions.size());
     out.regions.push_back(reg);

@@ -809,11 +809,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
     const SeabedLod& lod = world.seabed[k];
     std::vector<std::array<std::uint8_t, 3>> colors;
     for (std::size_t v = 0; v < lod.color.size(); ++v) {
-      std::array<std::uint8_t, 3> c{0, 0, 0};
-      for (int j = 0; lod.color_points[v] > 0 && j < 3; ++j) {
-        c[j] = static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(lod.color[v][j])));
-      }
-      colors.push_back(c);
+      colors.push_back(lod.color_points[v] > 0 ? linear_to_srgb8(lod.color[v])
+                                               : std::array<std::uint8_t, 3>{0, 0, 0});
     }
     // With video colours the material is white, so that COLOR_0 shows as it is.
     const Eigen::Vector4f base = colors.empty() ? sand : Eigen::Vector4f(1, 1, 1, 1);

@@ -6,7 +6,10 @@
 // cameras and image tools write) and decoded to linear RGB before averaging, since averaging
 // light is only meaningful in linear units; 32-bit float images (TIFF) are taken as linear
 // already. The output PLY's uchar red/green/blue are sRGB-encoded again, as viewers display them.
+#include <Eigen/Core>
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -20,6 +23,8 @@ namespace sonar3d {
 // The sRGB transfer function (IEC 61966-2-1) and its inverse, on [0, 1] (clamped).
 float srgb_to_linear(float encoded);
 float linear_to_srgb(float linear);
+// A linear-RGB colour as the 8-bit sRGB bytes PLY and glTF files carry (clamped to [0, 1]).
+std::array<std::uint8_t, 3> linear_to_srgb8(const Eigen::Vector3f& linear);
 
 // Reads a colour or grey image (PNG, JPEG, TIFF ... through OpenCV) into linear RGB: 8/16-bit
 // sRGB decoded, float taken as linear (it must be finite); grey replicated, alpha dropped.
