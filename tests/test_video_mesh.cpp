@@ -199,30 +199,34 @@ TEST(TextureMesh, RasterVisibilityAgreesWithRays) {
       {distorted, look_at({3.0, -2.5, 2.0}, {0, 0.3, 0.3}), &img},
       {pinhole, look_at({-3.5, 0.3, 0.25}, {0, 0.3, 0.5}), &img},  // the seabed runs under it
   };
-  MeshTextureConfig rays_config;
-  rays_config.texel_m = 0;
-  rays_config.raster_visibility = false;
-  MeshTextureConfig raster_config = rays_config;
-  raster_config.raster_visibility = true;
-  for (std::size_t f = 0; f < views.size(); ++f) {
-    MeshTexturer by_rays(scene_mesh, rays_config), by_raster(scene_mesh, raster_config);
-    const std::size_t n_rays = by_rays.add(views[f], f);
-    const std::size_t n_raster = by_raster.add(views[f], f);
-    const TexturedMesh a = by_rays.result(), b = by_raster.result();
-    std::size_t differ = 0, hidden = 0;
-    for (std::size_t i = 0; i < a.views.size(); ++i) {
-      differ += a.views[i] != b.views[i];
-      hidden += a.views[i] == 0;
+  // texel 0: the vertices are the occluder's own; 3 cm: the occluder subdivided, its vertices on
+  // the occluder's triangles (the raster's quick test by triangle ids, owned()).
+  for (const double texel : {0.0, 0.03}) {
+    MeshTextureConfig rays_config;
+    rays_config.texel_m = texel;
+    rays_config.raster_visibility = false;
+    MeshTextureConfig raster_config = rays_config;
+    raster_config.raster_visibility = true;
+    for (std::size_t f = 0; f < views.size(); ++f) {
+      MeshTexturer by_rays(scene_mesh, rays_config), by_raster(scene_mesh, raster_config);
+      const std::size_t n_rays = by_rays.add(views[f], f);
+      const std::size_t n_raster = by_raster.add(views[f], f);
+      const TexturedMesh a = by_rays.result(), b = by_raster.result();
+      std::size_t differ = 0, hidden = 0;
+      for (std::size_t i = 0; i < a.views.size(); ++i) {
+        differ += a.views[i] != b.views[i];
+        hidden += a.views[i] == 0;
+      }
+      SCOPED_TRACE("texel " + std::to_string(texel) + " m, view " + std::to_string(f));
+      EXPECT_GT(n_rays, 5000u);
+      EXPECT_GT(hidden, 5000u);  // much is hidden or out of view: the test has teeth
+      EXPECT_LE(static_cast<double>(differ), 0.001 * static_cast<double>(n_rays))
+          << differ << " of " << n_rays << " visible vertices differ";
+      EXPECT_NEAR(static_cast<double>(n_raster), static_cast<double>(n_rays), 0.001 * n_rays);
+      // The raster decides most tests; rays only at silhouettes and sub-pixel triangles.
+      EXPECT_GT(by_raster.raster_decided(), 4 * by_raster.rays_cast());
+      EXPECT_EQ(by_rays.raster_decided(), 0u);
     }
-    SCOPED_TRACE("view " + std::to_string(f));
-    EXPECT_GT(n_rays, 5000u);
-    EXPECT_GT(hidden, 5000u);  // much is hidden or out of view: the test has teeth
-    EXPECT_LE(static_cast<double>(differ), 0.001 * static_cast<double>(n_rays))
-        << differ << " of " << n_rays << " visible vertices differ";
-    EXPECT_NEAR(static_cast<double>(n_raster), static_cast<double>(n_rays), 0.001 * n_rays);
-    // The raster decides most tests; rays only at silhouettes and sub-pixel triangles.
-    EXPECT_GT(by_raster.raster_decided(), 4 * by_raster.rays_cast());
-    EXPECT_EQ(by_rays.raster_decided(), 0u);
   }
 }
 

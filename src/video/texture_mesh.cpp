@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -31,9 +32,15 @@ std::size_t TexturedMesh::coloured() const {
       std::count_if(views.begin(), views.end(), [](std::uint32_t v) { return v > 0; }));
 }
 
-TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
-                               std::size_t max_vertices) {
+namespace {
+
+// subdivide_to_edge(), also giving for each triangle of the result the index of the given triangle
+// it lies in.
+TriangleMesh subdivide_with_parents(const TriangleMesh& mesh, double max_edge_m,
+                                    std::size_t max_vertices, std::vector<int>& parent) {
   TriangleMesh m = mesh;
+  parent.resize(m.triangles.size());
+  for (std::size_t t = 0; t < parent.size(); ++t) parent[t] = static_cast<int>(t);
   if (max_edge_m <= 0) return m;
   const double max2 = max_edge_m * max_edge_m;
   for (int level = 0; level < 32; ++level) {
@@ -67,26 +74,46 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
     };
     std::vector<Eigen::Vector3i> tris;
     tris.reserve(4 * m.triangles.size());
-    for (const auto& t : m.triangles) {
+    std::vector<int> parents;
+    parents.reserve(4 * m.triangles.size());
+    for (std::size_t j = 0; j < m.triangles.size(); ++j) {
+      const Eigen::Vector3i& t = m.triangles[j];
       const int ab = midpoint(t[0], t[1]), bc = midpoint(t[1], t[2]), ca = midpoint(t[2], t[0]);
       tris.emplace_back(t[0], ab, ca);
       tris.emplace_back(ab, t[1], bc);
       tris.emplace_back(ca, bc, t[2]);
       tris.emplace_back(ab, bc, ca);
+      parents.insert(parents.end(), 4, parent[j]);
     }
     m.triangles = std::move(tris);
+    parent = std::move(parents);
   }
   return m;
+}
+
+}  // namespace
+
+TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
+                               std::size_t max_vertices) {
+  std::vector<int> parent;
+  return subdivide_with_parents(mesh, max_edge_m, max_vertices, parent);
 }
 
 struct MeshTexturer::Impl {
   TriangleMesh mesh;
   MeshTextureConfig config;
   RTCScene scene = nullptr;
-  std::vector<Eigen::Vector3d> sum;  // Σ weight · colour
-  std::vector<double> weight;        // Σ weight
+  std::vector<Eigen::Array4d> acc;  // per vertex: Σ weight · colour (linear RGB), Σ weight
+  std::vector<float> xs, ys, zs;    // the vertices' coordinates, apart (for vectorised projection)
   std::vector<std::uint32_t> views;
   std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
+  // Per vertex, the occluder triangles it lies on (the raster's numbering): those of the
+  // triangles around it, owner_ids[owner_start[i] … owner_start[i + 1]).
+  std::vector<std::uint32_t> owner_start, owner_ids;
+  // The same, for the vertices on one or two triangles: those (the first repeated when one);
+  // kManyOwners: look in the lists above.
+  static constexpr std::uint32_t kManyOwners = 0xfffffffeu;
+  std::vector<std::array<std::uint32_t, 2>> owner_pair;
   std::unique_ptr<detail::VisibilityRaster> raster;
   std::size_t raster_decided = 0, rays_cast = 0;
   ~Impl() {
@@ -105,10 +132,52 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
   detail::attach_mesh(impl_->scene, mesh, "texture mesh");
   rtcCommitScene(impl_->scene);
   if (config.raster_visibility) impl_->raster = std::make_unique<detail::VisibilityRaster>(mesh);
-  impl_->mesh = subdivide_to_edge(mesh, config.texel_m, config.max_vertices);
+  std::vector<int> parent;
+  impl_->mesh = subdivide_with_parents(mesh, config.texel_m, config.max_vertices, parent);
   detail::sort_vertices_spatially(impl_->mesh);
-  impl_->sum.assign(impl_->mesh.vertices.size(), Eigen::Vector3d::Zero());
-  impl_->weight.assign(impl_->mesh.vertices.size(), 0.0);
+  if (impl_->raster) {
+    // A vertex lies on the given triangles its subdivided triangles came from (one inside a given
+    // triangle, two on its edge, the fan at its corner): the raster's quick test (owned()).
+    const TriangleMesh& m = impl_->mesh;
+    std::vector<std::uint32_t>& start = impl_->owner_start;
+    std::vector<std::uint32_t>& ids = impl_->owner_ids;
+    start.assign(m.vertices.size() + 1, 0);
+    for (const auto& tri : m.triangles) {
+      for (int k = 0; k < 3; ++k) ++start[tri[k] + 1];
+    }
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) start[i + 1] += start[i];
+    ids.resize(start.back());
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t j = 0; j < m.triangles.size(); ++j) {
+      const std::uint32_t owner = impl_->raster->internal_triangle(parent[j]);
+      for (int k = 0; k < 3; ++k) ids[fill[m.triangles[j][k]]++] = owner;
+    }
+    // Each vertex's list without repeats, compacted in place.
+    std::uint32_t out = 0;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      const auto first = ids.begin() + start[i], last = ids.begin() + start[i + 1];
+      std::sort(first, last);
+      const auto end = std::unique(first, last);
+      start[i] = out;
+      for (auto it = first; it != end; ++it) ids[out++] = *it;
+    }
+    start.back() = out;
+    ids.resize(out);
+    ids.shrink_to_fit();
+    impl_->owner_pair.resize(m.vertices.size());
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      const std::uint32_t n = start[i + 1] - start[i];
+      impl_->owner_pair[i] =
+          n == 0 || n > 2 ? std::array<std::uint32_t, 2>{Impl::kManyOwners, Impl::kManyOwners}
+                          : std::array<std::uint32_t, 2>{ids[start[i]], ids[start[i] + n - 1]};
+    }
+  }
+  impl_->acc.assign(impl_->mesh.vertices.size(), Eigen::Array4d::Zero());
+  for (const Eigen::Vector3f& v : impl_->mesh.vertices) {
+    impl_->xs.push_back(v.x());
+    impl_->ys.push_back(v.y());
+    impl_->zs.push_back(v.z());
+  }
   if (config.weight_by_view) {
     // Area-weighted face normals summed at the vertices (the cross products' lengths are twice
     // the areas); only their direction is used.
@@ -133,20 +202,28 @@ std::size_t MeshTexturer::rays_cast() const { return impl_->rays_cast; }
 namespace {
 
 // RgbImage::sample (bilinear between pixel centres, clamped at the edges) inlined, for a pixel
-// already known to lie in the image.
-inline Eigen::Vector3f sample_bilinear(const RgbImage& img, double x, double y) {
-  x = std::clamp(x, 0.0, static_cast<double>(img.width - 1));
-  y = std::clamp(y, 0.0, static_cast<double>(img.height - 1));
+// already known to lie in the image: (r, g, b, 1), each pixel read as four floats at once (its own
+// three and the next one's red, weighted but dropped) except at the very end of the image.
+inline Eigen::Array4f sample_bilinear(const RgbImage& img, float x, float y) {
+  x = std::clamp(x, 0.0f, static_cast<float>(img.width - 1));
+  y = std::clamp(y, 0.0f, static_cast<float>(img.height - 1));
   const int u0 = static_cast<int>(x), v0 = static_cast<int>(y);  // x, y ≥ 0: the floor
-  const int du = u0 + 1 < img.width ? 3 : 0;
+  const std::size_t du = u0 + 1 < img.width ? 3 : 0;
   const std::size_t dv = v0 + 1 < img.height ? 3 * static_cast<std::size_t>(img.width) : 0;
-  const float a = static_cast<float>(x - u0), b = static_cast<float>(y - v0);
+  const float a = x - static_cast<float>(u0), b = y - static_cast<float>(v0);
   const float w00 = (1 - a) * (1 - b), w10 = a * (1 - b), w01 = (1 - a) * b, w11 = a * b;
-  const float* p = img.rgb.data() + 3 * (static_cast<std::size_t>(v0) * img.width + u0);
-  Eigen::Vector3f c;
-  for (int k = 0; k < 3; ++k) {
-    c[k] = w00 * p[k] + w10 * p[du + k] + w01 * p[dv + k] + w11 * p[dv + du + k];
+  const std::size_t at = 3 * (static_cast<std::size_t>(v0) * img.width + u0);
+  const float* p = img.rgb.data() + at;
+  Eigen::Array4f c;
+  if (at + dv + du + 4 <= img.rgb.size()) {
+    using Pixel = Eigen::Map<const Eigen::Array4f>;  // unaligned
+    c = w00 * Pixel(p) + w10 * Pixel(p + du) + w01 * Pixel(p + dv) + w11 * Pixel(p + dv + du);
+  } else {
+    for (int k = 0; k < 3; ++k) {
+      c[k] = w00 * p[k] + w10 * p[du + k] + w01 * p[dv + k] + w11 * p[dv + du + k];
+    }
   }
+  c[3] = 1.0f;
   return c;
 }
 
@@ -162,86 +239,139 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   require(view.T_world_camera.matrix().allFinite(),
           "texture mesh: frame " + std::to_string(f) + "'s pose is not finite");
   const Eigen::Isometry3d T_camera_world = view.T_world_camera.inverse();
-  const Eigen::Matrix3d R = T_camera_world.linear();
-  const Eigen::Vector3d t = T_camera_world.translation();
+  // The vertices are stored in float; so is their way to the image (a millipixel at 100 m).
+  const Eigen::Matrix3f R = T_camera_world.linear().cast<float>();
+  const Eigen::Vector3f t = T_camera_world.translation().cast<float>();
   const Eigen::Vector3d origin = view.T_world_camera.translation();
+  const Eigen::Vector3f origin_f = origin.cast<float>();
   const CameraIntrinsics& cam = view.camera;
-  const bool pinhole = !cam.distorted();  // then project() is x/z, y/z scaled: done inline
-  const double umax = cam.width - 0.5, vmax = cam.height - 0.5;
+  const bool distorted = cam.distorted(), pinhole = !distorted;  // pinhole: project() inline
+  const float fx = static_cast<float>(cam.fx), fy = static_cast<float>(cam.fy),
+              cx = static_cast<float>(cam.cx), cy = static_cast<float>(cam.cy);
+  const float umax = static_cast<float>(cam.width) - 0.5f,
+              vmax = static_cast<float>(cam.height) - 0.5f;
   const auto& V = impl_->mesh.vertices;
-  const double max_range = impl_->config.max_range_m, max_range2 = max_range * max_range;
+  const float max_range2 =
+      static_cast<float>(impl_->config.max_range_m * impl_->config.max_range_m);
   detail::VisibilityRaster* raster = impl_->raster.get();
   if (raster) raster->render(cam, T_camera_world);
   std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
   const float* const rgb = view.image->rgb.data();
+  // The raster's position of a normalised image point and its cell (visibility_raster.hpp).
+  const float rsx = raster ? static_cast<float>(raster->sx()) : 0.0f,
+              rsy = raster ? static_cast<float>(raster->sy()) : 0.0f,
+              rox = raster ? static_cast<float>(raster->ox()) : 0.0f,
+              roy = raster ? static_cast<float>(raster->oy()) : 0.0f,
+              rnear = raster ? static_cast<float>(raster->near_plane())
+                             : std::numeric_limits<float>::infinity(),
+              ru1 = raster ? static_cast<float>(raster->width() - 1) : 0.0f,
+              rv1 = raster ? static_cast<float>(raster->height() - 1) : 0.0f;
+  const std::int32_t rwidth = raster ? raster->width() : 0;
   const bool weighted = impl_->config.weight_by_view;
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
+  const std::uint32_t* owner_start = impl_->owner_start.data();
+  const std::uint32_t* owner_ids = impl_->owner_ids.data();
+  const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, V.size(), 8192),
       [&](const tbb::blocked_range<std::size_t>& r) {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         std::size_t local = 0, local_decided = 0, local_rays = 0;
-        // Blocks of vertices in two passes: first where each falls (prefetching its raster pixels
-        // and image pixels), then the tests — so that the memory latency of one vertex overlaps the
-        // others'.
+        // Blocks of vertices in three steps: all projected at once (no branches: vectorised),
+        // those in the image kept (prefetching their raster and image pixels), then tested — so
+        // that the memory latency of one vertex overlaps the others'.
         constexpr std::size_t kBlock = 64;
         struct Candidate {
-          Eigen::Vector3d p_world;
-          Eigen::Vector2d px;
-          double range;
+          float x, y;  // pixel
+          float range;
           std::ptrdiff_t cell;
           std::size_t i;
         };
         Candidate cand[kBlock];
+        alignas(64) float bx[kBlock], by[kBlock], br2[kBlock];
+        alignas(64) std::int32_t bok[kBlock], bcell[kBlock];
+        const float* const xs = impl_->xs.data();
+        const float* const ys = impl_->ys.data();
+        const float* const zs = impl_->zs.data();
         for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
-          const std::size_t stop = std::min(r.end(), start + kBlock);
+          const std::size_t m = std::min(r.end() - start, kBlock);
+          for (std::size_t j = 0; j < m; ++j) {
+            const float X = xs[start + j], Y = ys[start + j], Z = zs[start + j];
+            const float px = R(0, 0) * X + R(0, 1) * Y + R(0, 2) * Z + t.x();
+            const float py = R(1, 0) * X + R(1, 1) * Y + R(1, 2) * Z + t.y();
+            const float pz = R(2, 0) * X + R(2, 1) * Y + R(2, 2) * Z + t.z();
+            const float iz = 1.0f / pz;  // ±inf or negative behind the camera: rejected below
+            const float xn = px * iz, yn = py * iz;
+            const float x = fx * xn + cx, y = fy * yn + cy;
+            bx[j] = x;
+            by[j] = y;
+            const float u = rsx * xn + rox, v = rsy * yn + roy;
+            const bool in_raster = (pz > rnear) & (u >= 0) & (v >= 0) & (u < ru1) & (v < rv1);
+            // Within the raster (u, v) ≥ 0: the integer parts are the floors. Outside: −1 (and
+            // (0, 0) converted, which any float converts to safely).
+            const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
+            const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
+            bcell[j] =
+                ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) & keep) |
+                ~keep;
+            const float r2 = px * px + py * py + pz * pz;
+            br2[j] = r2;
+            // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges
+            bok[j] = static_cast<std::int32_t>(
+                (pz > 0) & (r2 <= max_range2) &
+                (distorted | ((x >= -0.5f) & (y >= -0.5f) & (x < umax) & (y < vmax))));
+          }
           std::size_t n = 0;
-          for (std::size_t i = start; i != stop; ++i) {
-            const Eigen::Vector3d p_world = V[i].cast<double>();
-            const Eigen::Vector3d p = R * p_world + t;
-            if (!(p.z() > 0)) continue;
-            const double range2 = p.squaredNorm();
-            if (!(range2 <= max_range2)) continue;
-            const double iz = 1.0 / p.z(), xn = p.x() * iz, yn = p.y() * iz;
-            Eigen::Vector2d px;
-            if (pinhole) {
-              px = {cam.fx * xn + cam.cx, cam.fy * yn + cam.cy};
-            } else {
-              const auto q = project(cam, p);
+          for (std::size_t j = 0; j < m; ++j) {
+            if (!bok[j]) continue;
+            float x = bx[j], y = by[j];
+            if (!pinhole) {
+              const Eigen::Vector3f p = R * V[start + j] + t;
+              const auto q = project(cam, p.cast<double>());
               if (!q) continue;
-              px = *q;
+              x = static_cast<float>(q->x());
+              y = static_cast<float>(q->y());
+              if (!(x >= -0.5f && y >= -0.5f && x < umax && y < vmax)) continue;
             }
-            // in_image(): the pixel squares' outer edges
-            if (!(px.x() >= -0.5 && px.y() >= -0.5 && px.x() < umax && px.y() < vmax)) continue;
             Candidate& c = cand[n++];
-            c.p_world = p_world;
-            c.px = px;
-            c.range = std::sqrt(range2);
-            c.cell = raster ? raster->locate(xn, yn, p.z()) : -1;
+            c.x = x;
+            c.y = y;
+            c.range = std::sqrt(br2[j]);
+            c.i = start + j;
+            c.cell = bcell[j];
             if (raster) raster->prefetch(c.cell);
-            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0, px.y())) * row_floats +
-                                      3 * static_cast<std::size_t>(std::max(0.0, px.x()));
+            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
+                                      3 * static_cast<std::size_t>(std::max(0.0f, x));
             __builtin_prefetch(rgb + pixel);
             __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
-            c.i = i;
           }
           for (std::size_t k = 0; k < n; ++k) {
             const Candidate& c = cand[k];
-            const auto verdict = raster ? raster->test(c.p_world, c.cell, c.range)
-                                        : detail::VisibilityRaster::Verdict::Unknown;
-            if (verdict == detail::VisibilityRaster::Verdict::Hidden) {
+            using Verdict = detail::VisibilityRaster::Verdict;
+            Verdict verdict = Verdict::Unknown;
+            if (raster) {
+              // Its own triangles in front at the four pixel centres: visible, no arithmetic.
+              const std::array<std::uint32_t, 2>& pair = owner_pair[c.i];
+              verdict = (pair[0] != Impl::kManyOwners
+                             ? raster->owned(c.cell, pair[0], pair[1])
+                             : raster->owned(c.cell, owner_ids + owner_start[c.i],
+                                             owner_start[c.i + 1] - owner_start[c.i]))
+                            ? Verdict::Visible
+                            : raster->test(V[c.i].cast<double>(), c.cell, c.range);
+            }
+            if (verdict == Verdict::Hidden) {
               ++local_decided;
               continue;
             }
-            if (verdict == detail::VisibilityRaster::Verdict::Visible) {
+            if (verdict == Verdict::Visible) {
               ++local_decided;
             } else {
               // Occluded when the mesh crosses the ray short of the vertex: stop a hair before it
               // (relative, for float precision at range) so its own triangles do not count.
               ++local_rays;
               const double dist = c.range;
-              const Eigen::Vector3d d = (c.p_world - origin) / dist;
+              const Eigen::Vector3d d = (V[c.i].cast<double>() - origin) / dist;
               RTCRay ray;
               ray.org_x = static_cast<float>(origin.x());
               ray.org_y = static_cast<float>(origin.y());
@@ -258,16 +388,13 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
               if (ray.tfar < 0) continue;  // Embree sets tfar to −inf on a hit
             }
             // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
-            const double inv_range = 1.0 / c.range;
-            const double w =
-                weighted
-                    ? std::max(0.01,
-                               std::abs(impl_->normal[c.i].cast<double>().dot(c.p_world - origin)) *
-                                   inv_range) *
-                          (inv_range * inv_range)
-                    : 1.0;
-            impl_->sum[c.i] += w * sample_bilinear(*view.image, c.px.x(), c.px.y()).cast<double>();
-            impl_->weight[c.i] += w;
+            const float inv_range = 1.0f / c.range;
+            const float w =
+                weighted ? std::max(0.01f, std::abs(impl_->normal[c.i].dot(V[c.i] - origin_f)) *
+                                               inv_range) *
+                               (inv_range * inv_range)
+                         : 1.0f;
+            impl_->acc[c.i] += (w * sample_bilinear(*view.image, c.x, c.y)).cast<double>();
             ++impl_->views[c.i];
             ++local;
           }
@@ -287,7 +414,8 @@ TexturedMesh MeshTexturer::result() const {
   out.views = impl_->views;
   out.color.assign(out.mesh.vertices.size(), Eigen::Vector3f::Zero());
   for (std::size_t i = 0; i < out.color.size(); ++i) {
-    if (out.views[i] > 0) out.color[i] = (impl_->sum[i] / impl_->weight[i]).cast<float>();
+    const Eigen::Array4d& a = impl_->acc[i];
+    if (out.views[i] > 0) out.color[i] = (a.head<3>() / a[3]).cast<float>().matrix();
   }
   return out;
 }

@@ -12,7 +12,7 @@ namespace sonar3d::detail {
 
 namespace {
 constexpr double kMaxRasterFactor = 4.0;  // raster pixels at most this times the image's
-constexpr int kBandRows = 32;  // raster rows per band (rasterised in parallel; ~256 KB at 1 MP)
+constexpr int kBandRows = 64;  // raster rows per band (rasterised in parallel; ~512 KB at 1 MP)
 constexpr int kBlock = 64;     // triangles per block (consecutive in the spatial order)
 
 // Spreads the low 21 bits of v to every third bit (Morton code).
@@ -26,11 +26,6 @@ std::uint64_t spread3(std::uint64_t v) {
   return v;
 }
 
-std::uint32_t float_bits(float x) {
-  std::uint32_t b;
-  std::memcpy(&b, &x, sizeof b);
-  return b;
-}
 }  // namespace
 
 void sort_vertices_spatially(TriangleMesh& m) {
@@ -62,10 +57,21 @@ void sort_vertices_spatially(TriangleMesh& m) {
 VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occluder) {
   // Spatial order: vertices along the Morton curve, triangles by their first vertex in it.
   sort_vertices_spatially(mesh_);
-  std::sort(mesh_.triangles.begin(), mesh_.triangles.end(),
-            [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
-              return a.minCoeff() < b.minCoeff();
-            });
+  {
+    // Ties in the first vertex keep the given order, so the numbering is deterministic.
+    std::vector<std::pair<int, int>> key(mesh_.triangles.size());
+    for (std::size_t t = 0; t < key.size(); ++t) {
+      key[t] = {mesh_.triangles[t].minCoeff(), static_cast<int>(t)};
+    }
+    std::sort(key.begin(), key.end());
+    std::vector<Eigen::Vector3i> sorted(key.size());
+    internal_of_given_.resize(key.size());
+    for (std::size_t k = 0; k < key.size(); ++k) {
+      sorted[k] = mesh_.triangles[key[k].second];
+      internal_of_given_[key[k].second] = static_cast<std::uint32_t>(k);
+    }
+    mesh_.triangles = std::move(sorted);
+  }
   const auto& V = mesh_.vertices;
   plane_.resize(mesh_.triangles.size());
   for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
@@ -162,7 +168,7 @@ inline VisibilityRaster::Box VisibilityRaster::box(const float* u, const float* 
 }
 
 inline void VisibilityRaster::fill(const float* u, const float* v, const float* w, int tri,
-                                   const Box& b, std::uint64_t* band, int y0) {
+                                   const Box& b, const Band& band, int y0) {
   if (b.xa > b.xb || b.ya > b.yb) return;
   // Edge functions (barycentric weights) over those centres, affine in x along a row; w = 1/z is
   // affine in screen space, so it interpolates with the same weights.
@@ -170,28 +176,81 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
   if (!(std::abs(area) > 1e-12f)) return;  // edge-on: covers no area
   const float inv_area = 1.0f / area;
   const float dx0 = (v[1] - v[2]) * inv_area, dx1 = (v[2] - v[0]) * inv_area;
+  // Wide triangles: per row, only the span where the three weights can be ≥ 0 (b_k = r_k + dx_k·x
+  // bounds x on one side each), widened by a pixel for rounding; the test below stays the judge,
+  // so the pixels written are the same as over the whole box.
+  const bool spans = b.xb - b.xa > 6;
+  const float dx[3] = {dx0, dx1, -dx0 - dx1};
+  float inv_dx[3];
+  for (int k = 0; k < 3; ++k) inv_dx[k] = dx[k] != 0 ? 1.0f / dx[k] : 0.0f;
   for (int y = b.ya; y <= b.yb; ++y) {
     const float py = static_cast<float>(y);
     // b0, b1 at x = 0 of this row.
     const float r0 = (u[1] * (v[2] - py) - u[2] * (v[1] - py)) * inv_area;
     const float r1 = (u[2] * (v[0] - py) - u[0] * (v[2] - py)) * inv_area;
-    std::uint64_t* row = band + static_cast<std::size_t>(y - y0) * width_;
-    for (int x = b.xa; x <= b.xb; ++x) {
+    const std::size_t row = static_cast<std::size_t>(y - y0) * width_;
+    float* const depth = band.inv_z + row;
+    std::uint32_t* const id = band.id + row;
+    int xa = b.xa, xb = b.xb;
+    if (spans) {
+      const float r[3] = {r0, r1, 1.0f - r0 - r1};
+      float lo = static_cast<float>(xa), hi = static_cast<float>(xb);
+      for (int k = 0; k < 3; ++k) {
+        if (dx[k] > 0) {
+          lo = std::max(lo, -r[k] * inv_dx[k] - 1.0f);
+        } else if (dx[k] < 0) {
+          hi = std::min(hi, -r[k] * inv_dx[k] + 1.0f);
+        }
+      }
+      if (!(lo <= hi)) continue;
+      xa = std::max(xa, floor_small(lo));
+      xb = std::min(xb, ceil_small(hi));
+    }
+    const std::uint32_t t = static_cast<std::uint32_t>(tri);
+    // Without branches: the nearest surface wins, ties going to the larger triangle id, so the
+    // result does not depend on the order of the triangles.
+    auto pixel = [&](int x) {
       const float px = static_cast<float>(x);
       const float b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
-      if (b0 < 0 || b1 < 0 || b2 < 0) continue;
       const float iz = b0 * w[0] + b1 * w[1] + b2 * w[2];
-      if (!(iz > 0)) continue;
-      // Positive floats order as their bits do: the largest word is the nearest surface (ties:
-      // the larger triangle id), in whatever order the triangles come.
-      const std::uint64_t key =
-          static_cast<std::uint64_t>(float_bits(iz)) << 32 | static_cast<std::uint32_t>(tri);
-      row[x] = std::max(row[x], key);
+      const float d = depth[x];
+      const std::uint32_t i = id[x];
+      const bool take =
+          (b0 >= 0) & (b1 >= 0) & (b2 >= 0) & (iz > 0) & ((iz > d) | ((iz == d) & (t > i)));
+      depth[x] = take ? iz : d;
+      id[x] = take ? t : i;
+    };
+    // The same in aligned groups of four pixels, as vectors (GCC/Clang vector extensions: SSE2
+    // on x86-64, NEON on ARM; spans are short, so a compiler-vectorised loop's remainder would
+    // dominate). The pixels a group adds beyond the span are outside the triangle, and the test
+    // leaves them as they are.
+    using F4 = float __attribute__((vector_size(16)));
+    using I4 = std::int32_t __attribute__((vector_size(16)));
+    using U4 = std::uint32_t __attribute__((vector_size(16)));
+    const F4 lane = {0.0f, 1.0f, 2.0f, 3.0f};
+    const U4 t4 = {t, t, t, t};
+    int x = xa & ~3;
+    for (; x + 3 < width_ && x <= xb; x += 4) {
+      const F4 px = static_cast<float>(x) + lane;
+      const F4 b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
+      const F4 iz = b0 * w[0] + b1 * w[1] + b2 * w[2];
+      F4 d;
+      U4 i;
+      std::memcpy(&d, depth + x, sizeof d);
+      std::memcpy(&i, id + x, sizeof i);
+      const I4 take =
+          (b0 >= 0) & (b1 >= 0) & (b2 >= 0) & (iz > 0) & ((iz > d) | ((iz == d) & (t4 > i)));
+      // (casts between vector types of one size keep the bits)
+      const I4 dn = ((I4)iz & take) | ((I4)d & ~take);
+      const U4 in = (t4 & (U4)take) | (i & ~(U4)take);
+      std::memcpy(depth + x, &dn, sizeof dn);
+      std::memcpy(id + x, &in, sizeof in);
     }
+    for (; x <= xb; ++x) pixel(x);
   }
 }
 
-void VisibilityRaster::raster_triangle(int t, int y0, int y1, std::uint64_t* band) {
+void VisibilityRaster::raster_triangle(int t, int y0, int y1, const Band& band) {
   const auto& tri = mesh_.triangles[t];
   const Projected& a = projected_[tri[0]];
   const Projected& b = projected_[tri[1]];
@@ -316,19 +375,21 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
   tbb::parallel_for(0, bands, [&](int band) {
     const int y0 = band * kBandRows, y1 = std::min(height_, y0 + kBandRows);
     const std::size_t n = static_cast<std::size_t>(y1 - y0) * width_;
-    std::vector<std::uint64_t>& cells = band_cells_.local();
-    cells.assign(n, 0);
+    BandCells& cells = band_cells_.local();
+    cells.inv_z.assign(n, 0.0f);
+    cells.id.resize(n);
+    const Band out{cells.inv_z.data(), cells.id.data()};
     const auto& blocks = band_blocks_[band];
     for (std::size_t j = 0; j < blocks.size(); ++j) {
       if (j + 1 < blocks.size()) prefetch_block(blocks[j + 1]);  // hide its memory latency
       const int blk = blocks[j];
       const int end = std::min(T, (blk + 1) * kBlock);
-      for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1, cells.data());
+      for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1, out);
     }
     // The band's triangle ids out to the raster (the depths are needed no further).
     std::uint32_t* ids = id_.data() + static_cast<std::size_t>(y0) * width_;
     for (std::size_t k = 0; k < n; ++k) {
-      ids[k] = cells[k] != 0 ? static_cast<std::uint32_t>(cells[k]) : kNone;
+      ids[k] = cells.inv_z[k] > 0 ? cells.id[k] : kNone;
     }
   });
 }

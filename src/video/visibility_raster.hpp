@@ -22,14 +22,17 @@
 // triangles are grouped in blocks of 64 with a world bounding box each: per frame the blocks (not
 // the triangles) are binned to bands of raster rows by projecting their boxes, and the bands are
 // rasterised in parallel, each clearing and writing its own rows, small enough to stay in the
-// cache. While a band is drawn each pixel holds one 64-bit word, the nearest surface's 1/z in the
-// high half and its triangle in the low half, so that the depth test is one maximum, whose result
-// does not depend on the order of the triangles; then only the triangle ids are kept (4 bytes a
-// pixel, read by test()).
+// cache. While a band is drawn each pixel holds the nearest surface's 1/z and its triangle; the
+// depth test (ties to the larger triangle id, so the result does not depend on the order of the
+// triangles) runs without branches over each row's span of the triangle, vectorised; then only
+// the triangle ids are kept (4 bytes a pixel, read by test()). A textured vertex whose own
+// triangles are the front surface at its four pixel centres is settled by comparing ids alone
+// (owned()).
 #include <tbb/enumerable_thread_specific.h>
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -53,10 +56,15 @@ class VisibilityRaster {
   void render(const CameraIntrinsics& camera, const Eigen::Isometry3d& T_camera_world,
               double near_m = 1e-3);
 
-  // Where a point given in the camera frame of the last render() is tested, from its normalised
-  // image coordinates (x/z, y/z) and z: the top-left of the four pixel centres around it, −1 when
-  // it lies outside the raster or before the near plane.
-  std::ptrdiff_t locate(double x_over_z, double y_over_z, double z) const;
+  // Where a point is tested, its `cell`: the index v0·width + u0 of the top-left of the four pixel
+  // centres around its raster position (u, v) = (sx·x/z + ox, sy·y/z + oy), from its normalised
+  // image coordinates (x/z, y/z) in the camera frame of the last render(); −1 (no verdict) when
+  // (u, v) does not lie within the raster's outer pixel centres or z is not beyond near_plane().
+  double sx() const { return sx_; }
+  double sy() const { return sy_; }
+  double ox() const { return ox_; }
+  double oy() const { return oy_; }
+  double near_plane() const { return near_; }
   // Asks the processor to fetch those four pixels (the raster is too large for the caches and is
   // read in an order its prefetcher does not guess).
   void prefetch(std::ptrdiff_t cell) const {
@@ -64,9 +72,20 @@ class VisibilityRaster {
     __builtin_prefetch(id_.data() + cell);
     __builtin_prefetch(id_.data() + cell + width_);
   }
-  // The verdict for a point on the textured mesh at `cell` (locate()), given in the world frame;
+  // The verdict for a point on the textured mesh at `cell` (its cell), given in the world frame;
   // `range_m` is its distance from the camera centre.
   Verdict test(const Eigen::Vector3d& p_world, std::ptrdiff_t cell, double range_m) const;
+  // The occluder's triangle `given` (its index in the mesh the constructor was given) in the
+  // raster's own numbering, which owned() takes.
+  std::uint32_t internal_triangle(std::size_t given) const { return internal_of_given_[given]; }
+  // True when the front surface at each of the four pixel centres around `cell` (its cell) that
+  // shows the occluder at all is one of `owners`, the occluder triangles (internal_triangle()) the
+  // point lies on: then it lies on the front surface, the Visible of test() without its plane
+  // arithmetic (the planes of its own triangles pass through it). False: ask test().
+  bool owned(std::ptrdiff_t cell, const std::uint32_t* owners, std::uint32_t n_owners) const;
+  // owned() for a point on at most two triangles (`a`, and `b`, which may repeat `a`), without
+  // branches: most vertices of a subdivided model lie inside one triangle or on an edge.
+  bool owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const;
 
   int width() const { return width_; }
   int height() const { return height_; }
@@ -86,13 +105,18 @@ class VisibilityRaster {
   Box box(const float* u, const float* v, int y0, int y1) const;
   // Rasterises triangle `tri` within rows y0 … y1 − 1 (clipped at the near plane), which no other
   // thread writes meanwhile.
-  void raster_triangle(int tri, int y0, int y1, std::uint64_t* band);
+  struct Band {  // rows y0 … of a band: 1/z of the nearest surface (0: none) and its triangle
+    float* inv_z;
+    std::uint32_t* id;
+  };
+  void raster_triangle(int tri, int y0, int y1, const Band& band);
   void prefetch_block(int block) const;
-  // Into `band`, the cells of rows y0 … (1/z bits << 32 | triangle, 0: none).
+  // Into `band`, the cells of rows y0 … .
   void fill(const float* u, const float* v, const float* w, int tri, const Box& box,
-            std::uint64_t* band, int y0);
+            const Band& band, int y0);
 
   TriangleMesh mesh_;
+  std::vector<std::uint32_t> internal_of_given_;  // per given triangle: its index in mesh_
   std::vector<Plane> plane_;
   // Raster: pixel (i, j) centre at undistorted normalised coordinates
   // ((i − ox)/sx, (j − oy)/sy).
@@ -100,12 +124,14 @@ class VisibilityRaster {
   bool have_raster_ = false;
   int width_ = 0, height_ = 0;
   double sx_ = 1, sy_ = 1, ox_ = 0, oy_ = 0;
-  // Per pixel centre: (bits of 1/z of the nearest surface) << 32 | its triangle; 0: none.
   static constexpr std::uint32_t kNone = 0xffffffffu;
   std::vector<std::uint32_t> id_;  // per pixel centre: the nearest triangle, kNone: none
-  // Per thread: a band's cells while it is rasterised, (bits of 1/z of the nearest surface) << 32
-  // | its triangle, 0: none.
-  tbb::enumerable_thread_specific<std::vector<std::uint64_t>> band_cells_;
+  // Per thread: a band's cells while it is rasterised.
+  struct BandCells {
+    std::vector<float> inv_z;
+    std::vector<std::uint32_t> id;
+  };
+  tbb::enumerable_thread_specific<BandCells> band_cells_;
   std::vector<Projected> projected_;            // per frame, per occluder vertex
   std::vector<Eigen::AlignedBox3f> block_box_;  // world bounding box of each block of triangles
   std::vector<std::pair<int, int>> block_vertices_;  // the vertices each block uses lie in [a, b)
@@ -117,13 +143,35 @@ class VisibilityRaster {
 };
 
 // Inline: called for every vertex of every frame.
-inline std::ptrdiff_t VisibilityRaster::locate(double x_over_z, double y_over_z, double z) const {
-  if (!(z > near_)) return -1;
-  const double u = sx_ * x_over_z + ox_;
-  const double v = sy_ * y_over_z + oy_;
-  // The four pixel centres around the vertex's raster position.
-  if (!(u >= 0 && v >= 0 && u < width_ - 1 && v < height_ - 1)) return -1;
-  return static_cast<std::ptrdiff_t>(v) * width_ + static_cast<std::ptrdiff_t>(u);
+inline bool VisibilityRaster::owned(std::ptrdiff_t cell, const std::uint32_t* owners,
+                                    std::uint32_t n_owners) const {
+  if (cell < 0 || n_owners == 0) return false;
+  const std::uint32_t* row = id_.data() + cell;
+  const std::uint32_t ids[4] = {row[0], row[1], row[width_], row[width_ + 1]};
+  bool any = false;
+  for (const std::uint32_t t : ids) {
+    if (t == kNone) continue;  // open water there
+    any = true;
+    bool own = false;
+    for (std::uint32_t j = 0; j < n_owners; ++j) own |= owners[j] == t;
+    if (!own) return false;
+  }
+  return any;
+}
+
+inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const {
+  if (cell < 0) return false;
+  // The four ids compared at once (GCC/Clang vector extensions).
+  using U4 = std::uint32_t __attribute__((vector_size(16)));
+  using I4 = std::int32_t __attribute__((vector_size(16)));
+  const std::uint32_t* row = id_.data() + cell;
+  const U4 ids = {row[0], row[1], row[width_], row[width_ + 1]};
+  const I4 none = ids == kNone;
+  const I4 own = (ids == a) | (ids == b) | none;
+  std::uint64_t o[2], n[2];
+  std::memcpy(o, &own, sizeof o);
+  std::memcpy(n, &none, sizeof n);
+  return ((o[0] & o[1]) == ~std::uint64_t{0}) & ((n[0] & n[1]) != ~std::uint64_t{0});
 }
 
 inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p_world,
