@@ -428,6 +428,10 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     const CliRun plain = run(tmp, args + (tmp / "cloud.ply").string() + " --plain-mean");
     EXPECT_EQ(plain.code, 2) << plain.err;  // a usage error
     EXPECT_NE(plain.err.find("--plain-mean: applies to --mesh only"), std::string::npos);
+    const CliRun occluder = run(
+        tmp, args + (tmp / "cloud.ply").string() + " --occluder " + (tmp / "scene.obj").string());
+    EXPECT_EQ(occluder.code, 2) << occluder.err;
+    EXPECT_NE(occluder.err.find("--occluder: applies to --mesh only"), std::string::npos);
   }
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");

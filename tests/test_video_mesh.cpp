@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <limits>
 
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
@@ -162,6 +163,56 @@ TEST(TextureMesh, GrazingSurfacesDoNotHideThemselves) {
   }
   EXPECT_GT(top, 100u);
   EXPECT_GT(under, 50u);
+}
+
+// A box half buried in the seabed, textured alone from a camera above at a slant: with the seabed
+// as an occluder its buried half takes no colour, without it the buried side facing the camera
+// takes the sand the camera sees there (what texturing a placed model used to do).
+TEST(TextureMesh, OccludersHideTheBuriedPartAndTakeNoColour) {
+  const TriangleMesh seabed = make_plane(6, 6);      // z = 0
+  const TriangleMesh box = make_box(0.6, 0.6, 0.6);  // centred: its lower half below the seabed
+  const Eigen::Vector3f sand(0.8f, 0.7f, 0.3f), red(0.9f, 0.1f, 0.1f);
+  Scene scene;
+  scene.objects = {object("seabed", seabed, sand), object("box", box, red)};
+  CameraRenderConfig rc;
+  rc.ambient = 1.0;
+  rc.attenuation_per_m = 0.0;
+  const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
+  const Eigen::Isometry3d pose = test::look_at({2.0, -1.6, 1.8}, {0, 0, 0});
+  const RgbImage img = CameraRenderer(scene, rc).render(cam, pose);
+  MeshTextureConfig mc;
+  mc.texel_m = 0.03;
+  for (const bool with_seabed : {false, true}) {
+    SCOPED_TRACE(with_seabed ? "seabed as occluder" : "the box alone");
+    const TexturedMesh t =
+        texture_mesh(box, {CameraView{cam, pose, &img}}, mc, with_seabed ? seabed : TriangleMesh{});
+    std::size_t buried = 0, buried_coloured = 0, buried_sand = 0, top = 0;
+    for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
+      const Eigen::Vector3f& p = t.mesh.vertices[i];
+      if (p.z() < -0.02f) {
+        ++buried;
+        if (t.views[i] > 0) {
+          ++buried_coloured;
+          buried_sand += (t.color[i] - sand).norm() < 1e-3f;
+        }
+      } else if (p.z() > 0.3f - 1e-4f && std::abs(p.x()) < 0.27f && std::abs(p.y()) < 0.27f) {
+        ASSERT_EQ(t.views[i], 1u) << p.transpose();
+        EXPECT_NEAR((t.color[i] - red).norm(), 0, 1e-3) << p.transpose();
+        ++top;
+      }
+    }
+    EXPECT_GT(buried, 1000u);
+    EXPECT_GT(top, 100u);
+    if (with_seabed) {
+      EXPECT_EQ(buried_coloured, 0u);
+    } else {
+      EXPECT_GT(buried_sand, 100u);  // the test has teeth: without the seabed, sand on the box
+    }
+  }
+  // The occluders are validated like the mesh.
+  TriangleMesh bad = seabed;
+  bad.vertices[0].x() = std::numeric_limits<float>::quiet_NaN();
+  expect_error([&] { MeshTexturer(box, mc, bad); }, "occluders");
 }
 
 // The visibility raster (the default) against one Embree ray per vertex, over an occluded scene:

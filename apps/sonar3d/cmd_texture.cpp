@@ -78,6 +78,11 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--texel", job->mesh.texel_m,
                   "with --mesh: subdivide until every edge is at most this long, m (0: as is)")
       ->capture_default_str();
+  cmd->add_option("--occluder", job->occluders,
+                  "with --mesh: a mesh in the same frame (any Assimp format; repeatable) that "
+                  "hides CLOUD where it is in front but takes no colour, e.g. the seabed_lod0.ply "
+                  "of `sonar3d world` under a half-buried model")
+      ->check(CLI::ExistingFile);
   cmd->add_flag_callback(
       "--plain-mean", [job] { job->mesh.weight_by_view = false; },
       "with --mesh: average the frames' colours plainly (default: each weighted by "
@@ -102,6 +107,9 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
         }
         if (!job->is_mesh && !job->mesh.weight_by_view) {
           throw CLI::ValidationError("--plain-mean", "applies to --mesh only");
+        }
+        if (!job->is_mesh && !job->occluders.empty()) {
+          throw CLI::ValidationError("--occluder", "applies to --mesh only");
         }
         run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
           job->cloud = *cloud;

@@ -172,20 +172,22 @@ void bind_video(py::module_& m) {
 
   m.def(
       "texture_mesh",
-      [](const TriangleMesh& mesh, const py::list& views, const MeshTextureConfig& config) {
+      [](const TriangleMesh& mesh, const py::list& views, const MeshTextureConfig& config,
+         const TriangleMesh& occluders) {
         const Views v = views_from(views);
         TexturedMesh t;
         {
           py::gil_scoped_release release;
-          t = texture_mesh(mesh, v.views, config);
+          t = texture_mesh(mesh, v.views, config, occluders);
         }
         const py::ssize_t n = static_cast<py::ssize_t>(t.views.size());
         return py::make_tuple(py::cast(std::move(t.mesh)), colors_to_array(std::move(t.color)),
                               adopt<std::uint32_t>(std::move(t.views), {n}));
       },
-      "mesh"_a, "views"_a, "config"_a = MeshTextureConfig{},
+      "mesh"_a, "views"_a, "config"_a = MeshTextureConfig{}, "occluders"_a = TriangleMesh{},
       "Colour a world-frame TriangleMesh's vertices (subdivided to config.texel_m) from views as "
-      "texture_cloud's; visibility against the mesh itself. Returns (the subdivided mesh, colors "
+      "texture_cloud's; visibility against the mesh itself and `occluders` (a TriangleMesh that "
+      "hides it but takes no colour, e.g. the seabed). Returns (the subdivided mesh, colors "
       "(V, 3) linear RGB, views (V,) uint32).");
 
   m.def(

@@ -68,6 +68,17 @@ def test_render_and_texture_a_cloud_and_a_mesh():
     assert np.abs(mcolors[top] - RED).max() < 1e-3
     assert np.all(mviews[bottom] == 0)  # the box's underside: no camera sees it
 
+    # An occluder (a 0.2 m plate 0.1 m over the box top's middle) hides what it covers and takes
+    # no colour; the mesh returned is still the box alone.
+    plate = box(0.2, 0.2, 0.02, 0.7)
+    omesh, ocolors, oviews = sonar3d.texture_mesh(
+        block, [(cam, T, img)], sonar3d.MeshTextureConfig(texel_m=0.05), occluders=plate)
+    assert omesh.vertices.shape == v.shape
+    under_plate = top & (np.max(np.abs(v[:, :2]), axis=1) < 0.07)
+    clear = top & (np.max(np.abs(v[:, :2]), axis=1) > 0.16)
+    assert under_plate.sum() > 3 and np.all(oviews[under_plate] == 0)
+    assert clear.sum() > 20 and np.all(oviews[clear] == 1)
+
 
 def test_bad_views_give_clear_errors():
     cam, T = down_camera()

@@ -275,8 +275,12 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   PointCloud cloud;
   std::unique_ptr<CloudTexturer> cloud_texturer;
   std::unique_ptr<MeshTexturer> mesh_texturer;
+  require(job.is_mesh || job.occluders.empty(), "texture: occluders apply to a mesh only");
   if (job.is_mesh) {
-    mesh_texturer = std::make_unique<MeshTexturer>(load_mesh(job.cloud.string()), job.mesh);
+    TriangleMesh occluders;
+    for (const fs::path& f : job.occluders) occluders.append(load_mesh(f.string()));
+    mesh_texturer =
+        std::make_unique<MeshTexturer>(load_mesh(job.cloud.string()), job.mesh, occluders);
   } else {
     cloud = read_ply(job.cloud.string());
     cloud_texturer = std::make_unique<CloudTexturer>(cloud, job.config);

@@ -121,17 +121,25 @@ struct MeshTexturer::Impl {
   }
 };
 
-MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& config)
+MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& config,
+                           const TriangleMesh& occluders)
     : impl_(std::make_unique<Impl>()) {
   config.validate();
   require(!mesh.empty(), "texture mesh: the mesh has no triangles");
   impl_->config = config;
   impl_->scene = rtcNewScene(detail::embree_device());
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-  // The occluder is the mesh as given (attach_mesh validates it); colours go on its subdivision.
+  // The occluder is the mesh as given and the other occluders (attach_mesh validates them);
+  // colours go on the mesh's subdivision.
   detail::attach_mesh(impl_->scene, mesh, "texture mesh");
+  if (!occluders.empty()) detail::attach_mesh(impl_->scene, occluders, "texture mesh occluders");
   rtcCommitScene(impl_->scene);
-  if (config.raster_visibility) impl_->raster = std::make_unique<detail::VisibilityRaster>(mesh);
+  if (config.raster_visibility) {
+    // The mesh's triangles first, so that their given indices stay theirs (owners below).
+    TriangleMesh all = mesh;
+    all.append(occluders);
+    impl_->raster = std::make_unique<detail::VisibilityRaster>(all);
+  }
   std::vector<int> parent;
   impl_->mesh = subdivide_with_parents(mesh, config.texel_m, config.max_vertices, parent);
   detail::sort_vertices_spatially(impl_->mesh);
@@ -421,8 +429,8 @@ TexturedMesh MeshTexturer::result() const {
 }
 
 TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView>& views,
-                          const MeshTextureConfig& config) {
-  MeshTexturer t(mesh, config);
+                          const MeshTextureConfig& config, const TriangleMesh& occluders) {
+  MeshTexturer t(mesh, config, occluders);
   for (std::size_t f = 0; f < views.size(); ++f) t.add(views[f], f);
   return t.result();
 }

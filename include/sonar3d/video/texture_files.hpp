@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
@@ -59,6 +60,9 @@ struct TextureFilesJob {
   // subdivided to `mesh.texel_m`), written as a PLY mesh with vertex colours.
   bool is_mesh = false;
   MeshTextureConfig mesh;
+  // With is_mesh: meshes (any format Assimp reads, same frame) that hide the mesh but take no
+  // colour, e.g. the seabed_lod0.ply of `sonar3d world` under a placed model (MeshTexturer).
+  std::vector<std::filesystem::path> occluders;
   bool overwrite = false;        // replace an existing sonar3d point cloud at `output`
   bool drop_uncoloured = false;  // leave out the points no frame saw (else they are black)
   bool progress = true;          // a progress bar on a terminal

@@ -53,8 +53,12 @@ struct TexturedMesh {
 // One frame at a time (memory: the mesh plus one image).
 class MeshTexturer {
  public:
-  // Subdivides `mesh` and builds its ray-tracing structure. Throws Error on a bad mesh or config.
-  MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& config = {});
+  // Subdivides `mesh` and builds its ray-tracing structure. `occluders`, in the same frame, hide
+  // the mesh where they stand between it and a camera but take no colour themselves: e.g. the
+  // seabed a placed CAD model is half buried in (world's seabed_lod0.ply), so that the buried part
+  // stays uncoloured instead of taking the sand above it. Throws Error on a bad mesh or config.
+  MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& config = {},
+               const TriangleMesh& occluders = {});
   ~MeshTexturer();
   MeshTexturer(const MeshTexturer&) = delete;
   MeshTexturer& operator=(const MeshTexturer&) = delete;
@@ -73,7 +77,7 @@ class MeshTexturer {
 };
 
 TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView>& views,
-                          const MeshTextureConfig& config = {});
+                          const MeshTextureConfig& config = {}, const TriangleMesh& occluders = {});
 
 // Binary PLY with float x y z, uchar red green blue (sRGB; black where no frame saw the vertex)
 // and the faces; atomic. read_ply_faces() reads it back.
