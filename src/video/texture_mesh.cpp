@@ -287,8 +287,8 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
         rtcInitIntersectContext(&ctx);
         std::size_t local = 0, local_decided = 0, local_rays = 0;
         // Blocks of vertices in three steps: all projected at once (no branches: vectorised),
-        // those in the image kept (prefetching their raster and image pixels), then tested — so
-        // that the memory latency of one vertex overlaps the others'.
+        // those in the image kept (prefetching their raster and image pixels), then tested one
+        // block later — so that the memory latency of one vertex overlaps the others'.
         constexpr std::size_t kBlock = 64;
         struct Candidate {
           float x, y;  // pixel
@@ -296,66 +296,15 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
           std::ptrdiff_t cell;
           std::size_t i;
         };
-        Candidate cand[kBlock];
         alignas(64) float bx[kBlock], by[kBlock], br2[kBlock];
         alignas(64) std::int32_t bok[kBlock], bcell[kBlock];
         const float* const xs = impl_->xs.data();
         const float* const ys = impl_->ys.data();
         const float* const zs = impl_->zs.data();
-        for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
-          const std::size_t m = std::min(r.end() - start, kBlock);
-          for (std::size_t j = 0; j < m; ++j) {
-            const float X = xs[start + j], Y = ys[start + j], Z = zs[start + j];
-            const float px = R(0, 0) * X + R(0, 1) * Y + R(0, 2) * Z + t.x();
-            const float py = R(1, 0) * X + R(1, 1) * Y + R(1, 2) * Z + t.y();
-            const float pz = R(2, 0) * X + R(2, 1) * Y + R(2, 2) * Z + t.z();
-            const float iz = 1.0f / pz;  // ±inf or negative behind the camera: rejected below
-            const float xn = px * iz, yn = py * iz;
-            const float x = fx * xn + cx, y = fy * yn + cy;
-            bx[j] = x;
-            by[j] = y;
-            const float u = rsx * xn + rox, v = rsy * yn + roy;
-            const bool in_raster = (pz > rnear) & (u >= 0) & (v >= 0) & (u < ru1) & (v < rv1);
-            // Within the raster (u, v) ≥ 0: the integer parts are the floors. Outside: −1 (and
-            // (0, 0) converted, which any float converts to safely).
-            const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
-            const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
-            bcell[j] =
-                ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) & keep) |
-                ~keep;
-            const float r2 = px * px + py * py + pz * pz;
-            br2[j] = r2;
-            // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges
-            bok[j] = static_cast<std::int32_t>(
-                (pz > 0) & (r2 <= max_range2) &
-                (distorted | ((x >= -0.5f) & (y >= -0.5f) & (x < umax) & (y < vmax))));
-          }
-          std::size_t n = 0;
-          for (std::size_t j = 0; j < m; ++j) {
-            if (!bok[j]) continue;
-            float x = bx[j], y = by[j];
-            if (!pinhole) {
-              const Eigen::Vector3f p = R * V[start + j] + t;
-              const auto q = project(cam, p.cast<double>());
-              if (!q) continue;
-              x = static_cast<float>(q->x());
-              y = static_cast<float>(q->y());
-              if (!(x >= -0.5f && y >= -0.5f && x < umax && y < vmax)) continue;
-            }
-            Candidate& c = cand[n++];
-            c.x = x;
-            c.y = y;
-            c.range = std::sqrt(br2[j]);
-            c.i = start + j;
-            c.cell = bcell[j];
-            if (raster) raster->prefetch(c.cell);
-            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
-                                      3 * static_cast<std::size_t>(std::max(0.0f, x));
-            __builtin_prefetch(rgb + pixel);
-            __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
-          }
-          for (std::size_t k = 0; k < n; ++k) {
-            const Candidate& c = cand[k];
+        // The tests of one block's candidates.
+        auto settle = [&](const Candidate* cs, std::size_t count) {
+          for (std::size_t k = 0; k < count; ++k) {
+            const Candidate& c = cs[k];
             using Verdict = detail::VisibilityRaster::Verdict;
             Verdict verdict = Verdict::Unknown;
             if (raster) {
@@ -406,7 +355,68 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
             ++impl_->views[c.i];
             ++local;
           }
+        };
+        Candidate cand[2][kBlock];  // this block's candidates and the previous one's
+        int cur = 0;
+        std::size_t pending = 0;  // candidates of the previous block
+        for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
+          const std::size_t m = std::min(r.end() - start, kBlock);
+          for (std::size_t j = 0; j < m; ++j) {
+            const float X = xs[start + j], Y = ys[start + j], Z = zs[start + j];
+            const float px = R(0, 0) * X + R(0, 1) * Y + R(0, 2) * Z + t.x();
+            const float py = R(1, 0) * X + R(1, 1) * Y + R(1, 2) * Z + t.y();
+            const float pz = R(2, 0) * X + R(2, 1) * Y + R(2, 2) * Z + t.z();
+            const float iz = 1.0f / pz;  // ±inf or negative behind the camera: rejected below
+            const float xn = px * iz, yn = py * iz;
+            const float x = fx * xn + cx, y = fy * yn + cy;
+            bx[j] = x;
+            by[j] = y;
+            const float u = rsx * xn + rox, v = rsy * yn + roy;
+            const bool in_raster = (pz > rnear) & (u >= 0) & (v >= 0) & (u < ru1) & (v < rv1);
+            // Within the raster (u, v) ≥ 0: the integer parts are the floors. Outside: −1 (and
+            // (0, 0) converted, which any float converts to safely).
+            const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
+            const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
+            bcell[j] =
+                ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) & keep) |
+                ~keep;
+            const float r2 = px * px + py * py + pz * pz;
+            br2[j] = r2;
+            // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges
+            bok[j] = static_cast<std::int32_t>(
+                (pz > 0) & (r2 <= max_range2) &
+                (distorted | ((x >= -0.5f) & (y >= -0.5f) & (x < umax) & (y < vmax))));
+          }
+          std::size_t n = 0;
+          for (std::size_t j = 0; j < m; ++j) {
+            if (!bok[j]) continue;
+            float x = bx[j], y = by[j];
+            if (!pinhole) {
+              const Eigen::Vector3f p = R * V[start + j] + t;
+              const auto q = project(cam, p.cast<double>());
+              if (!q) continue;
+              x = static_cast<float>(q->x());
+              y = static_cast<float>(q->y());
+              if (!(x >= -0.5f && y >= -0.5f && x < umax && y < vmax)) continue;
+            }
+            Candidate& c = cand[cur][n++];
+            c.x = x;
+            c.y = y;
+            c.range = std::sqrt(br2[j]);
+            c.i = start + j;
+            c.cell = bcell[j];
+            if (raster) raster->prefetch(c.cell);
+            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
+                                      3 * static_cast<std::size_t>(std::max(0.0f, x));
+            __builtin_prefetch(rgb + pixel);
+            __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+          }
+          // The previous block's tests, while this block's pixels are on their way.
+          settle(cand[cur ^ 1], pending);
+          pending = n;
+          cur ^= 1;
         }
+        settle(cand[cur ^ 1], pending);
         coloured.fetch_add(local, std::memory_order_relaxed);
         decided.fetch_add(local_decided, std::memory_order_relaxed);
         rays.fetch_add(local_rays, std::memory_order_relaxed);
