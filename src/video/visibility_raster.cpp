@@ -181,8 +181,10 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
   // so the pixels written are the same as over the whole box.
   const bool spans = b.xb - b.xa > 6;
   const float dx[3] = {dx0, dx1, -dx0 - dx1};
-  float inv_dx[3];
-  for (int k = 0; k < 3; ++k) inv_dx[k] = dx[k] != 0 ? 1.0f / dx[k] : 0.0f;
+  float inv_dx[3] = {0, 0, 0};
+  if (spans) {
+    for (int k = 0; k < 3; ++k) inv_dx[k] = dx[k] != 0 ? 1.0f / dx[k] : 0.0f;
+  }
   for (int y = b.ya; y <= b.yb; ++y) {
     const float py = static_cast<float>(y);
     // b0, b1 at x = 0 of this row.
