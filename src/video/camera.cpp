@@ -98,4 +98,30 @@ bool in_image(const CameraIntrinsics& c, const Eigen::Vector2d& px) {
   return px.x() >= -0.5 && px.y() >= -0.5 && px.x() < c.width - 0.5 && px.y() < c.height - 0.5;
 }
 
+Eigen::AlignedBox2d normalised_image_bounds(const CameraIntrinsics& c) {
+  Eigen::AlignedBox2d box(
+      Eigen::Vector2d((-0.5 - c.cx) / c.fx, (-0.5 - c.cy) / c.fy),
+      Eigen::Vector2d((c.width - 0.5 - c.cx) / c.fx, (c.height - 0.5 - c.cy) / c.fy));
+  if (!c.distorted()) return box;
+  box.setEmpty();
+  auto take = [&](double u, double v) {
+    const auto ray = unproject(c, Eigen::Vector2d(u, v));
+    if (ray && ray->z() > 0) box.extend(Eigen::Vector2d(ray->x() / ray->z(), ray->y() / ray->z()));
+  };
+  const int step = 8;
+  for (int i = 0; i <= c.width; i += step) {
+    take(std::min(i, c.width) - 0.5, -0.5);
+    take(std::min(i, c.width) - 0.5, c.height - 0.5);
+  }
+  for (int j = 0; j <= c.height; j += step) {
+    take(-0.5, std::min(j, c.height) - 0.5);
+    take(c.width - 0.5, std::min(j, c.height) - 0.5);
+  }
+  take(c.width - 0.5, c.height - 0.5);
+  // A margin of two pixels for the border sampling's step.
+  box.min() -= Eigen::Vector2d(2 / c.fx, 2 / c.fy);
+  box.max() += Eigen::Vector2d(2 / c.fx, 2 / c.fy);
+  return box;
+}
+
 }  // namespace sonar3d

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "sonar3d/core/error.hpp"
+#include "visibility_raster.hpp"
 
 namespace sonar3d {
 
@@ -26,10 +27,21 @@ std::size_t TexturedCloud::coloured() const {
       std::count_if(views.begin(), views.end(), [](std::uint32_t v) { return v > 0; }));
 }
 
+namespace {
+constexpr std::size_t kBlock = 256;  // points per block (consecutive in the Morton order)
+}  // namespace
+
 CloudTexturer::CloudTexturer(const PointCloud& cloud, const TextureConfig& config)
-    : cloud_(cloud), config_(config) {
+    : config_(config) {
   config_.validate();
   const std::size_t n = cloud.size();
+  order_ = detail::morton_order(cloud.points);
+  points_.resize(n);
+  block_box_.resize((n + kBlock - 1) / kBlock);
+  for (std::size_t k = 0; k < n; ++k) {
+    points_[k] = cloud.points[order_[k]];
+    block_box_[k / kBlock].extend(points_[k]);
+  }
   sum_.assign(n, Eigen::Vector3d::Zero());
   views_.assign(n, 0);
   pixel_.resize(n);
@@ -37,67 +49,115 @@ CloudTexturer::CloudTexturer(const PointCloud& cloud, const TextureConfig& confi
 }
 
 std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
-  const std::size_t n = cloud_.size();
+  const std::size_t n = points_.size();
   const TextureConfig& config = config_;
-  view.camera.validate();
-  require(view.image != nullptr && view.image->width == view.camera.width &&
-              view.image->height == view.camera.height &&
-              view.image->rgb.size() == 3 * static_cast<std::size_t>(view.camera.width) *
-                                            static_cast<std::size_t>(view.camera.height),
+  const CameraIntrinsics& cam = view.camera;
+  cam.validate();
+  require(view.image != nullptr && view.image->width == cam.width &&
+              view.image->height == cam.height &&
+              view.image->rgb.size() ==
+                  3 * static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height),
           "texture: frame " + std::to_string(f) + "'s image does not match its camera's size");
   require(view.T_world_camera.matrix().allFinite(),
           "texture: frame " + std::to_string(f) + "'s pose is not finite");
   const Eigen::Isometry3d T_camera_world = view.T_world_camera.inverse();
-  auto& pixel = pixel_;
-  auto& depth = depth_;
-  // Where each point falls (NaN depth: not in this frame).
-  tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
-    depth[i] = std::numeric_limits<float>::quiet_NaN();
-    const Eigen::Vector3d p = T_camera_world * cloud_.points[i].cast<double>();
-    if (!(p.z() > 0) || p.norm() > config.max_range_m) return;
-    const auto px = project(view.camera, p);
-    if (!px || !in_image(view.camera, *px)) return;
-    pixel[i] = *px;
-    depth[i] = static_cast<float>(p.z());
+  const Eigen::Vector3d origin = view.T_world_camera.translation();
+  // The blocks that may hold a point in view: within range, not wholly behind the camera, and
+  // (when wholly in front) not wholly beside the image — x/z and y/z over a box in front of the
+  // camera lie within those of its corners.
+  const Eigen::AlignedBox2d bounds = normalised_image_bounds(cam);
+  blocks_in_view_.clear();
+  for (std::size_t b = 0; b < block_box_.size(); ++b) {
+    const Eigen::AlignedBox3d box = block_box_[b].cast<double>();
+    if (box.exteriorDistance(origin) > config.max_range_m) continue;
+    int behind = 0;
+    Eigen::AlignedBox2d seen;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d p =
+          T_camera_world * box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+      if (!(p.z() > 0)) {
+        ++behind;
+      } else {
+        seen.extend(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z()));
+      }
+    }
+    if (behind == 8) continue;
+    if (behind == 0 && !seen.intersects(bounds)) continue;
+    blocks_in_view_.push_back(static_cast<int>(b));
+  }
+  auto points_of = [&](int b) {
+    return std::make_pair(static_cast<std::size_t>(b) * kBlock,
+                          std::min(n, static_cast<std::size_t>(b + 1) * kBlock));
+  };
+  const std::size_t nb = blocks_in_view_.size();
+  // Where each of their points falls (NaN depth: not in this frame).
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nb), [&](const auto& r) {
+    for (std::size_t j = r.begin(); j != r.end(); ++j) {
+      const auto [first, last] = points_of(blocks_in_view_[j]);
+      for (std::size_t k = first; k < last; ++k) {
+        depth_[k] = std::numeric_limits<float>::quiet_NaN();
+        const Eigen::Vector3d p = T_camera_world * points_[k].cast<double>();
+        if (!(p.z() > 0) || p.norm() > config.max_range_m) continue;
+        const auto px = project(cam, p);
+        if (!px || !in_image(cam, *px)) continue;
+        pixel_[k] = *px;
+        depth_[k] = static_cast<float>(p.z());
+      }
+    }
   });
-  // The depth buffer: each point a square of its spacing's size around its pixel.
-  const int w = view.camera.width, h = view.camera.height;
-  std::vector<float> zbuf(static_cast<std::size_t>(w) * h, std::numeric_limits<float>::infinity());
-  const double f_px = std::max(view.camera.fx, view.camera.fy);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (std::isnan(depth[i])) continue;
-    const int r =
-        std::min(config.max_splat_px,
-                 static_cast<int>(std::ceil(0.5 * f_px * config.point_spacing_m / depth[i])));
-    const int u0 = static_cast<int>(std::lround(pixel[i].x())),
-              v0 = static_cast<int>(std::lround(pixel[i].y()));
-    for (int v = std::max(0, v0 - r); v <= std::min(h - 1, v0 + r); ++v) {
-      for (int u = std::max(0, u0 - r); u <= std::min(w - 1, u0 + r); ++u) {
-        float& z = zbuf[static_cast<std::size_t>(v) * w + u];
-        z = std::min(z, depth[i]);
+  // The depth buffer: each point a square of its spacing's size around its pixel (the nearest
+  // wins, whatever the order).
+  const int w = cam.width, h = cam.height;
+  zbuf_.assign(static_cast<std::size_t>(w) * h, std::numeric_limits<float>::infinity());
+  const double f_px = std::max(cam.fx, cam.fy);
+  for (const int b : blocks_in_view_) {
+    const auto [first, last] = points_of(b);
+    for (std::size_t k = first; k < last; ++k) {
+      if (std::isnan(depth_[k])) continue;
+      const int r =
+          std::min(config.max_splat_px,
+                   static_cast<int>(std::ceil(0.5 * f_px * config.point_spacing_m / depth_[k])));
+      const int u0 = static_cast<int>(std::lround(pixel_[k].x())),
+                v0 = static_cast<int>(std::lround(pixel_[k].y()));
+      for (int v = std::max(0, v0 - r); v <= std::min(h - 1, v0 + r); ++v) {
+        for (int u = std::max(0, u0 - r); u <= std::min(w - 1, u0 + r); ++u) {
+          float& z = zbuf_[static_cast<std::size_t>(v) * w + u];
+          z = std::min(z, depth_[k]);
+        }
       }
     }
   }
   std::atomic<std::size_t> coloured{0};
-  tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
-    if (std::isnan(depth[i])) return;
-    const int u = std::clamp(static_cast<int>(std::lround(pixel[i].x())), 0, w - 1);
-    const int v = std::clamp(static_cast<int>(std::lround(pixel[i].y())), 0, h - 1);
-    if (depth[i] > zbuf[static_cast<std::size_t>(v) * w + u] + config.depth_tolerance_m) return;
-    sum_[i] += view.image->sample(pixel[i]).cast<double>();
-    ++views_[i];
-    coloured.fetch_add(1, std::memory_order_relaxed);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nb), [&](const auto& r) {
+    std::size_t local = 0;
+    for (std::size_t j = r.begin(); j != r.end(); ++j) {
+      const auto [first, last] = points_of(blocks_in_view_[j]);
+      for (std::size_t k = first; k < last; ++k) {
+        if (std::isnan(depth_[k])) continue;
+        const int u = std::clamp(static_cast<int>(std::lround(pixel_[k].x())), 0, w - 1);
+        const int v = std::clamp(static_cast<int>(std::lround(pixel_[k].y())), 0, h - 1);
+        if (depth_[k] > zbuf_[static_cast<std::size_t>(v) * w + u] + config.depth_tolerance_m) {
+          continue;
+        }
+        sum_[k] += view.image->sample(pixel_[k]).cast<double>();
+        ++views_[k];
+        ++local;
+      }
+    }
+    coloured.fetch_add(local, std::memory_order_relaxed);
   });
   return coloured.load();
 }
 
 TexturedCloud CloudTexturer::result() const {
-  const std::size_t n = cloud_.size();
+  const std::size_t n = points_.size();
   TexturedCloud out;
   out.color.assign(n, Eigen::Vector3f::Zero());
-  out.views = views_;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (views_[i] > 0) out.color[i] = (sum_[i] / views_[i]).cast<float>();
+  out.views.assign(n, 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    const int i = order_[k];
+    out.views[i] = views_[k];
+    if (views_[k] > 0) out.color[i] = (sum_[k] / views_[k]).cast<float>();
   }
   return out;
 }

@@ -1,11 +1,14 @@
 // `sonar3d texture`: a point cloud coloured from posed camera images on disk.
 #include "sonar3d/video/texture_files.hpp"
 
+#include <tbb/task_group.h>
+
 #include <algorithm>
 #include <array>
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -68,13 +71,16 @@ RgbImage read_rgb_image(const fs::path& path) {
   img.rgb.resize(3 * static_cast<std::size_t>(m.cols) * m.rows);
   img.range_m.assign(static_cast<std::size_t>(m.cols) * m.rows,
                      std::numeric_limits<float>::infinity());
-  // A table per encoded value: 8- and 16-bit are sRGB-encoded.
-  std::vector<float> lut;
-  if (m.depth() == CV_8U || m.depth() == CV_16U) {
-    const int levels = m.depth() == CV_8U ? 256 : 65536;
-    lut.resize(levels);
+  // A table per encoded value: 8- and 16-bit are sRGB-encoded (made once; 65,536 powf calls for
+  // 16 bits took longer than decoding a VGA image).
+  auto make_lut = [](int levels) {
+    std::vector<float> lut(static_cast<std::size_t>(levels));
     for (int k = 0; k < levels; ++k) lut[k] = srgb_to_linear(float(k) / float(levels - 1));
-  } else if (m.depth() != CV_32F) {
+    return lut;
+  };
+  static const std::vector<float> lut8 = make_lut(256), lut16 = make_lut(65536);
+  const std::vector<float>& lut = m.depth() == CV_8U ? lut8 : lut16;
+  if (m.depth() != CV_8U && m.depth() != CV_16U && m.depth() != CV_32F) {
     throw Error("image '" + path.string() +
                 "' has an unsupported pixel type (8-bit, 16-bit or 32-bit float expected)");
   }
@@ -288,9 +294,7 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   Progress progress("texture", frames.size(), job.progress);
   TextureFilesResult r;
   r.points = job.is_mesh ? mesh_texturer->mesh().vertices.size() : cloud.size();
-  for (std::size_t f = 0; f < frames.size(); ++f) {
-    const Frame& fr = frames[f];
-    const RgbImage img = read_rgb_image(fr.file);
+  auto texture_frame = [&](std::size_t f, const Frame& fr, const RgbImage& img) {
     CameraIntrinsics cam;
     if (fr.camera) {
       cam = *fr.camera;
@@ -312,6 +316,32 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
     } else {
       cloud_texturer->add(view, f);
     }
+  };
+  // The next frame's image is read while this one is textured (both on TBB's threads); a read
+  // error is kept and thrown when that frame's turn comes.
+  std::optional<RgbImage> next;
+  std::exception_ptr next_error;
+  auto read_next = [&](std::size_t f) {
+    try {
+      next = read_rgb_image(frames[f].file);
+    } catch (...) {
+      next_error = std::current_exception();
+    }
+  };
+  if (!frames.empty()) read_next(0);
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (next_error) std::rethrow_exception(next_error);
+    const RgbImage img = std::move(*next);
+    next.reset();
+    tbb::task_group reader;
+    if (f + 1 < frames.size()) reader.run([&read_next, f] { read_next(f + 1); });
+    try {
+      texture_frame(f, frames[f], img);
+    } catch (...) {
+      reader.wait();  // read_next throws nothing
+      throw;
+    }
+    reader.wait();
     ++r.frames;
     progress.add();
   }

@@ -28,26 +28,34 @@ std::uint64_t spread3(std::uint64_t v) {
 
 }  // namespace
 
-void sort_vertices_spatially(TriangleMesh& m) {
-  // One scale for the three axes (a cube around the mesh): a flat model (a seabed, a relief) then
-  // splits along its length first, so that consecutive vertices stay close in every direction.
-  const Eigen::AlignedBox3f box = m.bounding_box();
+std::vector<int> morton_order(const std::vector<Eigen::Vector3f>& points) {
+  // One scale for the three axes (a cube around the points): a flat model (a seabed, a relief)
+  // then splits along its length first, so that consecutive points stay close in every direction.
+  Eigen::AlignedBox3f box;
+  for (const Eigen::Vector3f& p : points) box.extend(p);
   const float extent = std::max((box.max() - box.min()).maxCoeff(), 1e-6f);
-  std::vector<std::pair<std::uint64_t, int>> key(m.vertices.size());
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+  std::vector<std::pair<std::uint64_t, int>> key(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f q =
-        ((m.vertices[i] - box.min()) / extent * 2097151.0f).cwiseMax(0.0f).cwiseMin(2097151.0f);
+        ((points[i] - box.min()) / extent * 2097151.0f).cwiseMax(0.0f).cwiseMin(2097151.0f);
     key[i] = {spread3(static_cast<std::uint64_t>(q.x())) |
                   spread3(static_cast<std::uint64_t>(q.y())) << 1 |
                   spread3(static_cast<std::uint64_t>(q.z())) << 2,
               static_cast<int>(i)};
   }
   std::sort(key.begin(), key.end());
+  std::vector<int> order(points.size());
+  for (std::size_t k = 0; k < key.size(); ++k) order[k] = key[k].second;
+  return order;
+}
+
+void sort_vertices_spatially(TriangleMesh& m) {
+  const std::vector<int> order = morton_order(m.vertices);
   std::vector<int> new_index(m.vertices.size());
   std::vector<Eigen::Vector3f> vertices(m.vertices.size());
-  for (std::size_t k = 0; k < key.size(); ++k) {
-    new_index[key[k].second] = static_cast<int>(k);
-    vertices[k] = m.vertices[key[k].second];
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    new_index[order[k]] = static_cast<int>(k);
+    vertices[k] = m.vertices[order[k]];
   }
   m.vertices = std::move(vertices);
   for (auto& t : m.triangles)
@@ -100,35 +108,11 @@ VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occlude
 void VisibilityRaster::setup_raster(const CameraIntrinsics& c) {
   // The raster covers the image's field of view in the undistorted normalised plane: the bounds
   // of the rays through the image's border (for a pinhole, exactly the image).
-  double xmin = (-0.5 - c.cx) / c.fx, xmax = (c.width - 0.5 - c.cx) / c.fx;
-  double ymin = (-0.5 - c.cy) / c.fy, ymax = (c.height - 0.5 - c.cy) / c.fy;
+  const Eigen::AlignedBox2d bounds = normalised_image_bounds(c);
+  const double xmin = bounds.min().x(), xmax = bounds.max().x();
+  const double ymin = bounds.min().y(), ymax = bounds.max().y();
   double scale = 1.0;
   if (c.distorted()) {
-    xmin = ymin = 1e300;
-    xmax = ymax = -1e300;
-    auto take = [&](double u, double v) {
-      const auto ray = unproject(c, Eigen::Vector2d(u, v));
-      if (!ray || !(ray->z() > 0)) return;
-      xmin = std::min(xmin, ray->x() / ray->z());
-      xmax = std::max(xmax, ray->x() / ray->z());
-      ymin = std::min(ymin, ray->y() / ray->z());
-      ymax = std::max(ymax, ray->y() / ray->z());
-    };
-    const int step = 8;
-    for (int i = 0; i <= c.width; i += step) {
-      take(std::min(i, c.width) - 0.5, -0.5);
-      take(std::min(i, c.width) - 0.5, c.height - 0.5);
-    }
-    for (int j = 0; j <= c.height; j += step) {
-      take(-0.5, std::min(j, c.height) - 0.5);
-      take(c.width - 0.5, std::min(j, c.height) - 0.5);
-    }
-    take(c.width - 0.5, c.height - 0.5);
-    // A margin of two pixels for the border sampling's step.
-    xmin -= 2 / c.fx;
-    xmax += 2 / c.fx;
-    ymin -= 2 / c.fy;
-    ymax += 2 / c.fy;
     const double area = (xmax - xmin) * c.fx * (ymax - ymin) * c.fy;
     const double limit = kMaxRasterFactor * c.width * c.height;
     if (area > limit) scale = std::sqrt(limit / area);

@@ -41,6 +41,8 @@
 
 namespace sonar3d::detail {
 
+// The points' indices along a Morton curve (points near in space become near in the order).
+std::vector<int> morton_order(const std::vector<Eigen::Vector3f>& points);
 // Renumbers the vertices along a Morton curve (vertices near in the mesh become near in memory).
 void sort_vertices_spatially(TriangleMesh& mesh);
 

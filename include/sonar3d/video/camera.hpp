@@ -5,6 +5,7 @@
 // the vehicle by T_vehicle_camera; a posed frame has T_world_camera. Importers convert other
 // conventions (COLMAP's pixel centres at +0.5, OpenGL's −z forward) into these (docs/video.md).
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <optional>
 #include <string>
 
@@ -36,5 +37,11 @@ std::optional<Eigen::Vector3d> unproject(const CameraIntrinsics& camera,
 
 // Whether a pixel lies within the image (the pixel squares' outer edges: −0.5 … width − 0.5).
 bool in_image(const CameraIntrinsics& camera, const Eigen::Vector2d& pixel);
+
+// The bounds, in normalised image coordinates (x/z, y/z), of the rays through the image's outer
+// pixel edges: exact for a pinhole; with distortion, those of the unprojected border (sampled
+// every 8 pixels) widened by 2 pixels. A point in front of the camera whose x/z or y/z lies outside
+// does not project into the image.
+Eigen::AlignedBox2d normalised_image_bounds(const CameraIntrinsics& camera);
 
 }  // namespace sonar3d

@@ -42,7 +42,7 @@ TexturedCloud texture_cloud(const PointCloud& cloud, const std::vector<CameraVie
 // view (its image may be freed afterwards), then result(). texture_cloud() is add() over all.
 class CloudTexturer {
  public:
-  // Keeps a reference to `cloud`: it must outlive the texturer. Throws on a bad config.
+  // Copies the cloud's points (in a spatial order of its own). Throws on a bad config.
   CloudTexturer(const PointCloud& cloud, const TextureConfig& config = {});
   // Throws Error (naming the frame by `index`) when the image does not match the camera's size,
   // the camera is invalid or the pose is not finite. Returns how many points this frame coloured.
@@ -50,12 +50,19 @@ class CloudTexturer {
   TexturedCloud result() const;
 
  private:
-  const PointCloud& cloud_;
   TextureConfig config_;
+  // The points in Morton order (order_[k]: the cloud's index of the k-th), in blocks of 256 with a
+  // bounding box each, so that a frame only projects the blocks it may see. Per point in that
+  // order: the colour sum and views over the frames so far, and this frame's pixel and depth.
+  std::vector<int> order_;
+  std::vector<Eigen::Vector3f> points_;
+  std::vector<Eigen::AlignedBox3f> block_box_;
   std::vector<Eigen::Vector3d> sum_;
   std::vector<std::uint32_t> views_;
   std::vector<Eigen::Vector2d> pixel_;
   std::vector<float> depth_;
+  std::vector<int> blocks_in_view_;  // this frame's
+  std::vector<float> zbuf_;          // this frame's depth buffer
 };
 
 }  // namespace sonar3d
