@@ -94,10 +94,6 @@ std::optional<Eigen::Vector3d> unproject(const CameraIntrinsics& c, const Eigen:
   return Eigen::Vector3d(xy.x(), xy.y(), 1.0).normalized();
 }
 
-bool in_image(const CameraIntrinsics& c, const Eigen::Vector2d& px) {
-  return px.x() >= -0.5 && px.y() >= -0.5 && px.x() < c.width - 0.5 && px.y() < c.height - 0.5;
-}
-
 Eigen::AlignedBox2d normalised_image_bounds(const CameraIntrinsics& c) {
   Eigen::AlignedBox2d box(
       Eigen::Vector2d((-0.5 - c.cx) / c.fx, (-0.5 - c.cy) / c.fy),

@@ -13,16 +13,6 @@
 
 namespace sonar3d {
 
-Eigen::Vector3f RgbImage::sample(const Eigen::Vector2d& pixel) const {
-  const double x = std::clamp(pixel.x(), 0.0, static_cast<double>(width - 1));
-  const double y = std::clamp(pixel.y(), 0.0, static_cast<double>(height - 1));
-  const int u0 = static_cast<int>(std::floor(x)), v0 = static_cast<int>(std::floor(y));
-  const int u1 = std::min(u0 + 1, width - 1), v1 = std::min(v0 + 1, height - 1);
-  const float a = static_cast<float>(x - u0), b = static_cast<float>(y - v0);
-  return (1 - a) * (1 - b) * at(u0, v0) + a * (1 - b) * at(u1, v0) + (1 - a) * b * at(u0, v1) +
-         a * b * at(u1, v1);
-}
-
 void CameraRenderConfig::validate() const {
   require(std::isfinite(ambient) && ambient >= 0 && ambient <= 1,
           "camera render: ambient must lie in [0, 1]");

@@ -90,6 +90,9 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
                           std::min(n, static_cast<std::size_t>(b + 1) * kBlock));
   };
   const std::size_t nb = blocks_in_view_.size();
+  const bool pinhole = !cam.distorted();
+  // The pixel nearest a point's (in_image: x, y ≥ −0.5, so truncating x + 0.5 is its floor).
+  auto nearest = [](double x) { return static_cast<int>(x + 0.5); };
   // Where each of their points falls (NaN depth: not in this frame).
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nb), [&](const auto& r) {
     for (std::size_t j = r.begin(); j != r.end(); ++j) {
@@ -98,9 +101,16 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
         depth_[k] = std::numeric_limits<float>::quiet_NaN();
         const Eigen::Vector3d p = T_camera_world * points_[k].cast<double>();
         if (!(p.z() > 0) || p.norm() > config.max_range_m) continue;
-        const auto px = project(cam, p);
-        if (!px || !in_image(cam, *px)) continue;
-        pixel_[k] = *px;
+        Eigen::Vector2d px;
+        if (pinhole) {  // project() without distortion, inline
+          px = {cam.fx * (p.x() / p.z()) + cam.cx, cam.fy * (p.y() / p.z()) + cam.cy};
+        } else {
+          const auto q = project(cam, p);
+          if (!q) continue;
+          px = *q;
+        }
+        if (!in_image(cam, px)) continue;
+        pixel_[k] = px;
         depth_[k] = static_cast<float>(p.z());
       }
     }
@@ -117,8 +127,7 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
       const int r =
           std::min(config.max_splat_px,
                    static_cast<int>(std::ceil(0.5 * f_px * config.point_spacing_m / depth_[k])));
-      const int u0 = static_cast<int>(std::lround(pixel_[k].x())),
-                v0 = static_cast<int>(std::lround(pixel_[k].y()));
+      const int u0 = nearest(pixel_[k].x()), v0 = nearest(pixel_[k].y());
       for (int v = std::max(0, v0 - r); v <= std::min(h - 1, v0 + r); ++v) {
         for (int u = std::max(0, u0 - r); u <= std::min(w - 1, u0 + r); ++u) {
           float& z = zbuf_[static_cast<std::size_t>(v) * w + u];
@@ -134,8 +143,8 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
       const auto [first, last] = points_of(blocks_in_view_[j]);
       for (std::size_t k = first; k < last; ++k) {
         if (std::isnan(depth_[k])) continue;
-        const int u = std::clamp(static_cast<int>(std::lround(pixel_[k].x())), 0, w - 1);
-        const int v = std::clamp(static_cast<int>(std::lround(pixel_[k].y())), 0, h - 1);
+        const int u = std::clamp(nearest(pixel_[k].x()), 0, w - 1);
+        const int v = std::clamp(nearest(pixel_[k].y()), 0, h - 1);
         if (depth_[k] > zbuf_[static_cast<std::size_t>(v) * w + u] + config.depth_tolerance_m) {
           continue;
         }

@@ -36,7 +36,9 @@ std::optional<Eigen::Vector3d> unproject(const CameraIntrinsics& camera,
                                          const Eigen::Vector2d& pixel);
 
 // Whether a pixel lies within the image (the pixel squares' outer edges: −0.5 … width − 0.5).
-bool in_image(const CameraIntrinsics& camera, const Eigen::Vector2d& pixel);
+inline bool in_image(const CameraIntrinsics& c, const Eigen::Vector2d& px) {
+  return px.x() >= -0.5 && px.y() >= -0.5 && px.x() < c.width - 0.5 && px.y() < c.height - 0.5;
+}
 
 // The bounds, in normalised image coordinates (x/z, y/z), of the rays through the image's outer
 // pixel edges: exact for a pinhole; with distortion, those of the unprojected border (sampled

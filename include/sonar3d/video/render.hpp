@@ -3,6 +3,7 @@
 // every pixel of a pinhole camera, each object's colour (SceneObject::color) lit by a lamp on the
 // camera and dimmed by the water along the way out and back.
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <memory>
 #include <vector>
 
@@ -22,7 +23,15 @@ struct RgbImage {
     return {rgb[k], rgb[k + 1], rgb[k + 2]};
   }
   // Bilinear between pixel centres (pixel coordinates as in camera.hpp), clamped at the edges.
-  Eigen::Vector3f sample(const Eigen::Vector2d& pixel) const;
+  Eigen::Vector3f sample(const Eigen::Vector2d& pixel) const {
+    const double x = std::clamp(pixel.x(), 0.0, static_cast<double>(width - 1));
+    const double y = std::clamp(pixel.y(), 0.0, static_cast<double>(height - 1));
+    const int u0 = static_cast<int>(x), v0 = static_cast<int>(y);  // x, y ≥ 0: the floors
+    const int u1 = std::min(u0 + 1, width - 1), v1 = std::min(v0 + 1, height - 1);
+    const float a = static_cast<float>(x - u0), b = static_cast<float>(y - v0);
+    return (1 - a) * (1 - b) * at(u0, v0) + a * (1 - b) * at(u1, v0) + (1 - a) * b * at(u0, v1) +
+           a * b * at(u1, v1);
+  }
 };
 
 struct CameraRenderConfig {
