@@ -37,11 +37,8 @@ CloudTexturer::CloudTexturer(const PointCloud& cloud, const TextureConfig& confi
   const std::size_t n = cloud.size();
   order_ = detail::morton_order(cloud.points);
   points_.resize(n);
-  block_box_.resize((n + kBlock - 1) / kBlock);
-  for (std::size_t k = 0; k < n; ++k) {
-    points_[k] = cloud.points[order_[k]];
-    block_box_[k / kBlock].extend(points_[k]);
-  }
+  for (std::size_t k = 0; k < n; ++k) points_[k] = cloud.points[order_[k]];
+  block_box_ = detail::block_boxes(points_, kBlock);
   sum_.assign(n, Eigen::Vector3d::Zero());
   views_.assign(n, 0);
   pixel_.resize(n);
@@ -61,30 +58,8 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
   require(view.T_world_camera.matrix().allFinite(),
           "texture: frame " + std::to_string(f) + "'s pose is not finite");
   const Eigen::Isometry3d T_camera_world = view.T_world_camera.inverse();
-  const Eigen::Vector3d origin = view.T_world_camera.translation();
-  // The blocks that may hold a point in view: within range, not wholly behind the camera, and
-  // (when wholly in front) not wholly beside the image — x/z and y/z over a box in front of the
-  // camera lie within those of its corners.
-  const Eigen::AlignedBox2d bounds = normalised_image_bounds(cam);
-  blocks_in_view_.clear();
-  for (std::size_t b = 0; b < block_box_.size(); ++b) {
-    const Eigen::AlignedBox3d box = block_box_[b].cast<double>();
-    if (box.exteriorDistance(origin) > config.max_range_m) continue;
-    int behind = 0;
-    Eigen::AlignedBox2d seen;
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d p =
-          T_camera_world * box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
-      if (!(p.z() > 0)) {
-        ++behind;
-      } else {
-        seen.extend(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z()));
-      }
-    }
-    if (behind == 8) continue;
-    if (behind == 0 && !seen.intersects(bounds)) continue;
-    blocks_in_view_.push_back(static_cast<int>(b));
-  }
+  // The blocks that may hold a point in view.
+  detail::blocks_in_view(block_box_, cam, T_camera_world, config.max_range_m, blocks_in_view_);
   auto points_of = [&](int b) {
     return std::make_pair(static_cast<std::size_t>(b) * kBlock,
                           std::min(n, static_cast<std::size_t>(b + 1) * kBlock));

@@ -99,12 +99,20 @@ TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
   return subdivide_with_parents(mesh, max_edge_m, max_vertices, parent);
 }
 
+namespace {
+constexpr std::size_t kChunk = 256;  // vertices culled together against a frame's view
+}  // namespace
+
 struct MeshTexturer::Impl {
   TriangleMesh mesh;
   MeshTextureConfig config;
   RTCScene scene = nullptr;
   std::vector<Eigen::Array4d> acc;  // per vertex: Σ weight · colour (linear RGB), Σ weight
-  std::vector<float> xs, ys, zs;    // the vertices' coordinates, apart (for vectorised projection)
+  // Chunks of kChunk consecutive vertices (in their Morton order) with their bounding boxes, and
+  // those the current frame may see.
+  std::vector<Eigen::AlignedBox3f> chunk_box;
+  std::vector<int> chunks_in_view;
+  std::vector<float> xs, ys, zs;  // the vertices' coordinates, apart (for vectorised projection)
   std::vector<std::uint32_t> views;
   std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
   // Per vertex, the occluder triangles it lies on (the raster's numbering): those of the
@@ -181,6 +189,7 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
     }
   }
   impl_->acc.assign(impl_->mesh.vertices.size(), Eigen::Array4d::Zero());
+  impl_->chunk_box = detail::block_boxes(impl_->mesh.vertices, kChunk);
   for (const Eigen::Vector3f& v : impl_->mesh.vertices) {
     impl_->xs.push_back(v.x());
     impl_->ys.push_back(v.y());
@@ -280,8 +289,11 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const std::uint32_t* owner_start = impl_->owner_start.data();
   const std::uint32_t* owner_ids = impl_->owner_ids.data();
   const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
+  // Only the chunks of vertices the camera may see (a frame of a survey sees a part of a model).
+  std::vector<int>& chunks = impl_->chunks_in_view;
+  detail::blocks_in_view(impl_->chunk_box, cam, T_camera_world, impl_->config.max_range_m, chunks);
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, V.size(), 8192),
+      tbb::blocked_range<std::size_t>(0, chunks.size(), 32),
       [&](const tbb::blocked_range<std::size_t>& r) {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
@@ -289,7 +301,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
         // Blocks of vertices in three steps: all projected at once (no branches: vectorised),
         // those in the image kept (prefetching their raster and image pixels), then tested one
         // block later — so that the memory latency of one vertex overlaps the others'.
-        constexpr std::size_t kBlock = 64;
+        constexpr std::size_t kBlock = 64;  // divides kChunk
         struct Candidate {
           float x, y;  // pixel
           float range;
@@ -359,62 +371,66 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
         Candidate cand[2][kBlock];  // this block's candidates and the previous one's
         int cur = 0;
         std::size_t pending = 0;  // candidates of the previous block
-        for (std::size_t start = r.begin(); start < r.end(); start += kBlock) {
-          const std::size_t m = std::min(r.end() - start, kBlock);
-          for (std::size_t j = 0; j < m; ++j) {
-            const float X = xs[start + j], Y = ys[start + j], Z = zs[start + j];
-            const float px = R(0, 0) * X + R(0, 1) * Y + R(0, 2) * Z + t.x();
-            const float py = R(1, 0) * X + R(1, 1) * Y + R(1, 2) * Z + t.y();
-            const float pz = R(2, 0) * X + R(2, 1) * Y + R(2, 2) * Z + t.z();
-            const float iz = 1.0f / pz;  // ±inf or negative behind the camera: rejected below
-            const float xn = px * iz, yn = py * iz;
-            const float x = fx * xn + cx, y = fy * yn + cy;
-            bx[j] = x;
-            by[j] = y;
-            const float u = rsx * xn + rox, v = rsy * yn + roy;
-            const bool in_raster = (pz > rnear) & (u >= 0) & (v >= 0) & (u < ru1) & (v < rv1);
-            // Within the raster (u, v) ≥ 0: the integer parts are the floors. Outside: −1 (and
-            // (0, 0) converted, which any float converts to safely).
-            const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
-            const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
-            bcell[j] =
-                ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) & keep) |
-                ~keep;
-            const float r2 = px * px + py * py + pz * pz;
-            br2[j] = r2;
-            // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges
-            bok[j] = static_cast<std::int32_t>(
-                (pz > 0) & (r2 <= max_range2) &
-                (distorted | ((x >= -0.5f) & (y >= -0.5f) & (x < umax) & (y < vmax))));
-          }
-          std::size_t n = 0;
-          for (std::size_t j = 0; j < m; ++j) {
-            if (!bok[j]) continue;
-            float x = bx[j], y = by[j];
-            if (!pinhole) {
-              const Eigen::Vector3f p = R * V[start + j] + t;
-              const auto q = project(cam, p.cast<double>());
-              if (!q) continue;
-              x = static_cast<float>(q->x());
-              y = static_cast<float>(q->y());
-              if (!(x >= -0.5f && y >= -0.5f && x < umax && y < vmax)) continue;
+        for (std::size_t chunk = r.begin(); chunk != r.end(); ++chunk) {
+          const std::size_t first = static_cast<std::size_t>(chunks[chunk]) * kChunk;
+          const std::size_t last = std::min(V.size(), first + kChunk);
+          for (std::size_t start = first; start < last; start += kBlock) {
+            const std::size_t m = std::min(last - start, kBlock);
+            for (std::size_t j = 0; j < m; ++j) {
+              const float X = xs[start + j], Y = ys[start + j], Z = zs[start + j];
+              const float px = R(0, 0) * X + R(0, 1) * Y + R(0, 2) * Z + t.x();
+              const float py = R(1, 0) * X + R(1, 1) * Y + R(1, 2) * Z + t.y();
+              const float pz = R(2, 0) * X + R(2, 1) * Y + R(2, 2) * Z + t.z();
+              const float iz = 1.0f / pz;  // ±inf or negative behind the camera: rejected below
+              const float xn = px * iz, yn = py * iz;
+              const float x = fx * xn + cx, y = fy * yn + cy;
+              bx[j] = x;
+              by[j] = y;
+              const float u = rsx * xn + rox, v = rsy * yn + roy;
+              const bool in_raster = (pz > rnear) & (u >= 0) & (v >= 0) & (u < ru1) & (v < rv1);
+              // Within the raster (u, v) ≥ 0: the integer parts are the floors. Outside: −1 (and
+              // (0, 0) converted, which any float converts to safely).
+              const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
+              const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
+              bcell[j] = ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) &
+                          keep) |
+                         ~keep;
+              const float r2 = px * px + py * py + pz * pz;
+              br2[j] = r2;
+              // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges
+              bok[j] = static_cast<std::int32_t>(
+                  (pz > 0) & (r2 <= max_range2) &
+                  (distorted | ((x >= -0.5f) & (y >= -0.5f) & (x < umax) & (y < vmax))));
             }
-            Candidate& c = cand[cur][n++];
-            c.x = x;
-            c.y = y;
-            c.range = std::sqrt(br2[j]);
-            c.i = start + j;
-            c.cell = bcell[j];
-            if (raster) raster->prefetch(c.cell);
-            const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
-                                      3 * static_cast<std::size_t>(std::max(0.0f, x));
-            __builtin_prefetch(rgb + pixel);
-            __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+            std::size_t n = 0;
+            for (std::size_t j = 0; j < m; ++j) {
+              if (!bok[j]) continue;
+              float x = bx[j], y = by[j];
+              if (!pinhole) {
+                const Eigen::Vector3f p = R * V[start + j] + t;
+                const auto q = project(cam, p.cast<double>());
+                if (!q) continue;
+                x = static_cast<float>(q->x());
+                y = static_cast<float>(q->y());
+                if (!(x >= -0.5f && y >= -0.5f && x < umax && y < vmax)) continue;
+              }
+              Candidate& c = cand[cur][n++];
+              c.x = x;
+              c.y = y;
+              c.range = std::sqrt(br2[j]);
+              c.i = start + j;
+              c.cell = bcell[j];
+              if (raster) raster->prefetch(c.cell);
+              const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
+                                        3 * static_cast<std::size_t>(std::max(0.0f, x));
+              __builtin_prefetch(rgb + pixel);
+              __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+            }
+            // The previous block's tests, while this block's pixels are on their way.
+            settle(cand[cur ^ 1], pending);
+            pending = n;
+            cur ^= 1;
           }
-          // The previous block's tests, while this block's pixels are on their way.
-          settle(cand[cur ^ 1], pending);
-          pending = n;
-          cur ^= 1;
         }
         settle(cand[cur ^ 1], pending);
         coloured.fetch_add(local, std::memory_order_relaxed);

@@ -62,6 +62,39 @@ void sort_vertices_spatially(TriangleMesh& m) {
     t = Eigen::Vector3i(new_index[t[0]], new_index[t[1]], new_index[t[2]]);
 }
 
+std::vector<Eigen::AlignedBox3f> block_boxes(const std::vector<Eigen::Vector3f>& points,
+                                             std::size_t block_size) {
+  std::vector<Eigen::AlignedBox3f> boxes((points.size() + block_size - 1) / block_size);
+  for (std::size_t k = 0; k < points.size(); ++k) boxes[k / block_size].extend(points[k]);
+  return boxes;
+}
+
+void blocks_in_view(const std::vector<Eigen::AlignedBox3f>& boxes, const CameraIntrinsics& camera,
+                    const Eigen::Isometry3d& T_camera_world, double max_range_m,
+                    std::vector<int>& out) {
+  out.clear();
+  const Eigen::AlignedBox2d bounds = normalised_image_bounds(camera);
+  const Eigen::Vector3d origin = T_camera_world.inverse().translation();
+  for (std::size_t b = 0; b < boxes.size(); ++b) {
+    const Eigen::AlignedBox3d box = boxes[b].cast<double>();
+    if (box.exteriorDistance(origin) > max_range_m) continue;
+    int behind = 0;
+    Eigen::AlignedBox2d seen;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d p =
+          T_camera_world * box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+      if (!(p.z() > 0)) {
+        ++behind;
+      } else {
+        seen.extend(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z()));
+      }
+    }
+    if (behind == 8) continue;
+    if (behind == 0 && !seen.intersects(bounds)) continue;
+    out.push_back(static_cast<int>(b));
+  }
+}
+
 VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occluder) {
   // Spatial order: vertices along the Morton curve, triangles by their first vertex in it.
   sort_vertices_spatially(mesh_);

@@ -46,6 +46,18 @@ std::vector<int> morton_order(const std::vector<Eigen::Vector3f>& points);
 // Renumbers the vertices along a Morton curve (vertices near in the mesh become near in memory).
 void sort_vertices_spatially(TriangleMesh& mesh);
 
+// The bounding boxes of blocks of `block_size` consecutive points (in a spatial order, e.g.
+// morton_order()), so that a camera frame skips the blocks it cannot see (blocks_in_view()).
+std::vector<Eigen::AlignedBox3f> block_boxes(const std::vector<Eigen::Vector3f>& points,
+                                             std::size_t block_size);
+// Into `out`, the blocks (block_boxes()) that may hold a point within `max_range_m` of the camera
+// at T_camera_world and in its image: not wholly farther, not wholly behind it, and (when wholly
+// in front) not wholly beside the image — x/z, y/z over a box in front of the camera lie within
+// those of its corners (normalised_image_bounds()).
+void blocks_in_view(const std::vector<Eigen::AlignedBox3f>& boxes, const CameraIntrinsics& camera,
+                    const Eigen::Isometry3d& T_camera_world, double max_range_m,
+                    std::vector<int>& out);
+
 class VisibilityRaster {
  public:
   enum class Verdict : std::uint8_t { Visible, Hidden, Unknown };
