@@ -68,10 +68,19 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
   const bool pinhole = !cam.distorted();
   // The pixel nearest a point's (in_image: x, y ≥ −0.5, so truncating x + 0.5 is its floor).
   auto nearest = [](double x) { return static_cast<int>(x + 0.5); };
-  // Where each of their points falls (NaN depth: not in this frame).
+  // Where each of their points falls (NaN depth: not in this frame), and the rows each block's
+  // splats may reach.
+  const int w = cam.width, h = cam.height;
+  const double f_px = std::max(cam.fx, cam.fy);
+  auto splat_radius = [&](float depth) {
+    return std::min(config.max_splat_px,
+                    static_cast<int>(std::ceil(0.5 * f_px * config.point_spacing_m / depth)));
+  };
+  block_rows_.assign(nb, {h, -1});
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nb), [&](const auto& r) {
     for (std::size_t j = r.begin(); j != r.end(); ++j) {
       const auto [first, last] = points_of(blocks_in_view_[j]);
+      auto& rows = block_rows_[j];
       for (std::size_t k = first; k < last; ++k) {
         depth_[k] = std::numeric_limits<float>::quiet_NaN();
         const Eigen::Vector3d p = T_camera_world * points_[k].cast<double>();
@@ -87,30 +96,35 @@ std::size_t CloudTexturer::add(const CameraView& view, std::size_t f) {
         if (!in_image(cam, px)) continue;
         pixel_[k] = px;
         depth_[k] = static_cast<float>(p.z());
+        const int v0 = nearest(px.y()), rad = splat_radius(depth_[k]);
+        rows.first = std::min(rows.first, v0 - rad);
+        rows.second = std::max(rows.second, v0 + rad);
       }
     }
   });
-  // The depth buffer: each point a square of its spacing's size around its pixel (the nearest
-  // wins, whatever the order).
-  const int w = cam.width, h = cam.height;
+  // The depth buffer: each point a square of its spacing's size around its pixel. In bands of
+  // rows, in parallel, each band splatting the blocks that reach it within its own rows: the
+  // nearest depth wins, whatever the order.
   zbuf_.assign(static_cast<std::size_t>(w) * h, std::numeric_limits<float>::infinity());
-  const double f_px = std::max(cam.fx, cam.fy);
-  for (const int b : blocks_in_view_) {
-    const auto [first, last] = points_of(b);
-    for (std::size_t k = first; k < last; ++k) {
-      if (std::isnan(depth_[k])) continue;
-      const int r =
-          std::min(config.max_splat_px,
-                   static_cast<int>(std::ceil(0.5 * f_px * config.point_spacing_m / depth_[k])));
-      const int u0 = nearest(pixel_[k].x()), v0 = nearest(pixel_[k].y());
-      for (int v = std::max(0, v0 - r); v <= std::min(h - 1, v0 + r); ++v) {
-        for (int u = std::max(0, u0 - r); u <= std::min(w - 1, u0 + r); ++u) {
-          float& z = zbuf_[static_cast<std::size_t>(v) * w + u];
-          z = std::min(z, depth_[k]);
+  constexpr int kBandRows = 32;
+  tbb::parallel_for(0, (h + kBandRows - 1) / kBandRows, [&](int band) {
+    const int y0 = band * kBandRows, y1 = std::min(h, y0 + kBandRows) - 1;
+    for (std::size_t j = 0; j < nb; ++j) {
+      if (block_rows_[j].second < y0 || block_rows_[j].first > y1) continue;
+      const auto [first, last] = points_of(blocks_in_view_[j]);
+      for (std::size_t k = first; k < last; ++k) {
+        if (std::isnan(depth_[k])) continue;
+        const int r = splat_radius(depth_[k]);
+        const int u0 = nearest(pixel_[k].x()), v0 = nearest(pixel_[k].y());
+        for (int v = std::max(y0, v0 - r); v <= std::min(y1, v0 + r); ++v) {
+          for (int u = std::max(0, u0 - r); u <= std::min(w - 1, u0 + r); ++u) {
+            float& z = zbuf_[static_cast<std::size_t>(v) * w + u];
+            z = std::min(z, depth_[k]);
+          }
         }
       }
     }
-  }
+  });
   std::atomic<std::size_t> coloured{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nb), [&](const auto& r) {
     std::size_t local = 0;

@@ -7,6 +7,7 @@
 // surfaces.)
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "sonar3d/core/point_cloud.hpp"
@@ -61,8 +62,9 @@ class CloudTexturer {
   std::vector<std::uint32_t> views_;
   std::vector<Eigen::Vector2d> pixel_;
   std::vector<float> depth_;
-  std::vector<int> blocks_in_view_;  // this frame's
-  std::vector<float> zbuf_;          // this frame's depth buffer
+  std::vector<int> blocks_in_view_;              // this frame's
+  std::vector<std::pair<int, int>> block_rows_;  // the rows their splats may reach (first, last)
+  std::vector<float> zbuf_;                      // this frame's depth buffer
 };
 
 }  // namespace sonar3d
