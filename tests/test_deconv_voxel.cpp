@@ -76,19 +76,7 @@ void expect_at_least_carving(const EvalResult& deconv, const EvalResult& carve) 
 
 // Thirteen circles of radius 2.5 m at heights −0.1–1.1 m (the sphere spans 0.2–0.8 m, the
 // aperture ±0.22 m at 2.5 m), 8 frames each, facing the centre.
-std::vector<Eigen::Isometry3d> orbit_poses() {
-  std::vector<Eigen::Isometry3d> poses;
-  for (int level = 0; level < 13; ++level) {
-    for (int k = 0; k < 8; ++k) {
-      const double a = (k + 0.5 * (level % 2)) * 45 * kDeg;
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = Eigen::AngleAxisd(a + M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      T.translation() = Eigen::Vector3d(2.5 * std::cos(a), 2.5 * std::sin(a), -0.1 + 0.1 * level);
-      poses.push_back(T);
-    }
-  }
-  return poses;
-}
+std::vector<Eigen::Isometry3d> orbit_poses() { return test::orbit_poses(2.5, 13, 8, -0.1, 0.1); }
 
 }  // namespace
 

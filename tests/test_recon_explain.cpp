@@ -120,18 +120,10 @@ PointCloud deconvolve_frame_orbit(double support_min_bracket, bool support_refut
                                   DeconvReport* report) {
   const SonarSpec spec = test::reduced_spec_20deg();
   const Simulator sim(frame_scene(), spec, test::jittered_sim_config(0.05));
+  const std::vector<Eigen::Isometry3d> poses = test::orbit_poses(2.5, 9, 12, -0.3, 0.15);
   std::vector<SonarImage> frames;
-  std::vector<Eigen::Isometry3d> poses;
-  for (int level = 0; level < 9; ++level) {
-    for (int k = 0; k < 12; ++k) {
-      const double a = (k + 0.5 * (level % 2)) * 30 * kDeg;
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = Eigen::AngleAxisd(a + M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      T.translation() = Eigen::Vector3d(2.5 * std::cos(a), 2.5 * std::sin(a), -0.3 + 0.15 * level);
-      poses.push_back(T);
-      frames.push_back(sim.render(T, static_cast<int>(poses.size())));
-    }
-  }
+  for (std::size_t k = 0; k < poses.size(); ++k)
+    frames.push_back(sim.render(poses[k], static_cast<int>(k + 1)));
   DeconvConfig cfg;
   cfg.mode = DeconvConfig::Mode::Voxel;
   cfg.voxel.support_min_bracket = support_min_bracket;
