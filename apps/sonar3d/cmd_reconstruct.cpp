@@ -298,7 +298,7 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "own line of sight are dropped as free space, not shadow)");
   cmd->add_flag("--explain-returns,!--no-explain-returns", o->carve.occlusion.explain_returns,
                 "carving, beyond the thesis: after occlusion resolution, drop the points whose "
-                "every return another surface explains (one alone in its pixel in 10 % of the "
+                "every return another surface explains (one alone in its pixel in 20 % of the "
                 "frames that see it), then refute again the free space they hid: interior ghosts "
                 "of open structures (docs/carving.md)");
   cmd->add_option("--lambda", o->deconv.lambda_fraction,
