@@ -170,6 +170,11 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
     expect_one_line_error(r, "'--roi'");
     EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
   }
+  // The voxel mode's support rule out of range: the parameter named, nothing written.
+  r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
+          (kTmp / "roi.ply").string() + " -q --voxel-support-bracket 1.5");
+  expect_one_line_error(r, "deconv.voxel.support_min_bracket");
+  EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
   // Unknown subcommand and --help.
   EXPECT_NE(run("frobnicate").code, 0);
   r = run("simulate --help");

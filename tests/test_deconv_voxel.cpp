@@ -76,19 +76,7 @@ void expect_at_least_carving(const EvalResult& deconv, const EvalResult& carve) 
 
 // Thirteen circles of radius 2.5 m at heights −0.1–1.1 m (the sphere spans 0.2–0.8 m, the
 // aperture ±0.22 m at 2.5 m), 8 frames each, facing the centre.
-std::vector<Eigen::Isometry3d> orbit_poses() {
-  std::vector<Eigen::Isometry3d> poses;
-  for (int level = 0; level < 13; ++level) {
-    for (int k = 0; k < 8; ++k) {
-      const double a = (k + 0.5 * (level % 2)) * 45 * kDeg;
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = Eigen::AngleAxisd(a + M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      T.translation() = Eigen::Vector3d(2.5 * std::cos(a), 2.5 * std::sin(a), -0.1 + 0.1 * level);
-      poses.push_back(T);
-    }
-  }
-  return poses;
-}
+std::vector<Eigen::Isometry3d> orbit_poses() { return test::orbit_poses(2.5, 13, 8, -0.1, 0.1); }
 
 }  // namespace
 
@@ -160,6 +148,29 @@ TEST(DeconvVoxel, JitteredPassOfASphereIsRecovered) {
   expect_at_least_carving(r, carve_and_evaluate(s, ec));
 }
 
+// An orbit at one height does not sweep the vertical aperture: no candidate is bracketed in
+// elevation, and leaving the never-bracketed ones out (support_min_bracket) would leave nothing.
+// The rule is skipped with a warning and the sphere is still reconstructed.
+TEST(DeconvVoxel, LevelOrbitKeepsItsCandidates) {
+  std::vector<Eigen::Isometry3d> poses = orbit_poses();
+  poses.erase(poses.begin(), poses.begin() + 6 * 8);  // level 6: z = 0.5, the sphere's centre
+  poses.resize(8);
+  const SimRun s = simulate_sphere(poses);
+  DeconvConfig cfg;
+  cfg.num_threads = 2;
+  cfg.mode = DeconvConfig::Mode::Voxel;
+  DeconvReport rep;
+  const PointCloud cloud = deconvolve_frames(s.frames, s.poses, s.spec, cfg, &rep);
+  EXPECT_EQ(rep.voxel.unbracketed, 0u);
+  EXPECT_GT(cloud.size(), 100u);
+  bool warned = false;
+  for (const auto& w : rep.warnings)
+    warned |= w.find("bracketed in elevation") != std::string::npos;
+  EXPECT_TRUE(warned) << "no warning that the bracket rule was skipped";
+  const EvalResult r = evaluate(cloud, s.truth, EvalConfig());
+  EXPECT_LT(r.median_error, 0.1) << to_table(r);  // the arcs stay unresolved, but near the sphere
+}
+
 TEST(DeconvVoxel, ConfigErrorsNameTheField) {
   EXPECT_EQ(DeconvConfig::parse_mode("voxel"), DeconvConfig::Mode::Voxel);
   EXPECT_STREQ(DeconvConfig::mode_name(DeconvConfig::Mode::Auto), "auto");
@@ -181,6 +192,9 @@ TEST(DeconvVoxel, ConfigErrorsNameTheField) {
   cfg.voxel = VoxelDeconvConfig();
   cfg.voxel.min_relative = 1.0;
   EXPECT_THROW(cfg.validate(), Error);
+  cfg.voxel = VoxelDeconvConfig();
+  cfg.voxel.support_min_bracket = 1.5;
+  test::expect_error([&] { cfg.validate(); }, "deconv.voxel.support_min_bracket");
   cfg.mode = DeconvConfig::Mode::Passes;  // the voxel fields are not used: not checked
   EXPECT_NO_THROW(cfg.validate());
 }

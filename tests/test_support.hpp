@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
@@ -50,6 +52,25 @@ inline SimulatorConfig jittered_sim_config(double step_deg) {
   c.jitter = true;
   c.gain = 2.0;
   return c;
+}
+
+// Circles around the world z axis: `levels` circles of radius `radius` at heights z0, z0 + dz, …,
+// `per_level` sonar poses each facing the axis (sonar x toward it, z up), every other circle
+// turned by half a step.
+inline std::vector<Eigen::Isometry3d> orbit_poses(double radius, int levels, int per_level,
+                                                  double z0, double dz) {
+  std::vector<Eigen::Isometry3d> poses;
+  for (int level = 0; level < levels; ++level) {
+    for (int k = 0; k < per_level; ++k) {
+      const double a = (k + 0.5 * (level % 2)) * 2 * M_PI / per_level;
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = Eigen::AngleAxisd(a + M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      T.translation() =
+          Eigen::Vector3d(radius * std::cos(a), radius * std::sin(a), z0 + dz * level);
+      poses.push_back(T);
+    }
+  }
+  return poses;
 }
 
 // A camera at `eye` looking at `target` in OpenCV axes (+z forward, +x right, +y down), the world

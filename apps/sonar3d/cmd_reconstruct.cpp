@@ -298,7 +298,7 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "own line of sight are dropped as free space, not shadow)");
   cmd->add_flag("--explain-returns,!--no-explain-returns", o->carve.occlusion.explain_returns,
                 "carving, beyond the thesis: after occlusion resolution, drop the points whose "
-                "every return another surface explains (one alone in its pixel in 10 % of the "
+                "every return another surface explains (one alone in its pixel in 20 % of the "
                 "frames that see it), then refute again the free space they hid: interior ghosts "
                 "of open structures (docs/carving.md)");
   cmd->add_option("--lambda", o->deconv.lambda_fraction,
@@ -327,6 +327,15 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "deconv, voxel mode: keep every candidate in every frame's model, also where "
                 "another candidate lies nearer on its ray (by default such a hidden candidate is "
                 "left out of that frame: sound does not cross a surface)");
+  cmd->add_option("--voxel-support-bracket", o->deconv.voxel.support_min_bracket,
+                  "deconv, voxel mode: leave out of the unknowns the candidates whose elevation "
+                  "was bracketed less than this (0-1, as --min-bracket; 0 = keep all): arcs "
+                  "beyond where the trajectory swept the vertical aperture")
+      ->capture_default_str();
+  cmd->add_flag("--no-voxel-refute{false}", o->deconv.voxel.support_refute,
+                "deconv, voxel mode: keep as unknowns the front candidates a frame saw in an empty "
+                "pixel with nothing nearer on their line of sight (by default they are left out: "
+                "free space, as carving's occlusion rule without --no-refute-free)");
   cmd->add_flag("--exact", o->deconv.exact,
                 "deconv: exact slant-range geometry on a (horizontal distance × height) grid per "
                 "bearing plane, for wide apertures (beyond the thesis' rectilinear model)");

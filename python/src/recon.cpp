@@ -241,7 +241,8 @@ void bind_recon(py::module_& m) {
   py::class_<VoxelDeconvConfig>(
       m, "VoxelDeconvConfig",
       "Voxel-mode deconvolution (any trajectory): voxel_size, "
-      "max_iterations, tolerance, min_relative, min_observations, occlusion_aware")
+      "max_iterations, tolerance, min_relative, min_observations, occlusion_aware, "
+      "support_min_bracket (leave never-bracketed candidates out, 0 = keep), support_refute")
       .def(py::init(&from_kwargs<VoxelDeconvConfig>))
       .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
       .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
@@ -249,6 +250,8 @@ void bind_recon(py::module_& m) {
       .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
       .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
       .def_readwrite("occlusion_aware", &VoxelDeconvConfig::occlusion_aware)
+      .def_readwrite("support_min_bracket", &VoxelDeconvConfig::support_min_bracket)
+      .def_readwrite("support_refute", &VoxelDeconvConfig::support_refute)
       .def("__repr__", &fields_repr)
       .def("validate", &VoxelDeconvConfig::validate);
 

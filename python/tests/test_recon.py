@@ -156,3 +156,15 @@ def test_progress_callbacks_report_every_stage(sphere_dataset, tmp_path):
         sonar3d.carve(ds, cfg, progress="yes")
     r = sonar3d.carve(ds, cfg, progress=False)  # booleans keep meaning "terminal bar or not"
     assert len(r.points) > 100
+
+
+def test_voxel_support_options():
+    # The voxel mode leaves out the candidates carving proves ghosts (never bracketed, seen free).
+    cfg = sonar3d.VoxelDeconvConfig()
+    assert cfg.support_min_bracket == pytest.approx(0.1)
+    assert cfg.support_refute
+    cfg = sonar3d.VoxelDeconvConfig(support_min_bracket=0.0, support_refute=False)
+    assert cfg.support_min_bracket == 0.0 and not cfg.support_refute
+    cfg.support_min_bracket = 1.5
+    with pytest.raises(Exception, match="support_min_bracket"):
+        cfg.validate()

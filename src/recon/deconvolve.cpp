@@ -103,6 +103,10 @@ void VoxelDeconvConfig::validate() const {
           "parameter 'deconv.voxel.min_relative' must lie in [0, 1), got " + fmt(min_relative, 4));
   require(min_observations >= 1, "parameter 'deconv.voxel.min_observations' must be >= 1, got " +
                                      std::to_string(min_observations));
+  require(
+      std::isfinite(support_min_bracket) && support_min_bracket >= 0 && support_min_bracket <= 1,
+      "parameter 'deconv.voxel.support_min_bracket' must lie in [0, 1], got " +
+          fmt(support_min_bracket, 4));
 }
 
 DeconvConfig::Mode DeconvConfig::parse_mode(const std::string& s) {
@@ -1141,7 +1145,8 @@ std::string DeconvReport::to_text() const {
   }
   if (mode == "voxel") {
     os << "voxel deconvolution: " << voxel.candidates << " candidate voxels (" << voxel.unknowns
-       << " in a return pixel), " << voxel.equations << " equations, " << voxel.nonzeros
+       << " in a return pixel; left out: " << voxel.unbracketed << " never bracketed, "
+       << voxel.refuted << " seen free), " << voxel.equations << " equations, " << voxel.nonzeros
        << " non-zeros, " << voxel.iterations << " iterations"
        << (voxel.converged ? "" : " (iteration cap)") << ", residual "
        << fmt(voxel.relative_residual, 3) << ", " << voxel.points_solved << " voxels kept ("
@@ -1172,6 +1177,8 @@ std::string DeconvReport::to_json(int indent) const {
   j["points"] = points;
   if (mode == "voxel") {
     j["voxel"] = {{"candidates", voxel.candidates},
+                  {"unbracketed", voxel.unbracketed},
+                  {"refuted", voxel.refuted},
                   {"unknowns", voxel.unknowns},
                   {"equations", voxel.equations},
                   {"nonzeros", voxel.nonzeros},

@@ -19,6 +19,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/projector.hpp"
+#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 
 namespace sonar3d::deconv_detail {
@@ -310,6 +311,74 @@ double lipschitz(const VoxelSystem& A, std::size_t V) {
   return L;
 }
 
+// The candidates (points and bounds) where keep[v] is set.
+PointCloud select_candidates(const PointCloud& cand, const std::vector<std::uint8_t>& keep) {
+  PointCloud out;
+  for (std::size_t v = 0; v < cand.size(); ++v) {
+    if (!keep[v]) continue;
+    out.points.push_back(cand.points[v]);
+    out.intensity.push_back(cand.intensity[v]);
+  }
+  return out;
+}
+
+// Leaves out of the unknowns the candidates carving has already proven ghosts
+// (VoxelDeconvConfig::support_min_bracket, support_refute): never bracketed in elevation, then
+// seen as free space among the front candidates (refute_free, docs/carving.md).
+PointCloud prune_support(PointCloud cand, const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                         const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                         const DeconvConfig& config, DeconvReport& report) {
+  const VoxelDeconvConfig& vc = config.voxel;
+  VoxelDeconvReport& vr = report.voxel;
+  if (vc.support_min_bracket > 0) {
+    const std::vector<PointBracket> br =
+        bracket_points(cand.points, T_world_sonar, spec, config.num_threads);
+    std::vector<std::uint8_t> keep(cand.size());
+    std::size_t kept = 0;
+    for (std::size_t v = 0; v < cand.size(); ++v) {
+      keep[v] = br[v].bracket >= vc.support_min_bracket;
+      kept += keep[v];
+    }
+    if (kept == 0) {
+      report.warnings.push_back(
+          "voxel mode: no candidate is bracketed in elevation (bracket >= " +
+          std::to_string(vc.support_min_bracket).substr(0, 4) +
+          ", deconv.voxel.support_min_bracket): the trajectory does not sweep the vertical "
+          "aperture, so every candidate stays an unknown");
+    } else {
+      vr.unbracketed = cand.size() - kept;
+      cand = select_candidates(cand, keep);
+    }
+  }
+  if (vc.support_refute && !cand.empty()) {
+    // Occlusion resolution without and with the free-space test: the front candidates the test
+    // drops were seen in an empty pixel with nothing nearer on their own line of sight. Both
+    // results are subsequences of `cand`, in order, one point per voxel.
+    OcclusionConfig plain = config.occlusion;
+    plain.voxel_size = vc.voxel_size;
+    plain.num_threads = config.num_threads;
+    plain.refute_free = false;
+    plain.explain_returns = false;
+    OcclusionConfig refuting = plain;
+    refuting.refute_free = true;
+    const PointCloud front = resolve_occlusions(cand, frames, spec, plain);
+    const PointCloud kept = resolve_occlusions(cand, frames, spec, refuting);
+    std::vector<std::uint8_t> keep(cand.size(), 1);
+    for (std::size_t v = 0, f = 0, k = 0; v < cand.size(); ++v) {
+      const bool in_front = f < front.size() && front.points[f] == cand.points[v];
+      const bool in_kept = k < kept.size() && kept.points[k] == cand.points[v];
+      f += in_front;
+      k += in_kept;
+      if (in_front && !in_kept) {
+        keep[v] = 0;
+        ++vr.refuted;
+      }
+    }
+    if (vr.refuted > 0) cand = select_candidates(cand, keep);
+  }
+  return cand;
+}
+
 }  // namespace
 
 PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
@@ -340,13 +409,16 @@ PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
       }
       bar.finish();
     }
-    const PointCloud cand = carver.snapshot();
+    PointCloud cand = carver.snapshot();
     vr.candidates = cand.size();
-    vr.seconds_carve = seconds_since(t0);
     if (cand.empty()) {
+      vr.seconds_carve = seconds_since(t0);
       report.warnings.push_back("voxel mode: carving left no candidate (no return in any frame)");
       return;
     }
+    cand =
+        prune_support(std::move(cand), T_world_sonar, carver.frame_returns(), spec, config, report);
+    vr.seconds_carve = seconds_since(t0);
     require(cand.size() < std::numeric_limits<std::uint32_t>::max(),
             "voxel deconvolution: " + std::to_string(cand.size()) +
                 " candidate voxels exceed 2^32; use a larger deconv.voxel.voxel_size or a region");

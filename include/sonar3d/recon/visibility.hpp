@@ -100,7 +100,7 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
 // Per frame and return pixel (range bin, beam), the points lying in it — up to 2 θ_3dB off the
 // image plane, where the beam's main lobe still returns (eq. 2.8) — are split into surfaces
 // along the pixel's elevation arc (runs without a gap longer than 3 voxels). A point is pinned
-// when its surface is the only one in its pixel in at least 10 % of the frames that put it in a
+// when its surface is the only one in its pixel in at least 20 % of the frames that put it in a
 // return pixel: nothing else can have returned there. A point that is not pinned is a ghost when
 // every return pixel it lies in, in every frame, also holds a pinned point of another surface:
 // each of its returns is explained without it. Ghosts are removed and the passes repeat (a
