@@ -115,11 +115,10 @@ struct MeshTexturer::Impl {
   std::vector<float> xs, ys, zs;  // the vertices' coordinates, apart (for vectorised projection)
   std::vector<std::uint32_t> views;
   std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
-  // Per vertex, the occluder triangles it lies on (the raster's numbering): those of the
-  // triangles around it, owner_ids[owner_start[i] … owner_start[i + 1]).
-  std::vector<std::uint32_t> owner_start, owner_ids;
-  // The same, for the vertices on one or two triangles: those (the first repeated when one);
-  // kManyOwners: look in the lists above.
+  // Per vertex, the occluder triangles it lies on (the raster's numbering; those of the
+  // triangles around it) when there are one or two: those (the first repeated when one); else
+  // kManyOwners (a corner of the given mesh, or any vertex when texel_m = 0), and the raster's
+  // plane test decides.
   static constexpr std::uint32_t kManyOwners = 0xfffffffeu;
   std::vector<std::array<std::uint32_t, 2>> owner_pair;
   std::unique_ptr<detail::VisibilityRaster> raster;
@@ -155,37 +154,25 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
     // A vertex lies on the given triangles its subdivided triangles came from (one inside a given
     // triangle, two on its edge, the fan at its corner): the raster's quick test (owned()).
     const TriangleMesh& m = impl_->mesh;
-    std::vector<std::uint32_t>& start = impl_->owner_start;
-    std::vector<std::uint32_t>& ids = impl_->owner_ids;
-    start.assign(m.vertices.size() + 1, 0);
-    for (const auto& tri : m.triangles) {
-      for (int k = 0; k < 3; ++k) ++start[tri[k] + 1];
-    }
-    for (std::size_t i = 0; i < m.vertices.size(); ++i) start[i + 1] += start[i];
-    ids.resize(start.back());
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    constexpr std::uint32_t kUnset = 0xffffffffu, kMany = Impl::kManyOwners;
+    std::vector<std::array<std::uint32_t, 2>>& pair = impl_->owner_pair;
+    pair.assign(m.vertices.size(), {kUnset, kUnset});
     for (std::size_t j = 0; j < m.triangles.size(); ++j) {
       const std::uint32_t owner = impl_->raster->internal_triangle(parent[j]);
-      for (int k = 0; k < 3; ++k) ids[fill[m.triangles[j][k]]++] = owner;
+      for (int k = 0; k < 3; ++k) {
+        std::array<std::uint32_t, 2>& p = pair[m.triangles[j][k]];
+        if (p[0] == kMany || p[0] == owner || p[1] == owner) continue;
+        if (p[0] == kUnset) {
+          p = {owner, owner};
+        } else if (p[0] == p[1]) {
+          p[1] = owner;
+        } else {
+          p = {kMany, kMany};  // a third
+        }
+      }
     }
-    // Each vertex's list without repeats, compacted in place.
-    std::uint32_t out = 0;
-    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-      const auto first = ids.begin() + start[i], last = ids.begin() + start[i + 1];
-      std::sort(first, last);
-      const auto end = std::unique(first, last);
-      start[i] = out;
-      for (auto it = first; it != end; ++it) ids[out++] = *it;
-    }
-    start.back() = out;
-    ids.resize(out);
-    ids.shrink_to_fit();
-    impl_->owner_pair.resize(m.vertices.size());
-    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-      const std::uint32_t n = start[i + 1] - start[i];
-      impl_->owner_pair[i] =
-          n == 0 || n > 2 ? std::array<std::uint32_t, 2>{Impl::kManyOwners, Impl::kManyOwners}
-                          : std::array<std::uint32_t, 2>{ids[start[i]], ids[start[i] + n - 1]};
+    for (auto& p : pair) {
+      if (p[0] == kUnset) p = {kMany, kMany};  // on no triangle: the plane test
     }
   }
   impl_->acc.assign(impl_->mesh.vertices.size(), Eigen::Array4d::Zero());
@@ -286,8 +273,6 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const std::int32_t rwidth = raster ? raster->width() : 0;
   const bool weighted = impl_->config.weight_by_view;
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
-  const std::uint32_t* owner_start = impl_->owner_start.data();
-  const std::uint32_t* owner_ids = impl_->owner_ids.data();
   const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
   // Only the chunks of vertices the camera may see (a frame of a survey sees a part of a model).
   std::vector<int>& chunks = impl_->chunks_in_view;
@@ -322,10 +307,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
             if (raster) {
               // Its own triangles in front at the four pixel centres: visible, no arithmetic.
               const std::array<std::uint32_t, 2>& pair = owner_pair[c.i];
-              verdict = (pair[0] != Impl::kManyOwners
-                             ? raster->owned(c.cell, pair[0], pair[1])
-                             : raster->owned(c.cell, owner_ids + owner_start[c.i],
-                                             owner_start[c.i + 1] - owner_start[c.i]))
+              verdict = pair[0] != Impl::kManyOwners && raster->owned(c.cell, pair[0], pair[1])
                             ? Verdict::Visible
                             : raster->test(V[c.i].cast<double>(), c.cell, c.range);
             }

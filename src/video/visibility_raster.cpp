@@ -239,6 +239,10 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
       depth[x] = take ? iz : d;
       id[x] = take ? t : i;
     };
+    if (xb - xa < 4) {  // a narrow row (small triangles): pixel by pixel
+      for (int x = xa; x <= xb; ++x) pixel(x);
+      continue;
+    }
     // The same in aligned groups of four pixels, as vectors (GCC/Clang vector extensions: SSE2
     // on x86-64, NEON on ARM; spans are short, so a compiler-vectorised loop's remainder would
     // dominate). The pixels a group adds beyond the span are outside the triangle, and the test

@@ -92,13 +92,12 @@ class VisibilityRaster {
   // The occluder's triangle `given` (its index in the mesh the constructor was given) in the
   // raster's own numbering, which owned() takes.
   std::uint32_t internal_triangle(std::size_t given) const { return internal_of_given_[given]; }
-  // True when the front surface at each of the four pixel centres around `cell` (its cell) that
-  // shows the occluder at all is one of `owners`, the occluder triangles (internal_triangle()) the
-  // point lies on: then it lies on the front surface, the Visible of test() without its plane
-  // arithmetic (the planes of its own triangles pass through it). False: ask test().
-  bool owned(std::ptrdiff_t cell, const std::uint32_t* owners, std::uint32_t n_owners) const;
-  // owned() for a point on at most two triangles (`a`, and `b`, which may repeat `a`), without
-  // branches: most vertices of a subdivided model lie inside one triangle or on an edge.
+  // True when the front surface at each of the four pixel centres around `cell` that shows the
+  // occluder at all is `a` or `b` (which may repeat `a`), the occluder triangles
+  // (internal_triangle()) the point lies on: then it lies on the front surface, the Visible of
+  // test() without its plane arithmetic (the planes of its own triangles pass through it). Most
+  // vertices of a subdivided model lie inside one triangle or on an edge between two. False: ask
+  // test().
   bool owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const;
 
   int width() const { return width_; }
@@ -157,22 +156,6 @@ class VisibilityRaster {
 };
 
 // Inline: called for every vertex of every frame.
-inline bool VisibilityRaster::owned(std::ptrdiff_t cell, const std::uint32_t* owners,
-                                    std::uint32_t n_owners) const {
-  if (cell < 0 || n_owners == 0) return false;
-  const std::uint32_t* row = id_.data() + cell;
-  const std::uint32_t ids[4] = {row[0], row[1], row[width_], row[width_ + 1]};
-  bool any = false;
-  for (const std::uint32_t t : ids) {
-    if (t == kNone) continue;  // open water there
-    any = true;
-    bool own = false;
-    for (std::uint32_t j = 0; j < n_owners; ++j) own |= owners[j] == t;
-    if (!own) return false;
-  }
-  return any;
-}
-
 inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const {
   if (cell < 0) return false;
   // The four ids compared at once (GCC/Clang vector extensions).
