@@ -8,6 +8,8 @@
 #include <cstring>
 #include <limits>
 
+#include "sonar3d/core/error.hpp"
+
 namespace sonar3d::detail {
 
 namespace {
@@ -96,6 +98,9 @@ void blocks_in_view(const std::vector<Eigen::AlignedBox3f>& boxes, const CameraI
 }
 
 VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occluder) {
+  if (mesh_.triangles.size() >= kNone / 2) {  // ids are compared as signed 32-bit integers
+    throw Error("texture mesh: the occluder has more than 2³¹ triangles");
+  }
   // Spatial order: vertices along the Morton curve, triangles by their first vertex in it.
   sort_vertices_spatially(mesh_);
   {
@@ -222,8 +227,10 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
         }
       }
       if (!(lo <= hi)) continue;
-      xa = std::max(xa, floor_small(lo));
-      xb = std::min(xb, ceil_small(hi));
+      // 0 ≤ xa ≤ lo ≤ hi ≤ xb here: truncation is the floor, and the ceiling one more if short.
+      const int hi_int = static_cast<int>(hi);
+      xa = std::max(xa, static_cast<int>(lo));
+      xb = std::min(xb, hi_int + (static_cast<float>(hi_int) < hi));
     }
     const std::uint32_t t = static_cast<std::uint32_t>(tri);
     // Without branches: the nearest surface wins, ties going to the larger triangle id, so the
@@ -252,6 +259,7 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
     using U4 = std::uint32_t __attribute__((vector_size(16)));
     const F4 lane = {0.0f, 1.0f, 2.0f, 3.0f};
     const U4 t4 = {t, t, t, t};
+    const I4 t4s = (I4)t4;  // ids < 2³¹ (the constructor checks): compared signed, one instruction
     int x = xa & ~3;
     for (; x + 3 < width_ && x <= xb; x += 4) {
       const F4 px = static_cast<float>(x) + lane;
@@ -262,7 +270,7 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
       std::memcpy(&d, depth + x, sizeof d);
       std::memcpy(&i, id + x, sizeof i);
       const I4 take =
-          (b0 >= 0) & (b1 >= 0) & (b2 >= 0) & (iz > 0) & ((iz > d) | ((iz == d) & (t4 > i)));
+          (b0 >= 0) & (b1 >= 0) & (b2 >= 0) & (iz > 0) & ((iz > d) | ((iz == d) & (t4s > (I4)i)));
       // (casts between vector types of one size keep the bits)
       const I4 dn = ((I4)iz & take) | ((I4)d & ~take);
       const U4 in = (t4 & (U4)take) | (i & ~(U4)take);
