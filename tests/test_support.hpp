@@ -17,6 +17,7 @@
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/scene.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "sonar3d/video/camera.hpp"
 
 namespace sonar3d::test {
 
@@ -87,6 +88,17 @@ inline Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector
   T.linear().col(2) = z;
   T.translation() = eye;
   return T;
+}
+
+// A pinhole `width` × `height` pixels with focal length `f` pixels, centred.
+inline CameraIntrinsics pinhole_camera(int width, int height, double f) {
+  CameraIntrinsics cam;
+  cam.width = width;
+  cam.height = height;
+  cam.fx = cam.fy = f;
+  cam.cx = 0.5 * (width - 1);
+  cam.cy = 0.5 * (height - 1);
+  return cam;
 }
 
 // A fresh, empty directory for the running test: unique per suite, test and `name`, so that

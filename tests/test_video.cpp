@@ -102,12 +102,7 @@ TEST(Colmap, TextModelsRoundTrip) {
   const fs::path dir = temp_dir("colmap");
   PosedImages posed;
   posed.cameras[1] = gopro_like();
-  CameraIntrinsics pin;
-  pin.width = 640;
-  pin.height = 480;
-  pin.fx = pin.fy = 500;
-  pin.cx = 319.5;
-  pin.cy = 239.5;
+  const CameraIntrinsics pin = test::pinhole_camera(640, 480, 500);
   posed.cameras[7] = pin;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> a(-3.1, 3.1), x(-20, 20);

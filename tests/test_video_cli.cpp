@@ -97,12 +97,7 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
 
   // Two cameras: straight down from 3 m (pinhole) and oblique from the +x side (distorted).
   PosedImages posed;
-  CameraIntrinsics down;
-  down.width = 320;
-  down.height = 240;
-  down.fx = down.fy = 200;
-  down.cx = 159.5;
-  down.cy = 119.5;
+  const CameraIntrinsics down = test::pinhole_camera(320, 240, 200);
   CameraIntrinsics oblique = down;
   oblique.k1 = -0.05;
   oblique.k2 = 0.01;

@@ -22,12 +22,7 @@ TEST(TextureCulling, BlocksInViewKeepEveryPointInView) {
   const std::vector<Eigen::AlignedBox3f> boxes = detail::block_boxes(points, block);
   ASSERT_EQ(boxes.size(), (points.size() + block - 1) / block);
 
-  CameraIntrinsics pinhole;
-  pinhole.width = 640;
-  pinhole.height = 480;
-  pinhole.fx = pinhole.fy = 500;
-  pinhole.cx = 319.5;
-  pinhole.cy = 239.5;
+  const CameraIntrinsics pinhole = test::pinhole_camera(640, 480, 500);
   CameraIntrinsics distorted = pinhole;
   distorted.k1 = -0.2;
   distorted.k2 = 0.05;

@@ -17,6 +17,7 @@
 namespace fs = std::filesystem;
 using namespace sonar3d;
 using sonar3d::test::expect_error;
+using sonar3d::test::pinhole_camera;
 
 namespace {
 
@@ -26,17 +27,6 @@ SceneObject object(const std::string& name, TriangleMesh mesh, const Eigen::Vect
   o.mesh_world = std::move(mesh);
   o.color = color;
   return o;
-}
-
-// A pinhole `width` × `height` pixels with focal length `f` pixels, centred.
-CameraIntrinsics pinhole_camera(int width, int height, double f) {
-  CameraIntrinsics cam;
-  cam.width = width;
-  cam.height = height;
-  cam.fx = cam.fy = f;
-  cam.cx = 0.5 * (width - 1);
-  cam.cy = 0.5 * (height - 1);
-  return cam;
 }
 
 }  // namespace
