@@ -368,7 +368,8 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
                     });
   // Blocks of triangles (consecutive in the spatial order, so compact) binned by raster band by
   // the projection of their world bounding box; then the bands rasterised in parallel, each
-  // clearing and writing only its own rows (no atomics; ~256 KB, so they stay in the cache).
+  // clearing and writing only its own rows (no atomics; ~512 KB at 1 MP, so they stay in the
+  // cache).
   const int bands = (height_ + kBandRows - 1) / kBandRows;
   band_blocks_.resize(bands);
   for (auto& b : band_blocks_) b.clear();
