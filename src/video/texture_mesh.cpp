@@ -270,7 +270,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
                              : std::numeric_limits<float>::infinity(),
               ru1 = raster ? static_cast<float>(raster->width() - 1) : 0.0f,
               rv1 = raster ? static_cast<float>(raster->height() - 1) : 0.0f;
-  const std::int32_t rwidth = raster ? raster->width() : 0;
+  const std::int32_t rstride = raster ? raster->stride() : 0;
   const bool weighted = impl_->config.weight_by_view;
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
   const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
@@ -374,9 +374,10 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
               // (0, 0) converted, which any float converts to safely).
               const std::int32_t keep = -static_cast<std::int32_t>(in_raster);  // all ones: inside
               const float uc = in_raster ? u : 0.0f, vc = in_raster ? v : 0.0f;
-              bcell[j] = ((static_cast<std::int32_t>(vc) * rwidth + static_cast<std::int32_t>(uc)) &
-                          keep) |
-                         ~keep;
+              bcell[j] =
+                  ((static_cast<std::int32_t>(vc) * rstride + static_cast<std::int32_t>(uc)) &
+                   keep) |
+                  ~keep;
               const float r2 = px * px + py * py + pz * pz;
               br2[j] = r2;
               // in front, in range and (a pinhole's) in_image(): the pixel squares' outer edges

@@ -161,7 +161,8 @@ void VisibilityRaster::setup_raster(const CameraIntrinsics& c) {
   oy_ = -ymin * sy_ - 0.5;
   width_ = std::max(1, static_cast<int>(std::ceil((xmax - xmin) * sx_)));
   height_ = std::max(1, static_cast<int>(std::ceil((ymax - ymin) * sy_)));
-  id_.assign(static_cast<std::size_t>(width_) * height_, kNone);
+  stride_ = (width_ + 3) & ~3;
+  id_.assign(static_cast<std::size_t>(stride_) * height_, kNone);
   raster_for_ = c;
   have_raster_ = true;
 }
@@ -207,12 +208,20 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
   if (spans) {
     for (int k = 0; k < 3; ++k) inv_dx[k] = dx[k] != 0 ? 1.0f / dx[k] : 0.0f;
   }
+  using F4 = float __attribute__((vector_size(16)));
+  using I4 = std::int32_t __attribute__((vector_size(16)));
+  using U4 = std::uint32_t __attribute__((vector_size(16)));
+  const F4 lane = {0.0f, 1.0f, 2.0f, 3.0f};
+  const std::uint32_t t = static_cast<std::uint32_t>(tri);
+  const U4 t4 = {t, t, t, t};
+  // Ids < 2³¹ (the constructor checks), and kNone is −1 signed: compared signed, one instruction.
+  const I4 t4s = (I4)t4;
   for (int y = b.ya; y <= b.yb; ++y) {
     const float py = static_cast<float>(y);
     // b0, b1 at x = 0 of this row.
     const float r0 = (u[1] * (v[2] - py) - u[2] * (v[1] - py)) * inv_area;
     const float r1 = (u[2] * (v[0] - py) - u[0] * (v[2] - py)) * inv_area;
-    const std::size_t row = static_cast<std::size_t>(y - y0) * width_;
+    const std::size_t row = static_cast<std::size_t>(y - y0) * stride_;
     float* const depth = band.inv_z + row;
     std::uint32_t* const id = band.id + row;
     int xa = b.xa, xb = b.xb;
@@ -232,36 +241,14 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
       xa = std::max(xa, static_cast<int>(lo));
       xb = std::min(xb, hi_int + (static_cast<float>(hi_int) < hi));
     }
-    const std::uint32_t t = static_cast<std::uint32_t>(tri);
-    // Without branches: the nearest surface wins, ties going to the larger triangle id, so the
-    // result does not depend on the order of the triangles.
-    auto pixel = [&](int x) {
-      const float px = static_cast<float>(x);
-      const float b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
-      const float iz = b0 * w[0] + b1 * w[1] + b2 * w[2];
-      const float d = depth[x];
-      const std::uint32_t i = id[x];
-      const bool take =
-          (b0 >= 0) & (b1 >= 0) & (b2 >= 0) & (iz > 0) & ((iz > d) | ((iz == d) & (t > i)));
-      depth[x] = take ? iz : d;
-      id[x] = take ? t : i;
-    };
-    if (xb - xa < 4) {  // a narrow row (small triangles): pixel by pixel
-      for (int x = xa; x <= xb; ++x) pixel(x);
-      continue;
-    }
-    // The same in aligned groups of four pixels, as vectors (GCC/Clang vector extensions: SSE2
-    // on x86-64, NEON on ARM; spans are short, so a compiler-vectorised loop's remainder would
-    // dominate). The pixels a group adds beyond the span are outside the triangle, and the test
-    // leaves them as they are.
-    using F4 = float __attribute__((vector_size(16)));
-    using I4 = std::int32_t __attribute__((vector_size(16)));
-    using U4 = std::uint32_t __attribute__((vector_size(16)));
-    const F4 lane = {0.0f, 1.0f, 2.0f, 3.0f};
-    const U4 t4 = {t, t, t, t};
-    const I4 t4s = (I4)t4;  // ids < 2³¹ (the constructor checks): compared signed, one instruction
-    int x = xa & ~3;
-    for (; x + 3 < width_ && x <= xb; x += 4) {
+    // Without branches, in aligned groups of four pixels, as vectors (GCC/Clang vector
+    // extensions: SSE2 on x86-64, NEON on ARM; spans are short, so a compiler-vectorised loop's
+    // remainder would dominate): the nearest surface wins, ties going to the larger triangle id,
+    // so the result does not depend on the order of the triangles. The pixels a group adds beyond
+    // the span lie outside the triangle, and the test leaves them as they are; the rows' stride
+    // is a multiple of four, so a group never leaves its row (beyond the width: padding, never
+    // read).
+    for (int x = xa & ~3; x <= xb; x += 4) {
       const F4 px = static_cast<float>(x) + lane;
       const F4 b0 = r0 + dx0 * px, b1 = r1 + dx1 * px, b2 = 1.0f - b0 - b1;
       const F4 iz = b0 * w[0] + b1 * w[1] + b2 * w[2];
@@ -277,7 +264,6 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
       std::memcpy(depth + x, &dn, sizeof dn);
       std::memcpy(id + x, &in, sizeof in);
     }
-    for (; x <= xb; ++x) pixel(x);
   }
 }
 
@@ -406,22 +392,20 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
   const int T = static_cast<int>(mesh_.triangles.size());
   tbb::parallel_for(0, bands, [&](int band) {
     const int y0 = band * kBandRows, y1 = std::min(height_, y0 + kBandRows);
-    const std::size_t n = static_cast<std::size_t>(y1 - y0) * width_;
-    BandCells& cells = band_cells_.local();
-    cells.inv_z.assign(n, 0.0f);
-    cells.id.resize(n);
-    const Band out{cells.inv_z.data(), cells.id.data()};
+    // The band's depths in the thread's own cells, its triangle ids straight into the raster
+    // (kNone where no triangle takes a pixel: a triangle takes a pixel only with 1/z > 0).
+    const std::size_t n = static_cast<std::size_t>(y1 - y0) * stride_;
+    std::vector<float>& inv_z = band_inv_z_.local();
+    inv_z.assign(n, 0.0f);
+    std::uint32_t* const ids = id_.data() + static_cast<std::size_t>(y0) * stride_;
+    std::fill(ids, ids + n, kNone);
+    const Band out{inv_z.data(), ids};
     const auto& blocks = band_blocks_[band];
     for (std::size_t j = 0; j < blocks.size(); ++j) {
       if (j + 1 < blocks.size()) prefetch_block(blocks[j + 1]);  // hide its memory latency
       const int blk = blocks[j];
       const int end = std::min(T, (blk + 1) * kBlock);
       for (int tri = blk * kBlock; tri < end; ++tri) raster_triangle(tri, y0, y1, out);
-    }
-    // The band's triangle ids out to the raster (the depths are needed no further).
-    std::uint32_t* ids = id_.data() + static_cast<std::size_t>(y0) * width_;
-    for (std::size_t k = 0; k < n; ++k) {
-      ids[k] = cells.inv_z[k] > 0 ? cells.id[k] : kNone;
     }
   });
 }

@@ -70,10 +70,11 @@ class VisibilityRaster {
   void render(const CameraIntrinsics& camera, const Eigen::Isometry3d& T_camera_world,
               double near_m = 1e-3);
 
-  // Where a point is tested, its `cell`: the index v0·width + u0 of the top-left of the four pixel
-  // centres around its raster position (u, v) = (sx·x/z + ox, sy·y/z + oy), from its normalised
-  // image coordinates (x/z, y/z) in the camera frame of the last render(); −1 (no verdict) when
-  // (u, v) does not lie within the raster's outer pixel centres or z is not beyond near_plane().
+  // Where a point is tested, its `cell`: the index v0·stride() + u0 of the top-left of the four
+  // pixel centres around its raster position (u, v) = (sx·x/z + ox, sy·y/z + oy), from its
+  // normalised image coordinates (x/z, y/z) in the camera frame of the last render(); −1 (no
+  // verdict) when (u, v) does not lie within the raster's outer pixel centres or z is not beyond
+  // near_plane().
   double sx() const { return sx_; }
   double sy() const { return sy_; }
   double ox() const { return ox_; }
@@ -84,7 +85,7 @@ class VisibilityRaster {
   void prefetch(std::ptrdiff_t cell) const {
     if (cell < 0) return;
     __builtin_prefetch(id_.data() + cell);
-    __builtin_prefetch(id_.data() + cell + width_);
+    __builtin_prefetch(id_.data() + cell + stride_);
   }
   // The verdict for a point on the textured mesh at `cell` (its cell), given in the world frame;
   // `range_m` is its distance from the camera centre.
@@ -102,6 +103,9 @@ class VisibilityRaster {
 
   int width() const { return width_; }
   int height() const { return height_; }
+  // Pixels from one row to the next: the width rounded up to a multiple of 4 (fill() writes
+  // aligned groups of four; the padding columns are never read).
+  int stride() const { return stride_; }
 
  private:
   struct Plane {  // unit normal (zero for a degenerate triangle) and n · a, one cache line half
@@ -118,9 +122,9 @@ class VisibilityRaster {
   Box box(const float* u, const float* v, int y0, int y1) const;
   // Rasterises triangle `tri` within rows y0 … y1 − 1 (clipped at the near plane), which no other
   // thread writes meanwhile.
-  struct Band {  // rows y0 … of a band: 1/z of the nearest surface (0: none) and its triangle
-    float* inv_z;
-    std::uint32_t* id;
+  struct Band {    // rows y0 … of a band: 1/z of the nearest surface (0: none) and its triangle
+    float* inv_z;  // the thread's own cells
+    std::uint32_t* id;  // the raster's rows (kNone until a triangle covers the pixel)
   };
   void raster_triangle(int tri, int y0, int y1, const Band& band);
   void prefetch_block(int block) const;
@@ -135,16 +139,12 @@ class VisibilityRaster {
   // ((i − ox)/sx, (j − oy)/sy).
   CameraIntrinsics raster_for_{};
   bool have_raster_ = false;
-  int width_ = 0, height_ = 0;
+  int width_ = 0, height_ = 0, stride_ = 0;
   double sx_ = 1, sy_ = 1, ox_ = 0, oy_ = 0;
   static constexpr std::uint32_t kNone = 0xffffffffu;
   std::vector<std::uint32_t> id_;  // per pixel centre: the nearest triangle, kNone: none
-  // Per thread: a band's cells while it is rasterised.
-  struct BandCells {
-    std::vector<float> inv_z;
-    std::vector<std::uint32_t> id;
-  };
-  tbb::enumerable_thread_specific<BandCells> band_cells_;
+  // Per thread: a band's depths while it is rasterised.
+  tbb::enumerable_thread_specific<std::vector<float>> band_inv_z_;
   std::vector<Projected> projected_;            // per frame, per occluder vertex
   std::vector<Eigen::AlignedBox3f> block_box_;  // world bounding box of each block of triangles
   std::vector<std::pair<int, int>> block_vertices_;  // the vertices each block uses lie in [a, b)
@@ -162,7 +162,7 @@ inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::u
   using U4 = std::uint32_t __attribute__((vector_size(16)));
   using I4 = std::int32_t __attribute__((vector_size(16)));
   const std::uint32_t* row = id_.data() + cell;
-  const U4 ids = {row[0], row[1], row[width_], row[width_ + 1]};
+  const U4 ids = {row[0], row[1], row[stride_], row[stride_ + 1]};
   const I4 none = ids == kNone;
   const I4 own = (ids == a) | (ids == b) | none;
   std::uint64_t o[2], n[2];
@@ -180,7 +180,7 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
   const double eps = std::max(1e-4 / range_m, 1e-5);
   bool on_front_surface = false, undecided = false;
   const std::uint32_t* row = id_.data() + cell;
-  const std::uint32_t ids[4] = {row[0], row[1], row[width_], row[width_ + 1]};
+  const std::uint32_t ids[4] = {row[0], row[1], row[stride_], row[stride_ + 1]};
   for (int k = 0; k < 4; ++k) {
     const std::uint32_t t = ids[k];
     if (t == kNone) continue;  // open water there: no occluder
