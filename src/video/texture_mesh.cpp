@@ -261,6 +261,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   if (raster) raster->render(cam, T_camera_world);
   std::atomic<std::size_t> coloured{0}, decided{0}, rays{0};
   const float* const rgb = view.image->rgb.data();
+  const std::size_t rgb_last = view.image->rgb.size() - 1;
   // The raster's position of a normalised image point and its cell (visibility_raster.hpp).
   const float rsx = raster ? static_cast<float>(raster->sx()) : 0.0f,
               rsy = raster ? static_cast<float>(raster->sy()) : 0.0f,
@@ -407,7 +408,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
               const std::size_t pixel = static_cast<std::size_t>(std::max(0.0f, y)) * row_floats +
                                         3 * static_cast<std::size_t>(std::max(0.0f, x));
               __builtin_prefetch(rgb + pixel);
-              __builtin_prefetch(rgb + std::min(pixel + row_floats, view.image->rgb.size() - 1));
+              __builtin_prefetch(rgb + std::min(pixel + row_floats, rgb_last));
             }
             // The previous block's tests, while this block's pixels are on their way.
             settle(cand[cur ^ 1], pending);
