@@ -22,10 +22,11 @@
 // triangles are grouped in blocks of 64 with a world bounding box each: per frame the blocks (not
 // the triangles) are binned to bands of raster rows by projecting their boxes, and the bands are
 // rasterised in parallel, each clearing and writing its own rows, small enough to stay in the
-// cache. While a band is drawn each pixel holds the nearest surface's 1/z and its triangle; the
-// depth test (ties to the larger triangle id, so the result does not depend on the order of the
-// triangles) runs without branches over each row's span of the triangle, vectorised; then only
-// the triangle ids are kept (4 bytes a pixel, read by test()). A textured vertex whose own
+// cache. While a band is drawn each pixel holds the nearest surface's 1/z (in the thread's own
+// buffer, dropped afterwards) and its triangle (in the raster, 4 bytes a pixel, read by test());
+// the depth test (ties to the larger triangle id, so the result does not depend on the order of
+// the triangles) runs without branches over each row's span of the triangle, in aligned groups
+// of four pixels (rows padded to a multiple of four). A textured vertex whose own
 // triangles are the front surface at its four pixel centres is settled by comparing ids alone
 // (owned()).
 #include <tbb/enumerable_thread_specific.h>
