@@ -201,8 +201,11 @@ inline void VisibilityRaster::fill(const float* u, const float* v, const float* 
   const float dx0 = (v[1] - v[2]) * inv_area, dx1 = (v[2] - v[0]) * inv_area;
   // Wide triangles: per row, only the span where the three weights can be ≥ 0 (b_k = r_k + dx_k·x
   // bounds x on one side each), widened by a pixel for rounding; the test below stays the judge,
-  // so the pixels written are the same as over the whole box.
-  const bool spans = b.xb - b.xa > 6;
+  // so the pixels written are the same as over the whole box. Up to 17 pixels wide, the whole
+  // row of the box: finding the span (~25 operations, branches on the edges' directions) costs
+  // about what the groups of four it would skip cost (measured: 14–20 best on a CAD-like model
+  // of ~11-pixel triangles, 6 was 5 % slower).
+  const bool spans = b.xb - b.xa > 16;
   const float dx[3] = {dx0, dx1, -dx0 - dx1};
   float inv_dx[3] = {0, 0, 0};
   if (spans) {
