@@ -317,3 +317,63 @@ TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
     }
   }
 }
+
+// The raster pays only when it settles most tests. A fine wavy relief (2 cm triangles) seen at a
+// slant leaves many of its tests to rays; then the next 7 frames go straight to the rays (exact)
+// and the 9th tries the raster again. Seen from above, the raster settles almost every test and
+// is used on every frame. Visibility is the same either way (rays are the reference).
+TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
+  const int n = 300;
+  TriangleMesh relief;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) {
+      const double x = 6.0 * i / n - 3, y = 6.0 * j / n - 3;
+      relief.vertices.emplace_back(x, y, 0.15 * std::sin(4.0 * x) * std::cos(3.0 * y));
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      relief.triangles.emplace_back(a, b, d);
+      relief.triangles.emplace_back(a, d, c);
+    }
+  }
+  const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
+  RgbImage img;
+  img.width = cam.width;
+  img.height = cam.height;
+  img.rgb.assign(3u * img.width * img.height, 0.5f);
+  const CameraView slant{cam, test::look_at({-3.4, 0, 0.5}, {3, 0, -0.2}), &img};
+  const CameraView above{cam, test::look_at({0.1, 0.05, 1.5}, {0, 0, 0}), &img};
+  MeshTextureConfig cfg;
+  cfg.texel_m = 0;
+  MeshTextureConfig rays_cfg = cfg;
+  rays_cfg.raster_visibility = false;
+
+  MeshTexturer t(relief, cfg), by_rays(relief, rays_cfg);
+  std::size_t decided = 0, rays = 0;
+  for (int f = 0; f < 9; ++f) {
+    const std::size_t seen = t.add(slant, f), seen_by_rays = by_rays.add(slant, f);
+    const std::size_t d = t.raster_decided() - decided, r = t.rays_cast() - rays;
+    decided = t.raster_decided();
+    rays = t.rays_cast();
+    SCOPED_TRACE("slanted frame " + std::to_string(f));
+    EXPECT_GT(seen, 10000u);
+    EXPECT_NEAR(static_cast<double>(seen), static_cast<double>(seen_by_rays), 0.001 * seen);
+    if (f == 0 || f == 8) {  // the raster, which leaves more than a third to rays
+      EXPECT_GT(d, 0u);
+      EXPECT_GT(3 * r, d + r) << d << " decided by the raster, " << r << " rays";
+    } else {  // rays only: each vertex in view one ray
+      EXPECT_EQ(d, 0u);
+      EXPECT_GT(r, seen);
+    }
+  }
+  MeshTexturer top(relief, cfg);
+  for (int f = 0; f < 3; ++f) {
+    const std::size_t d0 = top.raster_decided(), r0 = top.rays_cast();
+    EXPECT_GT(top.add(above, f), 3000u);
+    const std::size_t d = top.raster_decided() - d0, r = top.rays_cast() - r0;
+    EXPECT_GT(d, 20 * r) << "frame " << f << ": " << d << " decided by the raster, " << r
+                         << " rays";
+  }
+}
