@@ -14,7 +14,7 @@ namespace sonar3d::detail {
 
 namespace {
 constexpr double kMaxRasterFactor = 4.0;  // raster pixels at most this times the image's
-constexpr int kBandRows = 64;  // raster rows per band (rasterised in parallel; ~512 KB at 1 MP)
+constexpr int kBandRows = 64;  // raster rows per band (rasterised in parallel; 1/z ~256 KB at 1 MP)
 constexpr int kBlock = 64;     // triangles per block (consecutive in the spatial order)
 
 // Spreads the low 21 bits of v to every third bit (Morton code).
@@ -357,8 +357,8 @@ void VisibilityRaster::render(const CameraIntrinsics& camera,
                     });
   // Blocks of triangles (consecutive in the spatial order, so compact) binned by raster band by
   // the projection of their world bounding box; then the bands rasterised in parallel, each
-  // clearing and writing only its own rows (no atomics; ~512 KB at 1 MP, so they stay in the
-  // cache).
+  // clearing and writing only its own rows (no atomics; a band's depths ~256 KB at 1 MP, so
+  // they stay in the cache).
   const int bands = (height_ + kBandRows - 1) / kBandRows;
   band_blocks_.resize(bands);
   for (auto& b : band_blocks_) b.clear();
