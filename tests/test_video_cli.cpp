@@ -427,6 +427,17 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
         tmp, args + (tmp / "cloud.ply").string() + " --occluder " + (tmp / "scene.obj").string());
     EXPECT_EQ(occluder.code, 2) << occluder.err;
     EXPECT_NE(occluder.err.find("--occluder: applies to --mesh only"), std::string::npos);
+    const CliRun silhouette =
+        run(tmp, args + (tmp / "cloud.ply").string() + " --silhouette-weight 0.5");
+    EXPECT_EQ(silhouette.code, 2) << silhouette.err;
+    EXPECT_NE(silhouette.err.find("--silhouette-weight: applies to --mesh only"),
+              std::string::npos);
+    expect_one_line_error(run(tmp, "texture " + (tmp / "scene.obj").string() + " --mesh --neus " +
+                                       npz.string() + " --images " + images.string() +
+                                       " --silhouette-weight 0 --quiet -o " +
+                                       (tmp / "w0.ply").string()),
+                          "silhouette_weight must be in (0, 1]");
+    EXPECT_FALSE(fs::exists(tmp / "w0.ply"));
   }
   // One image too few for the cameras; --colmap and --neus together.
   fs::remove(images / "002.png");

@@ -377,3 +377,57 @@ TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
                          << " rays";
   }
 }
+
+// At a model's outline the image's pixels mix it with what lies behind. A red box on a blue seabed
+// (an occluder), seen at a slant: with the raster, every coloured box vertex takes red alone (the
+// pixels showing the seabed are not read, and such frames count 1000 times less), while one ray
+// per vertex, which knows no outline, lets blue into the vertices along it. A sphere of 5 cm
+// facets, subdivided to 2 cm, seen whole: the vertices near a facet's edge (whose pixels show the
+// next facet, its plane passing just in front of them) and those of the far side (behind the
+// near side, beside the triangles their pixels show) are settled by the raster, not left to rays.
+TEST(TextureMesh, OutlineVerticesTakeTheModelsPixelsOnly) {
+  TriangleMesh seabed = make_plane(6, 6);
+  TriangleMesh box = make_box(0.8, 0.6, 0.5);
+  box.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.25)));
+  Scene scene;
+  scene.objects = {object("seabed", seabed, {0.1f, 0.2f, 0.9f}),
+                   object("box", box, {0.9f, 0.1f, 0.1f})};
+  const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
+  CameraRenderConfig rc;
+  rc.ambient = 1.0;
+  rc.attenuation_per_m = 0.0;
+  std::vector<Eigen::Isometry3d> poses = {test::look_at({-2.2, -1.1, 1.6}, {0, 0, 0.2}),
+                                          test::look_at({1.9, -1.6, 1.4}, {0, 0, 0.2}),
+                                          test::look_at({0.4, 2.3, 2.0}, {0, 0, 0.2})};
+  std::vector<RgbImage> images;
+  for (const auto& T : poses) images.push_back(CameraRenderer(scene, rc).render(cam, T));
+  std::vector<CameraView> views;
+  for (std::size_t f = 0; f < poses.size(); ++f) views.push_back({cam, poses[f], &images[f]});
+  MeshTextureConfig mc;
+  mc.texel_m = 0.02;
+  const Eigen::Vector3f red(0.9f, 0.1f, 0.1f);
+  auto off_red = [&](const TexturedMesh& t, double tolerance) {
+    std::size_t coloured = 0, off = 0;
+    for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
+      if (t.views[i] == 0) continue;
+      ++coloured;
+      off += (t.color[i] - red).norm() > tolerance;
+    }
+    EXPECT_GT(coloured, 2000u);
+    return off;
+  };
+  EXPECT_EQ(off_red(texture_mesh(box, views, mc, seabed), 1e-3), 0u);
+  MeshTextureConfig rays = mc;
+  rays.raster_visibility = false;
+  EXPECT_GT(off_red(texture_mesh(box, views, rays, seabed), 0.05), 20u);
+
+  const TriangleMesh sphere = make_sphere(0.5, 64);  // ~5 cm facets, ~4 px at 3 m
+  MeshTexturer t(sphere, mc);
+  RgbImage grey;
+  grey.width = cam.width;
+  grey.height = cam.height;
+  grey.rgb.assign(3u * grey.width * grey.height, 0.5f);
+  EXPECT_GT(t.add({cam, test::look_at({0.3, -2.9, 0.8}, {0, 0, 0}), &grey}), 5000u);
+  EXPECT_GT(t.raster_decided(), 3 * t.rays_cast())  // 4.3×; 1.9× before these two rules
+      << t.raster_decided() << " decided by the raster, " << t.rays_cast() << " rays";
+}

@@ -87,48 +87,59 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "--plain-mean", [job] { job->mesh.weight_by_view = false; },
       "with --mesh: average the frames' colours plainly (default: each weighted by "
       "|cos θ| / range², near head-on views counting most)");
+  auto* silhouette_opt =
+      cmd->add_option("--silhouette-weight", job->mesh.silhouette_weight,
+                      "with --mesh: a frame in which a vertex lies within a pixel of the model's "
+                      "outline (open water or an occluder among the pixels its colour is read "
+                      "from) counts this many times less, and only the pixels showing the model "
+                      "are read; 1: as any other frame")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str();
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
-  cmd->callback(
-      [&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
-        if (colmap->empty() && neus->empty() && dataset->empty()) {
-          throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
-        }
-        if (dataset->empty() && images->empty()) {
-          throw CLI::ValidationError("--images", "required with --colmap or --neus");
-        }
-        if (!dataset->empty() && !images->empty()) {
-          throw CLI::ValidationError("--images",
-                                     "does not apply to --dataset (its camera/ holds them)");
-        }
-        if (job->is_mesh && job->drop_uncoloured) {
-          throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
-        }
-        if (!job->is_mesh && !job->mesh.weight_by_view) {
-          throw CLI::ValidationError("--plain-mean", "applies to --mesh only");
-        }
-        if (!job->is_mesh && !job->occluders.empty()) {
-          throw CLI::ValidationError("--occluder", "applies to --mesh only");
-        }
-        run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
-          job->cloud = *cloud;
-          job->mesh.max_range_m = job->config.max_range_m;
-          job->colmap_dir = *colmap;
-          job->neus_file = *neus;
-          job->dataset_dir = *dataset;
-          job->navigation_file = *navigation;
-          job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
-          job->images_dir = *images;
-          job->output = *output;
-          job->progress = !g.quiet;
-          const TextureFilesResult r = texture_cloud_files(*job);
-          const char* what = job->is_mesh ? "vertices" : "points";
-          fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured,
-                     r.points, what, r.frames, r.written, what, job->output.string());
-          return 0;
-        };
-      });
+  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset,
+                 navigation, silhouette_opt] {
+    if (colmap->empty() && neus->empty() && dataset->empty()) {
+      throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
+    }
+    if (dataset->empty() && images->empty()) {
+      throw CLI::ValidationError("--images", "required with --colmap or --neus");
+    }
+    if (!dataset->empty() && !images->empty()) {
+      throw CLI::ValidationError("--images",
+                                 "does not apply to --dataset (its camera/ holds them)");
+    }
+    if (job->is_mesh && job->drop_uncoloured) {
+      throw CLI::ValidationError("--drop-uncoloured", "does not apply to --mesh");
+    }
+    if (!job->is_mesh && !job->mesh.weight_by_view) {
+      throw CLI::ValidationError("--plain-mean", "applies to --mesh only");
+    }
+    if (!job->is_mesh && silhouette_opt->count() > 0) {
+      throw CLI::ValidationError("--silhouette-weight", "applies to --mesh only");
+    }
+    if (!job->is_mesh && !job->occluders.empty()) {
+      throw CLI::ValidationError("--occluder", "applies to --mesh only");
+    }
+    run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
+      job->cloud = *cloud;
+      job->mesh.max_range_m = job->config.max_range_m;
+      job->colmap_dir = *colmap;
+      job->neus_file = *neus;
+      job->dataset_dir = *dataset;
+      job->navigation_file = *navigation;
+      job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
+      job->images_dir = *images;
+      job->output = *output;
+      job->progress = !g.quiet;
+      const TextureFilesResult r = texture_cloud_files(*job);
+      const char* what = job->is_mesh ? "vertices" : "points";
+      fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured, r.points,
+                 what, r.frames, r.written, what, job->output.string());
+      return 0;
+    };
+  });
 }
 
 }  // namespace sonar3d::cli

@@ -105,13 +105,16 @@ void bind_video(py::module_& m) {
   py::class_<MeshTextureConfig>(m, "MeshTextureConfig",
                                 "Colouring a mesh: texel_m (subdivision edge length, 0 = as is), "
                                 "max_range_m, max_vertices, raster_visibility, weight_by_view "
-                                "(colours weighted by |cos θ| / range², else a plain mean).")
+                                "(colours weighted by |cos θ| / range², else a plain mean), "
+                                "silhouette_weight (a frame seeing a vertex within a pixel of the "
+                                "outline counts this many times less).")
       .def(py::init(&from_kwargs<MeshTextureConfig>))
       .def_readwrite("texel_m", &MeshTextureConfig::texel_m)
       .def_readwrite("max_range_m", &MeshTextureConfig::max_range_m)
       .def_readwrite("max_vertices", &MeshTextureConfig::max_vertices)
       .def_readwrite("raster_visibility", &MeshTextureConfig::raster_visibility)
       .def_readwrite("weight_by_view", &MeshTextureConfig::weight_by_view)
+      .def_readwrite("silhouette_weight", &MeshTextureConfig::silhouette_weight)
       .def("__repr__", &fields_repr)
       .def("validate", &MeshTextureConfig::validate);
 

@@ -79,6 +79,15 @@ def test_render_and_texture_a_cloud_and_a_mesh():
     assert under_plate.sum() > 3 and np.all(oviews[under_plate] == 0)
     assert clear.sum() > 20 and np.all(oviews[clear] == 1)
 
+    # silhouette_weight reaches the texturer (one frame: the weight does not change a mean of one)
+    # and is validated.
+    _, wcolors, wviews = sonar3d.texture_mesh(
+        block, [(cam, T, img)], sonar3d.MeshTextureConfig(texel_m=0.05, silhouette_weight=1.0))
+    assert np.array_equal(wviews, mviews)
+    with pytest.raises(sonar3d.Error, match=r"silhouette_weight must be in \(0, 1\]"):
+        sonar3d.texture_mesh(block, [(cam, T, img)],
+                             sonar3d.MeshTextureConfig(silhouette_weight=0.0))
+
 
 def test_bad_views_give_clear_errors():
     cam, T = down_camera()

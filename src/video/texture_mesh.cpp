@@ -25,6 +25,8 @@ void MeshTextureConfig::validate() const {
   require(std::isfinite(texel_m) && texel_m >= 0, "texture mesh: texel_m must be >= 0 m");
   require(std::isfinite(max_range_m) && max_range_m > 0, "texture mesh: max_range_m must be > 0 m");
   require(max_vertices > 0, "texture mesh: max_vertices must be > 0");
+  require(std::isfinite(silhouette_weight) && silhouette_weight > 0 && silhouette_weight <= 1,
+          "texture mesh: silhouette_weight must be in (0, 1]");
 }
 
 std::size_t TexturedMesh::coloured() const {
@@ -147,7 +149,7 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
     // The mesh's triangles first, so that their given indices stay theirs (owners below).
     TriangleMesh all = mesh;
     all.append(occluders);
-    impl_->raster = std::make_unique<detail::VisibilityRaster>(all);
+    impl_->raster = std::make_unique<detail::VisibilityRaster>(all, mesh.triangles.size());
   }
   std::vector<int> parent;
   impl_->mesh = subdivide_with_parents(mesh, config.texel_m, config.max_vertices, parent);
@@ -233,6 +235,35 @@ inline Eigen::Array4f sample_bilinear(const RgbImage& img, float x, float y) {
   return c;
 }
 
+// sample_bilinear() from the pixels of `shows` only (bit k: pixel (u0, v0), (u0 + 1, v0),
+// (u0, v0 + 1), (u0 + 1, v0 + 1)), their weights renormalised; equal weights when those it keeps
+// all weigh nothing (the point on the far edge of a pixel square); all four when none is kept.
+inline Eigen::Array4f sample_bilinear_masked(const RgbImage& img, float x, float y,
+                                             unsigned shows) {
+  if (shows == 0) return sample_bilinear(img, x, y);  // (a foreign plane through the point)
+  x = std::clamp(x, 0.0f, static_cast<float>(img.width - 1));
+  y = std::clamp(y, 0.0f, static_cast<float>(img.height - 1));
+  const int u0 = static_cast<int>(x), v0 = static_cast<int>(y);
+  const int u1 = std::min(u0 + 1, img.width - 1), v1 = std::min(v0 + 1, img.height - 1);
+  const float a = x - static_cast<float>(u0), b = y - static_cast<float>(v0);
+  float w[4] = {(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b};
+  float sum = 0;
+  for (int k = 0; k < 4; ++k) sum += (w[k] *= static_cast<float>((shows >> k) & 1u));
+  if (!(sum > 1e-6f)) {
+    sum = 0;
+    for (int k = 0; k < 4; ++k) sum += (w[k] = static_cast<float>((shows >> k) & 1u));
+  }
+  const int us[4] = {u0, u1, u0, u1}, vs[4] = {v0, v0, v1, v1};
+  Eigen::Array4f c = Eigen::Array4f::Zero();
+  for (int k = 0; k < 4; ++k) {
+    if (w[k] == 0) continue;
+    const float* p = img.rgb.data() + 3 * (static_cast<std::size_t>(vs[k]) * img.width + us[k]);
+    c.head<3>() += (w[k] / sum) * Eigen::Array3f(p[0], p[1], p[2]);
+  }
+  c[3] = 1.0f;
+  return c;
+}
+
 }  // namespace
 
 std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
@@ -283,6 +314,7 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
               rv1 = raster ? static_cast<float>(raster->height() - 1) : 0.0f;
   const std::int32_t rstride = raster ? raster->stride() : 0;
   const bool weighted = impl_->config.weight_by_view;
+  const float silhouette_weight = static_cast<float>(impl_->config.silhouette_weight);
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
   const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
   // Only the chunks of vertices the camera may see (a frame of a survey sees a part of a model).
@@ -315,12 +347,15 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
             const Candidate& c = cs[k];
             using Verdict = detail::VisibilityRaster::Verdict;
             Verdict verdict = Verdict::Unknown;
+            unsigned shows = 0xfu;  // the pixels that show the model (raster, test())
             if (raster) {
               // Its own triangles in front at the four pixel centres: visible, no arithmetic.
               const std::array<std::uint32_t, 2>& pair = owner_pair[c.i];
-              verdict = pair[0] != Impl::kManyOwners && raster->owned(c.cell, pair[0], pair[1])
-                            ? Verdict::Visible
-                            : raster->test(V[c.i].cast<double>(), c.cell, c.range);
+              verdict =
+                  pair[0] != Impl::kManyOwners && raster->owned(c.cell, pair[0], pair[1], shows)
+                      ? Verdict::Visible
+                      : raster->test(V[c.i].cast<double>(), c.cell, c.range, shows, pair[0],
+                                     pair[1]);
             }
             if (verdict == Verdict::Hidden) {
               ++local_decided;
@@ -352,11 +387,17 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
             // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
             const float inv_range = 1.0f / c.range;
             const float w =
-                weighted ? std::max(0.01f, std::abs(impl_->normal[c.i].dot(V[c.i] - origin_f)) *
-                                               inv_range) *
-                               (inv_range * inv_range)
-                         : 1.0f;
-            impl_->acc[c.i] += (w * sample_bilinear(*view.image, c.x, c.y)).cast<double>();
+                (weighted ? std::max(0.01f, std::abs(impl_->normal[c.i].dot(V[c.i] - origin_f)) *
+                                                inv_range) *
+                                (inv_range * inv_range)
+                          : 1.0f) *
+                (shows != 0xfu ? silhouette_weight : 1.0f);
+            // Within a pixel of the silhouette: from the pixels that show the model only (a
+            // pinhole's raster pixels are the image's).
+            const Eigen::Array4f colour =
+                shows == 0xfu || !pinhole ? sample_bilinear(*view.image, c.x, c.y)
+                                          : sample_bilinear_masked(*view.image, c.x, c.y, shows);
+            impl_->acc[c.i] += (w * colour).cast<double>();
             ++impl_->views[c.i];
             ++local;
           }

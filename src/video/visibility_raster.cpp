@@ -97,7 +97,8 @@ void blocks_in_view(const std::vector<Eigen::AlignedBox3f>& boxes, const CameraI
   }
 }
 
-VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occluder) {
+VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder, std::size_t first_foreign)
+    : mesh_(occluder) {
   if (mesh_.triangles.size() >= kNone / 2) {  // ids are compared as signed 32-bit integers
     throw Error("texture mesh: the occluder has more than 2³¹ triangles");
   }
@@ -112,9 +113,11 @@ VisibilityRaster::VisibilityRaster(const TriangleMesh& occluder) : mesh_(occlude
     std::sort(key.begin(), key.end());
     std::vector<Eigen::Vector3i> sorted(key.size());
     internal_of_given_.resize(key.size());
+    foreign_.resize(key.size());
     for (std::size_t k = 0; k < key.size(); ++k) {
       sorted[k] = mesh_.triangles[key[k].second];
       internal_of_given_[key[k].second] = static_cast<std::uint32_t>(k);
+      foreign_[k] = static_cast<std::size_t>(key[k].second) >= first_foreign;
     }
     mesh_.triangles = std::move(sorted);
   }

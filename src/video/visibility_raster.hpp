@@ -62,9 +62,13 @@ void blocks_in_view(const std::vector<Eigen::AlignedBox3f>& boxes, const CameraI
 class VisibilityRaster {
  public:
   enum class Verdict : std::uint8_t { Visible, Hidden, Unknown };
+  static constexpr std::uint32_t kNone = 0xffffffffu;  // no triangle
 
-  // Keeps a copy of the occluder (renumbered spatially; triangle ids are internal).
-  explicit VisibilityRaster(const TriangleMesh& occluder);
+  // Keeps a copy of the occluder (renumbered spatially; triangle ids are internal). Its triangles
+  // from `first_foreign` on (given numbering) belong to other surfaces than the textured one
+  // (occluders that take no colour; see test()'s `edge`).
+  explicit VisibilityRaster(const TriangleMesh& occluder,
+                            std::size_t first_foreign = static_cast<std::size_t>(-1));
 
   // Rasterises the occluder seen by `camera` at `T_camera_world` (OpenCV camera frame). Geometry
   // nearer than `near_m` to the camera plane is clipped away.
@@ -89,8 +93,16 @@ class VisibilityRaster {
     __builtin_prefetch(id_.data() + cell + stride_);
   }
   // The verdict for a point on the textured mesh at `cell` (its cell), given in the world frame;
-  // `range_m` is its distance from the camera centre.
-  Verdict test(const Eigen::Vector3d& p_world, std::ptrdiff_t cell, double range_m) const;
+  // `range_m` is its distance from the camera centre. With Visible, bit k of `shows` (k = 0 … 3:
+  // pixel centres (u0, v0), (u0 + 1, v0), (u0, v0 + 1), (u0 + 1, v0 + 1) of the cell) tells
+  // whether that centre shows the textured surface (not nothing, not a foreign triangle): a
+  // point whose four do not all (within a pixel of its silhouette) has the image's pixels around
+  // it mixing it with what lies behind. `own_a`, `own_b`: occluder triangles the point lies on
+  // (internal_triangle()), when known (else anything ≥ the triangle count): a triangle sharing a
+  // vertex with one of them, whose plane but not itself crosses the ray short of the point — a
+  // neighbouring facet of a curved surface — does not leave the test undecided.
+  Verdict test(const Eigen::Vector3d& p_world, std::ptrdiff_t cell, double range_m, unsigned& shows,
+               std::uint32_t own_a = kNone, std::uint32_t own_b = kNone) const;
   // The occluder's triangle `given` (its index in the mesh the constructor was given) in the
   // raster's own numbering, which owned() takes.
   std::uint32_t internal_triangle(std::size_t given) const { return internal_of_given_[given]; }
@@ -99,8 +111,8 @@ class VisibilityRaster {
   // (internal_triangle()) the point lies on: then it lies on the front surface, the Visible of
   // test() without its plane arithmetic (the planes of its own triangles pass through it). Most
   // vertices of a subdivided model lie inside one triangle or on an edge between two. False: ask
-  // test().
-  bool owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const;
+  // test(). `shows`: as test()'s (here, the centres that show anything).
+  bool owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b, unsigned& shows) const;
 
   int width() const { return width_; }
   int height() const { return height_; }
@@ -135,6 +147,7 @@ class VisibilityRaster {
 
   TriangleMesh mesh_;
   std::vector<std::uint32_t> internal_of_given_;  // per given triangle: its index in mesh_
+  std::vector<std::uint8_t> foreign_;             // per triangle (internal): not the textured one
   std::vector<Plane> plane_;
   // Raster: pixel (i, j) centre at undistorted normalised coordinates
   // ((i − ox)/sx, (j − oy)/sy).
@@ -142,7 +155,12 @@ class VisibilityRaster {
   bool have_raster_ = false;
   int width_ = 0, height_ = 0, stride_ = 0;
   double sx_ = 1, sy_ = 1, ox_ = 0, oy_ = 0;
-  static constexpr std::uint32_t kNone = 0xffffffffu;
+  // Whether triangles t and u (internal ids; u may be out of range: false) share a vertex.
+  bool share_vertex(std::uint32_t t, std::uint32_t u) const {
+    if (u >= mesh_.triangles.size()) return false;
+    const Eigen::Vector3i &a = mesh_.triangles[t], &b = mesh_.triangles[u];
+    return (a.array() == b[0]).any() || (a.array() == b[1]).any() || (a.array() == b[2]).any();
+  }
   std::vector<std::uint32_t> id_;  // per pixel centre: the nearest triangle, kNone: none
   // Per thread: a band's depths while it is rasterised.
   tbb::enumerable_thread_specific<std::vector<float>> band_inv_z_;
@@ -157,7 +175,8 @@ class VisibilityRaster {
 };
 
 // Inline: called for every vertex of every frame.
-inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b) const {
+inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::uint32_t b,
+                                    unsigned& shows) const {
   if (cell < 0) return false;
   // The four ids compared at once (GCC/Clang vector extensions).
   using U4 = std::uint32_t __attribute__((vector_size(16)));
@@ -169,22 +188,38 @@ inline bool VisibilityRaster::owned(std::ptrdiff_t cell, std::uint32_t a, std::u
   std::uint64_t o[2], n[2];
   std::memcpy(o, &own, sizeof o);
   std::memcpy(n, &none, sizeof n);
+  std::int32_t lane[4];
+  std::memcpy(lane, &none, sizeof lane);
+  shows = static_cast<unsigned>(lane[0] == 0) | static_cast<unsigned>(lane[1] == 0) << 1 |
+          static_cast<unsigned>(lane[2] == 0) << 2 | static_cast<unsigned>(lane[3] == 0) << 3;
   return ((o[0] & o[1]) == ~std::uint64_t{0}) & ((n[0] & n[1]) != ~std::uint64_t{0});
 }
 
 inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p_world,
-                                                        std::ptrdiff_t cell, double range_m) const {
+                                                        std::ptrdiff_t cell, double range_m,
+                                                        unsigned& shows, std::uint32_t own_a,
+                                                        std::uint32_t own_b) const {
   if (cell < 0) return Verdict::Unknown;
   // The vertex's ray: origin + s·d, the vertex at s = 1. The Embree test's allowance: a surface
   // within max(1e-4 m, 1e-5·range) of the vertex is its own.
   const Eigen::Vector3d d = p_world - origin_world_;
   const double eps = std::max(1e-4 / range_m, 1e-5);
   bool on_front_surface = false, undecided = false;
+  // Whether every centre shows a surface whose plane crosses the ray more than kFar·range short
+  // of the vertex (where the crossing is not on the triangle itself: the front surface there
+  // continues beyond the triangle, far in front of the vertex).
+  constexpr double kFar = 0.01;
+  bool all_far = true;
+  shows = 0;
   const std::uint32_t* row = id_.data() + cell;
   const std::uint32_t ids[4] = {row[0], row[1], row[stride_], row[stride_ + 1]};
   for (int k = 0; k < 4; ++k) {
     const std::uint32_t t = ids[k];
-    if (t == kNone) continue;  // open water there: no occluder
+    if (t == kNone) {  // open water there: no occluder
+      all_far = false;
+      continue;
+    }
+    shows |= static_cast<unsigned>(foreign_[t] == 0) << k;
     if ((k > 0 && t == ids[k - 1]) || (k == 3 && t == ids[1]) || (k >= 2 && t == ids[0])) {
       continue;  // the same triangle as another of the four: the same verdict
     }
@@ -192,6 +227,7 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
     const double denom = pl.n.dot(d);
     if (!(std::abs(denom) > 1e-12 * range_m)) {  // seen edge-on
       undecided = true;
+      all_far = false;
       continue;
     }
     // The ray meets the plane at s = num / denom; compared without dividing (|denom| > 0).
@@ -201,7 +237,10 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
       on_front_surface = true;  // the front surface at this centre passes through the vertex
       continue;
     }
-    if (!(an < (1.0 - eps) * ad) || !(an > 0)) continue;  // the front surface there lies behind it
+    if (!(an < (1.0 - eps) * ad) || !(an > 0)) {  // the front surface there lies behind it
+      all_far = false;
+      continue;
+    }
     const double s = num / denom;
     // A front surface whose plane crosses the ray short of the vertex: hidden when the ray
     // crosses the triangle itself (exact), undecided when only its plane.
@@ -214,8 +253,18 @@ inline VisibilityRaster::Verdict VisibilityRaster::test(const Eigen::Vector3d& p
         pl.n.dot((a - c).cross(h - c)) >= 0) {
       return Verdict::Hidden;
     }
+    // A facet next to the point's own (a curved surface: its plane passes in front of the point,
+    // beside the facet): the ray passes it by.
+    if (share_vertex(t, own_a) || share_vertex(t, own_b)) {
+      all_far = false;
+      continue;
+    }
     undecided = true;  // another of the four may still prove it hidden
+    all_far &= an < (1.0 - kFar) * ad;
   }
+  // All four centres show surfaces far in front, none of them the vertex's own: hidden, at the
+  // raster's resolution (a gap narrower than a pixel between them would let it through).
+  if (all_far && !on_front_surface) return Verdict::Hidden;
   return on_front_surface && !undecided ? Verdict::Visible : Verdict::Unknown;
 }
 

@@ -33,6 +33,13 @@ struct MeshTextureConfig {
   // normal; the inverse of the surface area one pixel covers there, |cos θ| at least 0.01), so
   // near, head-on views count most; false: a plain mean over the frames.
   bool weight_by_view = true;
+  // A frame in which a vertex lies within a pixel of the model's silhouette — one of the four
+  // pixels its colour is read from shows no part of the model (open water, or an occluder such as
+  // the seabed) — counts this many times less, as those pixels mix the model with what lies
+  // behind it: where other frames see the vertex clear of its outline, their colour wins; where
+  // none do, it still takes one. 1: as any other frame. With raster_visibility only (frames that
+  // go to rays alone do not know the silhouette).
+  double silhouette_weight = 1e-3;
   void validate() const;  // throws Error naming the field
 };
 
