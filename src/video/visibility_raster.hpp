@@ -5,15 +5,19 @@
 // does not bend triangles). A vertex is then tested against the triangle nearest the camera at its
 // four surrounding pixel centres by intersecting the vertex's own ray with those triangles' planes:
 //   - a triangle the ray crosses, inside its edges, short of the vertex: Hidden (exact);
-//   - a triangle whose plane, but not the triangle, crosses the ray short of the vertex, or no
-//     triangle at any of the four (outside the raster, open water): Unknown, and the caller casts
-//     the exact Embree ray;
+//   - four centres showing surfaces whose planes cross the ray more than 1 % of the range short of
+//     the vertex (outside their triangles), none through it: Hidden (the far side of an object);
+//   - a triangle whose plane, but not the triangle, crosses the ray short of the vertex (unless it
+//     shares a corner with the vertex's own triangles: the next facet of a curved surface, passed
+//     by), or no triangle at any of the four (outside the raster, open water): Unknown, and the
+//     caller casts the exact Embree ray;
 //   - otherwise, when at least one of the four planes crosses the ray at the vertex (within 1e-4 m
 //     or 1e-5 of the range, the Embree ray's allowance): the vertex lies on the front surface:
 //     Visible.
-// So Hidden is exact and Unknown falls back to the exact test; Visible holds at the raster's
+// So Unknown falls back to the exact test, and Visible and Hidden hold at the raster's
 // resolution: an occluder that covers the vertex but none of the four pixel centres around it (a
-// sliver or a wire thinner than a pixel) is missed. Written by hand because rasterising triangle
+// sliver or a wire thinner than a pixel), or a gap as thin through surfaces far in front, is
+// missed. Written by hand because rasterising triangle
 // ids on the CPU is ~200 lines and the alternatives in Debian (Mesa's OSMesa/llvmpipe) need a GL
 // context and a driver at run time.
 //
