@@ -119,8 +119,8 @@ struct MeshTexturer::Impl {
   std::vector<Eigen::Vector3f> normal;  // unit vertex normals (weight_by_view)
   // Per vertex, the occluder triangles it lies on (the raster's numbering; those of the
   // triangles around it) when there are one or two: those (the first repeated when one); else
-  // kManyOwners (a corner of the given mesh, or any vertex when texel_m = 0), and the raster's
-  // plane test decides.
+  // {kManyOwners, one of them} (a corner of the given mesh, or any vertex when texel_m = 0), and
+  // the raster's plane test decides (told that one, for its neighbouring-facet rule).
   static constexpr std::uint32_t kManyOwners = 0xfffffffeu;
   std::vector<std::array<std::uint32_t, 2>> owner_pair;
   std::unique_ptr<detail::VisibilityRaster> raster;
@@ -171,7 +171,7 @@ MeshTexturer::MeshTexturer(const TriangleMesh& mesh, const MeshTextureConfig& co
         } else if (p[0] == p[1]) {
           p[1] = owner;
         } else {
-          p = {kMany, kMany};  // a third
+          p = {kMany, p[0]};  // a third: one of them kept for test()
         }
       }
     }
