@@ -93,7 +93,7 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
                       "outline (open water or an occluder among the pixels its colour is read "
                       "from) counts this many times less, and only the pixels showing the model "
                       "are read; 1: as any other frame")
-          ->check(CLI::Range(0.0, 1.0))
+          ->check(CLI::PositiveNumber & CLI::Range(0.0, 1.0))
           ->capture_default_str();
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
