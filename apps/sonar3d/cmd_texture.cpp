@@ -1,6 +1,8 @@
 // sonar3d texture: colour a point cloud from posed camera images (thesis sec. 6.4).
 #include <fmt/core.h>
 
+#include <cstdlib>
+
 #include "commands.hpp"
 #include "sonar3d/video/texture_files.hpp"
 
@@ -93,7 +95,15 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
                       "outline (open water or an occluder among the pixels its colour is read "
                       "from) counts this many times less, and only the pixels showing the model "
                       "are read; 1: as any other frame")
-          ->check(CLI::PositiveNumber & CLI::Range(0.0, 1.0))
+          ->check(CLI::Validator(
+              [](std::string& value) -> std::string {
+                char* end = nullptr;
+                const double w = std::strtod(value.c_str(), &end);
+                return end != value.c_str() && *end == '\0' && w > 0 && w <= 1
+                           ? ""
+                           : "must be a number > 0 and <= 1, not " + value;
+              },
+              "in (0, 1]"))
           ->capture_default_str();
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
