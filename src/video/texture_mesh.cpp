@@ -317,6 +317,9 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
   const float silhouette_weight = static_cast<float>(impl_->config.silhouette_weight);
   const std::size_t row_floats = 3 * static_cast<std::size_t>(cam.width);
   const std::array<std::uint32_t, 2>* owner_pair = impl_->owner_pair.data();
+  Eigen::Array4d* const acc = impl_->acc.data();
+  std::uint32_t* const views = impl_->views.data();
+  const Eigen::Vector3f* const normal = impl_->normal.data();
   // Only the chunks of vertices the camera may see (a frame of a survey sees a part of a model).
   std::vector<int>& chunks = impl_->chunks_in_view;
   detail::blocks_in_view(impl_->chunk_box, cam, T_camera_world, impl_->config.max_range_m, chunks);
@@ -387,18 +390,18 @@ std::size_t MeshTexturer::add(const CameraView& view, std::size_t f) {
             // Weight: |cos θ| / range² = |n · (p − o)| / range³, the pixel's footprint's inverse.
             const float inv_range = 1.0f / c.range;
             const float w =
-                (weighted ? std::max(0.01f, std::abs(impl_->normal[c.i].dot(V[c.i] - origin_f)) *
-                                                inv_range) *
-                                (inv_range * inv_range)
-                          : 1.0f) *
+                (weighted
+                     ? std::max(0.01f, std::abs(normal[c.i].dot(V[c.i] - origin_f)) * inv_range) *
+                           (inv_range * inv_range)
+                     : 1.0f) *
                 (shows != 0xfu ? silhouette_weight : 1.0f);
             // Within a pixel of the silhouette: from the pixels that show the model only (a
             // pinhole's raster pixels are the image's).
             const Eigen::Array4f colour =
                 shows == 0xfu || !pinhole ? sample_bilinear(*view.image, c.x, c.y)
                                           : sample_bilinear_masked(*view.image, c.x, c.y, shows);
-            impl_->acc[c.i] += (w * colour).cast<double>();
-            ++impl_->views[c.i];
+            acc[c.i] += (w * colour).cast<double>();
+            ++views[c.i];
             ++local;
           }
         };
