@@ -21,12 +21,35 @@ using sonar3d::test::pinhole_camera;
 
 namespace {
 
+// Flat light and clear water: every pixel shows its object's albedo.
+CameraRenderConfig albedo_light() {
+  CameraRenderConfig rc;
+  rc.ambient = 1.0;
+  rc.attenuation_per_m = 0.0;
+  return rc;
+}
+
 SceneObject object(const std::string& name, TriangleMesh mesh, const Eigen::Vector3f& color) {
   SceneObject o;
   o.name = name;
   o.mesh_world = std::move(mesh);
   o.color = color;
   return o;
+}
+
+// A red box of `size` standing on a 6 × 6 m seabed of `seabed_colour` at z = 0.
+struct BoxOnSeabed {
+  TriangleMesh seabed, box;
+  Scene scene;
+};
+BoxOnSeabed box_on_seabed(const Eigen::Vector3d& size, const Eigen::Vector3f& seabed_colour) {
+  BoxOnSeabed b;
+  b.seabed = make_plane(6, 6);
+  b.box = make_box(size.x(), size.y(), size.z());
+  b.box.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.5 * size.z())));
+  b.scene.objects = {object("seabed", b.seabed, seabed_colour),
+                     object("box", b.box, {0.9f, 0.1f, 0.1f})};
+  return b;
 }
 
 }  // namespace
@@ -54,9 +77,7 @@ TEST(TextureMesh, ColoursVisibleSurfacesAndNothingBehind) {
   scene.objects = {object("wall", wall, {0.1f, 0.2f, 0.9f}),
                    object("plate", plate, {0.9f, 0.1f, 0.1f})};
   const CameraIntrinsics cam = pinhole_camera(400, 300, 300);
-  CameraRenderConfig rc;
-  rc.ambient = 1.0;
-  rc.attenuation_per_m = 0.0;
+  const CameraRenderConfig rc = albedo_light();
   const RgbImage img = CameraRenderer(scene, rc).render(cam, Eigen::Isometry3d::Identity());
   TriangleMesh both = wall;
   both.append(plate);
@@ -112,15 +133,8 @@ TEST(TextureMesh, ColoursVisibleSurfacesAndNothingBehind) {
 // hid entirely at a 3 cm tolerance (test_video_cli.cpp) — takes its colour on the mesh, and the
 // seabed under the box none.
 TEST(TextureMesh, GrazingSurfacesDoNotHideThemselves) {
-  TriangleMesh seabed = make_plane(6, 6);
-  TriangleMesh box = make_box(0.6, 0.6, 0.6);
-  box.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.3)));
-  Scene scene;
-  scene.objects = {object("seabed", seabed, {0.8f, 0.7f, 0.3f}),
-                   object("box", box, {0.9f, 0.1f, 0.1f})};
-  CameraRenderConfig rc;
-  rc.ambient = 1.0;
-  rc.attenuation_per_m = 0.0;
+  const auto [seabed, box, scene] = box_on_seabed({0.6, 0.6, 0.6}, {0.8f, 0.7f, 0.3f});
+  const CameraRenderConfig rc = albedo_light();
   const CameraRenderer renderer(scene, rc);
   const auto cams = read_neus_cameras(fs::path(SONAR3D_SOURCE_DIR) / "data/video/cameras_neus.npz");
   std::vector<RgbImage> images;
@@ -164,9 +178,7 @@ TEST(TextureMesh, OccludersHideTheBuriedPartAndTakeNoColour) {
   const Eigen::Vector3f sand(0.8f, 0.7f, 0.3f), red(0.9f, 0.1f, 0.1f);
   Scene scene;
   scene.objects = {object("seabed", seabed, sand), object("box", box, red)};
-  CameraRenderConfig rc;
-  rc.ambient = 1.0;
-  rc.attenuation_per_m = 0.0;
+  const CameraRenderConfig rc = albedo_light();
   const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
   const Eigen::Isometry3d pose = test::look_at({2.0, -1.6, 1.8}, {0, 0, 0});
   const RgbImage img = CameraRenderer(scene, rc).render(cam, pose);
@@ -323,7 +335,7 @@ TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
 // and the 9th tries the raster again. Seen from above, the raster settles almost every test and
 // is used on every frame. Visibility is the same either way (rays are the reference).
 TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
-  const int n = 300;
+  const int n = 300;  // 6 × 6 m, 2 cm quads, waves 0.15 m high
   TriangleMesh relief;
   for (int j = 0; j <= n; ++j) {
     for (int i = 0; i <= n; ++i) {
@@ -386,16 +398,9 @@ TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
 // next facet, its plane passing just in front of them) and those of the far side (behind the
 // near side, beside the triangles their pixels show) are settled by the raster, not left to rays.
 TEST(TextureMesh, OutlineVerticesTakeTheModelsPixelsOnly) {
-  TriangleMesh seabed = make_plane(6, 6);
-  TriangleMesh box = make_box(0.8, 0.6, 0.5);
-  box.transform(Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.25)));
-  Scene scene;
-  scene.objects = {object("seabed", seabed, {0.1f, 0.2f, 0.9f}),
-                   object("box", box, {0.9f, 0.1f, 0.1f})};
+  const auto [seabed, box, scene] = box_on_seabed({0.8, 0.6, 0.5}, {0.1f, 0.2f, 0.9f});
   const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
-  CameraRenderConfig rc;
-  rc.ambient = 1.0;
-  rc.attenuation_per_m = 0.0;
+  const CameraRenderConfig rc = albedo_light();
   std::vector<Eigen::Isometry3d> poses = {test::look_at({-2.2, -1.1, 1.6}, {0, 0, 0.2}),
                                           test::look_at({1.9, -1.6, 1.4}, {0, 0, 0.2}),
                                           test::look_at({0.4, 2.3, 2.0}, {0, 0, 0.2})};
