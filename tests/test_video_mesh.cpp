@@ -355,7 +355,7 @@ TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
   img.width = cam.width;
   img.height = cam.height;
   img.rgb.assign(3u * img.width * img.height, 0.5f);
-  const CameraView slant{cam, test::look_at({-3.4, 0, 0.5}, {3, 0, -0.2}), &img};
+  const CameraView slant{cam, test::look_at({-3.4, 0, 1.2}, {3, 0, -0.2}), &img};
   const CameraView above{cam, test::look_at({0.1, 0.05, 1.5}, {0, 0, 0}), &img};
   MeshTextureConfig cfg;
   cfg.texel_m = 0;
