@@ -155,14 +155,16 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
             const double r2 = p.squaredNorm();
             if (r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
             const double r = std::sqrt(r2);
-            const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
-            const double theta = std::atan2(p.z(), rho);
-            if (std::abs(theta) > theta_lobe) continue;
+            // The pixel first: most points lie in an empty one, and its test is cheaper than
+            // the elevation's atan2 (the same points pass both tests in either order).
             const double phi = detail::fast_atan2(p.y(), p.x());
             if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
             const int j = g.beam(phi);
             const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
             if (!fr.has_return(i, j)) continue;
+            const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
+            const double theta = std::atan2(p.z(), rho);
+            if (std::abs(theta) > theta_lobe) continue;
             hits.push_back({static_cast<std::uint32_t>(i * g.beams + j),
                             static_cast<float>(r * theta), n, std::abs(theta) <= g.theta3});
           }
