@@ -298,9 +298,14 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "own line of sight are dropped as free space, not shadow)");
   cmd->add_flag("--explain-returns,!--no-explain-returns", o->carve.occlusion.explain_returns,
                 "carving, beyond the thesis: after occlusion resolution, drop the points whose "
-                "every return another surface explains (one alone in its pixel in 20 % of the "
-                "frames that see it), then refute again the free space they hid: interior ghosts "
-                "of open structures (docs/carving.md)");
+                "every return another surface explains (one alone in its pixel in a share "
+                "--explain-pin-fraction of the frames that see it), then refute again the free "
+                "space they hid: interior ghosts of open structures (docs/carving.md)");
+  cmd->add_option("--explain-pin-fraction", o->carve.occlusion.explain_pin_fraction,
+                  "with --explain-returns: a point whose surface is alone in its pixel in at least "
+                  "this fraction of its return frames is pinned (kept, explains others); higher "
+                  "keeps fewer ghosts and less true surface, in (0, 1] (docs/carving.md)")
+      ->capture_default_str();
   cmd->add_option("--lambda", o->deconv.lambda_fraction,
                   "deconv: L1 weight λ as a fraction of λ_max, in [0, 1] (eq. 5.28; 0.5 = "
                   "Table 5.1)")

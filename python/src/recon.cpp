@@ -130,12 +130,11 @@ void bind_recon(py::module_& m) {
                ", notes=" + py::repr(py::str(r.notes)).cast<std::string>() + ")";
       });
 
-  py::class_<CarveConfig>(m, "CarveConfig",
-                          "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or "
-                          "None), denoise (DenoiseConfig), resolve_occlusions, static_threshold, "
-                          "carve_margin, explain_returns, min_elevation_span, min_observations, "
-                          "num_threads (0 = "
-                          "all cores).")
+  py::class_<CarveConfig>(
+      m, "CarveConfig",
+      "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or None), denoise "
+      "(DenoiseConfig), resolve_occlusions, static_threshold, carve_margin, explain_returns, "
+      "explain_pin_fraction, min_elevation_span, min_observations, num_threads (0 = all cores).")
       .def(py::init(&from_kwargs<CarveConfig>))
       .def_readwrite("voxel_size", &CarveConfig::voxel_size)
       .def_property(
@@ -151,6 +150,10 @@ void bind_recon(py::module_& m) {
       .def_property(
           "explain_returns", [](const CarveConfig& c) { return c.occlusion.explain_returns; },
           [](CarveConfig& c, bool v) { c.occlusion.explain_returns = v; })
+      .def_property(
+          "explain_pin_fraction",
+          [](const CarveConfig& c) { return c.occlusion.explain_pin_fraction; },
+          [](CarveConfig& c, double v) { c.occlusion.explain_pin_fraction = v; })
       .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
       .def_readwrite("min_observations", &CarveConfig::min_observations)
       .def_readwrite("num_threads", &CarveConfig::num_threads)

@@ -57,6 +57,11 @@ def test_explain_returns_keeps_a_sphere(sphere_dataset):
     assert 0.9 * len(plain) <= len(points) <= len(plain)
     r = sonar3d.evaluate_dataset(points, sphere_dataset)["ball"]
     assert r["median_error"] < 0.03
+    # The pin rule's fraction reaches the library, and is checked there.
+    assert cfg.explain_pin_fraction == 0.2
+    cfg.explain_pin_fraction = 1.5
+    with pytest.raises(Exception, match="explain_pin_fraction"):
+        sonar3d.carve(ds, cfg)
 
 
 def test_deconvolve_a_sphere(sphere_dataset):

@@ -71,11 +71,6 @@ std::vector<PointBlock> group_points(const PointCloud& cloud, double voxel_size)
 constexpr double kExplainGapVoxels = 3.0;
 // Points up to this many θ_3dB off the image plane may have returned into a pixel.
 constexpr double kExplainLobe = 2.0;
-// A point is pinned when its surface is alone in its pixel in at least this fraction of the
-// frames that put it in a return pixel (and in one at least). 0.2 since issue 15's last round
-// (was 0.1): many ghosts over a horizontal face (the spool's top) are alone in 10–20 % of theirs;
-// measured on every issue-15 structure, docs/carving.md "Interior ghosts".
-constexpr double kExplainPinFraction = 0.2;
 constexpr int kExplainMaxIterations = 8;  // explanation passes per round
 constexpr int kExplainMaxRounds = 4;      // rounds of explanation, then occlusion resolution
 
@@ -160,14 +155,16 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
             const double r2 = p.squaredNorm();
             if (r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
             const double r = std::sqrt(r2);
-            const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
-            const double theta = std::atan2(p.z(), rho);
-            if (std::abs(theta) > theta_lobe) continue;
+            // The pixel first: most points lie in an empty one, and its test is cheaper than
+            // the elevation's atan2 (the same points pass both tests in either order).
             const double phi = detail::fast_atan2(p.y(), p.x());
             if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
             const int j = g.beam(phi);
             const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
             if (!fr.has_return(i, j)) continue;
+            const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
+            const double theta = std::atan2(p.z(), rho);
+            if (std::abs(theta) > theta_lobe) continue;
             hits.push_back({static_cast<std::uint32_t>(i * g.beams + j),
                             static_cast<float>(r * theta), n, std::abs(theta) <= g.theta3});
           }
@@ -213,7 +210,7 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
       if (!alive[n]) continue;
       const int seen = in_return[n].load(std::memory_order_relaxed);
       const int single = alone[n].load(std::memory_order_relaxed);
-      if (!pinned[n] && single > 0 && single >= kExplainPinFraction * seen) {
+      if (!pinned[n] && single > 0 && single >= config.explain_pin_fraction * seen) {
         pinned[n] = 1;
         changed = true;
       }

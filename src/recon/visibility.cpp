@@ -96,6 +96,9 @@ void OcclusionConfig::validate() const {
   require(range_tolerance_bins >= 0,
           "parameter 'occlusion.range_tolerance_bins' must be >= 0, got " +
               std::to_string(range_tolerance_bins));
+  require(explain_pin_fraction > 0 && explain_pin_fraction <= 1,
+          "parameter 'occlusion.explain_pin_fraction' must be in (0, 1], got " +
+              std::to_string(explain_pin_fraction));
   require(num_threads >= 0, "parameter 'occlusion.num_threads' must be >= 0 (0 = all cores), got " +
                                 std::to_string(num_threads));
 }

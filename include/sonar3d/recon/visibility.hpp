@@ -79,6 +79,12 @@ struct OcclusionConfig {
   // is never carved nor refuted; it is a ghost when every return it lies in is explained by a
   // point of another surface that some frame pins down. false = keep them (the thesis).
   bool explain_returns = false;
+  // The explanation's pin rule (explain_returns() below): a point is pinned when its surface is
+  // alone in its pixel in at least this fraction of the frames that put it in a return pixel;
+  // pinned points explain others and are never refuted again. Higher = fewer points pinned: fewer
+  // ghosts kept (an elevation smear continuing a true face is alone with it in its pixel), less
+  // true surface too. In (0, 1]; measured in docs/carving.md, "Interior ghosts".
+  double explain_pin_fraction = 0.2;
   int num_threads = 0;    // 0 = all cores
   void validate() const;  // throws Error naming the field
 };
@@ -100,12 +106,12 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
 // Per frame and return pixel (range bin, beam), the points lying in it — up to 2 θ_3dB off the
 // image plane, where the beam's main lobe still returns (eq. 2.8) — are split into surfaces
 // along the pixel's elevation arc (runs without a gap longer than 3 voxels). A point is pinned
-// when its surface is the only one in its pixel in at least 20 % of the frames that put it in a
-// return pixel: nothing else can have returned there. A point that is not pinned is a ghost when
-// every return pixel it lies in, in every frame, also holds a pinned point of another surface:
-// each of its returns is explained without it. Ghosts are removed and the passes repeat (a
-// removal can leave a surface alone and pin it) until nothing changes, at most 8 passes. A
-// return pixel that held points keeps one (a pinned one): no observed return is left
+// when its surface is the only one in its pixel in at least config.explain_pin_fraction (0.2) of
+// the frames that put it in a return pixel: nothing else can have returned there. A point that is
+// not pinned is a ghost when every return pixel it lies in, in every frame, also holds a pinned
+// point of another surface: each of its returns is explained without it. Ghosts are removed and the
+// passes repeat (a removal can leave a surface alone and pin it) until nothing changes, at most 8
+// passes. A return pixel that held points keeps one (a pinned one): no observed return is left
 // unexplained. Returns per point 0 = ghost, 1 = kept, 2 = kept and pinned; config.voxel_size
 // sets the gap, config.num_threads the threads. Points no frame puts in a return pixel are kept.
 struct ExplainStats {
