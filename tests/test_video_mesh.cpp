@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <limits>
 
+#include "relief_grid.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/scene.hpp"
@@ -335,21 +336,8 @@ TEST(TextureMesh, ColoursWeightedByViewingAngleAndRange) {
 // and the 9th tries the raster again. Seen from above, the raster settles almost every test and
 // is used on every frame. Visibility is the same either way (rays are the reference).
 TEST(TextureMesh, FramesWhereTheRasterDecidesLittleGoToRays) {
-  const int n = 300;  // 6 × 6 m, 2 cm quads, waves 0.15 m high
-  TriangleMesh relief;
-  for (int j = 0; j <= n; ++j) {
-    for (int i = 0; i <= n; ++i) {
-      const double x = 6.0 * i / n - 3, y = 6.0 * j / n - 3;
-      relief.vertices.emplace_back(x, y, 0.15 * std::sin(4.0 * x) * std::cos(3.0 * y));
-    }
-  }
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-      relief.triangles.emplace_back(a, b, d);
-      relief.triangles.emplace_back(a, d, c);
-    }
-  }
+  // 6 × 6 m, 2 cm quads, waves 0.15 m high
+  const TriangleMesh relief = test::relief_grid(300, 6.0, 0.15, 4.0, 3.0);
   const CameraIntrinsics cam = pinhole_camera(320, 240, 260);
   RgbImage img;
   img.width = cam.width;
