@@ -70,7 +70,7 @@ class VisibilityRaster {
 
   // Keeps a copy of the occluder (renumbered spatially; triangle ids are internal). Its triangles
   // from `first_foreign` on (given numbering) belong to other surfaces than the textured one
-  // (occluders that take no colour; see test()'s `edge`).
+  // (occluders that take no colour; see test()'s `shows`).
   explicit VisibilityRaster(const TriangleMesh& occluder,
                             std::size_t first_foreign = static_cast<std::size_t>(-1));
 
