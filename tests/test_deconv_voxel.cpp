@@ -144,8 +144,26 @@ TEST(DeconvVoxel, JitteredPassOfASphereIsRecovered) {
   DeconvReport rep;
   const PointCloud cloud = deconvolve_frames(s.frames, s.poses, s.spec, cfg, &rep);
   EXPECT_EQ(rep.mode, "voxel");
+  EXPECT_EQ(rep.voxel.kept_bracketed, 0u);  // the lower tier is off by default
   const EvalResult r = evaluate(cloud, s.truth, ec);
   expect_at_least_carving(r, carve_and_evaluate(s, ec));
+
+  // The lower tier (min_relative_bracketed): the faint voxels the pass bracketed are kept too,
+  // on the sphere (more coverage, no more error or outliers), none of the others.
+  cfg.voxel.min_relative_bracketed = 1e-4;
+  DeconvReport tier_rep;
+  const PointCloud tier = deconvolve_frames(s.frames, s.poses, s.spec, cfg, &tier_rep);
+  EXPECT_GT(tier_rep.voxel.kept_bracketed, 0u);
+  EXPECT_EQ(tier_rep.voxel.points_solved, rep.voxel.points_solved + tier_rep.voxel.kept_bracketed);
+  const EvalResult t = evaluate(tier, s.truth, ec);
+  EXPECT_GE(t.coverage, r.coverage) << to_table(t) << "without:\n" << to_table(r);
+  EXPECT_LT(t.median_error, 0.01) << to_table(t);
+  EXPECT_LE(t.outliers, std::max(0.02, r.outliers)) << to_table(t);
+  // bracketed = 1 asks for every side of the elevation: fewer faint voxels qualify.
+  cfg.voxel.bracketed = 1.0;
+  DeconvReport strict_rep;
+  deconvolve_frames(s.frames, s.poses, s.spec, cfg, &strict_rep);
+  EXPECT_LT(strict_rep.voxel.kept_bracketed, tier_rep.voxel.kept_bracketed);
 }
 
 // An orbit at one height does not sweep the vertical aperture: no candidate is bracketed in
@@ -195,6 +213,12 @@ TEST(DeconvVoxel, ConfigErrorsNameTheField) {
   cfg.voxel = VoxelDeconvConfig();
   cfg.voxel.support_min_bracket = 1.5;
   test::expect_error([&] { cfg.validate(); }, "deconv.voxel.support_min_bracket");
+  cfg.voxel = VoxelDeconvConfig();
+  cfg.voxel.min_relative_bracketed = -1e-4;
+  test::expect_error([&] { cfg.validate(); }, "deconv.voxel.min_relative_bracketed");
+  cfg.voxel = VoxelDeconvConfig();
+  cfg.voxel.bracketed = std::nan("");
+  test::expect_error([&] { cfg.validate(); }, "deconv.voxel.bracketed");
   cfg.mode = DeconvConfig::Mode::Passes;  // the voxel fields are not used: not checked
   EXPECT_NO_THROW(cfg.validate());
 }

@@ -328,6 +328,16 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "deconv, voxel mode: keep voxels whose reflectivity is at least this fraction of "
                   "the largest (0 = every non-zero voxel)")
       ->capture_default_str();
+  cmd->add_option("--voxel-min-relative-bracketed", o->deconv.voxel.min_relative_bracketed,
+                  "deconv, voxel mode: the same fraction for voxels whose elevation is bracketed "
+                  "at least --voxel-bracketed: keeps faint surfaces seen at grazing incidence "
+                  "(e.g. 0.0001; 0 = off; it also keeps the ghosts in a structure's voids, "
+                  "docs/deconvolution.md sec. 9)")
+      ->capture_default_str();
+  cmd->add_option("--voxel-bracketed", o->deconv.voxel.bracketed,
+                  "deconv, voxel mode: bracket (0-1, as --min-bracket) from which a voxel is kept "
+                  "down to --voxel-min-relative-bracketed")
+      ->capture_default_str();
   cmd->add_flag("--no-voxel-occlusion{false}", o->deconv.voxel.occlusion_aware,
                 "deconv, voxel mode: keep every candidate in every frame's model, also where "
                 "another candidate lies nearer on its ray (by default such a hidden candidate is "

@@ -244,13 +244,16 @@ void bind_recon(py::module_& m) {
   py::class_<VoxelDeconvConfig>(
       m, "VoxelDeconvConfig",
       "Voxel-mode deconvolution (any trajectory): voxel_size, "
-      "max_iterations, tolerance, min_relative, min_observations, occlusion_aware, "
+      "max_iterations, tolerance, min_relative, min_relative_bracketed and bracketed (faint voxels "
+      "kept when bracketed in elevation), min_observations, occlusion_aware, "
       "support_min_bracket (leave never-bracketed candidates out, 0 = keep), support_refute")
       .def(py::init(&from_kwargs<VoxelDeconvConfig>))
       .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
       .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
       .def_readwrite("tolerance", &VoxelDeconvConfig::tolerance)
       .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
+      .def_readwrite("min_relative_bracketed", &VoxelDeconvConfig::min_relative_bracketed)
+      .def_readwrite("bracketed", &VoxelDeconvConfig::bracketed)
       .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
       .def_readwrite("occlusion_aware", &VoxelDeconvConfig::occlusion_aware)
       .def_readwrite("support_min_bracket", &VoxelDeconvConfig::support_min_bracket)

@@ -173,3 +173,10 @@ def test_voxel_support_options():
     cfg.support_min_bracket = 1.5
     with pytest.raises(Exception, match="support_min_bracket"):
         cfg.validate()
+    # The lower tier for faint voxels bracketed in elevation: off by default.
+    cfg = sonar3d.VoxelDeconvConfig(min_relative_bracketed=1e-4, bracketed=0.8)
+    assert cfg.min_relative_bracketed == pytest.approx(1e-4) and cfg.bracketed == pytest.approx(0.8)
+    assert sonar3d.VoxelDeconvConfig().min_relative_bracketed == 0.0
+    cfg.bracketed = 2.0
+    with pytest.raises(Exception, match="bracketed"):
+        cfg.validate()

@@ -101,6 +101,12 @@ void VoxelDeconvConfig::validate() const {
           "parameter 'deconv.voxel.tolerance' must lie in (0, 1), got " + fmt(tolerance, 6));
   require(std::isfinite(min_relative) && min_relative >= 0 && min_relative < 1,
           "parameter 'deconv.voxel.min_relative' must lie in [0, 1), got " + fmt(min_relative, 4));
+  require(std::isfinite(min_relative_bracketed) && min_relative_bracketed >= 0 &&
+              min_relative_bracketed < 1,
+          "parameter 'deconv.voxel.min_relative_bracketed' must lie in [0, 1), got " +
+              fmt(min_relative_bracketed, 6));
+  require(std::isfinite(bracketed) && bracketed >= 0 && bracketed <= 1,
+          "parameter 'deconv.voxel.bracketed' must lie in [0, 1], got " + fmt(bracketed, 4));
   require(min_observations >= 1, "parameter 'deconv.voxel.min_observations' must be >= 1, got " +
                                      std::to_string(min_observations));
   require(
@@ -1150,8 +1156,9 @@ std::string DeconvReport::to_text() const {
        << " non-zeros, " << voxel.iterations << " iterations"
        << (voxel.converged ? "" : " (iteration cap)") << ", residual "
        << fmt(voxel.relative_residual, 3) << ", " << voxel.points_solved << " voxels kept ("
-       << fmt(voxel.seconds_carve, 2) << " s carving, " << fmt(voxel.seconds_build, 2)
-       << " s model, " << fmt(voxel.seconds_solve, 2) << " s solve)\n";
+       << voxel.kept_bracketed << " of them faint but bracketed; " << fmt(voxel.seconds_carve, 2)
+       << " s carving, " << fmt(voxel.seconds_build, 2) << " s model, "
+       << fmt(voxel.seconds_solve, 2) << " s solve)\n";
   }
   os << "deconvolution: " << frames << " frames, ";
   if (mode == "voxel") {
@@ -1186,6 +1193,7 @@ std::string DeconvReport::to_json(int indent) const {
                   {"converged", voxel.converged},
                   {"relative_residual", voxel.relative_residual},
                   {"points_solved", voxel.points_solved},
+                  {"kept_bracketed", voxel.kept_bracketed},
                   {"seconds_carve", voxel.seconds_carve},
                   {"seconds_build", voxel.seconds_build},
                   {"seconds_solve", voxel.seconds_solve}};

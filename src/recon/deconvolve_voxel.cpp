@@ -490,11 +490,39 @@ PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
                                 ", deconv.voxel.max_iterations) before the tolerance");
     }
 
-    // 4. The voxels that carry reflectivity.
+    // 4. The voxels that carry reflectivity: ρ ≥ min_relative·max ρ, or, with the lower tier on
+    //    (min_relative_bracketed > 0), ρ ≥ min_relative_bracketed·max ρ where the voxel's
+    //    elevation is bracketed at least `bracketed` (recon/bracketing.hpp).
     const double x_max = *std::max_element(x.begin(), x.end());  // > 0: Aᵀy has a positive entry
     const double keep = std::max(config.min_intensity, vc.min_relative * x_max);
+    const double keep_bracketed =
+        vc.min_relative_bracketed > 0
+            ? std::max(config.min_intensity, vc.min_relative_bracketed * x_max)
+            : keep;
+    std::vector<std::uint8_t> kept(V, 0);
+    std::vector<std::size_t> faint;  // between the two thresholds: kept when bracketed
+    std::vector<Eigen::Vector3f> faint_points;
     for (std::size_t v = 0; v < V; ++v) {
-      if (x[v] > 0 && x[v] >= keep) {
+      if (!(x[v] > 0)) continue;
+      if (x[v] >= keep) {
+        kept[v] = 1;
+      } else if (x[v] >= keep_bracketed) {
+        faint.push_back(v);
+        faint_points.push_back(cand.points[A.voxel[v]]);
+      }
+    }
+    if (!faint.empty()) {
+      const std::vector<PointBracket> br =
+          bracket_points(faint_points, T_world_sonar, spec, config.num_threads);
+      for (std::size_t i = 0; i < faint.size(); ++i) {
+        if (br[i].bracket >= vc.bracketed) {
+          kept[faint[i]] = 1;
+          ++vr.kept_bracketed;
+        }
+      }
+    }
+    for (std::size_t v = 0; v < V; ++v) {
+      if (kept[v]) {
         out.points.push_back(cand.points[A.voxel[v]]);
         out.intensity.push_back(static_cast<float>(x[v]));
       }
