@@ -1155,10 +1155,10 @@ std::string DeconvReport::to_text() const {
        << voxel.refuted << " seen free), " << voxel.equations << " equations, " << voxel.nonzeros
        << " non-zeros, " << voxel.iterations << " iterations"
        << (voxel.converged ? "" : " (iteration cap)") << ", residual "
-       << fmt(voxel.relative_residual, 3) << ", " << voxel.points_solved << " voxels kept ("
-       << voxel.kept_bracketed << " of them faint but bracketed; " << fmt(voxel.seconds_carve, 2)
-       << " s carving, " << fmt(voxel.seconds_build, 2) << " s model, "
-       << fmt(voxel.seconds_solve, 2) << " s solve)\n";
+       << fmt(voxel.relative_residual, 3) << ", " << voxel.points_solved << " voxels kept (";
+    if (voxel.kept_bracketed > 0) os << voxel.kept_bracketed << " of them faint but bracketed; ";
+    os << fmt(voxel.seconds_carve, 2) << " s carving, " << fmt(voxel.seconds_build, 2)
+       << " s model, " << fmt(voxel.seconds_solve, 2) << " s solve)\n";
   }
   os << "deconvolution: " << frames << " frames, ";
   if (mode == "voxel") {
