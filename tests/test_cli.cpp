@@ -179,6 +179,10 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
           (kTmp / "roi.ply").string() + " -q --voxel-bracketed 1.5");
   expect_one_line_error(r, "deconv.voxel.bracketed");
   EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
+  r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
+          (kTmp / "roi.ply").string() + " -q --kernel occlusion");
+  expect_one_line_error(r, "deconv.kernel");
+  EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
   // Unknown subcommand and --help.
   EXPECT_NE(run("frobnicate").code, 0);
   r = run("simulate --help");

@@ -28,6 +28,7 @@ struct ReconstructCliOptions {
   BracketConfig bracket;
   std::string beam = "sinc";
   std::string deconv_mode = "passes";
+  std::string kernel = "plain";
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
   bool allow_empty = false;
@@ -74,6 +75,7 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   DeconvConfig cfg = o.deconv;
   cfg.beam = DeconvConfig::parse_beam(o.beam);
   cfg.mode = DeconvConfig::parse_mode(o.deconv_mode);
+  cfg.kernel = DeconvConfig::parse_kernel(o.kernel);
   cfg.voxel.voxel_size = o.carve.voxel_size;  // --voxel-size, --min-observations: the voxel mode's
   cfg.voxel.min_observations = o.carve.min_observations;  // candidates are carving's
   if (cfg.exact_lambertian) cfg.exact = true;             // --exact-lambertian implies --exact
@@ -314,6 +316,13 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "deconv: kernel beam pattern: sinc (eq. 2.8), flat (sec. 5.6.6) or sensor "
                   "(sonar.yaml's pattern)")
       ->check(CLI::IsMember({"sinc", "flat", "sensor"}))
+      ->capture_default_str();
+  cmd->add_option("--kernel", o->kernel,
+                  "deconv: a second solve whose kernel is scaled by Lambert's cosine at the "
+                  "normals of the first (normal, sec. 5.6.7.1), zeroed where the first occludes "
+                  "the view (occlusion, passes mode; the voxel mode has its own occlusion model), "
+                  "both (normal+occlusion), or none (plain)")
+      ->check(CLI::IsMember({"plain", "normal", "occlusion", "normal+occlusion"}))
       ->capture_default_str();
   cmd->add_option("--deconv-mode", o->deconv_mode,
                   "deconv: passes (the thesis: per column of straight passes along the sonar z "

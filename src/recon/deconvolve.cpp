@@ -87,6 +87,10 @@ void DeconvConfig::validate() const {
   require(!(exact && kernel != Kernel::Plain),
           "parameter 'deconv.kernel': the multipass kernels (normal, occlusion) need the "
           "approximate (rectilinear) mode; drop --exact or use kernel 'plain'");
+  require(
+      !(mode == Mode::Voxel && (kernel == Kernel::Occlusion || kernel == Kernel::NormalOcclusion)),
+      "parameter 'deconv.kernel': the voxel mode takes kernel 'plain' or 'normal' (its "
+      "occlusion model is deconv.voxel.occlusion_aware, on by default)");
   if (mode != Mode::Passes) voxel.validate();
 }
 

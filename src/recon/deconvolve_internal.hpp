@@ -76,6 +76,16 @@ void solve_exact(const PassData& pd, const DeconvConfig& cfg, const BeamPattern&
 std::unique_ptr<KernelScaler> make_multipass_scaler(const PassData& pd, const DeconvConfig& cfg,
                                                     const std::vector<LayerPoint>& first);
 
+// Lambert (eq. 2.6) in the normal kernel (sec. 5.6.7.1): the cosine is floored so that grazing
+// unknowns keep a usable column (an all-zero column cannot be estimated).
+constexpr double kMinLambertCosine = 0.1;
+
+// The normal kernel's geometry (sec. 5.6.7.1, Fig. 5.26): for each query point, the normal (SVD
+// of the covariance over `radius`) at the nearest point of `pts` within `radius`; zero where no
+// point there has 5 neighbours.
+std::vector<Eigen::Vector3f> normals_near(const std::vector<Eigen::Vector3d>& pts, double radius,
+                                          const std::vector<Eigen::Vector3f>& queries);
+
 // The kernel's beam pattern (DeconvConfig::beam).
 BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec);
 

@@ -86,6 +86,28 @@ std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>
   return normals;
 }
 
+}  // namespace
+
+std::vector<Eigen::Vector3f> normals_near(const std::vector<Eigen::Vector3d>& pts, double radius,
+                                          const std::vector<Eigen::Vector3f>& queries) {
+  const PointGrid grid(pts, radius);
+  const std::vector<Eigen::Vector3d> normals = estimate_normals(pts, grid, radius);
+  std::vector<Eigen::Vector3f> out(queries.size(), Eigen::Vector3f::Zero());
+  tbb::parallel_for(std::size_t{0}, queries.size(), [&](std::size_t i) {
+    const Eigen::Vector3d q = queries[i].cast<double>();
+    double best = radius * radius * 1.0001;
+    grid.for_each_within(q, radius, [&](std::size_t j, double d2) {
+      if (d2 < best && normals[j].squaredNorm() > 0) {
+        best = d2;
+        out[i] = normals[j].cast<float>();
+      }
+    });
+  });
+  return out;
+}
+
+namespace {
+
 class MultipassScaler : public KernelScaler {
  public:
   MultipassScaler(const PassData& pd, const DeconvConfig& cfg, const std::vector<LayerPoint>& first)
@@ -123,10 +145,9 @@ class MultipassScaler : public KernelScaler {
       const Eigen::Isometry3d& T = pd_.T_world_sonar[k];
       double f = 1.0;
       if (use_normals_ && normal.squaredNorm() > 0) {
-        // Lambert (eq. 2.6): the return scales with the cosine of the incidence angle. Floored so
-        // that grazing layers keep a usable column (an all-zero column cannot be estimated).
+        // Lambert (eq. 2.6): the return scales with the cosine of the incidence angle.
         const Eigen::Vector3d v = (p_world - T.translation()).normalized();
-        f *= std::max(kMinCosine, std::abs(v.dot(normal)));
+        f *= std::max(kMinLambertCosine, std::abs(v.dot(normal)));
       }
       if (use_occlusion_ && f > 0) {
         const Polar q = sonar_to_polar(T.inverse() * p_world);
@@ -144,8 +165,6 @@ class MultipassScaler : public KernelScaler {
   }
 
  private:
-  static constexpr double kMinCosine = 0.1;
-
   int elevation_bin(double theta) const {
     if (std::abs(theta) > pd_.theta_3db) return -1;
     return std::min(n_el_ - 1, static_cast<int>((theta + pd_.theta_3db) / el_step_));

@@ -164,7 +164,8 @@ struct DeconvConfig {
   bool occlusion_auto_voxel = true;
   // Multipass kernels (sec. 5.6.7): a second deconvolution whose kernel is scaled by the
   // Lambertian cosine between the view and normals of the first cloud (Normal), zeroed where the
-  // first cloud occludes the view (Occlusion), or both. Approximate mode only.
+  // first cloud occludes the view (Occlusion), or both. Approximate mode and voxel mode (there the
+  // normal kernel only: its own occlusion model, VoxelDeconvConfig::occlusion_aware, is on).
   enum class Kernel { Plain, Normal, Occlusion, NormalOcclusion };
   Kernel kernel = Kernel::Plain;
   double normal_radius = 0.05;                 // m: SVD neighbourhood for normals (thesis: 5 cm)
