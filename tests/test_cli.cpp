@@ -170,19 +170,17 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
     expect_one_line_error(r, "'--roi'");
     EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
   }
-  // The voxel mode's support rule out of range: the parameter named, nothing written.
-  r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
-          (kTmp / "roi.ply").string() + " -q --voxel-support-bracket 1.5");
-  expect_one_line_error(r, "deconv.voxel.support_min_bracket");
-  EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
-  r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
-          (kTmp / "roi.ply").string() + " -q --voxel-bracketed 1.5");
-  expect_one_line_error(r, "deconv.voxel.bracketed");
-  EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
-  r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
-          (kTmp / "roi.ply").string() + " -q --kernel occlusion");
-  expect_one_line_error(r, "deconv.kernel");
-  EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
+  // The voxel mode's options out of range: the parameter named, nothing written.
+  for (const auto& [option, parameter] :
+       {std::pair<std::string, std::string>{"--voxel-support-bracket 1.5",
+                                            "deconv.voxel.support_min_bracket"},
+        {"--voxel-bracketed 1.5", "deconv.voxel.bracketed"},
+        {"--kernel occlusion", "deconv.kernel"}}) {
+    r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
+            (kTmp / "roi.ply").string() + " -q " + option);
+    expect_one_line_error(r, parameter);
+    EXPECT_FALSE(fs::exists(kTmp / "roi.ply")) << option;
+  }
   // Unknown subcommand and --help.
   EXPECT_NE(run("frobnicate").code, 0);
   r = run("simulate --help");
