@@ -70,7 +70,7 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
         "  note: on an open structure, --explain-returns with --min-bracket 0.5 also drops the "
         "ghosts inside it (measured at 20 degrees: 0-3.1 % outliers on the lattices of "
         "docs/carving.md, \"Interior ghosts\", 3.8 % on a 7 x 6 m one with "
-        "--explain-pin-fraction 0.4), for an occlusion step 4 to 14 times longer\n");
+        "--explain-pin-fraction 0.4), for an occlusion step 2 to 14 times longer\n");
   }
   return br;
 }
