@@ -108,6 +108,26 @@ TEST_F(Cli, SimulateInfoPreviewNoiseEvaluate) {
   EXPECT_NE(r.out.find("ball"), std::string::npos);
 }
 
+// A pass that stops short (the ball's top at 0.4 m, the pass ending at 0.3 m): the carving summary
+// warns and suggests the filters for the ghosts beyond it and inside open structures; once
+// --explain-returns is given, it no longer suggests it.
+TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
+  write(kTmp / "scene.yaml", kScene);
+  const fs::path ds = kTmp / "ds";
+  ASSERT_EQ(run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " -q").code,
+            0);
+  const std::string cmd = "reconstruct " + ds.string() + " -o " + (kTmp / "c.ply").string();
+  CliRun r = run(cmd);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--min-bracket 0.5 drops"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--explain-returns with --min-bracket 0.5"), std::string::npos) << r.out;
+  r = run(cmd + " --explain-returns --min-bracket 0.5");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
+}
+
 TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
   const fs::path out = kTmp / "never";
   // Missing scene file.

@@ -104,41 +104,63 @@ TEST(Explain, GhostsOfAnOpenFrameGoMembersStay) {
       before.size(), after.size(), ghosts, interior(before, truth), interior(after, truth),
       100 * eb.outliers, 100 * ea.outliers, 100 * eb.coverage, 100 * ea.coverage,
       100 * eb.median_error, 100 * ea.median_error);
-  // Measured (1 cm voxels, pin fraction 0.2): outliers 16.8 -> 7.1 %, coverage 69.1 -> 68.9 %,
-  // ghosts in the frame's box 430 -> 274 (with 0.1: 6.4 %, 330; those in its open panels mostly
-  // stay at this size: docs/carving.md).
+  // Measured (1 cm voxels, pin fraction 0.2): outliers 16.8 -> 9.1 %, coverage 69.1 -> 69.0 %,
+  // ghosts in the frame's box 430 -> 407. Before the refutation that follows the explanation
+  // shielded whole voxels: 7.1 % and 274, most of the difference ghosts behind a member in every
+  // frame that could refute them, refuted through the gaps of its one-voxel shell
+  // (docs/carving.md, "Interior ghosts").
   ASSERT_GT(interior(before, truth), 100u);
   EXPECT_EQ(before.size() - after.size(), ghosts);
-  EXPECT_LT(ea.outliers, 0.5 * eb.outliers);
-  EXPECT_LT(interior(after, truth), 0.85 * interior(before, truth));
+  EXPECT_LT(ea.outliers, 0.6 * eb.outliers);
+  EXPECT_LT(interior(after, truth), interior(before, truth));
   EXPECT_GT(ea.coverage, eb.coverage - 0.01);  // the members stay: at most 1 point of coverage
   EXPECT_LE(ea.median_error, eb.median_error);
 }
 
-// The pin fraction (issue 15, the large open lattice): raising it pins fewer elevation smears
-// that continue a member's face in its pixel, so fewer ghosts stay, for a little coverage.
-TEST(Explain, AHigherPinFractionKeepsFewerGhosts) {
+namespace {
+
+// An orbit of the open frame (test::orbit_poses: 24 views at 2.5 m from its centre on each of 9
+// levels from 0.3 m below its base to 0.3 m above its top), carved at 1 cm.
+PointCloud carve_frame_orbit(bool explain, double pin_fraction) {
+  const SonarSpec spec = test::reduced_spec_20deg();
+  const Simulator sim(frame_scene(), spec, test::jittered_sim_config(0.05));
+  CarveConfig cfg;
+  cfg.voxel_size = 0.01;
+  cfg.occlusion.explain_returns = explain;
+  cfg.occlusion.explain_pin_fraction = pin_fraction;
+  Carver carver(spec, cfg);
+  const std::vector<Eigen::Isometry3d> poses = test::orbit_poses(2.5, 9, 24, -0.3, 0.15);
+  for (std::size_t k = 0; k < poses.size(); ++k)
+    carver.integrate(sim.render(poses[k], static_cast<int>(k + 1)), poses[k]);
+  return carver.finalize();
+}
+
+}  // namespace
+
+// The refutation that follows the explanation (drop_unexplained) sees the kept points only: the
+// members' interiors went in the first occlusion resolution, so their faces are a shell one
+// voxel thick. Each point shields its whole voxel there, so that a face turned away from a frame
+// does not show through the gaps of the shell in front of it and get refuted as free space;
+// with the first resolution's footprint (0.5 voxel), an orbit lost its members' back faces,
+// layer by layer, as soon as they were not pinned (the lattice frame orbit at the pin fraction
+// 0.4: coverage 98.2 -> 91.2 %, docs/experiments.md).
+TEST(Explain, AnOrbitKeepsItsMembersAtAHighPinFraction) {
   const TriangleMesh truth = frame_scene().merged_world();
-  const PointCloud base = carve_frame(true);
-  const PointCloud strict = carve_frame(true, nullptr, 0.4);
-  const EvalResult eb = evaluate(base, truth, EvalConfig());
+  const PointCloud plain = carve_frame_orbit(false, 0.2);
+  const PointCloud strict = carve_frame_orbit(true, 0.4);
+  const EvalResult ep = evaluate(plain, truth, EvalConfig());
   const EvalResult es = evaluate(strict, truth, EvalConfig());
   std::printf(
-      "open frame, pin fraction 0.2 -> 0.4: %zu -> %zu points, %zu -> %zu inside; outliers "
-      "%.2f -> %.2f %%, coverage %.1f -> %.1f %%, median %.2f -> %.2f cm\n",
-      base.size(), strict.size(), interior(base, truth), interior(strict, truth), 100 * eb.outliers,
-      100 * es.outliers, 100 * eb.coverage, 100 * es.coverage, 100 * eb.median_error,
-      100 * es.median_error);
-  // Measured: ghosts in the frame's box 274 -> 227, outliers 7.1 -> 7.1 %, coverage 68.9 ->
-  // 67.9 %, median 1.00 cm both (the large open lattice: docs/experiments.md).
-  EXPECT_LT(strict.size(), base.size());
-  EXPECT_LT(interior(strict, truth), 0.9 * interior(base, truth));
-  EXPECT_LE(es.outliers, eb.outliers);
-  EXPECT_GT(es.coverage, eb.coverage - 0.015);  // at most 1.5 points of coverage
-  EXPECT_LE(es.median_error, eb.median_error);
-  OcclusionConfig bad;
-  bad.explain_pin_fraction = 0;
-  test::expect_error([&] { bad.validate(); }, "explain_pin_fraction");
+      "frame orbit, explanation at pin fraction 0.4: %zu -> %zu points; outliers %.2f -> %.2f "
+      "%%, coverage %.1f -> %.1f %%, median %.2f -> %.2f cm\n",
+      plain.size(), strict.size(), 100 * ep.outliers, 100 * es.outliers, 100 * ep.coverage,
+      100 * es.coverage, 100 * ep.median_error, 100 * es.median_error);
+  // Measured: outliers 47.5 -> 6.2 %, coverage 97.6 -> 96.9 %, median 8 -> 1 cm; with the first
+  // resolution's footprint in the refutation, 2.4 % and 94.8 % (fails). The ghosts left lie
+  // above and below the frame, never bracketed: --min-bracket removes them.
+  EXPECT_LT(es.outliers, 0.25 * ep.outliers);
+  EXPECT_GT(es.coverage, ep.coverage - 0.01);  // the members stay: at most 1 point of coverage
+  EXPECT_LE(es.median_error, ep.median_error);
 }
 
 namespace {
@@ -208,4 +230,7 @@ TEST(Explain, EdgeCases) {
   FrameReturns wrong = f;
   wrong.beams = spec.beams() + 1;
   test::expect_error([&] { explain_returns(cloud, {f, wrong}, spec, cfg); }, "frame 1");
+  OcclusionConfig bad;
+  bad.explain_pin_fraction = 0;
+  test::expect_error([&] { bad.validate(); }, "explain_pin_fraction");
 }

@@ -66,6 +66,13 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
         "  note: --min-bracket 0.5 drops the points no frame saw from the other side of their "
         "elevation (measured: docs/carving.md, \"Elevation bracketing\")\n");
   }
+  if (!br.extensions.empty() && o.method == "carve" && !o.carve.occlusion.explain_returns) {
+    fmt::print(
+        "  note: on an open structure, --explain-returns with --min-bracket 0.5 also drops the "
+        "ghosts inside it (measured at 20 degrees: 0-3.1 % outliers on the lattices of "
+        "docs/carving.md, \"Interior ghosts\", 3.8 % on a 7 x 6 m one with "
+        "--explain-pin-fraction 0.4), for an occlusion step 2 to 14 times longer\n");
+  }
   return br;
 }
 

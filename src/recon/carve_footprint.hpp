@@ -336,5 +336,14 @@ std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock
                                                 const SonarSpec& spec,
                                                 const OcclusionConfig& config,
                                                 Progress* progress = nullptr);
+// resolve_occlusions() without the explanation, where every point shields the whole of its
+// voxel — half its diagonal, √3/2 voxel, around its centre, which any line of sight crossing the
+// voxel passes within — from the free-space test (config.refute_free); the occlusion test keeps
+// config.footprint_radius. For the points kept by a first resolution (drop_unexplained()): the
+// members' interiors are gone and their faces are a shell one voxel thick, through whose gaps a
+// back face would otherwise be seen as free space and refuted.
+PointCloud resolve_occlusions_solid(const PointCloud& points_world,
+                                    const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                                    const OcclusionConfig& config);
 
 }  // namespace sonar3d::detail

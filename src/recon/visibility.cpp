@@ -138,17 +138,22 @@ void check_frames(const std::vector<FrameReturns>& frames, const SonarSpec& spec
 // position). Returns, per block, the mask of the candidates kept. Memory: the blocks' masks and
 // two flag masks per block (observed, refuted), shared by the frames through atomic ORs, plus one
 // frame's hits per thread: nothing per candidate beyond its bit.
+// With `solid_refute`, every candidate shields the whole of its voxel (half its diagonal around
+// its centre, not footprint_radius) from the free-space test (refute_free); the occlusion test is
+// unchanged. See detail::resolve_occlusions_solid().
 template <typename Position>
 std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::CandidateBlock>& blocks,
                                               Position&& position,
                                               const std::vector<FrameReturns>& frames,
                                               const SonarSpec& spec, const OcclusionConfig& config,
-                                              Progress* progress) {
+                                              Progress* progress, bool solid_refute = false) {
   const detail::SonarGeometry g(spec);
   const double dtheta = config.elevation_resolution_rad;
   const int K = std::max(1, static_cast<int>(std::ceil(2 * g.theta3 / dtheta - 1e-9)));
   const std::size_t cells = static_cast<std::size_t>(g.beams) * K;
   const double h = config.footprint_radius * config.voxel_size;
+  const double h_solid = std::max(h, 0.5 * std::sqrt(3.0) * config.voxel_size);
+  solid_refute = solid_refute && config.refute_free;
   const int tol = config.range_tolerance_bins;
   const std::size_t nb = blocks.size();
   std::unique_ptr<std::atomic<std::uint64_t>[]> observed(new std::atomic<std::uint64_t>[nb * 8]);
@@ -163,7 +168,8 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
   };
 
   struct Scratch {
-    std::vector<std::uint16_t> depth;  // nearest return-pixel candidate bin per (beam, interval)
+    std::vector<std::uint16_t> depth;   // nearest return-pixel candidate bin per (beam, interval)
+    std::vector<std::uint16_t> shield;  // the same, footprints of a whole voxel (solid_refute)
     std::vector<Hit> hits;
     std::vector<Hit> empty_hits;  // candidates in empty pixels (refute_free)
   };
@@ -178,6 +184,7 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     Scratch& sc = scratch.local();
     if (sc.depth.size() != cells) sc.depth.assign(cells, 0xFFFF);
     std::fill(sc.depth.begin(), sc.depth.end(), std::uint16_t{0xFFFF});
+    if (solid_refute) sc.shield.assign(cells, 0xFFFF);
     sc.hits.clear();
     sc.empty_hits.clear();
     const detail::FrameFootprint fp(g, fr);
@@ -228,15 +235,19 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
           [&](const Hit& hit, double theta, double phi, double r, double rho) {
             // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular
             // footprint covers, for everything at a longer range.
-            const double a = h / r, bw = h / rho;
-            const int k0 = interval(theta - a), k1 = interval(theta + a);
-            const int j0 = g.beam(std::max(phi - bw, g.fov_min));
-            const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
             const auto bin16 = static_cast<std::uint16_t>(hit.bin);
-            for (int jj = j0; jj <= j1; ++jj) {
-              std::uint16_t* row = &sc.depth[static_cast<std::size_t>(jj) * K];
-              for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
-            }
+            auto splat = [&](std::vector<std::uint16_t>& grid, double half) {
+              const double a = half / r, bw = half / rho;
+              const int k0 = interval(theta - a), k1 = interval(theta + a);
+              const int j0 = g.beam(std::max(phi - bw, g.fov_min));
+              const int j1 = g.beam(std::min(phi + bw, std::nextafter(g.fov_max, g.fov_min)));
+              for (int jj = j0; jj <= j1; ++jj) {
+                std::uint16_t* row = &grid[static_cast<std::size_t>(jj) * K];
+                for (int kk = k0; kk <= k1; ++kk) row[kk] = std::min(row[kk], bin16);
+              }
+            };
+            splat(sc.depth, h);
+            if (solid_refute) splat(sc.shield, h_solid);
             if (overflow_from < nb) return;
             if (sc.hits.size() < kMaxHits) {
               sc.hits.push_back(hit);
@@ -260,7 +271,8 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     // refute_free: nothing the frame returned lies nearer on this candidate's own line of sight,
     // yet its pixel is empty: free space, not a shadow.
     auto test_empty = [&](const Hit& hit) {
-      if (config.refute_free && hit.bin < sc.depth[hit.cell]) flag(refuted.get(), hit);
+      if (config.refute_free && hit.bin < (solid_refute ? sc.shield : sc.depth)[hit.cell])
+        flag(refuted.get(), hit);
     };
     for (const Hit& hit : sc.hits) test_return(hit);
     for (const Hit& hit : sc.empty_hits) test_empty(hit);
@@ -319,9 +331,12 @@ std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock
 
 }  // namespace detail
 
-PointCloud resolve_occlusions(const PointCloud& candidates_world,
-                              const std::vector<FrameReturns>& frames, const SonarSpec& spec,
-                              const OcclusionConfig& config, Progress* progress) {
+namespace {
+
+// resolve_occlusions() without the explanation, and detail::resolve_occlusions_solid().
+PointCloud resolve_cloud(const PointCloud& candidates_world,
+                         const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                         const OcclusionConfig& config, Progress* progress, bool solid_refute) {
   config.validate();
   spec.validate();
   check_frames(frames, spec);
@@ -396,7 +411,7 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
       [&](std::size_t bi, std::uint32_t bit) {
         return candidates_world.points[point_index(bi, bit)].cast<double>();
       },
-      frames, spec, config, progress);
+      frames, spec, config, progress, solid_refute);
 
   std::vector<std::uint32_t> kept;
   for (std::size_t bi = 0; bi < blocks.size(); ++bi)
@@ -410,8 +425,29 @@ PointCloud resolve_occlusions(const PointCloud& candidates_world,
     out.points.push_back(candidates_world.points[n]);
     if (has_i) out.intensity.push_back(candidates_world.intensity[n]);
   }
+  return out;
+}
+
+}  // namespace
+
+PointCloud resolve_occlusions(const PointCloud& candidates_world,
+                              const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                              const OcclusionConfig& config, Progress* progress) {
+  PointCloud out = resolve_cloud(candidates_world, frames, spec, config, progress, false);
   if (config.explain_returns) return drop_unexplained(out, frames, spec, config);
   return out;
 }
+
+namespace detail {
+
+PointCloud resolve_occlusions_solid(const PointCloud& points_world,
+                                    const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                                    const OcclusionConfig& config) {
+  OcclusionConfig plain = config;
+  plain.explain_returns = false;
+  return resolve_cloud(points_world, frames, spec, plain, nullptr, true);
+}
+
+}  // namespace detail
 
 }  // namespace sonar3d

@@ -124,9 +124,10 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
                                           const SonarSpec& spec, const OcclusionConfig& config,
                                           ExplainStats* stats = nullptr);
 // Rounds of explain_returns() and, with config.refute_free, occlusion resolution again over what
-// is left (the ghosts gone, the free space they hid refutes others; pinned points stay), until a
-// round removes nothing (at most 4). Returns the points kept with their intensities, colours
-// and properties; `removed` receives how many were dropped.
+// is left (the ghosts gone, the free space they hid refutes others; pinned points stay; each point
+// left shields its whole voxel from that free-space test, since the members' interiors went in
+// the first resolution), until a round removes nothing (at most 4). Returns the points kept with
+// their intensities, colours and properties; `removed` receives how many were dropped.
 PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
                             const SonarSpec& spec, const OcclusionConfig& config,
                             std::size_t* removed = nullptr);
