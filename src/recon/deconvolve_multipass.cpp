@@ -86,6 +86,20 @@ std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>
   return normals;
 }
 
+// The normal of the nearest point within `radius` of q that has one (zero if none).
+Eigen::Vector3d nearest_normal(const PointGrid& grid, const std::vector<Eigen::Vector3d>& normals,
+                               const Eigen::Vector3d& q, double radius) {
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double best = radius * radius * 1.0001;
+  grid.for_each_within(q, radius, [&](std::size_t j, double d2) {
+    if (d2 < best && normals[j].squaredNorm() > 0) {
+      best = d2;
+      normal = normals[j];
+    }
+  });
+  return normal;
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector3f> normals_near(const std::vector<Eigen::Vector3d>& pts, double radius,
@@ -94,14 +108,7 @@ std::vector<Eigen::Vector3f> normals_near(const std::vector<Eigen::Vector3d>& pt
   const std::vector<Eigen::Vector3d> normals = estimate_normals(pts, grid, radius);
   std::vector<Eigen::Vector3f> out(queries.size(), Eigen::Vector3f::Zero());
   tbb::parallel_for(std::size_t{0}, queries.size(), [&](std::size_t i) {
-    const Eigen::Vector3d q = queries[i].cast<double>();
-    double best = radius * radius * 1.0001;
-    grid.for_each_within(q, radius, [&](std::size_t j, double d2) {
-      if (d2 < best && normals[j].squaredNorm() > 0) {
-        best = d2;
-        out[i] = normals[j].cast<float>();
-      }
-    });
+    out[i] = nearest_normal(grid, normals, queries[i].cast<double>(), radius).cast<float>();
   });
   return out;
 }
@@ -129,17 +136,9 @@ class MultipassScaler : public KernelScaler {
   void scale(int beam, const Eigen::Vector3d& p_world, const int* frames, int count,
              float* values) const override {
     (void)beam;
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-    if (use_normals_) {
-      // The normal of the nearest first-pass point within the radius.
-      double best = radius_ * radius_ * 1.0001;
-      grid_->for_each_within(p_world, radius_, [&](std::size_t j, double d2) {
-        if (d2 < best && normals_[j].squaredNorm() > 0) {
-          best = d2;
-          normal = normals_[j];
-        }
-      });
-    }
+    // The normal of the nearest first-pass point within the radius.
+    const Eigen::Vector3d normal =
+        use_normals_ ? nearest_normal(*grid_, normals_, p_world, radius_) : Eigen::Vector3d::Zero();
     for (int e = 0; e < count; ++e) {
       const int k = frames[e];
       const Eigen::Isometry3d& T = pd_.T_world_sonar[k];
