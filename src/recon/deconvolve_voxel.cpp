@@ -320,6 +320,103 @@ double lipschitz(const VoxelSystem& A, std::size_t V) {
   return L;
 }
 
+// 3. min ½‖Aρ − y‖² + λ/2·1ᵀρ, ρ ≥ 0 (eq. 5.28 halved): FISTA with projection onto ρ ≥ 0 and
+// gradient-based adaptive restart (O'Donoghue & Candès), step 1/L. Sets vr.iterations,
+// converged and relative_residual. Returns ρ, or nothing when no unknown lies in a pixel with a
+// return (Aᵀy has no positive entry).
+std::vector<double> solve_fista(const VoxelSystem& A, const DeconvConfig& config,
+                                VoxelDeconvReport& vr, const char* label, bool progress) {
+  const VoxelDeconvConfig& vc = config.voxel;
+  const std::size_t V = A.voxel.size();
+  std::vector<double> x(V, 0.0), x_old(V, 0.0), z(V, 0.0), g;
+  gradient(A, z, 0.0, g);  // at 0: g = −Aᵀy
+  double aty_max = 0, y_sq = 0;
+  for (double v : g) aty_max = std::max(aty_max, -v);
+  for (float v : A.y) y_sq += static_cast<double>(v) * v;
+  const double shift = config.lambda_fraction * aty_max;  // λ/2, λ = f·λ_max, λ_max = 2·max Aᵀy
+  const double L = V > 0 ? lipschitz(A, V) : 0.0;
+  if (V == 0 || !(aty_max > 0) || !(L > 0)) return {};
+  const double step = 1.0 / (1.02 * L);
+  double t = 1.0;
+  vr.iterations = 0;
+  vr.converged = false;
+  Progress bar(label, static_cast<std::size_t>(vc.max_iterations), progress);
+  for (int it = 0; it < vc.max_iterations; ++it) {
+    gradient(A, z, shift, g);
+    x_old.swap(x);
+    double dx = 0, nx = 0, restart = 0;
+    for (std::size_t v = 0; v < V; ++v) {
+      x[v] = std::max(0.0, z[v] - step * g[v]);
+      const double d = x[v] - x_old[v];
+      dx += d * d;
+      nx += x[v] * x[v];
+      restart += (z[v] - x[v]) * d;
+    }
+    vr.iterations = it + 1;
+    bar.add();
+    if (nx > 0 && std::sqrt(dx) <= vc.tolerance * std::sqrt(nx)) {
+      vr.converged = true;
+      break;
+    }
+    if (restart > 0) t = 1.0;  // momentum points uphill: restart
+    const double t_next = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * t * t));
+    const double beta = (t - 1.0) / t_next;
+    for (std::size_t v = 0; v < V; ++v) z[v] = std::max(0.0, x[v] + beta * (x[v] - x_old[v]));
+    t = t_next;
+  }
+  bar.finish();
+  const double res_sq = gradient(A, x, shift, g);
+  vr.relative_residual = y_sq > 0 ? std::sqrt(res_sq / y_sq) : 0.0;
+  return x;
+}
+
+// 4. The voxels that carry reflectivity: ρ ≥ min_relative·max ρ, or, with the lower tier on
+// (min_relative_bracketed > 0), ρ ≥ min_relative_bracketed·max ρ where the voxel's elevation is
+// bracketed at least `bracketed` (recon/bracketing.hpp). Sets vr.kept_bracketed.
+PointCloud select_voxels(const std::vector<double>& x, const VoxelSystem& A, const PointCloud& cand,
+                         const std::vector<Eigen::Isometry3d>& T_world_sonar, const SonarSpec& spec,
+                         const DeconvConfig& config, VoxelDeconvReport& vr) {
+  const VoxelDeconvConfig& vc = config.voxel;
+  const std::size_t V = x.size();
+  const double x_max = *std::max_element(x.begin(), x.end());  // > 0: Aᵀy has a positive entry
+  const double keep = std::max(config.min_intensity, vc.min_relative * x_max);
+  const double keep_bracketed =
+      vc.min_relative_bracketed > 0
+          ? std::max(config.min_intensity, vc.min_relative_bracketed * x_max)
+          : keep;
+  std::vector<std::uint8_t> kept(V, 0);
+  vr.kept_bracketed = 0;
+  std::vector<std::size_t> faint;  // between the two thresholds: kept when bracketed
+  std::vector<Eigen::Vector3f> faint_points;
+  for (std::size_t v = 0; v < V; ++v) {
+    if (!(x[v] > 0)) continue;
+    if (x[v] >= keep) {
+      kept[v] = 1;
+    } else if (x[v] >= keep_bracketed) {
+      faint.push_back(v);
+      faint_points.push_back(cand.points[A.voxel[v]]);
+    }
+  }
+  if (!faint.empty()) {
+    const std::vector<PointBracket> br =
+        bracket_points(faint_points, T_world_sonar, spec, config.num_threads);
+    for (std::size_t i = 0; i < faint.size(); ++i) {
+      if (br[i].bracket >= vc.bracketed) {
+        kept[faint[i]] = 1;
+        ++vr.kept_bracketed;
+      }
+    }
+  }
+  PointCloud out;
+  for (std::size_t v = 0; v < V; ++v) {
+    if (kept[v]) {
+      out.points.push_back(cand.points[A.voxel[v]]);
+      out.intensity.push_back(static_cast<float>(x[v]));
+    }
+  }
+  return out;
+}
+
 // The candidates (points and bounds) where keep[v] is set.
 PointCloud select_candidates(const PointCloud& cand, const std::vector<std::uint8_t>& keep) {
   PointCloud out;
@@ -436,6 +533,7 @@ PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
     // cosine at the normals of the first solution (sec. 5.6.7.1). Returns false (warning given)
     // when no candidate lies in a pixel with a return.
     const BeamPattern pattern = kernel_pattern(config, spec);
+    bool capped = false;  // a solve stopped at the iteration cap: said once
     auto solve_and_select = [&](const std::vector<Eigen::Vector3f>* normals) -> bool {
       // 2. The model A (eq. 2.13 at voxel centres, eq. 5.27 generalised).
       t0 = std::chrono::steady_clock::now();
@@ -448,102 +546,25 @@ PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
       vr.equations = A.rows();
       vr.nonzeros = A.col.size();
       vr.seconds_build += seconds_since(t0);
-      // 3. min ½‖Aρ − y‖² + λ/2·1ᵀρ, ρ ≥ 0 (eq. 5.28 halved): FISTA with projection onto ρ ≥ 0
-      //    and gradient-based adaptive restart (O'Donoghue & Candès), step 1/L.
+      // 3. The solve.
       t0 = std::chrono::steady_clock::now();
-      const std::size_t V = A.voxel.size();
-      vr.unknowns = V;
-      std::vector<double> x(V, 0.0), x_old(V, 0.0), z(V, 0.0), g;
-      gradient(A, z, 0.0, g);  // at 0: g = −Aᵀy
-      double aty_max = 0, y_sq = 0;
-      for (double v : g) aty_max = std::max(aty_max, -v);
-      for (float v : A.y) y_sq += static_cast<double>(v) * v;
-      const double shift = config.lambda_fraction * aty_max;  // λ/2, λ = f·λ_max, λ_max = 2·max Aᵀy
-      const double L = V > 0 ? lipschitz(A, V) : 0.0;
-      if (V == 0 || !(aty_max > 0) || !(L > 0)) {
+      vr.unknowns = A.voxel.size();
+      const std::vector<double> x =
+          solve_fista(A, config, vr, normals ? "voxel solve (normals)" : "voxel solve", progress);
+      vr.seconds_solve += seconds_since(t0);
+      if (x.empty()) {
         report.warnings.push_back("voxel mode: no candidate voxel lies in a pixel with a return");
-        vr.seconds_solve += seconds_since(t0);
         return false;
       }
-      const double step = 1.0 / (1.02 * L);
-      double t = 1.0, res_sq = y_sq;
-      Progress bar(normals ? "voxel solve (normals)" : "voxel solve",
-                   static_cast<std::size_t>(vc.max_iterations), progress);
-      for (int it = 0; it < vc.max_iterations; ++it) {
-        res_sq = gradient(A, z, shift, g);
-        x_old.swap(x);
-        double dx = 0, nx = 0, restart = 0;
-        for (std::size_t v = 0; v < V; ++v) {
-          x[v] = std::max(0.0, z[v] - step * g[v]);
-          const double d = x[v] - x_old[v];
-          dx += d * d;
-          nx += x[v] * x[v];
-          restart += (z[v] - x[v]) * d;
-        }
-        vr.iterations = it + 1;
-        bar.add();
-        if (nx > 0 && std::sqrt(dx) <= vc.tolerance * std::sqrt(nx)) {
-          vr.converged = true;
-          break;
-        }
-        if (restart > 0) t = 1.0;  // momentum points uphill: restart
-        const double t_next = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * t * t));
-        const double beta = (t - 1.0) / t_next;
-        for (std::size_t v = 0; v < V; ++v) z[v] = std::max(0.0, x[v] + beta * (x[v] - x_old[v]));
-        t = t_next;
-      }
-      bar.finish();
-      res_sq = gradient(A, x, shift, g);
-      vr.relative_residual = y_sq > 0 ? std::sqrt(res_sq / y_sq) : 0.0;
-      vr.seconds_solve += seconds_since(t0);
       report.seconds_solve = vr.seconds_carve + vr.seconds_build + vr.seconds_solve;
-      const std::string cap = "voxel mode: stopped at the iteration cap (" +
-                              std::to_string(vc.max_iterations) +
-                              ", deconv.voxel.max_iterations) before the tolerance";
-      if (!vr.converged &&
-          std::find(report.warnings.begin(), report.warnings.end(), cap) == report.warnings.end()) {
-        report.warnings.push_back(cap);  // once, also when the normal kernel solves again
+      if (!vr.converged && !capped) {
+        report.warnings.push_back("voxel mode: stopped at the iteration cap (" +
+                                  std::to_string(vc.max_iterations) +
+                                  ", deconv.voxel.max_iterations) before the tolerance");
       }
-
-      // 4. The voxels that carry reflectivity: ρ ≥ min_relative·max ρ, or, with the lower tier on
-      //    (min_relative_bracketed > 0), ρ ≥ min_relative_bracketed·max ρ where the voxel's
-      //    elevation is bracketed at least `bracketed` (recon/bracketing.hpp).
-      const double x_max = *std::max_element(x.begin(), x.end());  // > 0: Aᵀy has a positive entry
-      const double keep = std::max(config.min_intensity, vc.min_relative * x_max);
-      const double keep_bracketed =
-          vc.min_relative_bracketed > 0
-              ? std::max(config.min_intensity, vc.min_relative_bracketed * x_max)
-              : keep;
-      std::vector<std::uint8_t> kept(V, 0);
-      vr.kept_bracketed = 0;
-      std::vector<std::size_t> faint;  // between the two thresholds: kept when bracketed
-      std::vector<Eigen::Vector3f> faint_points;
-      for (std::size_t v = 0; v < V; ++v) {
-        if (!(x[v] > 0)) continue;
-        if (x[v] >= keep) {
-          kept[v] = 1;
-        } else if (x[v] >= keep_bracketed) {
-          faint.push_back(v);
-          faint_points.push_back(cand.points[A.voxel[v]]);
-        }
-      }
-      if (!faint.empty()) {
-        const std::vector<PointBracket> br =
-            bracket_points(faint_points, T_world_sonar, spec, config.num_threads);
-        for (std::size_t i = 0; i < faint.size(); ++i) {
-          if (br[i].bracket >= vc.bracketed) {
-            kept[faint[i]] = 1;
-            ++vr.kept_bracketed;
-          }
-        }
-      }
-      out = PointCloud();
-      for (std::size_t v = 0; v < V; ++v) {
-        if (kept[v]) {
-          out.points.push_back(cand.points[A.voxel[v]]);
-          out.intensity.push_back(static_cast<float>(x[v]));
-        }
-      }
+      capped = capped || !vr.converged;
+      // 4. The voxels that carry reflectivity.
+      out = select_voxels(x, A, cand, T_world_sonar, spec, config, vr);
       return true;
     };
     if (!solve_and_select(nullptr)) return;
@@ -566,8 +587,6 @@ PointCloud deconvolve_voxels(const std::vector<SonarImage>& denoised,
       const std::vector<Eigen::Vector3f> normals =
           normals_near(first, config.normal_radius, cand.points);
       report.seconds_multipass = seconds_since(tm);
-      vr.iterations = 0;
-      vr.converged = false;
       if (!solve_and_select(&normals)) return;
     }
     vr.points_solved = out.size();
