@@ -210,7 +210,8 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                     : fmt::format("confidence {:.2f} (seen {:.2f}, explained {:.2f}, violation "
                                   "{:.2f}, unexplained {:.2f})",
                                   p.confidence, p.verification.seen, p.verification.explained,
-                                  p.verification.violation, p.verification.unexplained),
+                                  p.verification.violation, p.verification.unexplained) +
+                          (p.yaw_ambiguous ? "; yaw ambiguous: turned 180 deg fits as well" : ""),
             p.seconds);
       }
       std::size_t rejected = 0;

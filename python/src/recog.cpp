@@ -52,21 +52,21 @@ void bind_recog(py::module_& m) {
               "T_world_model"_a = pose_to_array(p.T_world_model), "score_m"_a = p.score_m,
               "residual_median_m"_a = p.residual.median_m, "residual_mean_m"_a = p.residual.mean_m,
               "support"_a = p.support, "confidence"_a = p.confidence,
-              "verification"_a = py::dict("valid"_a = p.verification.valid,
-                                          "seen"_a = p.verification.seen,
-                                          "explained"_a = p.verification.explained,
-                                          "violation"_a = p.verification.violation,
-                                          "unexplained"_a = p.verification.unexplained,
-                                          "spill"_a = p.verification.spill,
-                                          "score_m3"_a = p.verification.score_m3),
+              "yaw_ambiguous"_a = p.yaw_ambiguous,
+              "verification"_a = py::dict(
+                  "valid"_a = p.verification.valid, "seen"_a = p.verification.seen,
+                  "explained"_a = p.verification.explained,
+                  "violation"_a = p.verification.violation,
+                  "unexplained"_a = p.verification.unexplained, "spill"_a = p.verification.spill,
+                  "score_m3"_a = p.verification.score_m3),
               "step1_T_world_model"_a = pose_to_array(p.T_world_model_4d),
               "step1_residual_median_m"_a = p.residual_4d.median_m, "seconds"_a = p.seconds));
         }
         return out;
       },
       "points"_a, "catalogue"_a, "icp"_a = true, "period_m"_a = 0.16, "map_cell_m"_a = 0.02,
-      "recog_cell_m"_a = 0.08, "min_confidence"_a = VerificationConfig{}.min_confidence, "num_threads"_a = 0, "method"_a = "2d",
-      "upright"_a = true,
+      "recog_cell_m"_a = 0.08, "min_confidence"_a = VerificationConfig{}.min_confidence,
+      "num_threads"_a = 0, "method"_a = "2d", "upright"_a = true,
       "Find the catalogue's CAD models (a YAML file, docs/recognition.md) in an (N, 3) world-frame "
       "cloud and place them in 6D. method '2d' (sec. 6.3.2): ring descriptors on the elevation "
       "map, 4D search (eq. 6.9), trimmed ICP (icp, period_m, map_cell_m, recog_cell_m, "

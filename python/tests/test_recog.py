@@ -35,6 +35,8 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     cat = box_catalogue(tmp_path)
     placements = sonar3d.recognize(pts, str(cat))
     assert [p["model"] for p in placements] == ["box"]
+    assert 0.5 <= placements[0]["confidence"] <= 1.0
+    assert placements[0]["verification"]["explained"] > 0.8
     T = placements[0]["T_world_model"]
     assert T.shape == (4, 4)
     assert np.hypot(T[0, 3] - 2.5, T[1, 3] - 2.0) < 0.03

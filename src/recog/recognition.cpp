@@ -196,6 +196,7 @@ void RecognitionConfig::validate() const {
   require_positive(max_residual_median_m, "max_residual_median_m", "m");
   verification.validate();
   require(max_overlap >= 0 && max_overlap <= 1, "max_overlap must lie in [0, 1]");
+  require(compete_margin >= 0 && compete_margin <= 1, "compete_margin must lie in [0, 1]");
   require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
           "max_instances must lie in [1, " + std::to_string(kMaxExpectedInstances) + "]");
   require(max_rejections >= 1 && max_rejections <= 100, "max_rejections must lie in [1, 100]");
@@ -375,9 +376,9 @@ struct ModelSearch {
   RingDescriptor desc;
   int wanted = 0, found = 0, rejected = 0;
   bool done = false;
-  std::vector<uint8_t> excluded;         // coarse cells this model's scan skips
-  std::unique_ptr<ModelIndex> index;     // the model's KD-tree, built at its first registration
-  std::optional<SearchRecord> pending;   // a registered, verified candidate awaiting the decision
+  std::vector<uint8_t> excluded;        // coarse cells this model's scan skips
+  std::unique_ptr<ModelIndex> index;    // the model's KD-tree, built at its first registration
+  std::optional<SearchRecord> pending;  // a registered, verified candidate awaiting the decision
 };
 
 // Not this patch again for this model: its neighbourhood (r_model/2) is excluded from the scan.
@@ -467,22 +468,11 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
 
   // Scan (sec. 6.3.2.4), 4D search (eq. 6.9), trimmed ICP (sec. 6.3.2.5) and verification of
   // the model's next candidate on the scene as it stands (accepted placements removed).
-  auto search = [&](ModelSearch& s) {
+  // Registration and verification of model `s` about rec.scan.center_xy (fills rec.placement).
+  auto register_at = [&](ModelSearch& s, SearchRecord& rec, Clock::time_point t0) {
     const ModelTemplate* m = s.m;
-    SearchRecord rec;
-    rec.model = m->name;
-    const auto t0 = Clock::now();
-    rec.scan = scan_patches(coarse, removed_coarse, s.excluded, s.layout, s.desc,
-                            config.descriptor.min_valid_fraction,
-                            config.max_relative_score * m->height(), config.scan);
-    if (!rec.scan.found) {
-      rec.reason = "no patch scores below max_relative_score x model height";
-      return rec;
-    }
     Placement& p = rec.placement;
     p.model = m->name;
-    p.score_m = rec.scan.score_m;
-    p.seconds_scan = since(t0);
     const auto t1 = Clock::now();
     // Step 1: exhaustive 4D search (eq. 6.9) about the winning patch.
     ElevationMap coarse_live = coarse;
@@ -496,7 +486,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     if (!s4.found) {
       rec.reason = "the 4D search found no placement with enough scene under the model";
       p.seconds = since(t0);
-      return rec;
+      return;
     }
     p.T_world_model_4d = s4.T_world_model;
     p.rms_4d_m = s4.rms_m;
@@ -529,8 +519,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
                                       0.5 * (m->base_z + m->top_z));
         const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
-        if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
-            shift <= config.max_icp_shift_m) {
+        if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg && shift <= config.max_icp_shift_m) {
           const Verification vi =
               verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
           if (vi.confidence >= v4.confidence - 0.05) {
@@ -550,7 +539,34 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     p.observed = p.verification.seen;
     p.seconds_registration = since(t1);
     p.seconds = since(t0);
+  };
+  auto search = [&](ModelSearch& s) {
+    SearchRecord rec;
+    rec.model = s.m->name;
+    const auto t0 = Clock::now();
+    rec.scan = scan_patches(coarse, removed_coarse, s.excluded, s.layout, s.desc,
+                            config.descriptor.min_valid_fraction,
+                            config.max_relative_score * s.m->height(), config.scan);
+    if (!rec.scan.found) {
+      rec.reason = "no patch scores below max_relative_score x model height";
+      return rec;
+    }
+    rec.placement.score_m = rec.scan.score_m;
+    rec.placement.seconds_scan = since(t0);
+    register_at(s, rec, t0);
     return rec;
+  };
+  // Does candidate a explain its region better than b? The larger explanation score wins; within
+  // `compete_margin` of each other (look-alikes: a plain cylinder and an ordnance shell of its
+  // size explain the same relief within the tolerance), the finer fit, the lower residual median.
+  auto better = [&](const Placement& a, const Placement& b) {
+    const double sa = a.verification.score_m3, sb = b.verification.score_m3;
+    if (std::abs(sa - sb) > config.compete_margin * std::max(std::abs(sa), std::abs(sb))) {
+      return sa > sb;
+    }
+    const double ra = std::isfinite(a.residual.median_m) ? a.residual.median_m : 1e9;
+    const double rb = std::isfinite(b.residual.median_m) ? b.residual.median_m : 1e9;
+    return ra < rb;
   };
 
   auto reject = [&](ModelSearch& s, SearchRecord rec) {
@@ -604,9 +620,51 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         reject(s, std::move(rec));
       }
     } else {
+      // The region's competitors: every other model that may still place an instance is
+      // registered about the same patch and verified; the best explanation takes the region
+      // (the others' own candidates are judged again below, without it).
+      for (ModelSearch& s : states) {
+        if (&s == best || s.found >= s.wanted) continue;
+        SearchRecord rival;
+        rival.model = s.m->name;
+        rival.scan = best->pending->scan;
+        rival.scan.score_m = std::numeric_limits<double>::quiet_NaN();  // not its descriptor's
+        rival.placement.score_m = rival.scan.score_m;
+        register_at(s, rival, Clock::now());
+        rival.reason = verdict(rival.placement, *s.m, config);
+        if (!rival.reason.empty() || !better(rival.placement, best->pending->placement)) {
+          continue;
+        }
+        // The rival wins: the previous holder's candidate returns to its own search.
+        SearchRecord lost = std::move(*best->pending);
+        best->pending.reset();
+        lost.reason = "a better explanation of its region: " + s.m->name;
+        reject(*best, std::move(lost));
+        if (s.pending) {
+          // The rival's own pending candidate elsewhere is searched again later.
+          s.pending.reset();
+        }
+        s.pending = std::move(rival);
+        best = &s;
+      }
       SearchRecord rec = std::move(*best->pending);
       best->pending.reset();
       rec.accepted = true;
+      if (best->m->symmetry == Symmetry::None) {
+        // Would the model turned 180° explain the region as well?
+        Placement& p = rec.placement;
+        const Eigen::Vector3d axis =
+            p.T_world_model * Eigen::Vector3d(best->m->center_xy.x(), best->m->center_xy.y(), 0);
+        Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+        turn.translation() = axis;
+        turn.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
+        turn.translate(-axis);
+        const Verification vt = verify_placement(*best->m, turn * p.T_world_model, fine,
+                                                 removed_fine, config.verification);
+        p.turned_confidence = vt.confidence;
+        p.yaw_ambiguous = vt.confidence >= config.verification.min_confidence &&
+                          vt.score_m3 >= (1 - config.compete_margin) * p.verification.score_m3;
+      }
       out.placements.push_back(rec.placement);
       ++best->found;
       if (best->found >= best->wanted) best->done = true;
@@ -664,9 +722,9 @@ nlohmann::json verification_json(const Verification& v) {
   return {{"valid", v.valid},         {"seen", v.seen},
           {"explained", v.explained}, {"violation", v.violation},
           {"intrusion", v.intrusion}, {"unexplained", v.unexplained},
-          {"spill", v.spill},
-          {"overlap", v.overlap},     {"relief_m3", v.relief_m3},
-          {"scene_relief_m3", v.scene_relief_m3}, {"score_m3", v.score_m3}};
+          {"spill", v.spill},         {"overlap", v.overlap},
+          {"relief_m3", v.relief_m3}, {"scene_relief_m3", v.scene_relief_m3},
+          {"score_m3", v.score_m3}};
 }
 }  // namespace
 
@@ -688,7 +746,7 @@ nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
                      {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
                       p.T_world_model.translation().z()}},
                     {"rpy_deg", rpy_deg_json(p.T_world_model)},
-                    {"score_m", p.score_m},
+                    {"score_m", num(p.score_m)},
                     {"residual_median_m", num(p.residual.median_m)},
                     {"residual_mean_m", num(p.residual.mean_m)},
                     {"residual_points", p.residual.points},
@@ -706,6 +764,8 @@ nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
     // The verified methods' confidence (a method that does not verify writes none).
     if (p.method == "2d" || p.verification.valid) {
       list.back()["confidence"] = p.confidence;
+      list.back()["turned_confidence"] = num(p.turned_confidence);
+      list.back()["yaw_ambiguous"] = p.yaw_ambiguous;
       list.back()["verification"] = verification_json(p.verification);
     }
   }
@@ -731,6 +791,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_residual_median_m", config.max_residual_median_m},
                    {"min_confidence", config.verification.min_confidence},
                    {"max_overlap", config.max_overlap},
+                   {"compete_margin", config.compete_margin},
                    {"verification",
                     {{"tol_m", config.verification.tol_m},
                      {"slip_m", config.verification.slip_m},
@@ -758,7 +819,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                         {"seconds_scan", s.scan.seconds}};
     if (!s.accepted) e["reason"] = s.reason;
     if (s.scan.found) {
-      e["score_m"] = s.scan.score_m;
+      e["score_m"] = num(s.scan.score_m);
       e["patch_center_xy"] = {s.scan.center_xy.x(), s.scan.center_xy.y()};
     }
     if (!s.accepted && s.scan.found) {

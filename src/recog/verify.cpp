@@ -74,7 +74,7 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
     const long i = scene_index(r, c);
     if (i < 0) return ElevationMap::kNoData;
     return (!removed.empty() && removed[static_cast<std::size_t>(i)]) ? ElevationMap::kNoData
-                                                                       : scene.z[i];
+                                                                      : scene.z[i];
   };
 
   // Distance of every cell to the footprint (Euclidean, m).

@@ -10,6 +10,7 @@
 // Frames: local ENU world (x East, y North, z up); the thesis' (North, East, Depth) are
 // (y, x, −z). Placements are T_world_model.
 #include <Eigen/Geometry>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -99,6 +100,9 @@ struct RecognitionConfig {
   // A candidate whose footprint lies more than this fraction on cells of accepted placements
   // is rejected: no region carries two placements.
   double max_overlap = 0.25;
+  // Competing models whose explanation scores lie within this fraction of each other are ranked
+  // by their residual median (the finer fit) instead.
+  double compete_margin = 0.1;
   // At most this fraction of the model's height may lie below the local seabed (half-buried
   // structures are found; a sphere sunk to a cap looks like any rock).
   double max_buried_fraction = 0.5;
@@ -127,6 +131,12 @@ struct Placement {
   // "found" (at or above RecognitionConfig::verification.min_confidence).
   Verification verification;
   double confidence = 0;
+  // The same placement turned 180° about the model's vertical axis (models without a symmetry):
+  // its confidence, and whether the top view cannot tell the two apart (its explanation score
+  // within compete_margin of this one's and its confidence above the threshold; a panel's top
+  // view is often the same both ways). NaN / false when not checked.
+  double turned_confidence = std::numeric_limits<double>::quiet_NaN();
+  bool yaw_ambiguous = false;
   double support = 0;   // 2D: verification.explained; 3D: the method's coverage
   double observed = 0;  // 2D: verification.seen (height-weighted fraction of the relief observed)
   double ground_z = 0;  // local seabed height around the footprint (world z), m

@@ -44,25 +44,28 @@ struct VerificationConfig {
   double context_fraction = 0.25;
   double spill_band_m = 0.1;  // width of the band outside the footprint for `spill`, m
   // The confidence: σ(bias + w_seen·seen + w_explained·explained + w_violation·violation +
-  // w_unexplained·unexplained + w_spill·spill), σ the logistic function. Fitted by logistic regression on the
-  // labelled candidates of bench/recognition_fields.sh (docs/recognition.md, "Calibration").
-  double bias = -4.0;
-  double w_seen = 2.0;
-  double w_explained = 9.0;
-  double w_violation = -8.0;
-  double w_unexplained = -6.0;
-  double w_spill = -4.0;
+  // w_unexplained·unexplained + w_spill·spill), σ the logistic function. Fitted by logistic
+  // regression on the labelled candidates of bench/recognition_fields.sh (docs/recognition.md,
+  // "Calibration"). Fitted on 305 labelled candidates (25 true) of 7 benchmark fields, two
+  // recognition runs (bench/recognition_calibration.csv); held out by field, 0.5 kept every
+  // proposed true candidate and passed 4 look-alikes (docs/recognition.md, "Calibration").
+  double bias = -8.5;
+  double w_seen = 4.8;
+  double w_explained = 6.8;
+  double w_violation = -5.0;
+  double w_unexplained = -12.5;
+  double w_spill = -6.2;
   double min_confidence = 0.5;  // a candidate is "found" at or above this confidence
   void validate() const;
 };
 
 struct Verification {
-  double ground_z = 0;                    // local seabed height (world z), NaN when unobserved
-  double relief_m3 = 0;                   // the model's relief weight: Σ height above seabed · cell area
+  double ground_z = 0;   // local seabed height (world z), NaN when unobserved
+  double relief_m3 = 0;  // the model's relief weight: Σ height above seabed · cell area
   double seen = 0, explained = 0, violation = 0, unexplained = 0, spill = 0;  // fractions, above
-  double intrusion = 0;       // of the observed relief, where the scene stands higher than the model
+  double intrusion = 0;  // of the observed relief, where the scene stands higher than the model
   double scene_relief_m3 = 0;  // the scene's relief weight within footprint + ring
-  double overlap = 0;         // fraction of the footprint on cells already taken (removed)
+  double overlap = 0;          // fraction of the footprint on cells already taken (removed)
   // Explanation score for competing hypotheses (m³): relief the model explains minus relief it
   // contradicts (violations) minus scene relief it leaves unexplained.
   double score_m3 = 0;
