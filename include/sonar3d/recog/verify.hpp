@@ -20,7 +20,7 @@
 //                  continues past the model's outline (a part of a larger structure, whatever
 //                  the context ring's width);
 // and combines them into a calibrated confidence in [0, 1] (a logistic model fitted on labelled
-// candidates of the recognition benchmark, bench/recognition_fields.sh calib). One threshold,
+// candidates of the recognition benchmark, bench/recognition_calibration.csv). One threshold,
 // `min_confidence`, decides "found".
 //
 // Frames: local ENU world (x East, y North, z up); placements are T_world_model.
@@ -45,7 +45,7 @@ struct VerificationConfig {
   double spill_band_m = 0.1;  // width of the band outside the footprint for `spill`, m
   // The confidence: σ(bias + w_seen·seen + w_explained·explained + w_violation·violation +
   // w_unexplained·unexplained + w_spill·spill), σ the logistic function. Fitted by logistic
-  // regression on the labelled candidates of bench/recognition_fields.sh (docs/recognition.md,
+  // regression on the labelled candidates in bench/recognition_calibration.csv (docs/recognition.md,
   // "Calibration"). Fitted on 305 labelled candidates (25 true) of 7 benchmark fields, two
   // recognition runs (bench/recognition_calibration.csv); held out by field, 0.5 kept every
   // proposed true candidate and passed 4 look-alikes (docs/recognition.md, "Calibration").
