@@ -402,8 +402,8 @@ TEST(RecogPipeline, CompetingLabelsAreResolvedByExplanationNotSearchOrder) {
   const ModelTemplate larger = box_template("larger", 2.4, 0.8, 0.5);
   const Eigen::Isometry3d T = pose(3.0, 2.8, -0.02, 20);
   const PointCloud cloud = synthetic_scene({{&right, T}}, 0, 0, 7, 5.5, 0.02, 0.004, 7);
-  for (const auto& catalogue : {std::vector<ModelTemplate>{larger, right},
-                                std::vector<ModelTemplate>{right, larger}}) {
+  for (const auto& catalogue :
+       {std::vector<ModelTemplate>{larger, right}, std::vector<ModelTemplate>{right, larger}}) {
     const RecognitionResult r = recognize_2d(cloud, catalogue, test_config());
     ASSERT_EQ(r.placements.size(), 1u) << placements_json(r, "", "", test_config());
     const Placement& p = r.placements[0];
