@@ -394,6 +394,16 @@ void exclude_patch(ModelSearch& s, const ScanResult& scan, const ElevationMap& c
   }
 }
 
+// A placement's verification and the fields read from it (confidence, support = explained,
+// observed = seen, the local seabed).
+void set_verification(Placement& p, const Verification& v) {
+  p.verification = v;
+  p.ground_z = v.ground_z;
+  p.confidence = v.confidence;
+  p.support = v.explained;
+  p.observed = v.seen;
+}
+
 // The verification's verdict on a registered candidate: empty when found, else why not.
 std::string verdict(const Placement& p, const ModelTemplate& m, const RecognitionConfig& config) {
   const Verification& v = p.verification;
@@ -466,9 +476,9 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
   }
   std::vector<uint8_t> removed_coarse(coarse.z.size(), 0), removed_fine(fine.z.size(), 0);
 
-  // Scan (sec. 6.3.2.4), 4D search (eq. 6.9), trimmed ICP (sec. 6.3.2.5) and verification of
-  // the model's next candidate on the scene as it stands (accepted placements removed).
-  // Registration and verification of model `s` about rec.scan.center_xy (fills rec.placement).
+  // 4D search (eq. 6.9), trimmed ICP (sec. 6.3.2.5) and verification of model `s` about
+  // rec.scan.center_xy on the scene as it stands (accepted placements removed); fills
+  // rec.placement.
   auto register_at = [&](ModelSearch& s, SearchRecord& rec, Clock::time_point t0) {
     const ModelTemplate* m = s.m;
     Placement& p = rec.placement;
@@ -498,7 +508,6 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     // a wall or a footing would otherwise pull the model sideways and tilt it.
     const Verification v4 =
         verify_placement(*m, s4.T_world_model, fine, removed_fine, config.verification);
-    p.ground_z = v4.ground_z;
     if (std::isfinite(v4.ground_z)) {
       const float cut = static_cast<float>(v4.ground_z + config.ground_clearance_m);
       local.erase(std::remove_if(local.begin(), local.end(),
@@ -508,7 +517,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     p.residual_4d = structure_residual(local, *m, s4.T_world_model);
     p.T_world_model = s4.T_world_model;
     p.residual = p.residual_4d;
-    p.verification = v4;
+    set_verification(p, v4);
     if (config.run_icp && local.size() >= 6 &&
         buried_fraction(*m, s4.T_world_model, v4.ground_z) <= config.max_buried_fraction) {
       // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
@@ -525,7 +534,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
           if (vi.confidence >= v4.confidence - 0.05) {
             p.T_world_model = icp.T_world_model;
             p.residual = structure_residual(local, *m, icp.T_world_model);
-            p.verification = vi;
+            set_verification(p, vi);
             p.icp_kept = true;
           }
         }
@@ -533,13 +542,10 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         // No scene point near the model: keep the 4D placement (judged below).
       }
     }
-    p.ground_z = p.verification.ground_z;
-    p.confidence = p.verification.confidence;
-    p.support = p.verification.explained;
-    p.observed = p.verification.seen;
     p.seconds_registration = since(t1);
     p.seconds = since(t0);
   };
+  // The model's next candidate: scan (sec. 6.3.2.4), then register_at the winning patch.
   auto search = [&](ModelSearch& s) {
     SearchRecord rec;
     rec.model = s.m->name;
@@ -640,10 +646,8 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         best->pending.reset();
         lost.reason = "a better explanation of its region: " + s.m->name;
         reject(*best, std::move(lost));
-        if (s.pending) {
-          // The rival's own pending candidate elsewhere is searched again later.
-          s.pending.reset();
-        }
+        // The rival's own pending candidate elsewhere, if any, is replaced: it is searched
+        // again later.
         s.pending = std::move(rival);
         best = &s;
       }
@@ -678,11 +682,8 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       for (ModelSearch& s : states) {
         if (!s.pending) continue;
         Placement& p = s.pending->placement;
-        p.verification =
-            verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification);
-        p.confidence = p.verification.confidence;
-        p.support = p.verification.explained;
-        p.observed = p.verification.seen;
+        set_verification(
+            p, verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification));
       }
     }
     std::size_t now_done = 0;

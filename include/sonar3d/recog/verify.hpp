@@ -45,10 +45,9 @@ struct VerificationConfig {
   double spill_band_m = 0.1;  // width of the band outside the footprint for `spill`, m
   // The confidence: σ(bias + w_seen·seen + w_explained·explained + w_violation·violation +
   // w_unexplained·unexplained + w_spill·spill), σ the logistic function. Fitted by logistic
-  // regression on the labelled candidates in bench/recognition_calibration.csv
-  // (docs/recognition.md, "Calibration"). Fitted on 305 labelled candidates (25 true) of 7
-  // benchmark fields, two recognition runs (bench/recognition_calibration.csv); held out by field,
-  // 0.5 kept every proposed true candidate and passed 4 look-alikes (docs/recognition.md,
+  // regression (bench/calibrate_confidence.py) on 305 labelled candidates (25 true) of 7
+  // benchmark fields, two recognition runs (bench/recognition_calibration.csv); held out by
+  // field, 0.5 kept every proposed true candidate and passed 4 look-alikes (docs/recognition.md,
   // "Calibration").
   double bias = -8.5;
   double w_seen = 4.8;
