@@ -251,6 +251,7 @@ class Field:
         self.objects, self.structures, self.clutter, self.catalogue = [], [], [], []
         self.note = note
         self.count = {}
+        self.navigation_error = None  # e.g. data/scenes/field.yaml's dead reckoning
 
     def ground(self, x):
         """Seabed height of the sloped plane (the terrain is pitched about y: z = -x tan(slope))."""
@@ -300,6 +301,7 @@ class Field:
         lines = [
             '# Recognition benchmark field "%s" (bench/recognition_fields.py; issue 28): %s' % (self.name, self.note),
             'seed: %d' % self.seed,
+        ] + (['navigation_error: ' + self.navigation_error] if self.navigation_error else []) + [
             'sensor: {preset: mb2250, r_min: 1.0, r_max: 6.0, range_bins: 250, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}',
             'simulation: {elevation_step_deg: 0.1}',
             'objects:',
@@ -454,7 +456,32 @@ def make_fields(meshes_dir, gen_dir):
             structure=False)
     cat(f, ['torpedo_mk46', 'bop_panel', 'lattice_frame', 'manifold', 'tank', 'riser', 'box_panel'])
     fields.append(f)
+
+    # 7. Dead-reckoning drift (data/scenes/field.yaml's navigation error): an open panel, a spool,
+    # the ROV and an mk48 half buried, on relief with rocks and a trench; the map's own placement
+    # error enters the position errors.
+    f = Field('drift', (18, 14), 17, relief=0.12, trenches=1, rocks=30,
+              note='navigation drift as data/scenes/field.yaml; panel_frame, spool, erov, torpedo_mk48 50 % buried; '
+                   'clutter: a trench, 30 rocks, 6 pieces of debris, a pipeline')
+    f.navigation_error = '{velocity_scale: 0.01, bias_walk: 0.00005, heading_bias_deg: 0.2, depth_offset: 0.05}'
+    f.place('panel_frame', G('panel_frame'), (-4.5, 2.0), 140, z_off=-0.05)
+    f.place('spool', G('spool'), (3.5, 3.0), -30, z_off=-0.04)
+    f.place('erov', D('erov'), (-3.0, -3.0), 10, z_off=-0.05)
+    f.place('torpedo_mk48', D('torpedo_mk48'), (3.0, -2.5), 50, z_off=0.283 - 0.5 * 0.567)
+    wreck_pile(f, rng, 0.0, 0.0, n=6, spread=(2.0, 2.0), tag='debris')
+    f.pipeline('pipeline', (-9, 5.5), (9, 4.5), 0.15, 0.5)
+    cat(f, ['panel_frame', 'spool', 'erov', 'torpedo_mk48', 'box_panel', 'drum', 'tank', 'pillar'])
+    fields.append(f)
     return fields
+
+
+def write_if_changed(path, text):
+    """Atomically, and only when the content changes (a field being simulated keeps its file)."""
+    if os.path.exists(path) and open(path).read() == text:
+        return
+    with open(path + '.tmp', 'w') as o:
+        o.write(text)
+    os.replace(path + '.tmp', path)
 
 
 def generate(work, meshes_dir):
@@ -481,21 +508,18 @@ def generate(work, meshes_dir):
     fields = make_fields(meshes_dir, gen)
     index = {'fields': [], 'models': geom}
     for f in fields:
-        with open(os.path.join(work, f.name + '.yaml'), 'w') as o:
-            o.write(f.scene_yaml())
+        write_if_changed(os.path.join(work, f.name + '.yaml'), f.scene_yaml())
         cat_lines = ['# Catalogue of field "%s": its true structures and distractors (bench/recognition_fields.py)'
                      % f.name, 'models:']
         for c in f.catalogue:
             s = 'reference: %s' % c['reference'] if c.get('reference') else 'mesh: %s' % c['mesh']
             cat_lines.append('  - {name: %s, %s, symmetry: "%s"}' % (c['name'], s, c['symmetry']))
-        with open(os.path.join(work, f.name + '_catalogue.yaml'), 'w') as o:
-            o.write('\n'.join(cat_lines) + '\n')
+        write_if_changed(os.path.join(work, f.name + '_catalogue.yaml'), '\n'.join(cat_lines) + '\n')
         index['fields'].append({'name': f.name, 'size': f.size, 'note': f.note, 'slope_deg': f.slope,
                                 'structures': f.structures, 'clutter': f.clutter,
                                 'catalogue': [c['name'] for c in f.catalogue],
                                 'symmetry': {c['name']: c['symmetry'] for c in f.catalogue}})
-    with open(os.path.join(work, 'fields.json'), 'w') as o:
-        json.dump(index, o, indent=1)
+    write_if_changed(os.path.join(work, 'fields.json'), json.dumps(index, indent=1))
     print('\n'.join(f.name for f in fields))
 
 
@@ -560,8 +584,9 @@ def candidates_of(j):
             if not isinstance(e, dict):
                 continue
             pos = position_of(e)[0]
-            key = tuple(np.round(pos, 4)) + (e.get('model'),) if pos is not None else None
-            if key is not None and key in seen:
+            if pos is None:
+                pass  # no pose: an accepted search (its placement is listed) or a 3D summary
+            elif tuple(np.round(pos, 4)) + (e.get('model'),) in seen:
                 pass  # the same candidate as an accepted placement
             else:
                 out.append((src, e))
@@ -594,11 +619,16 @@ def label(work, runs, out_csv):
                 pos, pos_key = position_of(c)
                 flat = {}
                 for k, v in c.items():
-                    if k == 'model':
+                    if k in ('model', 'field', 'source', 'label', 'truth'):
                         continue
-                    flatten(k, v, flat)
+                    if isinstance(v, str):  # a short text (reason, method) kept as it is
+                        flat['text_' + k if k == 'method' else k] = v
+                    else:
+                        flatten(k, v, flat)
                 row = {'field': fld['name'], 'method': method, 'source': src, 'model': model,
                        'has_position': int(pos is not None), 'position_key': pos_key or ''}
+                if src == 'placement' and 'accepted' not in flat:
+                    row['accepted'] = 1
                 row.update(flat)
                 tol = max(0.3, 0.25 * g['radius_m'])
                 d_same = d_any = float('nan')
