@@ -710,6 +710,9 @@ def table(work, runs):
           'yaw error ° (median, max) | step 1 → step 2 median cm (median over found) | '
           'wall s (recognize) | s per structure | peak MB (recognize) | false placements |')
     print('|---|---|---|---|---|---|---|---|---|---|---|---|')
+    totals = {}
+    med = lambda v: '%.1f' % float(np.median(v)) if v else '–'  # noqa: E731
+    mx = lambda v: '%.1f' % max(v) if v else '–'  # noqa: E731
     for method in ('2d', '3d'):
         for fld in idx['fields']:
             n = fld['name']
@@ -730,10 +733,16 @@ def table(work, runs):
                     s2.append(float(cells[6].split()[0]))
                 elif len(cells) >= 2 and cells[0].endswith('(false)'):
                     false.append(cells[0].replace(' (false)', '') + ' ' + cells[1].replace('at ', ''))
-            med = lambda v: '%.1f' % float(np.median(v)) if v else '–'  # noqa: E731
-            mx = lambda v: '%.1f' % max(v) if v else '–'  # noqa: E731
             if m:
                 tp, np_, _, nt = [int(x) for x in m.groups()]
+                t = totals.setdefault(method, [0, 0, 0, [], [], 0.0, 0.0])
+                t[0] += tp
+                t[1] += np_
+                t[2] += nt
+                t[3] += pos
+                t[4] += yaw
+                t[5] += tv.get('wall_s', 0.0)
+                t[6] = max(t[6], tv.get('rss_mb', 0.0))
                 rec = '%d/%d' % (tp, nt) if nt else '–'
                 prec = '%d/%d' % (tp, np_) if np_ else ('–' if nt else '0 placed ✓')
             else:
@@ -747,6 +756,10 @@ def table(work, runs):
             print('| %s | %s | %d | %s | %s | %s, %s | %s, %s | %s → %s | %s | %s | %s | %s |' % (
                 n, method, nt, rec, prec, med(pos), mx(pos), med(yaw), mx(yaw), med(s1), med(s2),
                 wall_s, per, rss, '; '.join(false[:6]) + (' …' if len(false) > 6 else '')))
+    for method, t in totals.items():
+        print('| **all** | %s | %d | **%d/%d = %.2f** | **%d/%d = %.2f** | %s, %s | %s, %s | | %.1f | %s | %.0f | |' % (
+            method, t[2], t[0], t[2], t[0] / t[2] if t[2] else 0, t[0], t[1], t[0] / t[1] if t[1] else 1,
+            med(t[3]), mx(t[3]), med(t[4]), mx(t[4]), t[5], '%.1f' % (t[5] / t[2]) if t[2] else '–', t[6]))
 
 
 def main():

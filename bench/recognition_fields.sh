@@ -4,7 +4,9 @@
 # and structures of our own design (bench/recognition_fields.py), with clutter that is not in the
 # catalogues, burial, a slope, marine growth, and one clutter-only field; a downward-looking
 # MB2250-like sonar 4 m up on lawnmower lines 2 m apart (as bench/recognition_scenes.sh).
-# Each field is simulated and mapped (`sonar3d map`, as data/scenes/field.yaml), then recognised
+# Each field is simulated and mapped (`sonar3d map`, as data/scenes/field.yaml; fields without
+# navigation error also carved as one cloud, `sonar3d reconstruct`, which recognition then reads
+# unless MAP_KIND=map), then recognised
 # by both methods (`sonar3d recognize`, timed by /usr/bin/time -v, and bench_recognition against
 # the scene's truth); datasets and maps are reused when present.
 #
@@ -66,6 +68,19 @@ data() {  # field: simulate + map, each once
     $T -o "$WORK/$RUNS/$f.map.time.txt" nice -n 5 "$S3D" map "$WORK/$f.ds" -o "$WORK/${f}_map" --roi $roi -q \
       > "$WORK/$RUNS/$f.map.txt"
   fi
+  # Fields with perfect navigation are also carved as one cloud (no swath registration): the
+  # recognition's own errors, without the map's (swath registration moved the swaths of
+  # subsea_kit by up to 14 cm although the navigation was exact).
+  if ! grep -q '^navigation_error' "$WORK/$f.yaml" && [ ! -f "$WORK/$f.ply" ]; then
+    echo "== $f: reconstruct" >&2
+    $T -o "$WORK/$RUNS/$f.reconstruct.time.txt" nice -n 5 "$S3D" reconstruct "$WORK/$f.ds" \
+      -o "$WORK/$f.ply" --voxel-size 0.02 -q > /dev/null
+  fi
+}
+
+map_of() {  # what recognition reads: MAP_KIND=auto (default: the carved cloud for fields with
+  # perfect navigation, the swath-registered map for the drift field) or map (always the map)
+  if [ "${MAP_KIND:-auto}" = auto ] && [ -f "$WORK/$1.ply" ]; then echo "$WORK/$1.ply"; else echo "$WORK/${1}_map"; fi
 }
 
 recog() {  # field, method
@@ -73,11 +88,11 @@ recog() {  # field, method
   echo "== $f: recognize --method $m" >&2
   rm -f "$out.json" "$out.ply"
   # shellcheck disable=SC2086
-  $T -o "$out.time.txt" timeout "$TIMEOUT" nice -n 5 "$S3D" recognize "$WORK/${f}_map" \
+  $T -o "$out.time.txt" timeout "$TIMEOUT" nice -n 5 "$S3D" recognize "$(map_of "$f")" \
     --catalogue "$WORK/${f}_catalogue.yaml" -o "$out.json" --method "$m" -q ${RECOG_ARGS:-} \
     > "$out.txt" 2>&1 || echo "   (exit $?: see $out.txt, $out.time.txt)" >&2
   echo "== $f: bench_recognition --method $m" >&2
-  $T -o "$out.bench.time.txt" timeout "$TIMEOUT" nice -n 5 "$BENCH" "$WORK/$f.yaml" "$WORK/${f}_map" \
+  $T -o "$out.bench.time.txt" timeout "$TIMEOUT" nice -n 5 "$BENCH" "$WORK/$f.yaml" "$(map_of "$f")" \
     "$WORK/${f}_catalogue.yaml" --method "$m" --label "$f, $m" > "$out.bench.txt" 2>&1 \
     || echo "   (exit $?: see $out.bench.txt)" >&2
 }
