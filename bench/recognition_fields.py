@@ -8,6 +8,7 @@ fields"). Driven by bench/recognition_fields.sh; three subcommands:
                                 the searches' rejected candidates) labelled true/false against the
                                 scene's truth, one CSV over all fields and methods
   table WORK RUNS               the summary table (Markdown) from the runs' logs
+  crop IN.ply OUT.ply XMIN YMIN XMAX YMAX   a cloud cut to a rectangle (the fields' seabed edges)
 
 Public meshes: ../shared/data/meshes (Apache-2.0, README.md there): bop_panel, valve, hot_stab,
 sonobuoy, torpedo_mk46/mk48 (ordnance stand-ins), erov (a small ROV), mossy_cinder_block,
@@ -762,6 +763,42 @@ def table(work, runs):
             med(t[3]), mx(t[3]), med(t[4]), mx(t[4]), t[5], '%.1f' % (t[5] / t[2]) if t[2] else '–', t[6]))
 
 
+def crop_ply(src, dst, xmin, ymin, xmax, ymax):
+    """Keep the points of a binary little-endian PLY point cloud inside [xmin, xmax] x [ymin, ymax]
+    (every vertex property kept). The fields' seabed is a finite mesh: at its edge the swaths see
+    a drop that the 2D method took for BOP panels, and a real seabed has no such edge."""
+    types = {'float': 'f4', 'float32': 'f4', 'double': 'f8', 'float64': 'f8', 'uchar': 'u1', 'uint8': 'u1',
+             'char': 'i1', 'int8': 'i1', 'ushort': 'u2', 'uint16': 'u2', 'short': 'i2', 'int16': 'i2',
+             'uint': 'u4', 'uint32': 'u4', 'int': 'i4', 'int32': 'i4'}
+    with open(src, 'rb') as f:
+        hdr = b''
+        while not hdr.endswith(b'end_header\n'):
+            line = f.readline()
+            if not line:
+                sys.exit('crop: %s: no end_header' % src)
+            hdr += line
+        lines = hdr.decode().split('\n')
+        if 'format binary_little_endian 1.0' not in lines:
+            sys.exit('crop: %s: only binary little-endian PLY' % src)
+        n, props, in_vertex = 0, [], False
+        for ln in lines:
+            w = ln.split()
+            if w[:2] == ['element', 'vertex']:
+                n, in_vertex = int(w[2]), True
+            elif w[:1] == ['element']:
+                in_vertex = False
+            elif w[:1] == ['property'] and in_vertex:
+                props.append((w[2], '<' + types[w[1]]))
+        a = np.frombuffer(f.read(n * np.dtype(props).itemsize), dtype=props)
+    keep = a[(a['x'] >= xmin) & (a['x'] <= xmax) & (a['y'] >= ymin) & (a['y'] <= ymax)]
+    out = hdr.decode().replace('element vertex %d\n' % n, 'element vertex %d\n' % len(keep))
+    with open(dst + '.tmp', 'wb') as f:
+        f.write(out.encode())
+        f.write(keep.tobytes())
+    os.replace(dst + '.tmp', dst)
+    print('%s: %d of %d points inside [%g, %g] x [%g, %g]' % (dst, len(keep), n, xmin, xmax, ymin, ymax))
+
+
 def main():
     a = sys.argv[1:]
     if len(a) >= 2 and a[0] == 'generate':
@@ -771,6 +808,8 @@ def main():
         generate(a[1], os.path.abspath(meshes))
     elif len(a) == 4 and a[0] == 'label':
         label(a[1], a[2], a[3])
+    elif len(a) == 7 and a[0] == 'crop':
+        crop_ply(a[1], a[2], *[float(x) for x in a[3:]])
     elif len(a) == 3 and a[0] == 'table':
         table(a[1], a[2])
     else:

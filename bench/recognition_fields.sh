@@ -54,13 +54,13 @@ T="/usr/bin/time -v"
 data() {  # field: simulate + map, each once
   local f=$1
   if [ ! -f "$WORK/$f.ds/frames.csv" ] || [ ! -f "$WORK/$f.ds/.complete" ]; then
-    rm -rf "$WORK/$f.ds" "$WORK/${f}_map"
+    rm -rf "$WORK/$f.ds" "$WORK/${f}_map" "$WORK/${f}_map.ply" "$WORK/$f.ply" "$WORK/${f}_cloud.ply"
     echo "== $f: simulate" >&2
     $T -o "$WORK/$RUNS/$f.simulate.time.txt" nice -n 5 "$S3D" simulate "$WORK/$f.yaml" -o "$WORK/$f.ds" -q > /dev/null
     touch "$WORK/$f.ds/.complete"
   fi
   if [ ! -f "$WORK/${f}_map/merged.ply" ]; then
-    rm -rf "$WORK/${f}_map"
+    rm -rf "$WORK/${f}_map" "$WORK/${f}_map.ply"
     echo "== $f: map" >&2
     local roi
     roi=$("$PY" -c "import json; f=[x for x in json.load(open('$WORK/fields.json'))['fields'] if x['name']=='$f'][0]; X,Y=f['size']; print(-X/2, -Y/2, -1.5, X/2, Y/2, 3.0)")
@@ -76,11 +76,21 @@ data() {  # field: simulate + map, each once
     $T -o "$WORK/$RUNS/$f.reconstruct.time.txt" nice -n 5 "$S3D" reconstruct "$WORK/$f.ds" \
       -o "$WORK/$f.ply" --voxel-size 0.02 -q > /dev/null
   fi
+  # What recognition reads: cut 0.5 m inside the seabed mesh's edge (the finite seabed ends in a
+  # drop that no real seabed has; the 2D method placed BOP panels along it).
+  local box
+  box=$("$PY" -c "import json; f=[x for x in json.load(open('$WORK/fields.json'))['fields'] if x['name']=='$f'][0]; X,Y=f['size']; print(-X/2+0.5, -Y/2+0.5, X/2-0.5, Y/2-0.5)")
+  # shellcheck disable=SC2086
+  [ -f "$WORK/$f.ply" ] && [ ! -f "$WORK/${f}_cloud.ply" ] && "$PY" "$GEN" crop "$WORK/$f.ply" "$WORK/${f}_cloud.ply" $box >&2
+  # shellcheck disable=SC2086
+  [ ! -f "$WORK/${f}_map.ply" ] && "$PY" "$GEN" crop "$WORK/${f}_map/merged.ply" "$WORK/${f}_map.ply" $box >&2
+  return 0
 }
 
 map_of() {  # what recognition reads: MAP_KIND=auto (default: the carved cloud for fields with
-  # perfect navigation, the swath-registered map for the drift field) or map (always the map)
-  if [ "${MAP_KIND:-auto}" = auto ] && [ -f "$WORK/$1.ply" ]; then echo "$WORK/$1.ply"; else echo "$WORK/${1}_map"; fi
+  # perfect navigation, the swath-registered map for the drift field) or map (always the map),
+  # both cut to the seabed's interior
+  if [ "${MAP_KIND:-auto}" = auto ] && [ -f "$WORK/${1}_cloud.ply" ]; then echo "$WORK/${1}_cloud.ply"; else echo "$WORK/${1}_map.ply"; fi
 }
 
 recog() {  # field, method
