@@ -478,8 +478,10 @@ def make_fields(meshes_dir, gen_dir):
 
 def write_if_changed(path, text):
     """Atomically, and only when the content changes (a field being simulated keeps its file)."""
-    if os.path.exists(path) and open(path).read() == text:
-        return
+    if os.path.exists(path):
+        with open(path) as f:
+            if f.read() == text:
+                return
     with open(path + '.tmp', 'w') as o:
         o.write(text)
     os.replace(path + '.tmp', path)
@@ -600,8 +602,13 @@ def candidates_of(j):
     return out
 
 
+def load_json(path):
+    with open(path) as f:
+        return json.load(f)
+
+
 def label(work, runs, out_csv):
-    idx = json.load(open(os.path.join(work, 'fields.json')))
+    idx = load_json(os.path.join(work, 'fields.json'))
     models = idx['models']
     rows, keys = [], []
     for fld in idx['fields']:
@@ -610,7 +617,7 @@ def label(work, runs, out_csv):
         for path in sorted(glob.glob(os.path.join(work, runs, fld['name'] + '.*.json'))):
             method = os.path.basename(path).split('.')[-2]
             try:
-                j = json.load(open(path))
+                j = load_json(path)
             except Exception as e:  # a run that failed or timed out leaves no JSON
                 print('label: skipping %s: %s' % (path, e), file=sys.stderr)
                 continue
@@ -706,7 +713,7 @@ def parse_time_v(path):
 
 
 def table(work, runs):
-    idx = json.load(open(os.path.join(work, 'fields.json')))
+    idx = load_json(os.path.join(work, 'fields.json'))
     print('| field | method | structures | recall | precision | position error cm (median, max) | '
           'yaw error ° (median, max) | step 1 → step 2 median cm (median over found) | '
           'wall s (recognize) | s per structure | peak MB (recognize) | false placements |')
