@@ -101,7 +101,8 @@ def member(m, a, b, s=0.1):
 
 
 def lattice_frame(L=3.0, W=2.4, H=1.6, s=0.1, braces=True, diagonals=True):
-    """An open protection frame: four legs, top and bottom rings, mid braces, side diagonals."""
+    """An open protection frame: four legs, top and bottom rings, mid braces, side diagonals
+    (unchanged by a 180° turn about z: catalogued with symmetry "180")."""
     m = Mesh()
     x, y = L / 2 - s / 2, W / 2 - s / 2
     for sx in (-x, x):
@@ -351,7 +352,7 @@ def make_fields(meshes_dir, gen_dir):
     G = lambda n: os.path.join(gen_dir, n + '.obj')  # noqa: E731
     SYM = {'torpedo_mk46': '180', 'torpedo_mk48': '180', 'drum': '180', 'sonobuoy': 'full',
            'valve': 'full', 'spool': '180', 'box_block': '180', 'box_bop': '180', 'box_panel': '180',
-           'lattice_frame_b': '180', 'tank': 'full', 'pillar': '180'}
+           'lattice_frame': '180', 'lattice_frame_b': '180', 'tank': 'full', 'pillar': '180'}
     src = lambda n: D(n) if os.path.exists(D(n)) else G(n)  # noqa: E731
 
     def cat(f, names):
