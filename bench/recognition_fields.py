@@ -715,7 +715,7 @@ def parse_time_v(path):
 
 def table(work, runs):
     idx = load_json(os.path.join(work, 'fields.json'))
-    print('| field | method | structures | recall | precision | position error cm (median, max) | '
+    print('| field | method | structures | recall | precision | horizontal position error cm (median, max) | '
           'yaw error ° (median, max) | step 1 → step 2 median cm (median over found) | '
           'wall s (recognize) | s per structure | peak MB (recognize) | false placements |')
     print('|---|---|---|---|---|---|---|---|---|---|---|---|')
