@@ -717,7 +717,7 @@ def table(work, runs):
     idx = load_json(os.path.join(work, 'fields.json'))
     print('| field | method | structures | recall | precision | horizontal position error cm (median, max) | '
           'yaw error ° (median, max) | step 1 → step 2 median cm (median over found) | '
-          'wall s (recognize) | s per structure | peak MB (recognize) | false placements |')
+          'wall s (recognize) | s per structure | peak MB (recognize) | false placements (model × count) |')
     print('|---|---|---|---|---|---|---|---|---|---|---|---|')
     totals = {}
     med = lambda v: '%.1f' % float(np.median(v)) if v else '–'  # noqa: E731
@@ -741,7 +741,7 @@ def table(work, runs):
                     s1.append(float(cells[5].split()[0]))
                     s2.append(float(cells[6].split()[0]))
                 elif len(cells) >= 2 and cells[0].endswith('(false)'):
-                    false.append(cells[0].replace(' (false)', '') + ' ' + cells[1].replace('at ', ''))
+                    false.append(cells[0].replace(' (false)', ''))
             if m:
                 tp, np_, _, nt = [int(x) for x in m.groups()]
                 t = totals.setdefault(method, [0, 0, 0, [], [], 0.0, 0.0])
@@ -764,7 +764,7 @@ def table(work, runs):
             rss = '%.0f' % tv['rss_mb'] if 'rss_mb' in tv else '–'
             print('| %s | %s | %d | %s | %s | %s, %s | %s, %s | %s → %s | %s | %s | %s | %s |' % (
                 n, method, nt, rec, prec, med(pos), mx(pos), med(yaw), mx(yaw), med(s1), med(s2),
-                wall_s, per, rss, '; '.join(false[:6]) + (' …' if len(false) > 6 else '')))
+                wall_s, per, rss, ', '.join('%s ×%d' % (k, false.count(k)) for k in sorted(set(false), key=lambda k: -false.count(k)))))
     for method, t in totals.items():
         print('| **all** | %s | %d | **%d/%d = %.2f** | **%d/%d = %.2f** | %s, %s | %s, %s | | %.1f | %s | %.0f | |' % (
             method, t[2], t[0], t[2], t[0] / t[2] if t[2] else 0, t[0], t[1], t[0] / t[1] if t[1] else 1,
