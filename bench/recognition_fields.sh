@@ -19,8 +19,9 @@
 # Environment: RUNS (default runs: the recognition outputs' folder under WORK, e.g. runs_before),
 # TIMEOUT (s per recognition run, default 300), METHODS (default "2d 3d"), MESHES (the public
 # meshes, default ../shared/data/meshes beside the repository), RECOG_ARGS (extra flags for both).
-# The binaries are copied to WORK/bin on the first run (a rebuild does not change them mid-run;
-# delete WORK/bin to take a new build).
+# The binaries are copied from BUILD to BIN (default WORK/bin) on the first run, so that a rebuild
+# does not change them mid-run; another BIN (e.g. BIN=WORK/bin_after RUNS=runs_after) measures
+# another build on the same datasets.
 set -euo pipefail
 MODE=all
 case "${1:-}" in all|data|recog|table|calib) MODE=$1; shift ;; esac
@@ -40,13 +41,14 @@ WORK=$(cd "$WORK" && pwd)
 if [ "$MODE" = table ]; then exec "$PY" "$GEN" table "$WORK" "$RUNS"; fi
 if [ "$MODE" = calib ]; then exec "$PY" "$GEN" label "$WORK" "$RUNS" "$WORK/$RUNS/calibration.csv"; fi
 
-if [ ! -x "$WORK/bin/sonar3d" ]; then
-  mkdir -p "$WORK/bin"
-  cp "$BUILD/bin/sonar3d" "$BUILD/bench/bench_recognition" "$WORK/bin/"
-  git -C "$ROOT" rev-parse --short HEAD > "$WORK/bin/COMMIT" 2>/dev/null || true
+BIN=${BIN:-$WORK/bin}
+if [ ! -x "$BIN/sonar3d" ] || [ ! -x "$BIN/bench_recognition" ]; then
+  mkdir -p "$BIN"
+  cp "$BUILD/bin/sonar3d" "$BUILD/bench/bench_recognition" "$BIN/"
+  git -C "$ROOT" rev-parse --short HEAD > "$BIN/COMMIT" 2>/dev/null || true
 fi
-S3D="$WORK/bin/sonar3d"
-BENCH="$WORK/bin/bench_recognition"
+S3D="$BIN/sonar3d"
+BENCH="$BIN/bench_recognition"
 FIELDS=$("$PY" "$GEN" generate "$WORK" --meshes "$MESHES")
 [ $# -gt 0 ] && FIELDS="$*"
 T="/usr/bin/time -v"
