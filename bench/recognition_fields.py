@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Recognition benchmark of unseen fields (issue 28, docs/recognition.md "Benchmark of unseen
-fields"). Driven by bench/recognition_fields.sh; three subcommands:
+fields"). Driven by bench/recognition_fields.sh; four subcommands:
 
   generate WORK [--meshes DIR]  structure meshes (OBJ, generated here: code, not files), scene and
                                 catalogue YAML of every field, and WORK/fields.json (truth, radii)
