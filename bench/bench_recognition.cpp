@@ -2,8 +2,9 @@
 //   bench_recognition SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--method 2d|3d] [--no-upright]
 //                     [--label TEXT]
 // MAP: a cloud (.ply) or a map directory (merged.ply) made from the scene's simulated survey.
-// Scene objects are matched to placements by name (a catalogue model named like the object) and
-// position (centres within --match-m, default 0.75 m). Prints one Markdown row per truth object and
+// Scene objects are matched to placements by name (a catalogue model named like the object; an
+// object "NAME@2" is a second instance of model NAME) and position (centres within --match-m,
+// default 0.75 m). Prints one Markdown row per truth object and
 // per false detection: pose error (cm, degrees, yaw modulo the object's own rotational symmetry),
 // the residual median/mean after the 4D search and after ICP (Table 6.1), the same metric at the
 // true pose (what the reconstruction itself leaves), then precision, recall, time and peak memory.
@@ -31,7 +32,8 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Truth {
-  std::string name;
+  std::string name;   // the scene object's name
+  std::string model;  // the catalogue model it is an instance of: the name up to an '@'
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   bool matched = false;
 };
@@ -91,6 +93,7 @@ int main(int argc, char** argv) {
       if (!o["pose"] || !(o["reference"] || o["mesh"])) continue;
       Truth t;
       t.name = o["name"].as<std::string>();
+      t.model = t.name.substr(0, t.name.find('@'));
       t.T = yaml::get_pose(o["pose"], scene_path, "pose");
       truth.push_back(t);
     }
@@ -129,14 +132,14 @@ int main(int argc, char** argv) {
     int tp = 0, fp = 0;
     std::vector<bool> used(r.placements.size(), false);
     for (Truth& t : truth) {
-      const ModelTemplate* m = model_of(t.name);
+      const ModelTemplate* m = model_of(t.model);
       if (!m) continue;  // not in the catalogue (seabed, pipelines)
       const Eigen::Vector3d c(m->center_xy.x(), m->center_xy.y(), 0.5 * (m->base_z + m->top_z));
       int best = -1;
       double best_d = match_m;
       for (std::size_t k = 0; k < r.placements.size(); ++k) {
         const Placement& p = r.placements[k];
-        if (used[k] || p.model != t.name) continue;
+        if (used[k] || p.model != t.model) continue;
         const double d = (p.T_world_model * c - t.T * c).head<2>().norm();
         if (d < best_d) best = static_cast<int>(k), best_d = d;
       }
@@ -160,7 +163,13 @@ int main(int argc, char** argv) {
       used[best] = true;
       ++tp;
       const Placement& p = r.placements[best];
-      const double period = yaw_period(t.name);
+      // The catalogue's symmetry where it declares one, else the reference objects' own.
+      double period = yaw_period(t.model);
+      for (const auto& cm : cat.models) {
+        if (cm.name != t.model) continue;
+        if (cm.symmetry == Symmetry::Half) period = std::min(period, M_PI);
+        if (cm.symmetry == Symmetry::Full) period = 0;
+      }
       const double yaw_err =
           period > 0
               ? std::abs(std::remainder(yaw_of(p.T_world_model) - yaw_of(t.T), period)) * 180 / M_PI
@@ -192,7 +201,7 @@ int main(int argc, char** argv) {
           p.seconds);
     }
     int n_truth = 0;
-    for (const Truth& t : truth) n_truth += model_of(t.name) != nullptr;
+    for (const Truth& t : truth) n_truth += model_of(t.model) != nullptr;
     std::printf("\nprecision %d/%d, recall %d/%d; maps %.2f s, total %.1f s; peak RSS %.0f MB\n",
                 tp, tp + fp, tp, n_truth, r.seconds_maps, seconds, peak_rss_mb());
     for (const auto& s : r.searches) {
