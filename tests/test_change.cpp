@@ -264,11 +264,12 @@ TEST(ChangeDetection, ALargeStructureMovedAMetreAndTurnedIsMoved) {
   const Box big_b{0.1, 0.58, 2.0, 1.2, 40, 0.4};  // 1.0 m East, 0.38 m North: 1.07 m; +30°
   const PointCloud a = survey({big_a, kRemoved}, 0.005, 11);
   const PointCloud b = survey({big_b}, 0.008, 12, kTbA);
-  const ObjectModels models{
-      {"frame", {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-1.0, -0.6),
-                                                     Eigen::Vector2d(1.0, 0.6))}},
-      {"crate", {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
-                                                     Eigen::Vector2d(0.3, 0.3))}}};
+  const ObjectModels models{{"frame",
+                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-1.0, -0.6),
+                                                                  Eigen::Vector2d(1.0, 0.6))}},
+                            {"crate",
+                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
+                                                                  Eigen::Vector2d(0.3, 0.3))}}};
   const std::vector<SurveyPlacement> pa{placed("frame", big_a), placed("crate", kRemoved)};
   const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", big_b).T_world_model}};
   const ChangeResult r = diff_surveys(a, b, pa, pb, models, test_config());
@@ -311,11 +312,12 @@ TEST(ChangeDetection, ARecognitionInOneSurveyWithoutHeightChangeIsUncertain) {
   const std::vector<Box> site{kStay, kMoveA, kRemoved};
   const PointCloud a = survey(site, 0.005, 13);
   const PointCloud b = survey(site, 0.008, 14, kTbA);
-  const ObjectModels models{
-      {"frame", {Symmetry::Half, Eigen::AlignedBox2d(Eigen::Vector2d(-0.6, -0.3),
-                                                     Eigen::Vector2d(0.6, 0.3))}},
-      {"crate", {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
-                                                     Eigen::Vector2d(0.3, 0.3))}}};
+  const ObjectModels models{{"frame",
+                             {Symmetry::Half, Eigen::AlignedBox2d(Eigen::Vector2d(-0.6, -0.3),
+                                                                  Eigen::Vector2d(0.6, 0.3))}},
+                            {"crate",
+                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
+                                                                  Eigen::Vector2d(0.3, 0.3))}}};
   const Box outside{12.0, 9.0, 0.6, 0.6, 0, 0.3};  // beyond both surveys
   const std::vector<SurveyPlacement> pa{placed("frame", kStay), placed("frame", kMoveA),
                                         placed("crate", kRemoved), placed("crate", outside)};
@@ -325,7 +327,7 @@ TEST(ChangeDetection, ARecognitionInOneSurveyWithoutHeightChangeIsUncertain) {
   EXPECT_TRUE(r.regions.empty()) << r.regions.size() << " regions";
   ASSERT_EQ(r.objects.size(), 5u);
   EXPECT_EQ(r.objects[0].status, ObjectStatus::Unchanged);  // frame_0: both agree
-  const ObjectChange& relabel_a = r.objects[1];  // frame_1: a crate in B
+  const ObjectChange& relabel_a = r.objects[1];             // frame_1: a crate in B
   EXPECT_EQ(relabel_a.status, ObjectStatus::Uncertain);
   EXPECT_EQ(relabel_a.other_model, "crate");
   EXPECT_NE(relabel_a.reason.find("recognised in A as frame, in B as crate; no height change"),
@@ -341,8 +343,7 @@ TEST(ChangeDetection, ARecognitionInOneSurveyWithoutHeightChangeIsUncertain) {
   EXPECT_GT(missed.observed_fraction, 0.9);
   const ObjectChange& unseen = r.objects[3];  // crate_1: where the surveys have no data
   EXPECT_EQ(unseen.status, ObjectStatus::Uncertain);
-  EXPECT_NE(unseen.reason.find("not observed by both surveys"), std::string::npos)
-      << unseen.reason;
+  EXPECT_NE(unseen.reason.find("not observed by both surveys"), std::string::npos) << unseen.reason;
   const ObjectChange& relabel_b = r.objects[4];  // crate_2: B's crate over A's frame
   EXPECT_EQ(relabel_b.status, ObjectStatus::Uncertain);
   EXPECT_TRUE(relabel_b.in_b && !relabel_b.in_a);

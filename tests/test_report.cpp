@@ -1100,6 +1100,51 @@ json table(const json& data, const std::string& id) {
   return json::array();
 }
 
+// Issue 28: a world whose sphere is an unconfirmed placement (confidence 0.3 under the world's
+// 0.5): drawn grey and named so, listed with its confidence and status, counted on a card; a
+// graph.json naming it in a connection (which sonar3d world never writes) is one error line.
+TEST_F(SceneReportTest, WorldShowsUnconfirmedObjectsWithoutConnections) {
+  const fs::path w = root_ / "world_unconfirmed";
+  fs::remove_all(w);
+  fs::copy(root_ / "world", w, fs::copy_options::recursive);
+  fs::remove(w / "report.html");
+  const std::string graph = (w / "graph.json").string();
+  json g = json::parse(read_text_file(graph));
+  g["min_confidence"] = 0.5;
+  g["objects"][0]["confidence"] = 0.9;
+  g["objects"][0]["confirmed"] = true;
+  g["objects"][1]["confidence"] = 0.3;
+  g["objects"][1]["confirmed"] = false;
+  const json connections = g["connections"];
+  g["connections"] = json::array();
+  write_text_file(graph, g.dump());
+  const ReportSummary s = write_report(w, config());
+  const json d = embedded_data(read_text_file(s.output.string()));
+  const json* sphere = layer(d, "object_sphere_0");
+  ASSERT_NE(sphere, nullptr);
+  EXPECT_EQ((*sphere)["name"], "sphere_0 (unconfirmed)");
+  EXPECT_EQ((*layer(d, "object_tank_0"))["name"], "tank_0");
+  EXPECT_EQ(layer(d, "connections"), nullptr);
+  const json rows = table(d, "objects");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0][10], "confirmed");
+  EXPECT_DOUBLE_EQ(rows[1][9].get<double>(), 0.3);
+  EXPECT_EQ(rows[1][10], "unconfirmed");
+  bool card = false;
+  for (const auto& c : d["cards"]) card |= c["k"] == "unconfirmed" && c["v"] == 1;
+  EXPECT_TRUE(card) << d["cards"];
+
+  fs::remove(s.output);
+  g["connections"] = connections;  // tank_0 - sphere_0
+  write_text_file(graph, g.dump());
+  expect_error([&] { write_report(w, config()); },
+               {graph, "connections[0]", "'to'", "unconfirmed object ('sphere_0')"});
+  g["connections"] = json::array();
+  g["objects"][1]["confidence"] = 1.5;
+  write_text_file(graph, g.dump());
+  expect_error([&] { write_report(w, config()); }, {graph, "objects[1]", "'confidence'", "[0, 1]"});
+}
+
 // Issue 28: the change directory `sonar3d diff` writes for a pair where a recognition appears in
 // one survey only (a tank recognised in A, missed in B, over a site that did not change) is read
 // by report: the object is "uncertain", drawn where A placed it, with why; and a changes.json of
@@ -1128,8 +1173,7 @@ TEST_F(SceneReportTest, ChangesWithARecognitionInOneSurveyOnly) {
   const std::vector<SurveyPlacement> pa{{"tank", T_tank}};
   ChangeConfig cc;
   cc.registration.num_threads = 2;
-  const ChangeResult r =
-      diff_surveys(a, b, pa, {}, catalogue_object_models(cat, {"tank"}), cc);
+  const ChangeResult r = diff_surveys(a, b, pa, {}, catalogue_object_models(cat, {"tank"}), cc);
   ASSERT_EQ(r.objects.size(), 1u);
   ASSERT_EQ(r.objects[0].status, ObjectStatus::Uncertain) << r.objects[0].reason;
   const fs::path dir = root_ / "one_survey";

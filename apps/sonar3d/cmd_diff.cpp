@@ -166,9 +166,8 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         check_colour_cloud(colour_b, "--colour-b '" + o->colour_b + "'");
       }
       const bool colour = !o->colour_a.empty();
-      const ChangeResult r =
-          diff_surveys(a, b, pa, pb, models, cfg, colour ? &colour_a : nullptr,
-                       colour ? &colour_b : nullptr);
+      const ChangeResult r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &colour_a : nullptr,
+                                          colour ? &colour_b : nullptr);
       write_change_directory(o->output, r);
       const Eigen::Vector3d t = r.registration.T_a_b.translation();
       fmt::print(

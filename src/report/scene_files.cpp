@@ -268,8 +268,9 @@ ChangeSet parse_changes_json(const std::string& text, const std::string& path) {
       }
     }
     if (ob.status == "uncertain" && !ob.has_a && !ob.has_b) {
-      e.fail("T_world_model_a", "and 'T_world_model_b_in_a' are null: an uncertain object was "
-                                "recognised in at least one survey");
+      e.fail("T_world_model_a",
+             "and 'T_world_model_b_in_a' are null: an uncertain object was "
+             "recognised in at least one survey");
     }
     if (ob.status != "added" && ob.status != "uncertain" && !ob.has_a) {
       e.fail("T_world_model_a", "is null, but a " + ob.status + " object was in survey A");

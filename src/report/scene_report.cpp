@@ -481,9 +481,14 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
       const std::string asked = "'" + cpath.string() + "': objects[" + std::to_string(i) + "]";
       if (o.has_a) {
         scene.mesh("before_" + o.id,
-                   o.id + (same ? "" : unsure ? " (uncertain, survey A)" : " (before)"),
+                   o.id + (same     ? ""
+                           : unsure ? " (uncertain, survey A)"
+                                    : " (before)"),
                    models->placed(o.model, o.T_world_model_a, asked), {},
-                   same ? kSame : unsure ? kUnsure : kBefore, 0.35, true);
+                   same     ? kSame
+                   : unsure ? kUnsure
+                            : kBefore,
+                   0.35, true);
       }
       if (o.has_b && !same) {
         scene.mesh("after_" + o.id, o.id + (unsure ? " (uncertain, survey B)" : " (after)"),

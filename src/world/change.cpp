@@ -517,23 +517,22 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
   }
   // The model the other survey placed over an unpaired placement (another model, unpaired too,
   // within the larger of the two radii): the recognitions disagree on what stands there.
-  auto other_over = [&](const Eigen::Vector2d& c, const std::string& model, double rad,
-                        const std::vector<SurveyPlacement>& others,
-                        const std::vector<Eigen::Vector2d>& centres,
-                        const std::vector<ObjectModel>& other_models,
-                        const std::vector<long>& matched) {
-    std::string best;
-    double best_d = std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k < others.size(); ++k) {
-      if (matched[k] >= 0 || others[k].model == model) continue;
-      const double d = (centres[k] - c).norm();
-      if (d <= std::max(rad, radius(other_models[k])) && d < best_d) {
-        best_d = d;
-        best = others[k].model;
-      }
-    }
-    return best;
-  };
+  auto other_over =
+      [&](const Eigen::Vector2d& c, const std::string& model, double rad,
+          const std::vector<SurveyPlacement>& others, const std::vector<Eigen::Vector2d>& centres,
+          const std::vector<ObjectModel>& other_models, const std::vector<long>& matched) {
+        std::string best;
+        double best_d = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k < others.size(); ++k) {
+          if (matched[k] >= 0 || others[k].model == model) continue;
+          const double d = (centres[k] - c).norm();
+          if (d <= std::max(rad, radius(other_models[k])) && d < best_d) {
+            best_d = d;
+            best = others[k].model;
+          }
+        }
+        return best;
+      };
   std::map<std::string, int> count;
   std::vector<ObjectChange> out;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -942,8 +941,7 @@ namespace {
 // size — that belong to a reported region of height change, and the share both surveys
 // observed. A moved pair without it is unchanged; a one-survey recognition without it, or whose
 // footprint the surveys did not both observe, is uncertain.
-void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config,
-                          ChangeResult* r) {
+void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config, ChangeResult* r) {
   const ElevationMap& d = r->change_map;
   const double cell = d.cell_m;
   for (ObjectChange& o : r->objects) {
@@ -967,7 +965,8 @@ void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config
       shapes.push_back({T.inverse(), T.translation().head<2>(), T.translation().z()});
       if (m.has_size()) {
         for (int corner = 0; corner < 4; ++corner) {
-          const Eigen::Vector2d q = grown.corner(static_cast<Eigen::AlignedBox2d::CornerType>(corner));
+          const Eigen::Vector2d q =
+              grown.corner(static_cast<Eigen::AlignedBox2d::CornerType>(corner));
           window.extend((T * Eigen::Vector3d(q.x(), q.y(), 0)).head<2>());
         }
       } else {
@@ -990,9 +989,14 @@ void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config
     const int c1 = static_cast<int>(std::floor((window.max().x() - d.origin_xy.x()) / cell));
     const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - window.max().y()) / cell));
     const int r1 = static_cast<int>(std::floor((d.origin_xy.y() - window.min().y()) / cell));
+    // A footprint of a few hundred metres (a mesh in millimetres read as metres) is sampled every
+    // `stride` cells rather than cell by cell: at most ~4 M samples per object.
+    const double window_cells =
+        (static_cast<double>(r1) - r0 + 1) * (static_cast<double>(c1) - c0 + 1);
+    const int stride = std::max(1, static_cast<int>(std::ceil(std::sqrt(window_cells / 4e6))));
     std::size_t in_shape = 0, seen = 0, changed = 0;
-    for (int rr = r0; rr <= r1; ++rr) {
-      for (int cc = c0; cc <= c1; ++cc) {
+    for (int rr = r0; rr <= r1; rr += stride) {
+      for (int cc = c0; cc <= c1; cc += stride) {
         const Eigen::Vector2d xy(d.origin_xy.x() + (cc + 0.5) * cell,
                                  d.origin_xy.y() - (rr + 0.5) * cell);
         if (!inside(xy)) continue;
@@ -1002,7 +1006,7 @@ void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config
         changed += r->region_cell[d.index(rr, cc)] >= 0;
       }
     }
-    o.change_area_m2 = static_cast<double>(changed) * cell * cell;
+    o.change_area_m2 = static_cast<double>(changed) * (stride * cell) * (stride * cell);
     o.observed_fraction = in_shape > 0 ? static_cast<double>(seen) / in_shape : 0.0;
     const bool observed = 2 * seen >= in_shape && in_shape > 0;
     const bool confirmed = changed > 0 && o.change_area_m2 >= config.min_area_m2;
@@ -1017,9 +1021,10 @@ void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config
                             ? std::string("recognised in ") + here + " only"
                             : std::string("recognised in ") + here + " as " + o.model + ", in " +
                                   there + " as " + o.other_model;
-      why += observed ? fmt::format("; no height change within its footprint ({:.2f} m² of "
-                                    "change, {:.0f} % of it observed in both surveys)",
-                                    o.change_area_m2, 100 * o.observed_fraction)
+      why += observed ? fmt::format(
+                            "; no height change within its footprint ({:.2f} m² of "
+                            "change, {:.0f} % of it observed in both surveys)",
+                            o.change_area_m2, 100 * o.observed_fraction)
                       : fmt::format("; its footprint was not observed by both surveys ({:.0f} %)",
                                     100 * o.observed_fraction);
       o.reason = why;
@@ -1226,8 +1231,8 @@ ObjectModels catalogue_object_models(const Catalogue& catalogue,
     const TriangleMesh mesh = load_catalogue_mesh(catalogue, m);
     const Eigen::AlignedBox3f b = mesh.bounding_box();
     if (!b.isEmpty()) {
-      om.footprint = Eigen::AlignedBox2d(b.min().head<2>().cast<double>(),
-                                         b.max().head<2>().cast<double>());
+      om.footprint =
+          Eigen::AlignedBox2d(b.min().head<2>().cast<double>(), b.max().head<2>().cast<double>());
     }
   }
   return out;

@@ -91,8 +91,8 @@ double optional_number(const nlohmann::json& o, const char* key, const std::stri
 double optional_confidence(const nlohmann::json& o, const char* key, const std::string& where) {
   if (!o.contains(key) || o[key].is_null()) return std::numeric_limits<double>::quiet_NaN();
   const nlohmann::json& v = o[key];
-  require(v.is_number(), where + ": '" + key + "' must be a number in [0, 1], not " +
-                             std::string(v.type_name()));
+  require(v.is_number(),
+          where + ": '" + key + "' must be a number in [0, 1], not " + std::string(v.type_name()));
   const double c = v.get<double>();
   require(std::isfinite(c) && c >= 0 && c <= 1,
           where + ": '" + key + "' is " + fmt::format("{}", c) + ", not a number in [0, 1]");
@@ -307,7 +307,8 @@ double world_confidence_threshold(const PlacementsFile& placements, std::optiona
               "placements '" + placements.path + "': placement " + std::to_string(i) +
                   " has no 'confidence', so the threshold " + fmt::format("{}", t) + " (" + from +
                   ") cannot be checked: write the placements again with sonar3d recognize, or "
-                  "give " + param + " 0");
+                  "give " +
+                  param + " 0");
     }
   }
   return t;
@@ -316,8 +317,8 @@ double world_confidence_threshold(const PlacementsFile& placements, std::optiona
 std::size_t confirm_objects(std::vector<WorldObject>& objects, double min_confidence) {
   std::size_t unconfirmed = 0;
   for (WorldObject& o : objects) {
-    o.confirmed = std::isfinite(o.confidence) ? o.confidence >= min_confidence
-                                              : min_confidence <= 0;
+    o.confirmed =
+        std::isfinite(o.confidence) ? o.confidence >= min_confidence : min_confidence <= 0;
     unconfirmed += !o.confirmed;
   }
   return unconfirmed;
@@ -906,7 +907,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
       scene.meshes.push_back({mesh_name, *o.mesh_model, {}, o.confirmed ? steel : unconfirmed});
       mesh_of_model[mesh_name] = static_cast<int>(scene.meshes.size()) - 1;
     }
-    scene.nodes.push_back({o.confirmed ? o.id : o.id + " (unconfirmed)", mesh_of_model[mesh_name],
+    scene.nodes.push_back({o.confirmed ? o.id : o.id + " (unconfirmed)",
+                           mesh_of_model[mesh_name],
                            o.T_world_model.matrix(),
                            {}});
     scene.nodes[0].children.push_back(static_cast<int>(scene.nodes.size()) - 1);

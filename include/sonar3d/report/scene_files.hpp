@@ -47,7 +47,7 @@ struct ChangedObject {
   // wrote a one-survey recognition that the heights did not confirm as "unchanged" with one pose
   // null: it is read as "uncertain" (what it was).
   std::string id, model, status;
-  std::string reason;      // why an object is uncertain (empty otherwise or when absent)
+  std::string reason;       // why an object is uncertain (empty otherwise or when absent)
   std::string other_model;  // the other survey's model over it, when another (empty: none)
   bool has_a = false, has_b = false;
   Eigen::Matrix4d T_world_model_a = Eigen::Matrix4d::Identity();       // survey A, A's frame

@@ -184,8 +184,8 @@ struct ObjectChange {
   bool in_a = false, in_b = false;
   Eigen::Isometry3d T_world_model_a = Eigen::Isometry3d::Identity();       // when in_a
   Eigen::Isometry3d T_world_model_b_in_a = Eigen::Isometry3d::Identity();  // when in_b: T_a_b·T_b
-  double shift_m = 0;   // horizontal distance between the centres (both present), m
-  double turn_deg = 0;  // yaw difference modulo the symmetry, in [0, 180] (both present)
+  double shift_m = 0;         // horizontal distance between the centres (both present), m
+  double turn_deg = 0;        // yaw difference modulo the symmetry, in [0, 180] (both present)
   double match_radius_m = 0;  // the radius it was paired over (ChangeConfig), m
   // Recognition's confidence of each survey's placement (PlacementRecord); NaN: unknown/absent.
   double confidence_a = std::numeric_limits<double>::quiet_NaN();
@@ -299,9 +299,9 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
 // The whole comparison: B registered onto A, its placements (if any) moved into A's frame and
 // compared with A's, the height change map with its regions, and each object change weighed
 // against the height change inside its footprint (ChangeConfig: moved, added and removed need
-// it; without it a pair is unchanged and a one-survey recognition uncertain). `pa`, `pb` may both be empty
-// (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each survey in
-// its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
+// it; without it a pair is unchanged and a one-survey recognition uncertain). `pa`, `pb` may both
+// be empty (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each
+// survey in its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
 // compare_colour after B's is moved by T_a_b.
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
