@@ -255,6 +255,12 @@ TEST(ChangeDetection, TurnsAreSymmetryAware) {
   EXPECT_EQ(c[4].id, "riser_2");
 }
 
+// A model of `sx` × `sy` m centred on its origin (its footprint, as catalogue_object_models gives).
+static ObjectModel sized(Symmetry symmetry, double sx, double sy) {
+  return {symmetry,
+          Eigen::AlignedBox2d(Eigen::Vector2d(-sx / 2, -sy / 2), Eigen::Vector2d(sx / 2, sy / 2))};
+}
+
 // Issue 28: a structure that moved 1.07 m and turned 30° is one object moved, with that shift
 // and turn — paired over a radius that scales with it (its footprint's half diagonal, 1.17 m),
 // not the fixed 1 m that split it into one removed and one added. A crate really taken away
@@ -264,12 +270,8 @@ TEST(ChangeDetection, ALargeStructureMovedAMetreAndTurnedIsMoved) {
   const Box big_b{0.1, 0.58, 2.0, 1.2, 40, 0.4};  // 1.0 m East, 0.38 m North: 1.07 m; +30°
   const PointCloud a = survey({big_a, kRemoved}, 0.005, 11);
   const PointCloud b = survey({big_b}, 0.008, 12, kTbA);
-  const ObjectModels models{{"frame",
-                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-1.0, -0.6),
-                                                                  Eigen::Vector2d(1.0, 0.6))}},
-                            {"crate",
-                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
-                                                                  Eigen::Vector2d(0.3, 0.3))}}};
+  const ObjectModels models{{"frame", sized(Symmetry::None, 2.0, 1.2)},
+                            {"crate", sized(Symmetry::None, 0.6, 0.6)}};
   const std::vector<SurveyPlacement> pa{placed("frame", big_a), placed("crate", kRemoved)};
   const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", big_b).T_world_model}};
   const ChangeResult r = diff_surveys(a, b, pa, pb, models, test_config());
@@ -312,12 +314,8 @@ TEST(ChangeDetection, ARecognitionInOneSurveyWithoutHeightChangeIsUncertain) {
   const std::vector<Box> site{kStay, kMoveA, kRemoved};
   const PointCloud a = survey(site, 0.005, 13);
   const PointCloud b = survey(site, 0.008, 14, kTbA);
-  const ObjectModels models{{"frame",
-                             {Symmetry::Half, Eigen::AlignedBox2d(Eigen::Vector2d(-0.6, -0.3),
-                                                                  Eigen::Vector2d(0.6, 0.3))}},
-                            {"crate",
-                             {Symmetry::None, Eigen::AlignedBox2d(Eigen::Vector2d(-0.3, -0.3),
-                                                                  Eigen::Vector2d(0.3, 0.3))}}};
+  const ObjectModels models{{"frame", sized(Symmetry::Half, 1.2, 0.6)},
+                            {"crate", sized(Symmetry::None, 0.6, 0.6)}};
   const Box outside{12.0, 9.0, 0.6, 0.6, 0, 0.3};  // beyond both surveys
   const std::vector<SurveyPlacement> pa{placed("frame", kStay), placed("frame", kMoveA),
                                         placed("crate", kRemoved), placed("crate", outside)};
