@@ -716,8 +716,11 @@ void add_given_connections(WorldModel& world, const std::vector<GivenConnection>
     }
     for (const std::string* id : {&g.from, &g.to}) {
       const WorldObject& o = world.objects[index[*id]];
-      require(o.confirmed, at + ": '" + *id + "' is an unconfirmed placement (confidence " +
-                               fmt::format("{:.2f}", o.confidence) + " below the threshold " +
+      const std::string conf = std::isfinite(o.confidence)
+                                   ? "confidence " + fmt::format("{:.2f}", o.confidence)
+                                   : std::string("confidence unknown");
+      require(o.confirmed, at + ": '" + *id + "' is an unconfirmed placement (" + conf +
+                               " below the threshold " +
                                fmt::format("{:.2f}", world.min_confidence) +
                                "): it is not connected; lower --min-confidence to connect it");
     }
