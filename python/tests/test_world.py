@@ -48,14 +48,20 @@ def test_world_model_refuses_an_unknown_model(tmp_path):
         sonar3d.world_model(pts, str(placements), str(cat))
 
 
-def test_world_model_given_connections(tmp_path):
-    # Two tanks on a flat seabed with no pipe between them: a connection given in YAML is kept,
-    # with the distance between the footprints, marked given and not found.
+def flat_seabed_and_tank_catalogue(tmp_path):
+    """A flat 12 x 4 m seabed at z = -1 (points every 5 cm) and a catalogue of the reference tank."""
     step = 0.05
     xs, ys = np.meshgrid(np.arange(0, 12, step), np.arange(0, 4, step))
     pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
     cat = tmp_path / "cat.yaml"
     cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    return pts, cat
+
+
+def test_world_model_given_connections(tmp_path):
+    # Two tanks on a flat seabed with no pipe between them: a connection given in YAML is kept,
+    # with the distance between the footprints, marked given and not found.
+    pts, cat = flat_seabed_and_tank_catalogue(tmp_path)
     placements = tmp_path / "p.json"
     placements.write_text(json.dumps({
         "format": "sonar3d-placements", "version": 1,
@@ -107,11 +113,7 @@ def test_world_model_seabed_colours(tmp_path):
 def test_world_model_confidence_threshold(tmp_path):
     # Two tanks, one below the file's threshold: unconfirmed (listed, never connected), and a
     # connection given to it refused; min_confidence overrides the file's threshold.
-    step = 0.05
-    xs, ys = np.meshgrid(np.arange(0, 12, step), np.arange(0, 4, step))
-    pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
-    cat = tmp_path / "cat.yaml"
-    cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    pts, cat = flat_seabed_and_tank_catalogue(tmp_path)
     placements = tmp_path / "p.json"
     placements.write_text(json.dumps({
         "format": "sonar3d-placements", "version": 1, "settings": {"min_confidence": 0.5},
