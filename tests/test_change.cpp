@@ -155,7 +155,7 @@ TEST(ChangeDetection, IdenticalSurveysWithDifferentNoiseGiveNoChange) {
   for (const SurveyPlacement& p : pa) {
     pb.push_back({p.model, kTbA * pose(0.01, -0.005, 0, 0.5) * p.T_world_model});
   }
-  const std::map<std::string, Symmetry> sym{{"frame", Symmetry::Half}, {"crate", Symmetry::None}};
+  const ObjectModels sym{{"frame", {Symmetry::Half}}, {"crate", {Symmetry::None}}};
   const ChangeResult r = diff_surveys(a, b, pa, pb, sym, test_config());
   EXPECT_TRUE(r.regions.empty()) << r.regions.size() << " regions, the first at "
                                  << r.regions[0].centroid.transpose();
@@ -179,7 +179,7 @@ TEST(ChangeDetection, SyntheticPairGivesExactlyItsChanges) {
   const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", kStay).T_world_model},
                                         {"frame", kTbA * placed("frame", kMoveB).T_world_model},
                                         {"crate", kTbA * placed("crate", kAdded).T_world_model}};
-  const std::map<std::string, Symmetry> sym{{"frame", Symmetry::Half}, {"crate", Symmetry::None}};
+  const ObjectModels sym{{"frame", {Symmetry::Half}}, {"crate", {Symmetry::None}}};
   const ChangeResult r = diff_surveys(a, b, pa, pb, sym, test_config());
   ASSERT_EQ(r.objects.size(), 4u);
   EXPECT_EQ(r.objects[0].id, "frame_0");
@@ -233,8 +233,8 @@ TEST(ChangeDetection, SyntheticPairGivesExactlyItsChanges) {
 // Turns are compared modulo the model's symmetry; an object beyond the match radius is one
 // removed and one added.
 TEST(ChangeDetection, TurnsAreSymmetryAware) {
-  const std::map<std::string, Symmetry> sym{
-      {"tank", Symmetry::Full}, {"pillar", Symmetry::Half}, {"riser", Symmetry::None}};
+  const ObjectModels sym{
+      {"tank", {Symmetry::Full}}, {"pillar", {Symmetry::Half}}, {"riser", {Symmetry::None}}};
   const std::vector<SurveyPlacement> a{{"tank", pose(0, 0, 0, 0)},
                                        {"pillar", pose(5, 0, 0, 10)},
                                        {"riser", pose(10, 0, 0, 350)},
@@ -255,12 +255,117 @@ TEST(ChangeDetection, TurnsAreSymmetryAware) {
   EXPECT_EQ(c[4].id, "riser_2");
 }
 
+// A model of `sx` × `sy` m centred on its origin (its footprint, as catalogue_object_models gives).
+static ObjectModel sized(Symmetry symmetry, double sx, double sy) {
+  return {symmetry,
+          Eigen::AlignedBox2d(Eigen::Vector2d(-sx / 2, -sy / 2), Eigen::Vector2d(sx / 2, sy / 2))};
+}
+
+// Issue 28: a structure that moved 1.07 m and turned 30° is one object moved, with that shift
+// and turn — paired over a radius that scales with it (its footprint's half diagonal, 1.17 m),
+// not the fixed 1 m that split it into one removed and one added. A crate really taken away
+// (its heights are gone) stays removed.
+TEST(ChangeDetection, ALargeStructureMovedAMetreAndTurnedIsMoved) {
+  const Box big_a{-0.9, 0.2, 2.0, 1.2, 10, 0.4};
+  const Box big_b{0.1, 0.58, 2.0, 1.2, 40, 0.4};  // 1.0 m East, 0.38 m North: 1.07 m; +30°
+  const PointCloud a = survey({big_a, kRemoved}, 0.005, 11);
+  const PointCloud b = survey({big_b}, 0.008, 12, kTbA);
+  const ObjectModels models{{"frame", sized(Symmetry::None, 2.0, 1.2)},
+                            {"crate", sized(Symmetry::None, 0.6, 0.6)}};
+  const std::vector<SurveyPlacement> pa{placed("frame", big_a), placed("crate", kRemoved)};
+  const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", big_b).T_world_model}};
+  const ChangeResult r = diff_surveys(a, b, pa, pb, models, test_config());
+  ASSERT_EQ(r.objects.size(), 2u);
+  const ObjectChange& f = r.objects[0];
+  EXPECT_EQ(f.id, "frame_0");
+  EXPECT_EQ(f.status, ObjectStatus::Moved);
+  EXPECT_TRUE(f.in_a && f.in_b);
+  EXPECT_NEAR(f.shift_m, std::hypot(1.0, 0.38), 0.03);  // registration within 2.5 cm
+  EXPECT_NEAR(f.turn_deg, 30, 0.3);
+  EXPECT_NEAR(f.match_radius_m, std::hypot(1.0, 0.6), 1e-9);
+  EXPECT_GT(f.change_area_m2, 1.0);  // where it stood and where it stands now
+  EXPECT_TRUE(f.reason.empty());
+  EXPECT_EQ(r.objects[1].id, "crate_0");
+  EXPECT_EQ(r.objects[1].status, ObjectStatus::Removed);
+  EXPECT_NEAR(r.objects[1].change_area_m2, 0.36, 0.12);
+
+  // The same placements with sizes unknown: the fixed 1 m radius splits the frame in two.
+  std::vector<SurveyPlacement> pb_in_a = pb;
+  for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
+  const auto fixed = compare_placements(pa, pb_in_a, {}, test_config());
+  ASSERT_EQ(fixed.size(), 3u);
+  EXPECT_EQ(fixed[0].status, ObjectStatus::Removed);
+  EXPECT_EQ(fixed[2].status, ObjectStatus::Added);
+
+  // changes.json: shift, turn and the evidence per object.
+  const nlohmann::json j = nlohmann::json::parse(changes_json(r));
+  EXPECT_EQ(j["objects"][0]["status"], "moved");
+  EXPECT_NEAR(j["objects"][0]["shift_m"].get<double>(), f.shift_m, 1e-9);
+  EXPECT_NEAR(j["objects"][0]["turn_deg"].get<double>(), f.turn_deg, 1e-9);
+  EXPECT_GT(j["objects"][0]["change_area_m2"].get<double>(), 1.0);
+  EXPECT_TRUE(j["objects"][0]["reason"].is_null());
+  EXPECT_DOUBLE_EQ(j["thresholds"]["match_radius_factor"].get<double>(), 1.0);
+}
+
+// Issue 28: recognitions that disagree between surveys over a site that did not change — a
+// structure missed in B, one recognised as another model in B, one placed where neither survey
+// looked — are uncertain (with why), never added or removed; the agreeing one is unchanged.
+TEST(ChangeDetection, ARecognitionInOneSurveyWithoutHeightChangeIsUncertain) {
+  const std::vector<Box> site{kStay, kMoveA, kRemoved};
+  const PointCloud a = survey(site, 0.005, 13);
+  const PointCloud b = survey(site, 0.008, 14, kTbA);
+  const ObjectModels models{{"frame", sized(Symmetry::Half, 1.2, 0.6)},
+                            {"crate", sized(Symmetry::None, 0.6, 0.6)}};
+  const Box outside{12.0, 9.0, 0.6, 0.6, 0, 0.3};  // beyond both surveys
+  const std::vector<SurveyPlacement> pa{placed("frame", kStay), placed("frame", kMoveA),
+                                        placed("crate", kRemoved), placed("crate", outside)};
+  const std::vector<SurveyPlacement> pb{{"frame", kTbA * placed("frame", kStay).T_world_model},
+                                        {"crate", kTbA * placed("crate", kMoveA).T_world_model}};
+  const ChangeResult r = diff_surveys(a, b, pa, pb, models, test_config());
+  EXPECT_TRUE(r.regions.empty()) << r.regions.size() << " regions";
+  ASSERT_EQ(r.objects.size(), 5u);
+  EXPECT_EQ(r.objects[0].status, ObjectStatus::Unchanged);  // frame_0: both agree
+  const ObjectChange& relabel_a = r.objects[1];             // frame_1: a crate in B
+  EXPECT_EQ(relabel_a.status, ObjectStatus::Uncertain);
+  EXPECT_EQ(relabel_a.other_model, "crate");
+  EXPECT_NE(relabel_a.reason.find("recognised in A as frame, in B as crate; no height change"),
+            std::string::npos)
+      << relabel_a.reason;
+  const ObjectChange& missed = r.objects[2];  // crate_0: not recognised in B
+  EXPECT_EQ(missed.status, ObjectStatus::Uncertain);
+  EXPECT_TRUE(missed.other_model.empty());
+  EXPECT_NE(missed.reason.find("recognised in A only; no height change within its footprint"),
+            std::string::npos)
+      << missed.reason;
+  EXPECT_EQ(missed.change_area_m2, 0.0);
+  EXPECT_GT(missed.observed_fraction, 0.9);
+  const ObjectChange& unseen = r.objects[3];  // crate_1: where the surveys have no data
+  EXPECT_EQ(unseen.status, ObjectStatus::Uncertain);
+  EXPECT_NE(unseen.reason.find("not observed by both surveys"), std::string::npos) << unseen.reason;
+  const ObjectChange& relabel_b = r.objects[4];  // crate_2: B's crate over A's frame
+  EXPECT_EQ(relabel_b.status, ObjectStatus::Uncertain);
+  EXPECT_TRUE(relabel_b.in_b && !relabel_b.in_a);
+  EXPECT_EQ(relabel_b.other_model, "frame");
+
+  // Written and read back by sonar3d report's reader (a one-survey object is no longer an
+  // "unchanged" one with a null pose).
+  const fs::path dir = test::temp_dir("uncertain");
+  write_change_directory((dir / "D").string(), r);
+  const std::string text = read_text_file((dir / "D/changes.json").string());
+  const nlohmann::json j = nlohmann::json::parse(text);
+  EXPECT_EQ(j["objects"][2]["status"], "uncertain");
+  EXPECT_TRUE(j["objects"][2]["T_world_model_b_in_a"].is_null());
+  EXPECT_EQ(j["objects"][4]["other_model"], "frame");
+  EXPECT_NE(j["objects"][2]["reason"].get<std::string>().find("A only"), std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST(ChangeDetection, BadInputsGiveClearErrors) {
   // A placement of a model the catalogue does not list.
   test::expect_error(
       [] {
         compare_placements({{"tank", pose(0, 0, 0, 0)}}, {{"valve", pose(0, 0, 0, 0)}},
-                           {{"tank", Symmetry::Full}}, test_config());
+                           {{"tank", {Symmetry::Full}}}, test_config());
       },
       "placement 0 is a model 'valve' that the catalogue does not list");
   // Surveys that do not overlap.

@@ -31,6 +31,7 @@
 #include "sonar3d/report/report.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/video/texture_mesh.hpp"
+#include "sonar3d/world/change.hpp"
 
 namespace fs = std::filesystem;
 // ordered_json, as the planner writes results.json: the axes keep the sweep's order.
@@ -1090,6 +1091,128 @@ TEST_F(SceneReportTest, ChangesShowPointsObjectsAndRegions) {
         {{"layer", "change_points"}, {"index", 20 * 40 + 20}, {"hue", "white"}}}},
       {"mode_change", true}};
   run_scene_browser_test(s.output, expect, "changes");
+}
+
+// The rows of a page's table.
+json table(const json& data, const std::string& id) {
+  for (const auto& t : data["tables"])
+    if (t["id"] == id) return t["rows"];
+  return json::array();
+}
+
+// Issue 28: a world whose sphere is an unconfirmed placement (confidence 0.3 under the world's
+// 0.5): drawn grey and named so, listed with its confidence and status, counted on a card; a
+// graph.json naming it in a connection (which sonar3d world never writes) is one error line.
+TEST_F(SceneReportTest, WorldShowsUnconfirmedObjectsWithoutConnections) {
+  const fs::path w = root_ / "world_unconfirmed";
+  fs::remove_all(w);
+  fs::copy(root_ / "world", w, fs::copy_options::recursive);
+  fs::remove(w / "report.html");
+  const std::string graph = (w / "graph.json").string();
+  json g = json::parse(read_text_file(graph));
+  g["min_confidence"] = 0.5;
+  g["objects"][0]["confidence"] = 0.9;
+  g["objects"][0]["confirmed"] = true;
+  g["objects"][1]["confidence"] = 0.3;
+  g["objects"][1]["confirmed"] = false;
+  const json connections = g["connections"];
+  g["connections"] = json::array();
+  write_text_file(graph, g.dump());
+  const ReportSummary s = write_report(w, config());
+  const json d = embedded_data(read_text_file(s.output.string()));
+  const json* sphere = layer(d, "object_sphere_0");
+  ASSERT_NE(sphere, nullptr);
+  EXPECT_EQ((*sphere)["name"], "sphere_0 (unconfirmed)");
+  EXPECT_EQ((*layer(d, "object_tank_0"))["name"], "tank_0");
+  EXPECT_EQ(layer(d, "connections"), nullptr);
+  const json rows = table(d, "objects");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0][10], "confirmed");
+  EXPECT_DOUBLE_EQ(rows[1][9].get<double>(), 0.3);
+  EXPECT_EQ(rows[1][10], "unconfirmed");
+  bool card = false;
+  for (const auto& c : d["cards"]) card |= c["k"] == "unconfirmed" && c["v"] == 1;
+  EXPECT_TRUE(card) << d["cards"];
+
+  fs::remove(s.output);
+  g["connections"] = connections;  // tank_0 - sphere_0
+  write_text_file(graph, g.dump());
+  expect_error([&] { write_report(w, config()); },
+               {graph, "connections[0]", "'to'", "unconfirmed object ('sphere_0')"});
+  g["connections"] = json::array();
+  g["objects"][1]["confidence"] = 1.5;
+  write_text_file(graph, g.dump());
+  expect_error([&] { write_report(w, config()); }, {graph, "objects[1]", "'confidence'", "[0, 1]"});
+}
+
+// Issue 28: the change directory `sonar3d diff` writes for a pair where a recognition appears in
+// one survey only (a tank recognised in A, missed in B, over a site that did not change) is read
+// by report: the object is "uncertain", drawn where A placed it, with why; and a changes.json of
+// an older diff (that object written "unchanged" with B's pose null) is read as uncertain too.
+TEST_F(SceneReportTest, ChangesWithARecognitionInOneSurveyOnly) {
+  // The same bumpy 6 × 5 m site in both surveys, B's world offset by a navigation error.
+  auto site = [](double x, double y) {
+    double z = 0.15 * std::sin(0.9 * x) * std::cos(0.7 * y) + 0.05 * std::sin(2.1 * x + 1.3 * y);
+    for (const auto& r : {std::array<double, 3>{1.5, 1.2, 0.2}, {4.2, 3.5, 0.15}, {2.8, 0.6, 0.1}})
+      z += r[2] * std::exp(-((x - r[0]) * (x - r[0]) + (y - r[1]) * (y - r[1])) / 0.05);
+    return z;
+  };
+  Eigen::Isometry3d T_b_a = Eigen::Isometry3d::Identity();
+  T_b_a.linear() = Eigen::AngleAxisd(0.8 * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T_b_a.translation() = Eigen::Vector3d(0.12, -0.08, 0.03);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, 0.004);
+  PointCloud a, b;
+  for (double x = 0; x <= 6; x += 0.03)
+    for (double y = 0; y <= 5; y += 0.03) {
+      a.points.emplace_back(x, y, site(x, y) + noise(rng));
+      b.points.push_back((T_b_a * Eigen::Vector3d(x, y, site(x, y) + noise(rng))).cast<float>());
+    }
+  const Catalogue cat = read_catalogue((root_ / "catalogue.yaml").string());
+  const Eigen::Isometry3d T_tank(pose_xyz_yaw(3.5, 2.5, site(3.5, 2.5), 0));
+  const std::vector<SurveyPlacement> pa{{"tank", T_tank}};
+  ChangeConfig cc;
+  cc.registration.num_threads = 2;
+  const ChangeResult r = diff_surveys(a, b, pa, {}, catalogue_object_models(cat, {"tank"}), cc);
+  ASSERT_EQ(r.objects.size(), 1u);
+  ASSERT_EQ(r.objects[0].status, ObjectStatus::Uncertain) << r.objects[0].reason;
+  const fs::path dir = root_ / "one_survey";
+  fs::remove_all(dir);
+  write_change_directory(dir.string(), r);
+
+  ReportConfig cfg = config();
+  cfg.catalogue = root_ / "catalogue.yaml";
+  const ReportSummary s = write_report(dir, cfg);
+  const json d = embedded_data(read_text_file(s.output.string()));
+  const json rows = table(d, "objects");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0][0], "tank_0");
+  EXPECT_EQ(rows[0][2], "uncertain");
+  EXPECT_TRUE(rows[0][5].is_array());  // where A placed it
+  EXPECT_TRUE(rows[0][6].is_null());   // B placed nothing
+  EXPECT_NE(rows[0][8].get<std::string>().find("recognised in A only"), std::string::npos)
+      << rows[0];
+  EXPECT_NE(layer(d, "before_tank_0"), nullptr);  // the model where A placed it
+  EXPECT_EQ(layer(d, "after_tank_0"), nullptr);
+
+  // An older diff's file: the same object as "unchanged" with B's pose null.
+  const std::string cj = (dir / "changes.json").string();
+  json old = json::parse(read_text_file(cj));
+  old["objects"][0]["status"] = "unchanged";
+  for (const char* k : {"reason", "other_model", "change_area_m2", "observed_fraction"})
+    old["objects"][0].erase(k);
+  write_text_file(cj, old.dump());
+  fs::remove(s.output);
+  const json d2 = embedded_data(read_text_file(write_report(dir, config()).output.string()));
+  const json rows2 = table(d2, "objects");
+  ASSERT_EQ(rows2.size(), 1u);
+  EXPECT_EQ(rows2[0][2], "uncertain");
+  EXPECT_NE(rows2[0][8].get<std::string>().find("older file"), std::string::npos) << rows2[0];
+  // An uncertain object needs at least one survey's pose; a moved one both (one clear line).
+  old["objects"][0]["status"] = "uncertain";
+  old["objects"][0]["T_world_model_a"] = nullptr;
+  write_text_file(cj, old.dump());
+  expect_error([&] { write_report(dir, config()); }, {cj, "objects[0]", "uncertain"});
 }
 
 // Colour change (sonar3d diff --colour-a/--colour-b): its regions as a table with the colours

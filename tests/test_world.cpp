@@ -3,12 +3,15 @@
 #include <assimp/scene.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 
 #include "sonar3d/core/atomic_file.hpp"
@@ -49,6 +52,8 @@ PointCloud surface_points(double x0, double x1, double y0, double y1, double ste
   }
   return c;
 }
+
+const aiNode* find_node(const aiNode* n, const std::string& name);
 
 // A unit cube [−0.5, 0.5]² × [0, 1] (model frame: base at z = 0).
 TriangleMesh cube() {
@@ -226,6 +231,67 @@ TEST(WorldConnections, APipelineRidgeJoinsTwoStructures) {
 
   const PointCloud bare = pipeline_site(false, &objs);
   EXPECT_TRUE(build_world_model(bare, objs, cfg).connections.empty());
+}
+
+// Issue 28: `world` connects only placements at or above the confidence threshold. The pipeline
+// site's two boxes are joined by a ridge; with box_1 below the threshold no connection is drawn
+// to it (the ridge is still there), its points stay in the seabed, it is kept and listed as
+// unconfirmed (graph.json, a grey node in world.glb), and a connection given to it is refused.
+TEST(WorldConnections, NoConnectionToAPlacementBelowTheThreshold) {
+  std::vector<WorldObject> objs;
+  const PointCloud c = pipeline_site(true, &objs);
+  objs[0].confidence = 0.9;
+  objs[1].confidence = 0.3;
+  objs[2].confidence = 0.8;
+  WorldModelConfig cfg;
+  cfg.seabed.lod_cells_m = {0.05};
+  cfg.min_confidence = 0.2;  // all three confirmed: the ridge joins box_0 and box_1
+  const WorldModel all = build_world_model(c, objs, cfg);
+  ASSERT_EQ(all.connections.size(), 1u);
+  EXPECT_EQ(all.connections[0].to, "box_1");
+
+  cfg.min_confidence = 0.5;
+  WorldModel w = build_world_model(c, objs, cfg);
+  EXPECT_TRUE(w.connections.empty()) << w.connections[0].from << " - " << w.connections[0].to;
+  ASSERT_EQ(w.objects.size(), 3u);
+  EXPECT_TRUE(w.objects[0].confirmed);
+  EXPECT_FALSE(w.objects[1].confirmed);
+  EXPECT_TRUE(w.objects[2].confirmed);
+  EXPECT_DOUBLE_EQ(w.min_confidence, 0.5);
+  // The points box_1 would explain (its 20,000 surface samples and the seabed within its grown
+  // box) are not explained by it: they stay in the seabed.
+  const std::vector<std::uint8_t> by_box_1 = explained_points(c, {objs[1]}, cfg.seabed.margin_m);
+  const auto n1 = static_cast<std::size_t>(std::count(by_box_1.begin(), by_box_1.end(), 1));
+  EXPECT_GE(n1, 20000u);
+  EXPECT_EQ(w.seabed_points, all.seabed_points + n1);
+  // A placement of unknown confidence is unconfirmed under any threshold above 0.
+  std::vector<WorldObject> unknown = objs;
+  unknown[1].confidence = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(build_world_model(c, unknown, cfg).connections.empty());
+  EXPECT_EQ(confirm_objects(unknown, 0.0), 0u);  // threshold 0: every placement, as before
+
+  const fs::path d = temp_dir("unconfirmed");
+  write_text_file((d / "c.yaml").string(), "connections:\n  - {from: box_0, to: box_1}\n");
+  expect_error(
+      [&] {
+        add_given_connections(w, read_given_connections((d / "c.yaml").string()),
+                              (d / "c.yaml").string(), cfg.seabed.margin_m);
+      },
+      "c.yaml:2: 'box_1' is an unconfirmed placement (confidence 0.30 below the threshold 0.50)");
+  EXPECT_TRUE(w.connections.empty());
+
+  write_world_model(d / "W", w, {});
+  const nlohmann::json g = nlohmann::json::parse(read_text_file((d / "W" / "graph.json").string()));
+  EXPECT_DOUBLE_EQ(g["min_confidence"].get<double>(), 0.5);
+  EXPECT_EQ(g["objects"][1]["confirmed"], false);
+  EXPECT_DOUBLE_EQ(g["objects"][1]["confidence"].get<double>(), 0.3);
+  EXPECT_EQ(g["objects"][0]["confirmed"], true);
+  EXPECT_TRUE(g["connections"].empty());
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile((d / "W" / "world.glb").string(), 0);
+  ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+  EXPECT_NE(find_node(scene->mRootNode, "box_1 (unconfirmed)"), nullptr);
+  EXPECT_NE(find_node(scene->mRootNode, "box_0"), nullptr);
 }
 
 // Connections the user gives: a pair also found keeps its measured length and is marked given;
@@ -583,6 +649,68 @@ TEST(WorldInputs, PlacementsReadAndRefused) {
   expect_error([&] { read_placements((d / "missing.json").string()); }, "no such file");
 }
 
+// Confidence (issue 28): read per placement and from settings.min_confidence; the threshold the
+// world applies (asked, else the file's, else 0); bad values are one line naming the file, the
+// placement and the key.
+TEST(WorldInputs, ConfidenceReadAndRefused) {
+  const fs::path d = temp_dir("confidence");
+  auto file = [](const std::string& c0, const std::string& c1, const std::string& settings) {
+    return R"({"format": "sonar3d-placements", "version": 1, )" + settings +
+           R"("placements": [{"model": "tank", "T_world_model": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])" +
+           c0 +
+           R"(}, {"model": "tank", "T_world_model": [[1,0,0,5],[0,1,0,0],[0,0,1,0],[0,0,0,1]])" +
+           c1 + "}]}";
+  };
+  const std::string path = (d / "p.json").string();
+  write_text_file(path, file(R"(, "confidence": 0.82)", R"(, "confidence": 0.31)",
+                             R"("settings": {"min_confidence": 0.6}, )"));
+  const PlacementsFile p = read_placements(path);
+  EXPECT_DOUBLE_EQ(p.placements[0].confidence, 0.82);
+  EXPECT_DOUBLE_EQ(p.placements[1].confidence, 0.31);
+  EXPECT_DOUBLE_EQ(p.min_confidence, 0.6);
+  EXPECT_DOUBLE_EQ(world_confidence_threshold(p, std::nullopt), 0.6);  // the file's
+  EXPECT_DOUBLE_EQ(world_confidence_threshold(p, 0.25), 0.25);         // asked
+  std::vector<WorldObject> objs = world_objects(p, {"tank"}, {cube()}, "c.yaml");
+  EXPECT_DOUBLE_EQ(objs[1].confidence, 0.31);
+  EXPECT_EQ(confirm_objects(objs, 0.6), 1u);
+  EXPECT_TRUE(objs[0].confirmed);
+  EXPECT_FALSE(objs[1].confirmed);
+  expect_error([&] { world_confidence_threshold(p, 1.5); },
+               "--min-confidence: 1.5 is not a confidence in [0, 1]");
+
+  // An older file: no confidence, no threshold: read as before (unknown, threshold 0); asking
+  // for a threshold on it is refused, naming the file and the placement.
+  write_text_file(path, file("", "", ""));
+  const PlacementsFile old = read_placements(path);
+  EXPECT_TRUE(std::isnan(old.placements[0].confidence));
+  EXPECT_TRUE(std::isnan(old.min_confidence));
+  EXPECT_DOUBLE_EQ(world_confidence_threshold(old, std::nullopt), 0.0);
+  EXPECT_DOUBLE_EQ(world_confidence_threshold(old, 0.0), 0.0);
+  expect_error([&] { world_confidence_threshold(old, 0.5); },
+               "placements '" + path + "': placement 0 has no 'confidence'");
+
+  auto refused = [&](const std::string& text, const std::string& needle) {
+    write_text_file((d / "bad.json").string(), text);
+    try {
+      read_placements((d / "bad.json").string());
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(needle), std::string::npos) << what;
+      EXPECT_NE(what.find((d / "bad.json").string()), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;  // one line
+    }
+  };
+  refused(file(R"(, "confidence": 0.5)", R"(, "confidence": 1.5)", ""),
+          "placement 1: 'confidence' is 1.5, not a number in [0, 1]");
+  refused(file(R"(, "confidence": -0.2)", "", ""),
+          "placement 0: 'confidence' is -0.2, not a number in [0, 1]");
+  refused(file(R"(, "confidence": "high")", "", ""),
+          "placement 0: 'confidence' must be a number in [0, 1], not string");
+  refused(file("", "", R"("settings": {"min_confidence": 2}, )"),
+          "settings: 'min_confidence' is 2, not a number in [0, 1]");
+}
+
 TEST(WorldInputs, EmptyMapAndBadConfigRefused) {
   expect_error([&] { build_world_model(PointCloud{}, {}, {}); }, "holds no points");
   WorldModelConfig cfg;
@@ -670,6 +798,40 @@ TEST(WorldCli, BuildsAWorldModelAndRefusesBadInputs) {
                            (d / "W8").string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("carries no colours"), std::string::npos) << r.out;
+
+  // Confidence (issue 28): below the file's threshold the tank is unconfirmed and says so;
+  // --min-confidence overrides the file's; a bad confidence is one line naming file and key.
+  const std::string T = "[[0, -1, 0, 4], [1, 0, 0, 3], [0, 0, 1, -1], [0, 0, 0, 1]]";
+  auto conf_file = [&](const std::string& conf, const std::string& min) {
+    return R"({"format": "sonar3d-placements", "version": 1, "settings": {"min_confidence": )" +
+           min + R"(}, "placements": [{"model": "tank", "T_world_model": )" + T +
+           R"(, "confidence": )" + conf + "}]}";
+  };
+  write_text_file((d / "pc.json").string(), conf_file("0.3", "0.5"));
+  const std::string with_conf = (d / "map.ply").string() + " --placements " +
+                                (d / "pc.json").string() + " --catalogue " +
+                                (d / "cat.yaml").string();
+  r = test::run_cli(d, "world " + with_conf + " -o " + (d / "C1").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("0 placed models"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("unconfirmed: tank_0 (confidence 0.30 < 0.50)"), std::string::npos) << r.out;
+  r = test::run_cli(d, "world " + with_conf + " --min-confidence 0.25 -o " + (d / "C2").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("1 placed models"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("unconfirmed"), std::string::npos) << r.out;
+  r = test::run_cli(d, "world " + with_conf + " --min-confidence 1.2 -o " + (d / "C3").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--min-confidence: 1.2 is not a confidence in [0, 1]"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  write_text_file((d / "pc.json").string(), conf_file("1.3", "0.5"));
+  r = test::run_cli(d, "world " + with_conf + " -o " + (d / "C4").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("pc.json': placement 0: 'confidence' is 1.3, not a number in [0, 1]"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_FALSE(fs::exists(d / "C3") || fs::exists(d / "C4"));
 
   // A connection given that names no object: refused, nothing written.
   write_text_file((d / "con.yaml").string(), "connections:\n  - {from: tank_0, to: riser_0}\n");

@@ -16,7 +16,8 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "diff",
       "Change detection between two surveys of one site: register B onto A (elevation-map shift "
       "search, eq. 6.1-6.2, over a yaw search), compare the placed catalogue models (unchanged, "
-      "moved, added, removed) and the heights cell by cell (regions of significant change). "
+      "moved, added, removed; uncertain when the recognitions disagree and the heights did not "
+      "change) and the heights cell by cell (regions of significant change). "
       "Writes OUTPUT/changes.json, change_map.tif (B - A, metres) and change_points.ply, all in "
       "A's frame; with --colour-a/--colour-b also the colour change (colour_change_map.tif).");
   struct Opts {
@@ -96,8 +97,16 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--yaw-step-deg", c.registration.yaw_step_deg,
                   "yaw step of the coarse search (then refined), degrees")
       ->capture_default_str();
+  cmd->add_option("--match-factor", c.match_radius_factor,
+                  "placements of one model whose centres lie within this many times the model's "
+                  "radius (half its footprint's diagonal) are one object")
+      ->capture_default_str();
+  cmd->add_option("--min-match-radius", c.min_match_radius_m,
+                  "the smallest match radius of a model of known size, metres")
+      ->capture_default_str();
   cmd->add_option("--match-radius", c.match_radius_m,
-                  "placements of one model closer than this are one object, metres")
+                  "without a catalogue (model sizes unknown): placements of one model closer "
+                  "than this are one object, metres")
       ->capture_default_str();
   cmd->add_option("--shift-tol", c.shift_tol_m,
                   "an object moved by at most this is unchanged, metres")
@@ -106,8 +115,8 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "an object turned by at most this (modulo its symmetry) is unchanged, degrees")
       ->capture_default_str();
   cmd->add_option("--confirm-radius", c.confirm_radius_m,
-                  "an object change needs a region of height change within this of the object, "
-                  "metres")
+                  "without a catalogue: an object change needs height change within this of the "
+                  "object, metres (with one: within its footprint)")
       ->capture_default_str();
   cmd->add_option("--threads", c.registration.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
@@ -117,11 +126,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       cfg.colour.space = parse_colour_space(o->colour_space, "--colour-space");
       cfg.validate();
       Catalogue cat;
-      std::map<std::string, Symmetry> symmetries;
-      if (!o->catalogue.empty()) {
-        cat = read_catalogue(o->catalogue);
-        symmetries = catalogue_symmetries(cat);
-      }
+      if (!o->catalogue.empty()) cat = read_catalogue(o->catalogue);
       const PointCloud a = read_survey_cloud(o->a), b = read_survey_cloud(o->b);
       std::vector<SurveyPlacement> pa, pb;
       if (!o->placements_a.empty()) {
@@ -136,6 +141,23 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         pa = recognize_placements(a, cat, rc);
         pb = recognize_placements(b, cat, rc);
       }
+      // Each placed model's symmetry and size (the match radius and the footprint the height
+      // change is looked for in scale with it); without a catalogue, sizes are unknown.
+      ObjectModels models;
+      if (!o->catalogue.empty()) {
+        std::vector<std::string> placed;
+        for (const auto* list : {&pa, &pb}) {
+          for (const SurveyPlacement& p : *list) placed.push_back(p.model);
+        }
+        models = catalogue_object_models(cat, placed);
+      } else if (!pa.empty() || !pb.empty()) {
+        if (!g.quiet) {
+          fmt::print(
+              "no --catalogue: model sizes unknown, placements paired within --match-radius "
+              "{} m of each other\n",
+              cfg.match_radius_m);
+        }
+      }
       PointCloud colour_a, colour_b;
       if (!o->colour_a.empty()) {
         colour_a = read_survey_cloud(o->colour_a);
@@ -144,9 +166,8 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         check_colour_cloud(colour_b, "--colour-b '" + o->colour_b + "'");
       }
       const bool colour = !o->colour_a.empty();
-      const ChangeResult r =
-          diff_surveys(a, b, pa, pb, symmetries, cfg, colour ? &colour_a : nullptr,
-                       colour ? &colour_b : nullptr);
+      const ChangeResult r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &colour_a : nullptr,
+                                          colour ? &colour_b : nullptr);
       write_change_directory(o->output, r);
       const Eigen::Vector3d t = r.registration.T_a_b.translation();
       fmt::print(
@@ -161,6 +182,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                    object_status_name(ob.status), p.x(), p.y());
         if (ob.in_a && ob.in_b)
           fmt::print(", shift {:.3f} m, turn {:.1f} deg", ob.shift_m, ob.turn_deg);
+        if (!ob.reason.empty()) fmt::print(": {}", ob.reason);
         fmt::print("\n");
       }
       fmt::print("  threshold {:.3f} m (k {:.1f} x sigma {:.4f} m), min area {:.3f} m2\n",

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
@@ -28,6 +29,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     WorldModelConfig cfg;
     bool glb_all_lods = false, no_connections = false;
     std::string connections, colours;
+    std::optional<double> min_confidence;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
@@ -66,6 +68,10 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                   "pipeline search: fraction of cross-sections showing the ridge")
       ->capture_default_str();
   cmd->add_flag("--no-connections", o->no_connections, "do not search for pipelines");
+  cmd->add_option("--min-confidence", o->min_confidence,
+                  "placements below this confidence (0-1) are kept as unconfirmed objects: "
+                  "listed and drawn grey, never connected, their points left in the seabed "
+                  "(default: the placements file's settings.min_confidence, else 0)");
   cmd->add_option("--connections", o->connections,
                   "connections you know, YAML: 'connections: [{from: riser_0, to: tank_0, kind: "
                   "pipeline}]' (ids as graph.json names the objects: <model>_<n>)")
@@ -102,11 +108,14 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       std::vector<GivenConnection> given;
       if (!o->connections.empty()) given = read_given_connections(o->connections);
       const PlacementsFile placements = read_placements(o->placements);
+      cfg.min_confidence = world_confidence_threshold(placements, o->min_confidence);
       std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
       PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
       if (!o->colours.empty()) take_video_colours(cloud, read_ply(o->colours), o->colours);
       WorldModel w = build_world_model(cloud, std::move(objects), cfg);
+      std::size_t unconfirmed = 0;
+      for (const WorldObject& ob : w.objects) unconfirmed += !ob.confirmed;
       add_given_connections(w, given, o->connections, cfg.seabed.margin_m);
 
       WorldWriteInfo info;
@@ -126,7 +135,14 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       const WorldWriteResult r = write_world_model(out, w, info);
 
       fmt::print("map: {} points, {} on the seabed; {} placed models; {} cells filled under them\n",
-                 w.cloud_points, w.seabed_points, w.objects.size(), w.filled_cells);
+                 w.cloud_points, w.seabed_points, w.objects.size() - unconfirmed, w.filled_cells);
+      for (const WorldObject& ob : w.objects) {
+        if (ob.confirmed) continue;
+        fmt::print(
+            "  unconfirmed: {} (confidence {:.2f} < {:.2f}): listed and drawn grey, not "
+            "connected, its points left in the seabed\n",
+            ob.id, ob.confidence, w.min_confidence);
+      }
       if (w.coloured_seabed_points > 0) {
         fmt::print("  {} seabed points carry a video colour: the seabed meshes are coloured\n",
                    w.coloured_seabed_points);

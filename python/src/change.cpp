@@ -23,8 +23,17 @@ std::vector<SurveyPlacement> to_placements(const py::list& list, const char* whi
       throw Error(std::string("diff_surveys: each placement of ") + which +
                   " needs 'model' and 'T_world_model' (as sonar3d.recognize returns)");
     }
-    out.push_back({d["model"].cast<std::string>(),
-                   array_to_pose(d["T_world_model"].cast<carray<double>>(), "T_world_model")});
+    SurveyPlacement p;
+    p.model = d["model"].cast<std::string>();
+    p.T_world_model = array_to_pose(d["T_world_model"].cast<carray<double>>(), "T_world_model");
+    if (d.contains("confidence") && !d["confidence"].is_none()) {
+      p.confidence = d["confidence"].cast<double>();
+      if (!(p.confidence >= 0 && p.confidence <= 1)) {
+        throw Error(std::string("diff_surveys: a placement of ") + which +
+                    " has a 'confidence' that is not a number in [0, 1]");
+      }
+    }
+    out.push_back(p);
   }
   return out;
 }
@@ -95,12 +104,18 @@ void bind_change(py::module_& m) {
         const bool colour = !colour_a.is_none();
         const auto pa = to_placements(placements_a, "A");
         const auto pb = to_placements(placements_b, "B");
-        std::map<std::string, Symmetry> symmetries;
-        if (!catalogue.empty()) symmetries = catalogue_symmetries(read_catalogue(catalogue));
+        ObjectModels models;
+        if (!catalogue.empty()) {
+          std::vector<std::string> placed;
+          for (const auto* list : {&pa, &pb}) {
+            for (const SurveyPlacement& p : *list) placed.push_back(p.model);
+          }
+          models = catalogue_object_models(read_catalogue(catalogue), placed);
+        }
         ChangeResult r;
         {
           py::gil_scoped_release release;
-          r = diff_surveys(a, b, pa, pb, symmetries, cfg, colour ? &ca : nullptr,
+          r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &ca : nullptr,
                            colour ? &cb : nullptr);
         }
         py::dict out = py::module_::import("json").attr("loads")(changes_json(r));
@@ -115,7 +130,9 @@ void bind_change(py::module_& m) {
       "colour_cell_m"_a = 0.1, "colour_k_sigma"_a = 5.0,
       "Compare two surveys of one site ((N, 3) world-frame clouds, each in its own world): B "
       "registered onto A, placements (lists of dicts with model and T_world_model, as "
-      "sonar3d.recognize returns; symmetries from the catalogue YAML if given) compared, heights "
+      "sonar3d.recognize returns; symmetries and sizes from the catalogue YAML if given) compared "
+      "(unchanged, moved, added, removed, or uncertain when they disagree without a height "
+      "change behind it), heights "
       "compared cell by cell. Returns the changes.json content as a dict (T_a_b, registration, "
       "objects, regions, thresholds, seconds; docs/change.md) plus change_map, the ElevationMap "
       "of B − A in A's frame (m). colour_a, colour_b (both or neither): each survey's coloured "

@@ -14,7 +14,8 @@ void bind_world(py::module_& m) {
       [](const carray<float>& points, const std::string& placements, const std::string& catalogue,
          const std::vector<double>& lod_cells_m, double margin_m, bool fill_footprints,
          bool find_connections, const std::string& connections_file, const std::string& output,
-         bool glb_all_lods, const std::optional<carray<std::uint8_t>>& colors) {
+         bool glb_all_lods, const std::optional<carray<std::uint8_t>>& colors,
+         std::optional<double> min_confidence) {
         PointCloud cloud;
         cloud.points = array_to_points(points);
         if (colors) {
@@ -32,8 +33,9 @@ void bind_world(py::module_& m) {
         cfg.seabed.margin_m = margin_m;
         cfg.seabed.fill_footprints = fill_footprints;
         cfg.find_connections = find_connections;
-        cfg.validate();
         const PlacementsFile p = read_placements(placements);
+        cfg.min_confidence = world_confidence_threshold(p, min_confidence, "min_confidence");
+        cfg.validate();
         std::vector<GivenConnection> given;
         if (!connections_file.empty()) given = read_given_connections(connections_file);
         WorldModel w;
@@ -55,7 +57,8 @@ void bind_world(py::module_& m) {
           objects.append(py::dict("id"_a = o.id, "model"_a = o.model, "kind"_a = o.kind,
                                   "T_world_model"_a = pose_to_array(o.T_world_model),
                                   "score_m"_a = o.score_m,
-                                  "residual_median_m"_a = o.residual_median_m));
+                                  "residual_median_m"_a = o.residual_median_m,
+                                  "confidence"_a = o.confidence, "confirmed"_a = o.confirmed));
         }
         for (const Connection& c : w.connections) {
           connections.append(py::dict("from"_a = c.from, "to"_a = c.to, "kind"_a = c.kind,
@@ -74,12 +77,14 @@ void bind_world(py::module_& m) {
               "triangles"_a = adopt<Eigen::Vector3i, int>(std::move(l.mesh.triangles), {nt, 3})));
         }
         return py::dict("objects"_a = objects, "connections"_a = connections, "seabed"_a = seabed,
-                        "seabed_points"_a = w.seabed_points, "filled_cells"_a = w.filled_cells);
+                        "seabed_points"_a = w.seabed_points, "filled_cells"_a = w.filled_cells,
+                        "min_confidence"_a = w.min_confidence);
       },
       "points"_a, "placements"_a, "catalogue"_a,
       "lod_cells_m"_a = std::vector<double>{0.05, 0.2, 1.0}, "margin_m"_a = 0.1,
       "fill_footprints"_a = true, "find_connections"_a = true, "connections"_a = "",
       "output"_a = "", "glb_all_lods"_a = false, "colors"_a = py::none(),
+      "min_confidence"_a = py::none(),
       "A world model (thesis sec. 6.3.3) from an (N, 3) world-frame cloud, a placements JSON "
       "(sonar3d.recognize / sonar3d recognize) and the catalogue YAML (colors: optional (N, 3) "
       "uint8 "
@@ -87,8 +92,11 @@ void bind_world(py::module_& m) {
       "(points no "
       "placed model explains) as height-field meshes at lod_cells_m (metres, finest first), the "
       "placed models and the pipelines found between them, plus the connections given in the "
-      "YAML file `connections` (docs/world.md). Returns a dict: objects (id, model, kind, "
-      "T_world_model 4×4, score_m, residual_median_m), connections (from, to, kind, length_m, "
+      "YAML file `connections` (docs/world.md). min_confidence (0-1; default: the placements "
+      "file's settings.min_confidence, else 0): placements below it stay unconfirmed objects, "
+      "never connected and explaining no point. Returns a dict: objects (id, model, kind, "
+      "T_world_model 4×4, score_m, residual_median_m, confidence (NaN: unknown), confirmed), "
+      "min_confidence, connections (from, to, kind, length_m, "
       "fraction (NaN when not found), found, given), seabed (lod, cell_m, vertices (N, 3) float32, "
       "triangles (M, 3) int32, colors (N, 3) float32 linear RGB and color_points (N,) uint32, "
       "both empty without colors), seabed_points, filled_cells. With output, also writes that "

@@ -48,14 +48,20 @@ def test_world_model_refuses_an_unknown_model(tmp_path):
         sonar3d.world_model(pts, str(placements), str(cat))
 
 
-def test_world_model_given_connections(tmp_path):
-    # Two tanks on a flat seabed with no pipe between them: a connection given in YAML is kept,
-    # with the distance between the footprints, marked given and not found.
+def flat_seabed_and_tank_catalogue(tmp_path):
+    """A flat 12 x 4 m seabed at z = -1 (points every 5 cm) and a catalogue of the reference tank."""
     step = 0.05
     xs, ys = np.meshgrid(np.arange(0, 12, step), np.arange(0, 4, step))
     pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, -1.0)]).astype(np.float32)
     cat = tmp_path / "cat.yaml"
     cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")
+    return pts, cat
+
+
+def test_world_model_given_connections(tmp_path):
+    # Two tanks on a flat seabed with no pipe between them: a connection given in YAML is kept,
+    # with the distance between the footprints, marked given and not found.
+    pts, cat = flat_seabed_and_tank_catalogue(tmp_path)
     placements = tmp_path / "p.json"
     placements.write_text(json.dumps({
         "format": "sonar3d-placements", "version": 1,
@@ -102,3 +108,32 @@ def test_world_model_seabed_colours(tmp_path):
     assert plain["seabed"][0]["colors"].shape == (0, 3)
     with pytest.raises(sonar3d.Error, match="colors must be an N×3 uint8 array"):
         sonar3d.world_model(pts, str(placements), str(cat), colors=colors[:5])
+
+
+def test_world_model_confidence_threshold(tmp_path):
+    # Two tanks, one below the file's threshold: unconfirmed (listed, never connected), and a
+    # connection given to it refused; min_confidence overrides the file's threshold.
+    pts, cat = flat_seabed_and_tank_catalogue(tmp_path)
+    placements = tmp_path / "p.json"
+    placements.write_text(json.dumps({
+        "format": "sonar3d-placements", "version": 1, "settings": {"min_confidence": 0.5},
+        "placements": [
+            {"model": "tank", "confidence": 0.9,
+             "T_world_model": [[1, 0, 0, 2], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]},
+            {"model": "tank", "confidence": 0.3,
+             "T_world_model": [[1, 0, 0, 10], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]}]}))
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1])
+    assert w["min_confidence"] == pytest.approx(0.5)
+    assert [o["confirmed"] for o in w["objects"]] == [True, False]
+    assert w["objects"][1]["confidence"] == pytest.approx(0.3)
+    given = tmp_path / "c.yaml"
+    given.write_text("connections:\n  - {from: tank_0, to: tank_1}\n")
+    with pytest.raises(sonar3d.Error, match="'tank_1' is an unconfirmed placement"):
+        sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+                            connections=str(given))
+    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+                            connections=str(given), min_confidence=0.2)
+    assert [o["confirmed"] for o in w["objects"]] == [True, True]
+    assert len(w["connections"]) == 1
+    with pytest.raises(sonar3d.Error, match="min_confidence: 1.5 is not a confidence"):
+        sonar3d.world_model(pts, str(placements), str(cat), min_confidence=1.5)

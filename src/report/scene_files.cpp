@@ -171,6 +171,9 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
     w.T_world_model = e.pose("T_world_model");
     w.score_m = e.has("score_m") ? e.num("score_m") : kNaN;
     w.residual_median_m = e.has("residual_median_m") ? e.num("residual_median_m", true) : kNaN;
+    w.confidence = e.has("confidence") ? e.num("confidence") : kNaN;
+    if (w.confidence < 0 || w.confidence > 1) e.fail("confidence", "must lie in [0, 1]");
+    w.confirmed = e.boolean_or("confirmed", true);  // files before min_confidence: all confirmed
     w.file = e.str("file");
     g.objects.push_back(w);
   }
@@ -182,6 +185,12 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
     c.to = e.str("to");
     if (!ids.count(c.from)) e.fail("from", "names no object ('" + c.from + "')");
     if (!ids.count(c.to)) e.fail("to", "names no object ('" + c.to + "')");
+    for (const WorldGraphObject& w : g.objects) {
+      if (!w.confirmed && (w.id == c.from || w.id == c.to)) {
+        e.fail(w.id == c.from ? "from" : "to",
+               "names an unconfirmed object ('" + w.id + "'): sonar3d world never connects one");
+      }
+    }
     c.kind = e.str_or("kind", "");
     c.length_m = e.has("length_m") ? e.num("length_m") : kNaN;
     c.found = e.boolean_or("found", true);  // files before given connections: all found
@@ -212,6 +221,7 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path) {
     g.source_placements = s.str_or("placements", "");
     g.source_catalogue = s.str_or("catalogue", "");
   }
+  g.min_confidence = o.has("min_confidence") ? o.num("min_confidence") : kNaN;
   g.bytes_total = o.has("bytes_total") ? o.integer("bytes_total") : -1;
   g.cloud_bytes = o.has("cloud_bytes") ? o.integer("cloud_bytes") : -1;
   return g;
@@ -229,7 +239,8 @@ ChangeSet parse_changes_json(const std::string& text, const std::string& path) {
     c.overlap_cells = r.has("overlap_cells") ? r.integer("overlap_cells") : -1;
   }
   const json& objects = o.array("objects");
-  static const std::set<std::string> kStatus = {"unchanged", "moved", "added", "removed"};
+  static const std::set<std::string> kStatus = {"unchanged", "moved", "added", "removed",
+                                                "uncertain"};
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const Obj e(objects[i], entry(path, "objects", i));
     ChangedObject ob;
@@ -237,20 +248,39 @@ ChangeSet parse_changes_json(const std::string& text, const std::string& path) {
     ob.model = e.str("model");
     ob.status = e.str("status");
     if (!kStatus.count(ob.status)) {
-      e.fail("status", "'" + ob.status + "' is none of unchanged, moved, added, removed");
+      e.fail("status",
+             "'" + ob.status + "' is none of unchanged, moved, added, removed, uncertain");
     }
     ob.has_a = e.has("T_world_model_a");
     ob.has_b = e.has("T_world_model_b_in_a");
     if (ob.has_a) ob.T_world_model_a = e.pose("T_world_model_a");
     if (ob.has_b) ob.T_world_model_b_in_a = e.pose("T_world_model_b_in_a");
-    if (ob.status != "added" && !ob.has_a) {
+    ob.reason = e.str_or("reason", "");
+    ob.other_model = e.str_or("other_model", "");
+    if (ob.status == "unchanged" && ob.has_a != ob.has_b) {
+      // Written by sonar3d diff before "uncertain": a recognition in one survey only that no
+      // height change confirmed (issue 28).
+      ob.status = "uncertain";
+      if (ob.reason.empty()) {
+        ob.reason = std::string("recognised in ") + (ob.has_a ? "A" : "B") +
+                    " only; no height change confirmed it (read from an older file as "
+                    "\"unchanged\")";
+      }
+    }
+    if (ob.status == "uncertain" && !ob.has_a && !ob.has_b) {
+      e.fail("T_world_model_a",
+             "and 'T_world_model_b_in_a' are null: an uncertain object was "
+             "recognised in at least one survey");
+    }
+    if (ob.status != "added" && ob.status != "uncertain" && !ob.has_a) {
       e.fail("T_world_model_a", "is null, but a " + ob.status + " object was in survey A");
     }
-    if (ob.status != "removed" && !ob.has_b) {
+    if (ob.status != "removed" && ob.status != "uncertain" && !ob.has_b) {
       e.fail("T_world_model_b_in_a", "is null, but a " + ob.status + " object is in survey B");
     }
     ob.shift_m = e.has("shift_m") ? e.num("shift_m", true) : kNaN;
     ob.turn_deg = e.has("turn_deg") ? e.num("turn_deg", true) : kNaN;
+    ob.change_area_m2 = e.has("change_area_m2") ? e.num("change_area_m2", true) : kNaN;
     c.objects.push_back(ob);
   }
   if (o.has("regions")) {

@@ -320,11 +320,12 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
                models.placed(p.model, T, asked), {}, scene.model_color(p.model), 0.45, true);
     focus.push_back("placement_" + std::to_string(i));
     rows.push_back({i + 1, p.model, T(0, 3), T(1, 3), T(2, 3), yaw_deg(T), p.score_m,
-                    num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method});
+                    num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method,
+                    num_or_null(p.confidence)});
   }
   scene.table("placements", "Placements (" + ppath + ")",
               {"#", "model", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
-               "residual median [m]", "residual mean [m]", "method"},
+               "residual median [m]", "residual mean [m]", "method", "confidence"},
               rows, focus);
   scene.card("placements", placements.size());
 }
@@ -350,19 +351,33 @@ void build_world(const fs::path& dir, Scene& scene) {
   }
   json obj_rows = json::array(), obj_focus = json::array();
   std::map<std::string, Eigen::Vector3f> centre;
+  const char* kUnconfirmed = "#9aa0a6";
+  std::size_t unconfirmed = 0;
   for (const WorldGraphObject& o : g.objects) {
     const fs::path p = dir / o.file;
     const PlyData d = read_any_ply(p);
     if (!d.is_mesh)
       throw Error("report: '" + p.string() + "' (object '" + o.id +
                   "') has no faces: a mesh is expected");
-    scene.mesh("object_" + o.id, o.id, d.mesh, d.cloud.color, scene.model_color(o.model), 0.85,
-               true);
+    // An unconfirmed placement (below the world's confidence threshold) in grey, without its
+    // vertex colours: listed, never connected.
+    if (o.confirmed) {
+      scene.mesh("object_" + o.id, o.id, d.mesh, d.cloud.color, scene.model_color(o.model), 0.85,
+                 true);
+    } else {
+      scene.mesh("object_" + o.id, o.id + " (unconfirmed)", d.mesh, {}, kUnconfirmed, 0.5, true);
+      ++unconfirmed;
+    }
     centre[o.id] = d.mesh.bounding_box().center();  // of the model as placed (world frame)
     obj_focus.push_back("object_" + o.id);
     obj_rows.push_back({o.id, o.model, o.kind, o.T_world_model(0, 3), o.T_world_model(1, 3),
                         o.T_world_model(2, 3), yaw_deg(o.T_world_model), num_or_null(o.score_m),
-                        num_or_null(o.residual_median_m), d.cloud.has_color() ? "yes" : "no"});
+                        num_or_null(o.residual_median_m), num_or_null(o.confidence),
+                        o.confirmed ? "confirmed" : "unconfirmed",
+                        d.cloud.has_color() ? "yes" : "no"});
+  }
+  if (unconfirmed > 0) {
+    scene.legend(kUnconfirmed, "unconfirmed placement (confidence below the threshold)");
   }
   json con_rows = json::array();
   if (!g.connections.empty()) {
@@ -385,13 +400,15 @@ void build_world(const fs::path& dir, Scene& scene) {
   }
   scene.table("objects", "Objects",
               {"id", "model", "kind", "x [m]", "y [m]", "z [m]", "yaw [°]", "score [m]",
-               "residual median [m]", "vertex colours"},
+               "residual median [m]", "confidence", "status", "vertex colours"},
               obj_rows, obj_focus);
   scene.table("connections", "Connections", {"from", "to", "kind", "length [m]", "source"},
               con_rows);
   scene.table("seabed", "Seabed levels of detail",
               {"lod", "file", "cell [m]", "triangles", "bytes", "median error [m]"}, lod_rows);
   scene.card("objects", g.objects.size());
+  if (unconfirmed > 0) scene.card("unconfirmed", unconfirmed);
+  if (std::isfinite(g.min_confidence)) scene.card("min confidence", g.min_confidence);
   scene.card("connections", g.connections.size());
   scene.card("seabed LODs", g.seabed.size());
   if (g.bytes_total > 0) scene.card("world model", fmt_bytes(g.bytes_total));
@@ -426,6 +443,8 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
   const char* kAfter = "#2ca02c";   // after / added
   const char* kSame = "#9aa0a6";    // unchanged
   const char* kMove = "#f2c12e";    // before -> after of a moved object
+  const char* kUnsure = "#9467bd";  // uncertain: the recognitions disagree, the heights did not
+                                    // change
   std::vector<Eigen::Vector3f> ends;
   std::vector<Rgb> colors;
   auto seg = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b, const char* hex) {
@@ -451,37 +470,49 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
     const ChangedObject& o = c.objects[i];
     ++counts[o.status];
     const bool same = o.status == "unchanged";
-    if (o.has_a) marker(o.T_world_model_a, same ? kSame : kBefore);
-    if (o.has_b && !same) marker(o.T_world_model_b_in_a, kAfter);
-    if (o.has_a && o.has_b && !same) {
+    const bool unsure = o.status == "uncertain";  // drawn where each survey placed it, in violet
+    if (o.has_a) marker(o.T_world_model_a, same ? kSame : unsure ? kUnsure : kBefore);
+    if (o.has_b && !same) marker(o.T_world_model_b_in_a, unsure ? kUnsure : kAfter);
+    if (o.has_a && o.has_b && !same && !unsure) {
       seg(o.T_world_model_a.topRightCorner<3, 1>().cast<float>(),
           o.T_world_model_b_in_a.topRightCorner<3, 1>().cast<float>(), kMove);
     }
     if (models) {
       const std::string asked = "'" + cpath.string() + "': objects[" + std::to_string(i) + "]";
       if (o.has_a) {
-        scene.mesh("before_" + o.id, o.id + (same ? "" : " (before)"),
-                   models->placed(o.model, o.T_world_model_a, asked), {}, same ? kSame : kBefore,
+        scene.mesh("before_" + o.id,
+                   o.id + (same     ? ""
+                           : unsure ? " (uncertain, survey A)"
+                                    : " (before)"),
+                   models->placed(o.model, o.T_world_model_a, asked), {},
+                   same     ? kSame
+                   : unsure ? kUnsure
+                            : kBefore,
                    0.35, true);
       }
       if (o.has_b && !same) {
-        scene.mesh("after_" + o.id, o.id + " (after)",
-                   models->placed(o.model, o.T_world_model_b_in_a, asked), {}, kAfter, 0.35, true);
+        scene.mesh("after_" + o.id, o.id + (unsure ? " (uncertain, survey B)" : " (after)"),
+                   models->placed(o.model, o.T_world_model_b_in_a, asked), {},
+                   unsure ? kUnsure : kAfter, 0.35, true);
       }
     }
     rows.push_back({o.id, o.model, o.status, round_to(o.shift_m * 100, 0.1),
                     round_to(o.turn_deg, 0.1), o.has_a ? vec3(o.T_world_model_a) : json(nullptr),
-                    o.has_b ? vec3(o.T_world_model_b_in_a) : json(nullptr)});
+                    o.has_b ? vec3(o.T_world_model_b_in_a) : json(nullptr),
+                    num_or_null(o.change_area_m2), o.reason});
   }
   if (!ends.empty()) scene.lines("markers", "object markers", ends, colors);
   scene.legend(kBefore, "before (survey A) / removed");
   scene.legend(kAfter, "after (survey B, in A's frame) / added");
   scene.legend(kSame, "unchanged");
   scene.legend(kMove, "moved: before to after");
-  scene.table(
-      "objects", "Objects",
-      {"id", "model", "status", "shift [cm]", "turn [°]", "position A [m]", "position B in A [m]"},
-      rows);
+  if (counts["uncertain"] > 0) {
+    scene.legend(kUnsure, "uncertain: recognised differently, no height change");
+  }
+  scene.table("objects", "Objects",
+              {"id", "model", "status", "shift [cm]", "turn [°]", "position A [m]",
+               "position B in A [m]", "height change [m²]", "why uncertain"},
+              rows);
   json region_rows = json::array();
   for (const ChangedRegion& r : c.regions) {
     region_rows.push_back({r.id, r.kind, json{r.centroid.x(), r.centroid.y(), r.centroid.z()},
@@ -526,7 +557,9 @@ void build_changes(const fs::path& dir, const ReportConfig& cfg, Scene& scene) {
   }
   scene.card("registration", c.registration_method.empty() ? "–" : c.registration_method);
   scene.card("registration rms [m]", num_or_null(c.registration_rms_m));
-  for (const char* s : {"moved", "added", "removed", "unchanged"}) scene.card(s, counts[s]);
+  for (const char* s : {"moved", "added", "removed", "unchanged", "uncertain"}) {
+    scene.card(s, counts[s]);
+  }
   scene.card("changed regions", c.regions.size());
 }
 

@@ -1,6 +1,7 @@
 // Change detection between two surveys (include/sonar3d/world/change.hpp, docs/change.md).
 #include "sonar3d/world/change.hpp"
 
+#include <fmt/core.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -213,6 +214,9 @@ void ChangeConfig::validate() const {
   require(tolerance_m <= 20 * cell_m, "tolerance_m must be at most 20 cells");
   require(link_m <= 100 * cell_m, "link_m must be at most 100 cells");
   require_positive(match_radius_m, "match_radius_m", "m");
+  require_positive(match_radius_factor, "match_radius_factor");
+  require(match_radius_factor <= 10, "match_radius_factor must be at most 10 (r_model)");
+  require_non_negative(min_match_radius_m, "min_match_radius_m", "m");
   require_non_negative(confirm_radius_m, "confirm_radius_m", "m");
   require(confirm_radius_m <= 1000 * cell_m, "confirm_radius_m must be at most 1000 cells");
   require_non_negative(shift_tol_m, "shift_tol_m", "m");
@@ -229,6 +233,8 @@ const char* object_status_name(ObjectStatus s) {
       return "added";
     case ObjectStatus::Removed:
       return "removed";
+    case ObjectStatus::Uncertain:
+      return "uncertain";
   }
   return "?";
 }
@@ -450,38 +456,55 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
 
 std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
                                              const std::vector<SurveyPlacement>& b_in_a,
-                                             const std::map<std::string, Symmetry>& symmetries,
+                                             const ObjectModels& models,
                                              const ChangeConfig& config) {
   config.validate();
   // Pairs are formed among placements of one model within the match radius: bounded by n².
   require(a.size() <= kMaxComparedPlacements && b_in_a.size() <= kMaxComparedPlacements,
           "change detection: at most " + std::to_string(kMaxComparedPlacements) +
               " placements per survey are compared");
-  auto symmetry_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
-    if (symmetries.empty()) return Symmetry::None;
-    const auto it = symmetries.find(p.model);
-    require(it != symmetries.end(), std::string("placements of survey ") + which + ": placement " +
-                                        std::to_string(i) + " is a model '" + printable(p.model) +
-                                        "' that the catalogue does not list");
+  auto model_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
+    if (models.empty()) return ObjectModel{};
+    const auto it = models.find(p.model);
+    require(it != models.end(), std::string("placements of survey ") + which + ": placement " +
+                                    std::to_string(i) + " is a model '" + printable(p.model) +
+                                    "' that the catalogue does not list");
     return it->second;
   };
-  std::vector<Symmetry> sym_a(a.size()), sym_b(b_in_a.size());
-  for (std::size_t i = 0; i < a.size(); ++i) sym_a[i] = symmetry_of(a[i], "A", i);
-  for (std::size_t j = 0; j < b_in_a.size(); ++j) sym_b[j] = symmetry_of(b_in_a[j], "B", j);
+  std::vector<ObjectModel> ma(a.size()), mb(b_in_a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) ma[i] = model_of(a[i], "A", i);
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) mb[j] = model_of(b_in_a[j], "B", j);
+  // The centre of a placement: its footprint's centre placed (a CAD origin may sit at a corner
+  // of a frame, where a turn alone would read as a shift), or its origin when the size is unknown.
+  auto centre = [](const SurveyPlacement& p, const ObjectModel& m) -> Eigen::Vector2d {
+    if (!m.has_size()) return p.T_world_model.translation().head<2>();
+    const Eigen::Vector2d c = m.footprint.center();
+    return (p.T_world_model * Eigen::Vector3d(c.x(), c.y(), 0)).head<2>();
+  };
+  // The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
+  auto radius = [&](const ObjectModel& m) {
+    return m.has_size()
+               ? std::max(config.min_match_radius_m, config.match_radius_factor * m.radius_m())
+               : config.match_radius_m;
+  };
+  std::vector<Eigen::Vector2d> ca(a.size()), cb(b_in_a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) ca[i] = centre(a[i], ma[i]);
+  for (std::size_t j = 0; j < b_in_a.size(); ++j) cb[j] = centre(b_in_a[j], mb[j]);
 
-  // Same model within the match radius: nearest pairs first.
+  // Identity (same model) and pose (centres within the radius): nearest pairs first, the
+  // distance relative to the radius (a large structure's 1 m and a small one's 10 cm weigh
+  // alike).
   struct Pair {
     double d;
     std::size_t i, j;
   };
   std::vector<Pair> pairs;
   for (std::size_t i = 0; i < a.size(); ++i) {
+    const double rad = radius(ma[i]);
     for (std::size_t j = 0; j < b_in_a.size(); ++j) {
       if (a[i].model != b_in_a[j].model) continue;
-      const double d = (a[i].T_world_model.translation().head<2>() -
-                        b_in_a[j].T_world_model.translation().head<2>())
-                           .norm();
-      if (d <= config.match_radius_m) pairs.push_back({d, i, j});
+      const double d = (ca[i] - cb[j]).norm();
+      if (d <= rad) pairs.push_back({d / rad, i, j});
     }
   }
   std::stable_sort(pairs.begin(), pairs.end(),
@@ -492,6 +515,24 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     match_a[p.i] = static_cast<long>(p.j);
     match_b[p.j] = static_cast<long>(p.i);
   }
+  // The model the other survey placed over an unpaired placement (another model, unpaired too,
+  // within the larger of the two radii): the recognitions disagree on what stands there.
+  auto other_over =
+      [&](const Eigen::Vector2d& c, const std::string& model, double rad,
+          const std::vector<SurveyPlacement>& others, const std::vector<Eigen::Vector2d>& centres,
+          const std::vector<ObjectModel>& other_models, const std::vector<long>& matched) {
+        std::string best;
+        double best_d = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k < others.size(); ++k) {
+          if (matched[k] >= 0 || others[k].model == model) continue;
+          const double d = (centres[k] - c).norm();
+          if (d <= std::max(rad, radius(other_models[k])) && d < best_d) {
+            best_d = d;
+            best = others[k].model;
+          }
+        }
+        return best;
+      };
   std::map<std::string, int> count;
   std::vector<ObjectChange> out;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -500,21 +541,25 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.id = c.model + "_" + std::to_string(count[c.model]++);
     c.in_a = true;
     c.T_world_model_a = a[i].T_world_model;
+    c.confidence_a = a[i].confidence;
+    c.match_radius_m = radius(ma[i]);
     if (match_a[i] < 0) {
       c.status = ObjectStatus::Removed;
+      c.other_model = other_over(ca[i], a[i].model, c.match_radius_m, b_in_a, cb, mb, match_b);
     } else {
-      const SurveyPlacement& b = b_in_a[static_cast<std::size_t>(match_a[i])];
+      const std::size_t j = static_cast<std::size_t>(match_a[i]);
+      const SurveyPlacement& b = b_in_a[j];
       c.in_b = true;
       c.T_world_model_b_in_a = b.T_world_model;
-      c.shift_m =
-          (b.T_world_model.translation().head<2>() - a[i].T_world_model.translation().head<2>())
-              .norm();
+      c.confidence_b = b.confidence;
+      c.shift_m = (cb[j] - ca[i]).norm();
       // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
-      const double period = sym_a[i] == Symmetry::Half ? 180 : 360;
+      const Symmetry sym = ma[i].symmetry;
+      const double period = sym == Symmetry::Half ? 180 : 360;
       double turn =
           std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
       turn = std::min(turn, period - turn);
-      c.turn_deg = sym_a[i] == Symmetry::Full ? 0 : turn;
+      c.turn_deg = sym == Symmetry::Full ? 0 : turn;
       c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
                      ? ObjectStatus::Unchanged
                      : ObjectStatus::Moved;
@@ -529,6 +574,9 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.status = ObjectStatus::Added;
     c.in_b = true;
     c.T_world_model_b_in_a = b_in_a[j].T_world_model;
+    c.confidence_b = b_in_a[j].confidence;
+    c.match_radius_m = radius(mb[j]);
+    c.other_model = other_over(cb[j], c.model, c.match_radius_m, a, ca, ma, match_a);
     out.push_back(c);
   }
   return out;
@@ -567,6 +615,8 @@ void compare_geometry(const PointCloud& a_world, const PointCloud& b_in_a,
   th.shift_tol_m = config.shift_tol_m;
   th.turn_tol_deg = config.turn_tol_deg;
   th.match_radius_m = config.match_radius_m;
+  th.match_radius_factor = config.match_radius_factor;
+  th.min_match_radius_m = config.min_match_radius_m;
 
   // A cell changed when B's height lies beyond the range of A's heights in the cells within
   // tolerance_m around it (at least the 3×3), or A's beyond B's, by more than the threshold: a
@@ -883,10 +933,111 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
   return out;
 }
 
+namespace {
+
+// The height evidence behind each object change (ChangeConfig::confirm_radius_m's comment): the
+// cells of its footprint(s) — the model's footprint grown by tolerance_m where it was in A and
+// where it is in B, or the disc of confirm_radius_m about each origin for a model of unknown
+// size — that belong to a reported region of height change, and the share both surveys
+// observed. A moved pair without it is unchanged; a one-survey recognition without it, or whose
+// footprint the surveys did not both observe, is uncertain.
+void weigh_object_changes(const ObjectModels& models, const ChangeConfig& config, ChangeResult* r) {
+  const ElevationMap& d = r->change_map;
+  const double cell = d.cell_m;
+  for (ObjectChange& o : r->objects) {
+    const auto it = models.find(o.model);
+    const ObjectModel m = it == models.end() ? ObjectModel{} : it->second;
+    struct Shape {
+      Eigen::Isometry3d T_model_world;
+      Eigen::Vector2d origin;
+      double z = 0;  // the placement's height: a footprint is a vertical prism
+    };
+    std::vector<Shape> shapes;
+    Eigen::AlignedBox2d window;
+    Eigen::AlignedBox2d grown = m.footprint;
+    if (m.has_size()) {
+      grown.min() -= Eigen::Vector2d::Constant(config.tolerance_m);
+      grown.max() += Eigen::Vector2d::Constant(config.tolerance_m);
+    }
+    for (int k = 0; k < 2; ++k) {
+      if (!(k == 0 ? o.in_a : o.in_b)) continue;
+      const Eigen::Isometry3d& T = k == 0 ? o.T_world_model_a : o.T_world_model_b_in_a;
+      shapes.push_back({T.inverse(), T.translation().head<2>(), T.translation().z()});
+      if (m.has_size()) {
+        for (int corner = 0; corner < 4; ++corner) {
+          const Eigen::Vector2d q =
+              grown.corner(static_cast<Eigen::AlignedBox2d::CornerType>(corner));
+          window.extend((T * Eigen::Vector3d(q.x(), q.y(), 0)).head<2>());
+        }
+      } else {
+        window.extend(shapes.back().origin - Eigen::Vector2d::Constant(config.confirm_radius_m));
+        window.extend(shapes.back().origin + Eigen::Vector2d::Constant(config.confirm_radius_m));
+      }
+    }
+    auto inside = [&](const Eigen::Vector2d& xy) {
+      for (const Shape& sh : shapes) {
+        if (m.has_size()) {
+          const Eigen::Vector3d q = sh.T_model_world * Eigen::Vector3d(xy.x(), xy.y(), sh.z);
+          if (grown.contains(q.head<2>())) return true;
+        } else if ((xy - sh.origin).norm() <= config.confirm_radius_m) {
+          return true;
+        }
+      }
+      return false;
+    };
+    const int c0 = static_cast<int>(std::floor((window.min().x() - d.origin_xy.x()) / cell));
+    const int c1 = static_cast<int>(std::floor((window.max().x() - d.origin_xy.x()) / cell));
+    const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - window.max().y()) / cell));
+    const int r1 = static_cast<int>(std::floor((d.origin_xy.y() - window.min().y()) / cell));
+    // A footprint of a few hundred metres (a mesh in millimetres read as metres) is sampled every
+    // `stride` cells rather than cell by cell: at most ~4 M samples per object.
+    const double window_cells =
+        (static_cast<double>(r1) - r0 + 1) * (static_cast<double>(c1) - c0 + 1);
+    const int stride = std::max(1, static_cast<int>(std::ceil(std::sqrt(window_cells / 4e6))));
+    std::size_t in_shape = 0, seen = 0, changed = 0;
+    for (int rr = r0; rr <= r1; rr += stride) {
+      for (int cc = c0; cc <= c1; cc += stride) {
+        const Eigen::Vector2d xy(d.origin_xy.x() + (cc + 0.5) * cell,
+                                 d.origin_xy.y() - (rr + 0.5) * cell);
+        if (!inside(xy)) continue;
+        ++in_shape;
+        if (rr < 0 || cc < 0 || rr >= d.rows || cc >= d.cols || !d.valid(rr, cc)) continue;
+        ++seen;
+        changed += r->region_cell[d.index(rr, cc)] >= 0;
+      }
+    }
+    o.change_area_m2 = static_cast<double>(changed) * (stride * cell) * (stride * cell);
+    o.observed_fraction = in_shape > 0 ? static_cast<double>(seen) / in_shape : 0.0;
+    const bool observed = 2 * seen >= in_shape && in_shape > 0;
+    const bool confirmed = changed > 0 && o.change_area_m2 >= config.min_area_m2;
+    if (o.status == ObjectStatus::Moved && observed && !confirmed) {
+      o.status = ObjectStatus::Unchanged;  // the recognition's pose moved, not the object
+    }
+    if ((o.status == ObjectStatus::Added || o.status == ObjectStatus::Removed) &&
+        !(observed && confirmed)) {
+      const char* here = o.in_a ? "A" : "B";
+      const char* there = o.in_a ? "B" : "A";
+      std::string why = o.other_model.empty()
+                            ? std::string("recognised in ") + here + " only"
+                            : std::string("recognised in ") + here + " as " + o.model + ", in " +
+                                  there + " as " + o.other_model;
+      why += observed ? fmt::format(
+                            "; no height change within its footprint ({:.2f} m² of "
+                            "change, {:.0f} % of it observed in both surveys)",
+                            o.change_area_m2, 100 * o.observed_fraction)
+                      : fmt::format("; its footprint was not observed by both surveys ({:.0f} %)",
+                                    100 * o.observed_fraction);
+      o.reason = why;
+      o.status = ObjectStatus::Uncertain;
+    }
+  }
+}
+
+}  // namespace
+
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
-                          const std::vector<SurveyPlacement>& pb,
-                          const std::map<std::string, Symmetry>& symmetries,
+                          const std::vector<SurveyPlacement>& pb, const ObjectModels& models,
                           const ChangeConfig& config, const PointCloud* colour_a,
                           const PointCloud* colour_b) {
   config.validate();
@@ -901,38 +1052,10 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
   r.registration = register_surveys(a_world, b_world, config.registration);
   std::vector<SurveyPlacement> pb_in_a = pb;
   for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
-  r.objects = compare_placements(pa, pb_in_a, symmetries, config);
+  r.objects = compare_placements(pa, pb_in_a, models, config);
   compare_geometry(a_world, transformed(b_world, r.registration.T_a_b), config, &r);
-  // An object change the heights do not show is the recognition's, not the site's: a moved,
-  // added or removed object needs a region of change within confirm_radius_m of where it was or
-  // is, unless both surveys observed less than half of that disc (then the placements decide).
+  weigh_object_changes(models, config, &r);
   const ElevationMap& d = r.change_map;
-  const int reach = static_cast<int>(std::ceil(config.confirm_radius_m / d.cell_m));
-  for (ObjectChange& o : r.objects) {
-    if (o.status == ObjectStatus::Unchanged) continue;
-    std::vector<Eigen::Vector2d> at;
-    if (o.in_a) at.push_back(o.T_world_model_a.translation().head<2>());
-    if (o.in_b) at.push_back(o.T_world_model_b_in_a.translation().head<2>());
-    bool confirmed = false, observed = false;
-    for (const Eigen::Vector2d& p : at) {
-      for (const ChangeRegion& g : r.regions) {
-        confirmed |= (g.centroid.head<2>() - p).norm() <= config.confirm_radius_m;
-      }
-      const int c0 = static_cast<int>(std::floor((p.x() - d.origin_xy.x()) / d.cell_m));
-      const int r0 = static_cast<int>(std::floor((d.origin_xy.y() - p.y()) / d.cell_m));
-      std::size_t in_disc = 0, seen = 0;
-      for (int dr = -reach; dr <= reach; ++dr) {
-        for (int dc = -reach; dc <= reach; ++dc) {
-          if (dr * dr + dc * dc > reach * reach) continue;
-          ++in_disc;
-          const int rr = r0 + dr, cc = c0 + dc;
-          seen += rr >= 0 && cc >= 0 && rr < d.rows && cc < d.cols && d.valid(rr, cc);
-        }
-      }
-      observed |= 2 * seen >= in_disc;
-    }
-    if (observed && !confirmed) o.status = ObjectStatus::Unchanged;
-  }
   if (colour_a != nullptr) {
     PointCloud b_in_a = transformed(*colour_b, r.registration.T_a_b);
     b_in_a.color = colour_b->color;
@@ -987,7 +1110,15 @@ std::string changes_json(const ChangeResult& r) {
          {"T_world_model_a", o.in_a ? matrix_json(o.T_world_model_a) : nlohmann::json()},
          {"T_world_model_b_in_a", o.in_b ? matrix_json(o.T_world_model_b_in_a) : nlohmann::json()},
          {"shift_m", num_or_null(both, o.shift_m)},
-         {"turn_deg", num_or_null(both, o.turn_deg)}});
+         {"turn_deg", num_or_null(both, o.turn_deg)},
+         {"match_radius_m", o.match_radius_m},
+         {"change_area_m2", num_or_null(std::isfinite(o.change_area_m2), o.change_area_m2)},
+         {"observed_fraction",
+          num_or_null(std::isfinite(o.observed_fraction), o.observed_fraction)},
+         {"confidence_a", num_or_null(std::isfinite(o.confidence_a), o.confidence_a)},
+         {"confidence_b", num_or_null(std::isfinite(o.confidence_b), o.confidence_b)},
+         {"other_model", o.other_model.empty() ? nlohmann::json() : nlohmann::json(o.other_model)},
+         {"reason", o.reason.empty() ? nlohmann::json() : nlohmann::json(o.reason)}});
   }
   j["objects"] = objects;
   nlohmann::json regions = nlohmann::json::array();
@@ -1011,6 +1142,8 @@ std::string changes_json(const ChangeResult& r) {
                      {"shift_tol_m", t.shift_tol_m},
                      {"turn_tol_deg", t.turn_tol_deg},
                      {"match_radius_m", t.match_radius_m},
+                     {"match_radius_factor", t.match_radius_factor},
+                     {"min_match_radius_m", t.min_match_radius_m},
                      {"yaw_deg", r.registration.yaw_deg},
                      {"registration_seconds", r.registration.seconds}};
   j["colour"] = nullptr;
@@ -1088,9 +1221,20 @@ PointCloud read_survey_cloud(const std::string& path) {
               "': neither a point cloud (.ply) nor a map directory of sonar3d map (merged.ply)");
 }
 
-std::map<std::string, Symmetry> catalogue_symmetries(const Catalogue& catalogue) {
-  std::map<std::string, Symmetry> out;
-  for (const CatalogueModel& m : catalogue.models) out[m.name] = m.symmetry;
+ObjectModels catalogue_object_models(const Catalogue& catalogue,
+                                     const std::vector<std::string>& placed) {
+  ObjectModels out;
+  for (const CatalogueModel& m : catalogue.models) {
+    ObjectModel& om = out[m.name];
+    om.symmetry = m.symmetry;
+    if (std::find(placed.begin(), placed.end(), m.name) == placed.end()) continue;
+    const TriangleMesh mesh = load_catalogue_mesh(catalogue, m);
+    const Eigen::AlignedBox3f b = mesh.bounding_box();
+    if (!b.isEmpty()) {
+      om.footprint =
+          Eigen::AlignedBox2d(b.min().head<2>().cast<double>(), b.max().head<2>().cast<double>());
+    }
+  }
   return out;
 }
 

@@ -86,6 +86,19 @@ double optional_number(const nlohmann::json& o, const char* key, const std::stri
   return o[key].get<double>();
 }
 
+// A confidence (recognize's, docs/recognition.md): absent or null gives NaN (unknown), anything
+// but a finite number in [0, 1] is an Error naming the key.
+double optional_confidence(const nlohmann::json& o, const char* key, const std::string& where) {
+  if (!o.contains(key) || o[key].is_null()) return std::numeric_limits<double>::quiet_NaN();
+  const nlohmann::json& v = o[key];
+  require(v.is_number(),
+          where + ": '" + key + "' must be a number in [0, 1], not " + std::string(v.type_name()));
+  const double c = v.get<double>();
+  require(std::isfinite(c) && c >= 0 && c <= 1,
+          where + ": '" + key + "' is " + fmt::format("{}", c) + ", not a number in [0, 1]");
+  return c;
+}
+
 std::string optional_string(const nlohmann::json& o, const char* key) {
   return o.contains(key) && o[key].is_string() ? o[key].get<std::string>() : std::string();
 }
@@ -206,6 +219,9 @@ PlacementsFile parse_placements(const std::string& text, const std::string& sour
   out.path = source;
   out.map = optional_string(j, "map");
   out.catalogue = optional_string(j, "catalogue");
+  if (j.contains("settings") && j["settings"].is_object()) {
+    out.min_confidence = optional_confidence(j["settings"], "min_confidence", where + ": settings");
+  }
   for (std::size_t i = 0; i < list.size(); ++i) {
     const nlohmann::json& e = list[i];
     const std::string at = where + ": placement " + std::to_string(i);
@@ -220,6 +236,7 @@ PlacementsFile parse_placements(const std::string& text, const std::string& sour
     p.residual_median_m = optional_number(e, "residual_median_m", at);
     p.residual_mean_m = optional_number(e, "residual_mean_m", at);
     p.method = optional_string(e, "method");
+    p.confidence = optional_confidence(e, "confidence", at);
     out.placements.push_back(p);
   }
   return out;
@@ -267,6 +284,44 @@ void ConnectionConfig::validate() const {
 void WorldModelConfig::validate() const {
   seabed.validate();
   connections.validate();
+  require(std::isfinite(min_confidence) && min_confidence >= 0 && min_confidence <= 1,
+          "min_confidence: must lie in [0, 1]");
+}
+
+double world_confidence_threshold(const PlacementsFile& placements, std::optional<double> asked,
+                                  const std::string& param) {
+  double t = 0;
+  std::string from = "the default";
+  if (asked) {
+    require(std::isfinite(*asked) && *asked >= 0 && *asked <= 1,
+            param + ": " + fmt::format("{}", *asked) + " is not a confidence in [0, 1]");
+    t = *asked;
+    from = param;
+  } else if (std::isfinite(placements.min_confidence)) {
+    t = placements.min_confidence;
+    from = "its settings.min_confidence";
+  }
+  if (t > 0) {
+    for (std::size_t i = 0; i < placements.placements.size(); ++i) {
+      require(std::isfinite(placements.placements[i].confidence),
+              "placements '" + placements.path + "': placement " + std::to_string(i) +
+                  " has no 'confidence', so the threshold " + fmt::format("{}", t) + " (" + from +
+                  ") cannot be checked: write the placements again with sonar3d recognize, or "
+                  "give " +
+                  param + " 0");
+    }
+  }
+  return t;
+}
+
+std::size_t confirm_objects(std::vector<WorldObject>& objects, double min_confidence) {
+  std::size_t unconfirmed = 0;
+  for (WorldObject& o : objects) {
+    o.confirmed =
+        std::isfinite(o.confidence) ? o.confidence >= min_confidence : min_confidence <= 0;
+    unconfirmed += !o.confirmed;
+  }
+  return unconfirmed;
 }
 
 std::vector<WorldObject> world_objects(const PlacementsFile& placements,
@@ -295,6 +350,7 @@ std::vector<WorldObject> world_objects(const PlacementsFile& placements,
     o.T_world_model = p.T_world_model;
     o.score_m = p.score_m;
     o.residual_median_m = p.residual_median_m;
+    o.confidence = p.confidence;
     o.mesh_model = shared[static_cast<std::size_t>(it - catalogue_names.begin())];
     out.push_back(std::move(o));
   }
@@ -321,8 +377,9 @@ std::vector<std::uint8_t> explained_points(const PointCloud& cloud_world,
   std::vector<std::uint8_t> out(cloud_world.size(), 0);
   for (std::size_t i = 0; i < cloud_world.size(); ++i) {
     const Eigen::Vector3d p = cloud_world.points[i].cast<double>();
-    for (const PlacedBox& b : boxes) {
-      if (b.box.contains(b.T_model_world * p)) {
+    for (std::size_t k = 0; k < boxes.size(); ++k) {
+      const PlacedBox& b = boxes[k];
+      if (objects[k].confirmed && b.box.contains(b.T_model_world * p)) {
         out[i] = 1;
         break;
       }
@@ -451,6 +508,9 @@ std::vector<Connection> find_connections(const ElevationMap& seabed,
   const double step = std::min(seabed.cell_m, config.corridor_m / 2);
   for (std::size_t i = 0; i < objects.size(); ++i) {
     for (std::size_t j = i + 1; j < objects.size(); ++j) {
+      // A placement below the confidence threshold is never an end of a pipeline: three false
+      // tanks on a wreck must not be joined (issue 28).
+      if (!objects[i].confirmed || !objects[j].confirmed) continue;
       const Eigen::Vector2d a = (objects[i].T_world_model * boxes[i].box.center()).head<2>();
       const Eigen::Vector2d b = (objects[j].T_world_model * boxes[j].box.center()).head<2>();
       const double length = (b - a).norm();
@@ -461,7 +521,9 @@ std::vector<Connection> find_connections(const ElevationMap& seabed,
       for (double t = config.station_m / 2; t < length; t += config.station_m) {
         const Eigen::Vector2d s = a + t * u;
         bool inside = false;
-        for (const PlacedBox& box : boxes) inside = inside || in_footprint(box, s);
+        for (std::size_t k = 0; k < boxes.size(); ++k) {
+          inside = inside || (objects[k].confirmed && in_footprint(boxes[k], s));
+        }
         if (inside) continue;  // the structures themselves (and any third one on the way)
         ++stations;
         // Cross-section: the ground beyond the corridor, fitted by a line (a slope across the
@@ -515,6 +577,8 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   require(!cloud_world.empty(), "the map holds no points: nothing to build a world model from");
   WorldModel w;
   w.cloud_points = cloud_world.size();
+  w.min_confidence = config.min_confidence;
+  confirm_objects(objects, config.min_confidence);
   const std::vector<std::uint8_t> explained =
       explained_points(cloud_world, objects, config.seabed.margin_m);
   const std::vector<std::uint8_t> coloured_all = video_coloured(cloud_world);
@@ -553,8 +617,8 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
     for (int r = 0; r < fine.rows; ++r) {
       for (int c = 0; c < fine.cols; ++c) {
         const Eigen::Vector2d xy = fine.cell_center_xy(r, c);
-        for (const PlacedBox& b : boxes) {
-          if (in_footprint(b, xy)) mask[fine.index(r, c)] = 1;
+        for (std::size_t k = 0; k < boxes.size(); ++k) {
+          if (objects[k].confirmed && in_footprint(boxes[k], xy)) mask[fine.index(r, c)] = 1;
         }
       }
     }
@@ -649,6 +713,16 @@ void add_given_connections(WorldModel& world, const std::vector<GivenConnection>
         throw Error(at + ": '" + *id +
                     "' names no placed object (the objects: " + (ids.empty() ? "none" : ids) + ")");
       }
+    }
+    for (const std::string* id : {&g.from, &g.to}) {
+      const WorldObject& o = world.objects[index[*id]];
+      const std::string conf = std::isfinite(o.confidence)
+                                   ? "confidence " + fmt::format("{:.2f}", o.confidence)
+                                   : std::string("confidence unknown");
+      require(o.confirmed, at + ": '" + *id + "' is an unconfirmed placement (" + conf +
+                               " below the threshold " +
+                               fmt::format("{:.2f}", world.min_confidence) +
+                               "): it is not connected; lower --min-confidence to connect it");
     }
     require(g.from != g.to, at + ": a connection from '" + g.from + "' to itself");
     const auto key = std::minmax(g.from, g.to);
@@ -802,6 +876,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
   // placed model (its catalogue mesh in the model frame, shared per model, node = T_world_model).
   GltfScene scene;
   const Eigen::Vector4f sand(0.62f, 0.56f, 0.42f, 1.0f), steel(0.85f, 0.45f, 0.12f, 1.0f);
+  // Unconfirmed placements (below the confidence threshold): grey, named "<id> (unconfirmed)".
+  const Eigen::Vector4f unconfirmed(0.55f, 0.55f, 0.6f, 1.0f);
   scene.nodes.push_back({"world (ENU z-up to glTF y-up)", -1, enu_to_gltf(), {}});
   scene.roots = {0};
   const std::size_t first_lod = info.glb_all_lods ? 0 : world.seabed.size() - 1;
@@ -829,11 +905,15 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
     placed.transform(o.T_world_model);
     save_mesh((tmp / file).string(), placed);
     r.models_bytes += fs::file_size(tmp / file);
-    if (!mesh_of_model.count(o.model)) {
-      scene.meshes.push_back({o.model, *o.mesh_model, {}, steel});
-      mesh_of_model[o.model] = static_cast<int>(scene.meshes.size()) - 1;
+    const std::string mesh_name = o.confirmed ? o.model : o.model + " (unconfirmed)";
+    if (!mesh_of_model.count(mesh_name)) {
+      scene.meshes.push_back({mesh_name, *o.mesh_model, {}, o.confirmed ? steel : unconfirmed});
+      mesh_of_model[mesh_name] = static_cast<int>(scene.meshes.size()) - 1;
     }
-    scene.nodes.push_back({o.id, mesh_of_model[o.model], o.T_world_model.matrix(), {}});
+    scene.nodes.push_back({o.confirmed ? o.id : o.id + " (unconfirmed)",
+                           mesh_of_model[mesh_name],
+                           o.T_world_model.matrix(),
+                           {}});
     scene.nodes[0].children.push_back(static_cast<int>(scene.nodes.size()) - 1);
     nlohmann::json T = nlohmann::json::array();
     for (int rr = 0; rr < 4; ++rr) {
@@ -845,6 +925,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                        {"T_world_model", T},
                        {"score_m", num_or_null(o.score_m)},
                        {"residual_median_m", num_or_null(o.residual_median_m)},
+                       {"confidence", num_or_null(o.confidence)},
+                       {"confirmed", o.confirmed},
                        {"file", file}});
   }
   write_glb(tmp / "world.glb", scene);
@@ -865,6 +947,7 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
   const nlohmann::json graph = {
       {"format", "sonar3d-world"},
       {"version", 1},
+      {"min_confidence", world.min_confidence},
       {"objects", objects},
       {"connections", connections},
       {"seabed", seabed},

@@ -16,6 +16,8 @@ struct WorldGraphObject {
   std::string id, model, kind, file;  // file: relative to the world directory
   Eigen::Matrix4d T_world_model = Eigen::Matrix4d::Identity();
   double score_m = 0, residual_median_m = 0;  // NaN when null
+  double confidence = 0;                      // NaN when null or absent (unknown)
+  bool confirmed = true;  // at or above the world's min_confidence (absent: true, older files)
 };
 struct WorldConnection {
   std::string from, to, kind;
@@ -33,6 +35,7 @@ struct WorldGraph {
   std::vector<WorldGraphObject> objects;
   std::vector<WorldConnection> connections;  // from/to are ids of objects (checked)
   std::vector<WorldSeabedLod> seabed;        // sorted by lod
+  double min_confidence = 0;                 // NaN when absent (files before it was written)
   std::string source_map, source_placements, source_catalogue;
   long long bytes_total = 0, cloud_bytes = 0;
 };
@@ -40,11 +43,17 @@ WorldGraph parse_world_graph(const std::string& text, const std::string& path);
 
 // changes.json of `sonar3d diff A B` ("format": "sonar3d-changes", version 1).
 struct ChangedObject {
-  std::string id, model, status;  // unchanged | moved | added | removed
+  // unchanged | moved | added | removed | uncertain. Files of diffs before "uncertain" existed
+  // wrote a one-survey recognition that the heights did not confirm as "unchanged" with one pose
+  // null: it is read as "uncertain" (what it was).
+  std::string id, model, status;
+  std::string reason;       // why an object is uncertain (empty otherwise or when absent)
+  std::string other_model;  // the other survey's model over it, when another (empty: none)
   bool has_a = false, has_b = false;
   Eigen::Matrix4d T_world_model_a = Eigen::Matrix4d::Identity();       // survey A, A's frame
   Eigen::Matrix4d T_world_model_b_in_a = Eigen::Matrix4d::Identity();  // survey B, A's frame
   double shift_m = 0, turn_deg = 0;                                    // NaN when null
+  double change_area_m2 = 0;  // height change within its footprint(s); NaN when null or absent
 };
 struct ChangedRegion {
   long long id = 0;

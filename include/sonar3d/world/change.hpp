@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -134,22 +135,47 @@ struct ChangeConfig {
   // Changed cells of one sign closer than this belong to one region (a moved frame of thin tubes
   // changes in strips), m.
   double link_m = 0.1;
-  // Objects: placements of one model in A and B (B in A's frame) whose origins are within
-  // match_radius_m are the same object (nearest pairs first); it is unchanged when it moved at
-  // most shift_tol_m horizontally and turned at most turn_tol_deg (modulo the model's symmetry).
+  // Objects: placements of one model in A and B (B in A's frame) are the same object when their
+  // centres (the centre of the model's footprint, placed; the origin when its size is unknown)
+  // lie within its match radius, nearest pairs (relative to that radius) first. The radius
+  // scales with the object: match_radius_factor × r_model (r_model: half the diagonal of the
+  // model's footprint, ObjectModel), at least min_match_radius_m; match_radius_m for a model of
+  // unknown size. At factor 1 two placements pair when their footprints overlap: a 7 × 6 m
+  // frame moved 1 m is one object moved, a 0.5 m crate 1 m away is another crate.
+  double match_radius_factor = 1.0;
+  double min_match_radius_m = 0.25;
   double match_radius_m = 1.0;
+  // A paired object is unchanged when it moved at most shift_tol_m horizontally and turned at
+  // most turn_tol_deg (modulo the model's symmetry).
   double shift_tol_m = 0.1;
   double turn_tol_deg = 3;
-  // A moved, added or removed object must be confirmed by a region of height change within this
-  // of its origin in A or B (when both surveys observed at least half of that disc); otherwise
-  // the difference is the recognition's (a placement off by 15 cm, a structure missed) and the
-  // object is unchanged, m.
+  // The height evidence behind an object change: the reported regions of height change inside
+  // the object's footprint in A or in B (grown by tolerance_m; for a model of unknown size, the
+  // disc of confirm_radius_m about its origin) must cover at least min_area_m2. A moved object
+  // without it is unchanged (the recognition's pose differs, not the site); an object recognised
+  // in one survey only (or as another model in the other) without it is uncertain, never added
+  // or removed — and so is one whose footprint both surveys did not observe (less than half of
+  // its cells in the change map).
   double confirm_radius_m = 1.5;
   void validate() const;
 };
 
-enum class ObjectStatus { Unchanged, Moved, Added, Removed };
-const char* object_status_name(ObjectStatus s);  // "unchanged", "moved", "added", "removed"
+// What change detection knows of a catalogue model: its symmetry (turns are compared modulo it)
+// and its size (the radius objects are paired over, the footprint a change must show in).
+struct ObjectModel {
+  Symmetry symmetry = Symmetry::None;
+  // The model's horizontal footprint in its own frame (x, y extent of its mesh), m; empty when
+  // its size is unknown.
+  Eigen::AlignedBox2d footprint{};
+  bool has_size() const { return !footprint.isEmpty(); }
+  // r_model in 2D: half the footprint's diagonal (the horizontal radius about its centre), m.
+  double radius_m() const { return has_size() ? 0.5 * footprint.diagonal().norm() : 0.0; }
+};
+using ObjectModels = std::map<std::string, ObjectModel>;
+
+enum class ObjectStatus { Unchanged, Moved, Added, Removed, Uncertain };
+// "unchanged", "moved", "added", "removed", "uncertain"
+const char* object_status_name(ObjectStatus s);
 
 struct ObjectChange {
   std::string id;  // "<model>_<n>": n counts the model's placements of A, then those added in B
@@ -158,8 +184,21 @@ struct ObjectChange {
   bool in_a = false, in_b = false;
   Eigen::Isometry3d T_world_model_a = Eigen::Isometry3d::Identity();       // when in_a
   Eigen::Isometry3d T_world_model_b_in_a = Eigen::Isometry3d::Identity();  // when in_b: T_a_b·T_b
-  double shift_m = 0;   // horizontal distance between the origins (both present), m
-  double turn_deg = 0;  // yaw difference modulo the symmetry, in [0, 180] (both present)
+  double shift_m = 0;         // horizontal distance between the centres (both present), m
+  double turn_deg = 0;        // yaw difference modulo the symmetry, in [0, 180] (both present)
+  double match_radius_m = 0;  // the radius it was paired over (ChangeConfig), m
+  // Recognition's confidence of each survey's placement (PlacementRecord); NaN: unknown/absent.
+  double confidence_a = std::numeric_limits<double>::quiet_NaN();
+  double confidence_b = std::numeric_limits<double>::quiet_NaN();
+  // Set when the other survey placed another model over it (its footprint overlapping): that
+  // model's name. Empty otherwise.
+  std::string other_model;
+  // Set by diff_surveys: the area of reported height change inside its footprint(s), m², and
+  // the fraction of those footprints' cells both surveys observed. NaN: not measured
+  // (compare_placements alone).
+  double change_area_m2 = std::numeric_limits<double>::quiet_NaN();
+  double observed_fraction = std::numeric_limits<double>::quiet_NaN();
+  std::string reason;  // why an object is uncertain; empty otherwise
 };
 
 struct ChangeRegion {
@@ -213,6 +252,7 @@ struct ChangeThresholds {
   double change_m = 0;  // the height change threshold: k_sigma · sigma_m, m
   double min_area_m2 = 0;
   double shift_tol_m = 0, turn_tol_deg = 0, match_radius_m = 0;
+  double match_radius_factor = 0, min_match_radius_m = 0;
 };
 
 struct ChangeResult {
@@ -245,24 +285,27 @@ void check_colour_cloud(const PointCloud& cloud, const std::string& name);
 ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour_b_in_a,
                             const ColourChangeConfig& config);
 
-// Placements compared (B's already in A's frame). `symmetries`: per model name its symmetry
-// (turns are compared modulo it); empty = every model without symmetry. A placement of a model
-// that `symmetries` (when not empty) does not list is an Error naming it.
+// Placements compared (B's already in A's frame) by identity (the model) and pose (centres
+// within the match radius, ChangeConfig): paired ones are unchanged or moved, the others removed
+// (A only) or added (B only), each with the model the other survey placed over it if any
+// (other_model). diff_surveys then weighs them against the height change. `models`: per model
+// name its symmetry and size (empty = every model without symmetry, of unknown size). A
+// placement of a model that `models` (when not empty) does not list is an Error naming it.
 std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
                                              const std::vector<SurveyPlacement>& b_in_a,
-                                             const std::map<std::string, Symmetry>& symmetries,
+                                             const ObjectModels& models,
                                              const ChangeConfig& config);
 
 // The whole comparison: B registered onto A, its placements (if any) moved into A's frame and
-// compared with A's, the height change map with its regions, and each object change confirmed by
-// a region near it (ChangeConfig::confirm_radius_m). `pa`, `pb` may both be empty
-// (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each survey in
-// its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
+// compared with A's, the height change map with its regions, and each object change weighed
+// against the height change inside its footprint (ChangeConfig: moved, added and removed need
+// it; without it a pair is unchanged and a one-survey recognition uncertain). `pa`, `pb` may both
+// be empty (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each
+// survey in its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
 // compare_colour after B's is moved by T_a_b.
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
-                          const std::vector<SurveyPlacement>& pb,
-                          const std::map<std::string, Symmetry>& symmetries,
+                          const std::vector<SurveyPlacement>& pb, const ObjectModels& models,
                           const ChangeConfig& config, const PointCloud* colour_a = nullptr,
                           const PointCloud* colour_b = nullptr);
 
@@ -278,8 +321,11 @@ PointCloud change_points(const ChangeResult& result);
 // colour compared colour_change_map.tif (float32, the colour difference per colour cell).
 void write_change_directory(const std::string& dir, const ChangeResult& result);
 
-// Per catalogue model its symmetry (for compare_placements).
-std::map<std::string, Symmetry> catalogue_symmetries(const Catalogue& catalogue);
+// Per catalogue model its symmetry and size (for compare_placements): the footprint of its mesh
+// for the models `placed` names (the meshes of the others are not loaded; their size stays
+// unknown), symmetry only for the rest. Mesh errors name the catalogue and model.
+ObjectModels catalogue_object_models(const Catalogue& catalogue,
+                                     const std::vector<std::string>& placed);
 
 // A survey's placements found by the 2D recognition (recog/recognition.hpp) with the
 // catalogue's models.

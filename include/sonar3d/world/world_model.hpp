@@ -29,12 +29,17 @@ struct PlacementRecord {
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();  // null in the file: NaN
   double residual_mean_m = std::numeric_limits<double>::quiet_NaN();    // null or absent: NaN
   std::string method{};  // "2d" or "3d" as recognize wrote it; empty when absent
+  // How sure recognition is that the model lies there, in [0, 1] (docs/recognition.md); NaN when
+  // the file does not say (files written before recognize recorded it).
+  double confidence = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct PlacementsFile {
   std::string path;
   std::string map, catalogue;  // the sources recorded by recognize (may be empty)
   std::vector<PlacementRecord> placements;
+  // settings.min_confidence: the threshold that decided "found", in [0, 1]; NaN when absent.
+  double min_confidence = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Placement records allowed in one file (a count read from a file decides allocations).
@@ -43,7 +48,9 @@ constexpr std::size_t kMaxPlacements = 10'000;
 // Reads a placements JSON ("format": "sonar3d-placements", version 1). Errors name the file and
 // the placement index and key at fault: not JSON, another format or version, a missing or
 // non-string model, a T_world_model that is not 4×4 finite numbers with a rotation block
-// (orthonormal, determinant +1, within 1e-3) and a last row of 0 0 0 1.
+// (orthonormal, determinant +1, within 1e-3) and a last row of 0 0 0 1, a `confidence` (per
+// placement) or `settings.min_confidence` that is not a finite number in [0, 1]. Both are
+// optional: a file without them is read with the confidence unknown (NaN).
 PlacementsFile read_placements(const std::string& path);
 // The same on a file's text (`source` names it in errors). Nesting deeper than
 // limits::kMaxNestingDepth is refused.
@@ -57,6 +64,11 @@ struct WorldObject {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
   double score_m = 0;
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();
+  double confidence = std::numeric_limits<double>::quiet_NaN();  // NaN: unknown (older files)
+  // At or above the world's confidence threshold (or of unknown confidence with no threshold
+  // asked). An unconfirmed object is kept in the world model and listed, but explains no point
+  // (its points stay in the seabed), fills no footprint and is never joined by a connection.
+  bool confirmed = true;
   // The catalogue mesh, model frame; shared by the objects of one model (a placements file of
   // thousands of records must not copy a mesh each).
   std::shared_ptr<const TriangleMesh> mesh_model;
@@ -96,8 +108,26 @@ struct WorldModelConfig {
   SeabedConfig seabed;
   ConnectionConfig connections;
   bool find_connections = true;
+  // Placements below this confidence are kept as unconfirmed objects (confirm_objects): never
+  // connected, explaining no point. In [0, 1]; 0 confirms every placement, even of unknown
+  // confidence. `sonar3d world` takes it from the placements file (world_confidence_threshold).
+  double min_confidence = 0;
   void validate() const;
 };
+
+// The confidence threshold the world applies: `asked` when given (finite, in [0, 1], else an
+// Error naming `param`), else the file's settings.min_confidence, else 0. A threshold above 0
+// with a placement of unknown confidence is an Error naming the file and the placement: the
+// threshold cannot be checked on it (write the placements again with sonar3d recognize).
+double world_confidence_threshold(const PlacementsFile& placements, std::optional<double> asked,
+                                  const std::string& param = "--min-confidence");
+
+// Marks each object confirmed when its confidence is at or above `min_confidence` (thesis
+// sec. 6.3.3's world model is built from the placements recognition found; a placement below
+// the threshold is not one of them). An object of unknown confidence is confirmed only when the
+// threshold is 0. Returns the number unconfirmed. build_world_model calls it with
+// WorldModelConfig::min_confidence.
+std::size_t confirm_objects(std::vector<WorldObject>& objects, double min_confidence);
 
 struct SeabedLod {
   int lod = 0;
@@ -126,7 +156,8 @@ struct Connection {
 };
 
 struct WorldModel {
-  std::vector<WorldObject> objects;
+  std::vector<WorldObject> objects;  // confirmed and unconfirmed (WorldObject::confirmed)
+  double min_confidence = 0;         // the threshold objects were confirmed by
   std::vector<Connection> connections;
   std::vector<SeabedLod> seabed;
   std::size_t cloud_points = 0, seabed_points = 0;  // seabed: the points no model explains
@@ -170,8 +201,9 @@ ElevationMap downsample_heights(const ElevationMap& fine, int factor, double min
 // 8-neighbours (from the edge of each hole inward). Returns the number of cells filled.
 std::size_t fill_holes(ElevationMap& map, const std::vector<std::uint8_t>& fill_mask);
 
-// Pipelines between pairs of structures (ConnectionConfig), found on `seabed` (the seabed with
-// the structures removed and their footprints filled).
+// Pipelines between pairs of confirmed structures (ConnectionConfig), found on `seabed` (the
+// seabed with the structures removed and their footprints filled); unconfirmed objects are
+// never an end.
 std::vector<Connection> find_connections(const ElevationMap& seabed,
                                          const std::vector<WorldObject>& objects,
                                          const ConnectionConfig& config, double margin_m);
@@ -189,8 +221,9 @@ constexpr std::size_t kMaxGivenConnections = 100'000;
 // is not a map, unknown keys, `from`/`to` missing or empty, more than kMaxGivenConnections.
 std::vector<GivenConnection> read_given_connections(const std::string& path);
 
-// Adds the given connections to the world's. An id that names no object, a connection from an
-// object to itself, or a pair given twice is an Error naming the file and line. A pair also found
+// Adds the given connections to the world's. An id that names no object or an unconfirmed one
+// (below the confidence threshold), a connection from an object to itself, or a pair given
+// twice is an Error naming the file and line. A pair also found
 // in the map keeps its measured length and fraction and is marked given too; a pair not found
 // gets the straight horizontal distance between the footprint centres (SeabedConfig::margin_m
 // boxes) as its length.
@@ -202,8 +235,9 @@ void add_given_connections(WorldModel& world, const std::vector<GivenConnection>
 // order (texture without --drop-uncoloured keeps them); otherwise an Error naming `source`.
 void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source);
 
-// The whole world model from a world-frame cloud and its placed objects. An empty cloud, or a
-// cloud that every placed model explains entirely, is an Error.
+// The whole world model from a world-frame cloud and its placed objects (confirmed ones explain
+// points and are connected; unconfirmed ones are only carried along). An empty cloud, or a cloud
+// that every placed model explains entirely, is an Error.
 WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObject> objects,
                              const WorldModelConfig& config);
 
