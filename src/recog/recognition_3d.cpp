@@ -122,20 +122,56 @@ Ground estimate_ground(const std::vector<V3f>& points, const Recognition3dConfig
   g.z.assign(zmin.size(), nan);
   const int w = static_cast<int>(std::ceil(cfg.ground_window_m / g.cell));
   tbb::parallel_for(0, g.ny, [&](int r) {
-    std::vector<float> v;
+    std::vector<Eigen::Vector3d> v, kept;
+    std::vector<double> res;
     for (int c = 0; c < g.nx; ++c) {
       v.clear();
       for (int rr = std::max(0, r - w); rr <= std::min(g.ny - 1, r + w); ++rr) {
         for (int cc = std::max(0, c - w); cc <= std::min(g.nx - 1, c + w); ++cc) {
           const float z = zmin[static_cast<std::size_t>(rr) * g.nx + cc];
-          if (z == z) v.push_back(z);
+          if (z == z) v.emplace_back((cc - c) * g.cell, (rr - r) * g.cell, z);
         }
       }
       if (v.empty()) continue;
-      const auto k = v.begin() + static_cast<std::ptrdiff_t>(cfg.ground_quantile *
-                                                             static_cast<double>(v.size() - 1));
-      std::nth_element(v.begin(), k, v.end());
-      g.z[static_cast<std::size_t>(r) * g.nx + c] = *k;
+      // A plane z = a + b·dx + c·dy through the window's lowest points, refitted twice to the
+      // lower half of all cells' residuals: it follows slopes (a quantile of a sloping window
+      // lies below its upper side by the slope times the window: 0.3-0.4 m on the issue's
+      // relief, which left the seabed in the subspaces) and ignores structures covering less
+      // than half the window.
+      Eigen::Vector3d abc(0, 0, 0);
+      kept = v;
+      for (int it = 0; it < 3; ++it) {
+        if (kept.size() < 6) break;
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        for (const auto& p : kept) {
+          const Eigen::Vector3d x(1, p.x(), p.y());
+          A += x * x.transpose();
+          b += x * p.z();
+        }
+        abc = A.ldlt().solve(b);
+        if (!abc.allFinite()) break;
+        res.clear();
+        for (const auto& p : v) res.push_back(p.z() - abc.dot(Eigen::Vector3d(1, p.x(), p.y())));
+        std::vector<double> sorted = res;
+        const auto m = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+        std::nth_element(sorted.begin(), m, sorted.end());
+        const double cut = *m;  // the lower half of the window's cells
+        kept.clear();
+        for (std::size_t i = 0; i < v.size(); ++i) {
+          if (res[i] <= cut) kept.push_back(v[i]);
+        }
+      }
+      if (kept.size() < 6 || !abc.allFinite()) {  // too few cells for a plane: the quantile
+        std::vector<double> z;
+        for (const auto& p : v) z.push_back(p.z());
+        const auto k = z.begin() + static_cast<std::ptrdiff_t>(cfg.ground_quantile *
+                                                               static_cast<double>(z.size() - 1));
+        std::nth_element(z.begin(), k, z.end());
+        g.z[static_cast<std::size_t>(r) * g.nx + c] = static_cast<float>(*k);
+      } else {
+        g.z[static_cast<std::size_t>(r) * g.nx + c] = static_cast<float>(abc.x());
+      }
     }
   });
   return g;
@@ -270,6 +306,7 @@ void Recognition3dConfig::validate() const {
   require(max_unexplained >= 0 && max_unexplained <= 1,
           "3D recognition max_unexplained must lie in [0, 1]");
   require_non_negative(context_min_m, "3D recognition context_min_m", "m");
+  require_non_negative(unexplained_height_m, "3D recognition unexplained_height_m", "m");
   require(context_fraction >= 0 && context_fraction <= 10,
           "3D recognition context_fraction must lie in [0, 10]");
   require(max_tilt_deg >= 0 && max_tilt_deg <= 180,
@@ -668,8 +705,8 @@ void free_space_terms(const Model3d& m, const TopMap& top, const Eigen::Isometry
 // 6.3.1.3) and, beyond the thesis, the seen coverage, the free-space violation and the
 // unexplained scene in the footprint.
 void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3f>& scene,
-           const TopMap& top, const std::vector<V3f>& local, const Recognition3dConfig& cfg,
-           Candidate* c) {
+           const TopMap& top, const Ground& ground, const std::vector<V3f>& local,
+           const Recognition3dConfig& cfg, Candidate* c) {
   const Eigen::AlignedBox3f box = m.t->mesh.bounding_box();
   const Eigen::Isometry3f T_mw = c->T.inverse().cast<float>();
   const Eigen::Isometry3f T = c->T.cast<float>();
@@ -702,14 +739,17 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   }
   c->v.coverage = static_cast<double>(hit) / static_cast<double>(m.seen_pts.size());
   free_space_terms(m, top, c->T, cfg, &c->v);
-  // Unexplained: scene points above the seabed in the footprint (grown by the context ring) and
-  // up to the context above the model's top, farther than tol from the model.
+  // Unexplained: scene points standing unexplained_height_m above the seabed (seabed texture is no evidence
+  // either way) in the footprint (grown by the context ring) and up to the context above the
+  // model's top, farther than tol from the model.
   const V3f ctr = (c->T * model_center(*m.t)).cast<float>();
   const float reach = static_cast<float>(m.r_model + m.context_m);
   std::size_t inside = 0, unexplained = 0;
   for (std::size_t i : scene_index.within(ctr, reach)) {
     const V3f q = T_mw * scene[i];
     if (q.z() > m.t->top_z + m.context_m || !m.footprint.contains(q)) continue;
+    const double g = ground.at(scene[i].x(), scene[i].y());
+    if (std::isfinite(g) && scene[i].z() < g + cfg.unexplained_height_m) continue;
     ++inside;
     float d2 = 0;
     m.index->nearest(q, &d2);
@@ -744,7 +784,23 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
                          const std::vector<V3f>& sub, const Eigen::Vector3d& start_xy,
                          const Ground& ground, const Recognition3dConfig& cfg) {
   Candidate c;
-  const std::vector<V3f> pts = thin(sub, cfg.max_points);
+  // With the upright prior the model's horizontal extent about the start is known: the matching
+  // uses the subspace's points within the model's horizontal radius (plus the coarse gate) of
+  // the start. A large model's subspace (6.9 m for a 7 × 6 m frame) otherwise holds the
+  // neighbours' points too: the trimmed start score then exceeded max_start_score_m at the
+  // frame's own pose (issue 28 field: "no start" for both frames).
+  std::vector<V3f> near;
+  if (cfg.upright) {
+    const double reach = m.t->radius_m + cfg.coarse_gate_m;
+    for (const auto& p : sub) {
+      if ((p.head<2>().cast<double>() - start_xy.head<2>()).norm() <= reach) near.push_back(p);
+    }
+    if (near.size() < 6) {
+      c.failed = "fewer than 6 points within the model's radius of the start";
+      return c;
+    }
+  }
+  const std::vector<V3f> pts = thin(cfg.upright ? near : sub, cfg.max_points);
   if (!cfg.upright) {
     double score = 0;
     const IcpResult r = global_registration(*m.index, pts, cfg, &score);
@@ -803,7 +859,7 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
       return c;
     }
   }
-  judge(m, scene_index, scene, top, pts, cfg, &c);
+  judge(m, scene_index, scene, top, ground, pts, cfg, &c);
   c.failed = "";
   c.ok = failed_test(c.v, cfg).empty();
   return c;
@@ -898,7 +954,7 @@ Verification3d verify_placement_3d(const ModelTemplate& model,
   for (std::size_t i : index.within(ctr, static_cast<float>(m.r_model + 0.3))) {
     local.push_back(scene[i]);
   }
-  judge(m, index, scene, top, local, config, &c);
+  judge(m, index, scene, top, ground, local, config, &c);
   return c.v;
 }
 

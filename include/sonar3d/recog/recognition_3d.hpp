@@ -54,8 +54,10 @@ struct Recognition3dConfig {
   // plus this is dropped likewise; 0 keeps the seabed (the thesis kept it: its OBBs then grow
   // with the seabed, sec. 6.3.1.4). Used with `upright` only.
   double seabed_clearance_m = 0.05;
-  // Local seabed: a low quantile of the lowest point per ground_cell_m cell within
-  // ground_window_m of each cell, m.
+  // Local seabed: per ground_cell_m cell, a plane fitted to the lowest point per cell within
+  // ground_window_m, refitted to the lower half of the cells (slopes followed, structures over
+  // less than half the window ignored); where fewer than 6 cells hold points, the
+  // ground_quantile of their lowest points. m.
   double ground_cell_m = 0.25;
   double ground_window_m = 2.0;
   double ground_quantile = 0.25;
@@ -93,6 +95,9 @@ struct Recognition3dConfig {
   double max_unexplained = 0.35;
   double context_min_m = 0.2;
   double context_fraction = 0.25;
+  // Scene points count as unexplained only when standing this high above the local seabed (the
+  // seabed plane leaves 10-20 cm of relief texture on the 25 cm relief), m.
+  double unexplained_height_m = 0.2;
   double max_tilt_deg = 10;  // upright: a placement tilted more than this is refused
   // Non-maximum suppression: two placements of one model whose centres are closer than this
   // fraction of its horizontal radius are one instance (the better kept).
