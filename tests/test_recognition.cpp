@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -22,6 +23,7 @@
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
 #include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/verify.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "test_support.hpp"
 
@@ -309,11 +311,128 @@ TEST(RecogPipeline, FindsStructuresAtTheirPosesAndNotAbsentModels) {
     if (std::getenv("RECOG_PRINT"))
       std::printf("%s", placements_json(r, "", "", test_config()).c_str());
     EXPECT_GT(p.support, 0.7) << placements_json(r, "", "", test_config());
+    EXPECT_GE(p.confidence, test_config().verification.min_confidence);
   }
   // The riser was searched and its best candidate rejected, or no patch scored.
   bool riser_searched = false;
   for (const auto& s : r.searches) riser_searched = riser_searched || s.model == "riser";
   EXPECT_TRUE(riser_searched);
+}
+
+namespace {
+// A box of sx × sy × sz standing on the model frame's z = 0, as a catalogue model.
+ModelTemplate box_template(const std::string& name, double sx, double sy, double sz) {
+  TriangleMesh mesh = make_box(sx, sy, sz);
+  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+  up.translation().z() = 0.5 * sz;
+  mesh.transform(up);
+  ModelSamplingConfig sc;
+  sc.spacing_m = 0.015;
+  return make_model_template(name, mesh, Symmetry::Half, -1, sc);
+}
+
+ElevationMap scene_map(const PointCloud& cloud) {
+  ElevationMapConfig mc;
+  mc.cell_m = 0.02;
+  return elevation_map_from_points(cloud, mc);
+}
+}  // namespace
+
+// Verification terms on hand-made cases (docs/recognition.md, "Verification").
+TEST(RecogVerify, ModelOverFreeSpaceIsRejectedAndTheTruePlacementConfirmed) {
+  const ModelTemplate tank = reference_template("tank", Symmetry::Full);
+  const Eigen::Isometry3d T_tank = pose(3.0, 2.5, -0.05, 30);
+  const PointCloud cloud = synthetic_scene({{&tank, T_tank}}, 0, 0, 8, 5, 0.02, 0.005, 3);
+  const ElevationMap map = scene_map(cloud);
+  const VerificationConfig vc;
+  const Verification right = verify_placement(tank, T_tank, map, {}, vc);
+  ASSERT_TRUE(right.valid);
+  EXPECT_GT(right.seen, 0.9);
+  EXPECT_GT(right.explained, 0.85);
+  EXPECT_LT(right.violation, 0.05);
+  EXPECT_LT(right.unexplained, 0.1);
+  EXPECT_LT(right.spill, 0.05);
+  EXPECT_GE(right.confidence, vc.min_confidence);
+  // The same tank over bare seabed 2.5 m away: the survey saw water where it would stand.
+  const Eigen::Isometry3d T_free = pose(5.6, 2.5, -0.05, 30);
+  const Verification free = verify_placement(tank, T_free, map, {}, vc);
+  ASSERT_TRUE(free.valid);
+  EXPECT_GT(free.violation, 0.8);
+  EXPECT_LT(free.explained, 0.2);
+  EXPECT_LT(free.confidence, vc.min_confidence);
+  EXPECT_LT(free.score_m3, 0.0);
+  // Unobserved (cells removed): neither for nor against, and no seabed to stand on.
+  std::vector<uint8_t> all(map.z.size(), 1);
+  const Verification unseen = verify_placement(tank, T_tank, map, all, vc);
+  EXPECT_FALSE(unseen.valid);
+  EXPECT_EQ(unseen.confidence, 0.0);
+  EXPECT_DOUBLE_EQ(unseen.overlap, 1.0);
+}
+
+TEST(RecogVerify, AModelExplainingARegionScoresAboveOneExplainingHalfOfIt) {
+  const ModelTemplate whole = box_template("whole", 2.0, 0.8, 0.5);
+  const ModelTemplate half = box_template("half", 1.0, 0.8, 0.5);
+  const Eigen::Isometry3d T = pose(3.0, 2.5, 0.0, 0);
+  const PointCloud cloud = synthetic_scene({{&whole, T}}, 0, 0, 7, 5, 0.02, 0.004, 5);
+  const ElevationMap map = scene_map(cloud);
+  const VerificationConfig vc;
+  const Verification w = verify_placement(whole, T, map, {}, vc);
+  // The half box on one half of the whole one: what it covers agrees, but the other half stands
+  // beside it unexplained.
+  const Verification h = verify_placement(half, pose(2.5, 2.5, 0.0, 0), map, {}, vc);
+  ASSERT_TRUE(w.valid && h.valid);
+  EXPECT_GT(h.explained, 0.85);
+  EXPECT_GT(h.unexplained, 0.1);
+  EXPECT_GT(h.spill, 0.15);
+  EXPECT_LT(w.unexplained, 0.05);
+  EXPECT_LT(w.spill, 0.05);
+  EXPECT_GT(w.score_m3, h.score_m3 + 0.1);
+  EXPECT_GT(w.confidence, h.confidence);
+  // A model larger than the structure hangs over free seabed.
+  const ModelTemplate wide = box_template("wide", 2.6, 0.8, 0.5);
+  const Verification o = verify_placement(wide, T, map, {}, vc);
+  EXPECT_GT(o.violation, 0.15);
+  EXPECT_GT(w.score_m3, o.score_m3 + 0.05);
+}
+
+TEST(RecogPipeline, CompetingLabelsAreResolvedByExplanationNotSearchOrder) {
+  // The thesis' order (sec. 6.3.2.6) searches the larger model first: a 2.4 m box placed over a
+  // 1.6 m one passed the old support test and took its area. The better explanation must win.
+  const ModelTemplate right = box_template("right", 1.6, 0.8, 0.5);
+  const ModelTemplate larger = box_template("larger", 2.4, 0.8, 0.5);
+  const Eigen::Isometry3d T = pose(3.0, 2.8, -0.02, 20);
+  const PointCloud cloud = synthetic_scene({{&right, T}}, 0, 0, 7, 5.5, 0.02, 0.004, 7);
+  for (const auto& catalogue : {std::vector<ModelTemplate>{larger, right},
+                                std::vector<ModelTemplate>{right, larger}}) {
+    const RecognitionResult r = recognize_2d(cloud, catalogue, test_config());
+    ASSERT_EQ(r.placements.size(), 1u) << placements_json(r, "", "", test_config());
+    const Placement& p = r.placements[0];
+    EXPECT_EQ(p.model, "right");
+    EXPECT_LT((p.T_world_model.translation() - T.translation()).head<2>().norm(), 0.05);
+    EXPECT_GE(p.confidence, test_config().verification.min_confidence);
+    EXPECT_LE(p.confidence, 1.0);
+  }
+}
+
+TEST(RecogVerify, BadSettingsGiveClearErrors) {
+  auto message = [](VerificationConfig c) {
+    try {
+      c.validate();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  VerificationConfig c;
+  c.tol_m = 0;
+  EXPECT_NE(message(c).find("tol_m"), std::string::npos);
+  c = {};
+  c.min_confidence = 1.5;
+  EXPECT_NE(message(c).find("min_confidence"), std::string::npos);
+  c = {};
+  c.w_violation = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(message(c).find("weights"), std::string::npos);
+  EXPECT_EQ(message(VerificationConfig{}), "");
 }
 
 TEST(RecogCatalogue, ParsesAndGivesClearErrors) {

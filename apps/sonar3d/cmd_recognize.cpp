@@ -122,9 +122,9 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       cmd->add_option("--max-residual", o->cfg.max_residual_median_m,
                       "accept placements whose residual median is at most this, m (2d default "
                       "0.1, 3d default 0.04)");
-  cmd->add_option("--min-support", o->cfg.min_support,
-                  "accept placements whose footprint agrees with the map on at least this "
-                  "fraction of its observed cells")
+  cmd->add_option("--min-confidence", o->cfg.verification.min_confidence,
+                  "2d: a candidate is found at or above this calibrated confidence, 0-1 "
+                  "(docs/recognition.md, Verification)")
       ->capture_default_str();
   cmd->add_flag("--no-icp", o->no_icp, "2d: stop after the 4D search (step 1 of Table 6.1)");
   // The 3D method (Recognition3dConfig).
@@ -203,10 +203,15 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
         const Eigen::Matrix3d R = p.T_world_model.linear();
         fmt::print(
             "  {}: at E {:.3f} N {:.3f} U {:.3f} m, yaw {:.1f} deg; score {:.3f} m; residual "
-            "median {:.3f} m, mean {:.3f} m (step 1: {:.3f}, {:.3f}); {} {:.2f}; {:.2f} s\n",
+            "median {:.3f} m, mean {:.3f} m (step 1: {:.3f}, {:.3f}); {}; {:.2f} s\n",
             p.model, t.x(), t.y(), t.z(), std::atan2(R(1, 0), R(0, 0)) * 180 / M_PI, p.score_m,
             p.residual.median_m, p.residual.mean_m, p.residual_4d.median_m, p.residual_4d.mean_m,
-            three_d ? "coverage" : "support", p.support, p.seconds);
+            three_d ? fmt::format("coverage {:.2f}", p.support)
+                    : fmt::format("confidence {:.2f} (seen {:.2f}, explained {:.2f}, violation "
+                                  "{:.2f}, unexplained {:.2f})",
+                                  p.confidence, p.verification.seen, p.verification.explained,
+                                  p.verification.violation, p.verification.unexplained),
+            p.seconds);
       }
       std::size_t rejected = 0;
       for (const auto& s : r.searches) rejected += !s.accepted && s.scan.found;

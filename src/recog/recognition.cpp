@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
+#include <string>
 
 #include "recog_common.hpp"
 #include "sonar3d/core/error.hpp"
@@ -193,9 +194,8 @@ void RecognitionConfig::validate() const {
   sampling.validate();
   require_positive(max_relative_score, "max_relative_score");
   require_positive(max_residual_median_m, "max_residual_median_m", "m");
-  require(min_support >= 0 && min_support <= 1, "min_support must lie in [0, 1]");
-  require_positive(support_tol_m, "support_tol_m", "m");
-  require(min_observed >= 0 && min_observed <= 1, "min_observed must lie in [0, 1]");
+  verification.validate();
+  require(max_overlap >= 0 && max_overlap <= 1, "max_overlap must lie in [0, 1]");
   require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
           "max_instances must lie in [1, " + std::to_string(kMaxExpectedInstances) + "]");
   require(max_rejections >= 1 && max_rejections <= 100, "max_rejections must lie in [1, 100]");
@@ -367,73 +367,45 @@ double buried_fraction(const ModelTemplate& m, const Eigen::Isometry3d& T, doubl
   return (ground_z - base) / std::max(1e-6, m.height());
 }
 
-// Support (beyond the thesis, whose decision is a residual threshold): the model's relief cells
-// are its footprint cells standing more than relief_m above the local ground (the median scene
-// height in a ring `ring_m` wide around the footprint); support is the fraction of the observed
-// relief cells where the scene map agrees with the placed model within tol. A flat part of a
-// model (a footing, a mudmat) pressed into flat seabed has no relief and cannot vouch for it.
-// Returns {support, fraction of the relief cells observed, ground height}.
-struct Support {
-  double support = 0, observed = 0;
-  double ground_z = std::numeric_limits<double>::quiet_NaN();
+// One model's search state in the competition between hypotheses (docs/recognition.md,
+// "Competing hypotheses").
+struct ModelSearch {
+  const ModelTemplate* m = nullptr;
+  RingLayout layout;
+  RingDescriptor desc;
+  int wanted = 0, found = 0, rejected = 0;
+  bool done = false;
+  std::vector<uint8_t> excluded;         // coarse cells this model's scan skips
+  std::unique_ptr<ModelIndex> index;     // the model's KD-tree, built at its first registration
+  std::optional<SearchRecord> pending;   // a registered, verified candidate awaiting the decision
 };
-Support support_of(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& scene,
-                   const std::vector<uint8_t>& removed, double tol, double relief_m = 0.1,
-                   double ring_m = 0.4) {
-  TopViewConfig tv;
-  tv.cell_m = scene.cell_m;
-  tv.grid_anchor_xy = scene.origin_xy;
-  tv.background_radius_m = m.radius_m + ring_m;
-  tv.background_ring_m = ring_m;
-  const Eigen::Vector2d center =
-      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
-  std::vector<uint8_t> fp;
-  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
-  const int dc0 =
-      static_cast<int>(std::lround((v.origin_xy.x() - scene.origin_xy.x()) / scene.cell_m));
-  const int dr0 =
-      static_cast<int>(std::lround((scene.origin_xy.y() - v.origin_xy.y()) / scene.cell_m));
-  auto scene_at = [&](int r, int c) {
-    const int rr = r + dr0, cc = c + dc0;
-    if (rr < 0 || cc < 0 || rr >= scene.rows || cc >= scene.cols) return ElevationMap::kNoData;
-    const std::size_t i = scene.index(rr, cc);
-    return (!removed.empty() && removed[i]) ? ElevationMap::kNoData : scene.z[i];
-  };
-  std::vector<float> ring;
-  for (int r = 0; r < v.rows; ++r) {
-    for (int c = 0; c < v.cols; ++c) {
-      if (fp[v.index(r, c)] || v.at(r, c) != v.at(r, c)) continue;
-      const float zs = scene_at(r, c);
-      if (zs == zs) ring.push_back(zs);
+
+// Not this patch again for this model: its neighbourhood (r_model/2) is excluded from the scan.
+void exclude_patch(ModelSearch& s, const ScanResult& scan, const ElevationMap& coarse) {
+  const int g = static_cast<int>(std::ceil(0.5 * s.m->radius_m / coarse.cell_m));
+  for (int dr = -g; dr <= g; ++dr) {
+    for (int dc = -g; dc <= g; ++dc) {
+      const int rr = scan.row + dr, cc = scan.col + dc;
+      if (rr >= 0 && cc >= 0 && rr < coarse.rows && cc < coarse.cols) {
+        s.excluded[coarse.index(rr, cc)] = 1;
+      }
     }
   }
-  Support out;
-  if (ring.empty()) return out;
-  const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
-  std::nth_element(ring.begin(), mid, ring.end());
-  const double ground = *mid;
-  out.ground_z = ground;
-  // Each relief cell weighs its height above the ground: the tall parts identify a structure
-  // (a riser's buoyancies, a pillar's column), and a model whose tall parts fall where the map
-  // has no data (an occlusion shadow, the sonar's blind range) is not confirmed by a matching
-  // footing alone.
-  double relief = 0, seen = 0, agree = 0;
-  for (int r = 0; r < v.rows; ++r) {
-    for (int c = 0; c < v.cols; ++c) {
-      const float zm = v.at(r, c);
-      if (!fp[v.index(r, c)] || !(zm > ground + relief_m)) continue;
-      const double w = zm - ground;
-      relief += w;
-      const float zs = scene_at(r, c);
-      if (zs != zs) continue;
-      seen += w;
-      if (std::abs(zs - zm) <= tol) agree += w;
-    }
+}
+
+// The verification's verdict on a registered candidate: empty when found, else why not.
+std::string verdict(const Placement& p, const ModelTemplate& m, const RecognitionConfig& config) {
+  const Verification& v = p.verification;
+  if (!v.valid) return "nothing observed around the model's footprint (no seabed to stand on)";
+  if (v.overlap > config.max_overlap) return "overlaps an accepted placement";
+  if (buried_fraction(m, p.T_world_model, v.ground_z) > config.max_buried_fraction) {
+    return "more of the model below the seabed than max_buried_fraction";
   }
-  if (relief == 0) return out;
-  out.support = seen > 0 ? agree / seen : 0.0;
-  out.observed = seen / relief;
-  return out;
+  if (!(p.residual.median_m <= config.max_residual_median_m)) {
+    return "residual median above max_residual_median_m";
+  }
+  if (v.confidence < config.verification.min_confidence) return "confidence below min_confidence";
+  return "";
 }
 
 }  // namespace
@@ -459,7 +431,6 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
   points.build(scene_world, coarse);
   out.seconds_maps = since(start);
 
-  // Sec. 6.3.2.6: models in decreasing size; each detection removes its area.
   const std::vector<const ModelTemplate*> order = by_decreasing_size(models_in);
   const double period = config.scan.period_m;
   const double width = coarse.cols * coarse.cell_m, height = coarse.rows * coarse.cell_m;
@@ -472,140 +443,194 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                   " m): check the model's unit and the map");
     }
   }
-  std::vector<uint8_t> removed_coarse(coarse.z.size(), 0), removed_fine(fine.z.size(), 0);
-  Progress bar("recognize", order.size(), progress);
-  for (const ModelTemplate* m : order) {
-    const double r_patch = m->radius_m + std::sqrt(0.5) * period;  // eq. 6.8
-    const RingLayout layout =
-        make_ring_layout(coarse.cell_m, r_patch, config.descriptor.ring_width_m);
-    // The model's descriptor: its top view with the seabed it stands on around it.
+  std::vector<ModelSearch> states(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    ModelSearch& s = states[k];
+    s.m = order[k];
+    const double r_patch = s.m->radius_m + std::sqrt(0.5) * period;  // eq. 6.8
+    s.layout = make_ring_layout(coarse.cell_m, r_patch, config.descriptor.ring_width_m);
+    // The model's descriptor: its top view with the seabed it stands on around it, centred on
+    // a cell centre as the patches are.
     TopViewConfig tv;
     tv.cell_m = coarse.cell_m;
     tv.background_radius_m = r_patch + coarse.cell_m;
-    // Centred on a cell centre, as the patches are.
     const double h = 0.5 * coarse.cell_m;
-    const ElevationMap view = render_top_view(*m, 0.0, {h, h}, tv);
+    const ElevationMap view = render_top_view(*s.m, 0.0, {h, h}, tv);
     const int vr = static_cast<int>(std::floor((view.origin_xy.y() - h) / view.cell_m));
     const int vc = static_cast<int>(std::floor((h - view.origin_xy.x()) / view.cell_m));
-    const RingDescriptor model_desc = describe_model(view, vr, vc, layout, config.descriptor);
+    s.desc = describe_model(view, vr, vc, s.layout, config.descriptor);
+    s.wanted = s.m->expected >= 0 ? s.m->expected : config.max_instances;
+    s.done = s.wanted == 0;
+    s.excluded.assign(coarse.z.size(), 0);
+  }
+  std::vector<uint8_t> removed_coarse(coarse.z.size(), 0), removed_fine(fine.z.size(), 0);
 
-    const int wanted = m->expected >= 0 ? m->expected : config.max_instances;
-    std::unique_ptr<ModelIndex> index;  // the model's KD-tree, built at its first registration
-    int found = 0, rejected = 0;
-    std::vector<uint8_t> excluded(coarse.z.size(), 0);
-    while (found < wanted && rejected < config.max_rejections) {
-      SearchRecord rec;
-      rec.model = m->name;
-      const auto t0 = Clock::now();
-      rec.scan = scan_patches(coarse, removed_coarse, excluded, layout, model_desc,
-                              config.descriptor.min_valid_fraction,
-                              config.max_relative_score * m->height(), config.scan);
-      if (!rec.scan.found) {
-        rec.reason = "no patch scores below max_relative_score x model height";
-        out.searches.push_back(rec);
-        break;
-      }
-      Placement& p = rec.placement;
-      p.model = m->name;
-      p.score_m = rec.scan.score_m;
-      p.seconds_scan = since(t0);
-      const auto t1 = Clock::now();
-      // Step 1: exhaustive 4D search (eq. 6.9) about the winning patch.
-      ElevationMap coarse_live = coarse, fine_live;
-      for (std::size_t i = 0; i < coarse_live.z.size(); ++i) {
-        if (removed_coarse[i]) coarse_live.z[i] = ElevationMap::kNoData;
-      }
-      fine_live =
-          crop(fine, removed_fine, rec.scan.center_xy, m->radius_m + period + 6 * coarse.cell_m);
-      const Search4dResult s4 =
-          search_4d(*m, coarse_live, fine_live, rec.scan.center_xy, period, config.search);
-      if (!s4.found) {
-        rec.reason = "the 4D search found no placement with enough scene under the model";
-      } else {
-        p.T_world_model_4d = s4.T_world_model;
-        p.rms_4d_m = s4.rms_m;
-        const double reach = m->radius_m + config.icp.max_distance_m + 0.1;
-        const Eigen::Vector2d c4 =
-            (s4.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
-        std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
-        // The structure's points only: those standing above the local seabed (the median height
-        // around the placed footprint). Seabed points beside a wall or a footing would otherwise
-        // pull the model sideways and tilt it.
-        const Support s_4d =
-            support_of(*m, s4.T_world_model, fine, removed_fine, config.support_tol_m);
-        p.ground_z = s_4d.ground_z;
-        if (std::isfinite(s_4d.ground_z)) {
-          const float cut = static_cast<float>(s_4d.ground_z + config.ground_clearance_m);
-          local.erase(std::remove_if(local.begin(), local.end(),
-                                     [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
-                      local.end());
-        }
-        p.residual_4d = structure_residual(local, *m, s4.T_world_model);
-        p.T_world_model = s4.T_world_model;
-        p.residual = p.residual_4d;
-        const double buried_4d = buried_fraction(*m, s4.T_world_model, s_4d.ground_z);
-        if (buried_4d > config.max_buried_fraction) {
-          rec.reason = "more of the model below the seabed than max_buried_fraction";
-        } else if (config.run_icp && local.size() >= 6) {
-          // Step 2: trimmed ICP for the full 6D pose.
-          try {
-            if (!index) index = std::make_unique<ModelIndex>(m->points, m->normals);
-            const IcpResult icp = trimmed_icp(*index, local, s4.T_world_model, config.icp);
-            p.icp_iterations = icp.iterations;
-            const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
-                                          0.5 * (m->base_z + m->top_z));
-            const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
-            if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
-                shift <= config.max_icp_shift_m) {
-              p.T_world_model = icp.T_world_model;
-              p.residual = structure_residual(local, *m, icp.T_world_model);
-              p.icp_kept = true;
-            }
-          } catch (const Error&) {
-            // No scene point near the model: keep the 4D placement (judged below).
-          }
-        }
-        const Support sup =
-            support_of(*m, p.T_world_model, fine, removed_fine, config.support_tol_m);
-        p.support = sup.support;
-        p.observed = sup.observed;
-        if (!rec.reason.empty()) {
-          // rejected above
-        } else if (buried_fraction(*m, p.T_world_model, sup.ground_z) >
-                   config.max_buried_fraction) {
-          rec.reason = "more of the model below the seabed than max_buried_fraction";
-        } else if (sup.observed < config.min_observed) {
-          rec.reason = "too little of the model's relief observed (or none above the ground)";
-        } else if (!(p.residual.median_m <= config.max_residual_median_m)) {
-          rec.reason = "residual median above max_residual_median_m";
-        } else if (sup.support < config.min_support) {
-          rec.reason = "support below min_support";
-        }
-      }
-      p.seconds_registration = since(t1);
-      p.seconds = since(t0);
-      rec.accepted = rec.reason.empty();
-      if (rec.accepted) {
-        out.placements.push_back(p);
-        ++found;
-        mark_placed(*m, p.T_world_model, coarse, config.removal_margin_m, removed_coarse);
-        mark_placed(*m, p.T_world_model, fine, config.removal_margin_m, removed_fine);
-      } else {
-        ++rejected;
-        // Not this patch again for this model.
-        const int g = static_cast<int>(std::ceil(0.5 * m->radius_m / coarse.cell_m));
-        for (int dr = -g; dr <= g; ++dr) {
-          for (int dc = -g; dc <= g; ++dc) {
-            const int rr = rec.scan.row + dr, cc = rec.scan.col + dc;
-            if (rr >= 0 && cc >= 0 && rr < coarse.rows && cc < coarse.cols) {
-              excluded[coarse.index(rr, cc)] = 1;
-            }
-          }
-        }
-      }
-      out.searches.push_back(std::move(rec));
+  // Scan (sec. 6.3.2.4), 4D search (eq. 6.9), trimmed ICP (sec. 6.3.2.5) and verification of
+  // the model's next candidate on the scene as it stands (accepted placements removed).
+  auto search = [&](ModelSearch& s) {
+    const ModelTemplate* m = s.m;
+    SearchRecord rec;
+    rec.model = m->name;
+    const auto t0 = Clock::now();
+    rec.scan = scan_patches(coarse, removed_coarse, s.excluded, s.layout, s.desc,
+                            config.descriptor.min_valid_fraction,
+                            config.max_relative_score * m->height(), config.scan);
+    if (!rec.scan.found) {
+      rec.reason = "no patch scores below max_relative_score x model height";
+      return rec;
     }
-    bar.add();
+    Placement& p = rec.placement;
+    p.model = m->name;
+    p.score_m = rec.scan.score_m;
+    p.seconds_scan = since(t0);
+    const auto t1 = Clock::now();
+    // Step 1: exhaustive 4D search (eq. 6.9) about the winning patch.
+    ElevationMap coarse_live = coarse;
+    for (std::size_t i = 0; i < coarse_live.z.size(); ++i) {
+      if (removed_coarse[i]) coarse_live.z[i] = ElevationMap::kNoData;
+    }
+    const ElevationMap fine_live =
+        crop(fine, removed_fine, rec.scan.center_xy, m->radius_m + period + 6 * coarse.cell_m);
+    const Search4dResult s4 =
+        search_4d(*m, coarse_live, fine_live, rec.scan.center_xy, period, config.search);
+    if (!s4.found) {
+      rec.reason = "the 4D search found no placement with enough scene under the model";
+      p.seconds = since(t0);
+      return rec;
+    }
+    p.T_world_model_4d = s4.T_world_model;
+    p.rms_4d_m = s4.rms_m;
+    const double reach = m->radius_m + config.icp.max_distance_m + 0.1;
+    const Eigen::Vector2d c4 =
+        (s4.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
+    std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
+    // The structure's points only: those standing above the local seabed. Seabed points beside
+    // a wall or a footing would otherwise pull the model sideways and tilt it.
+    const Verification v4 =
+        verify_placement(*m, s4.T_world_model, fine, removed_fine, config.verification);
+    p.ground_z = v4.ground_z;
+    if (std::isfinite(v4.ground_z)) {
+      const float cut = static_cast<float>(v4.ground_z + config.ground_clearance_m);
+      local.erase(std::remove_if(local.begin(), local.end(),
+                                 [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
+                  local.end());
+    }
+    p.residual_4d = structure_residual(local, *m, s4.T_world_model);
+    p.T_world_model = s4.T_world_model;
+    p.residual = p.residual_4d;
+    p.verification = v4;
+    if (config.run_icp && local.size() >= 6 &&
+        buried_fraction(*m, s4.T_world_model, v4.ground_z) <= config.max_buried_fraction) {
+      // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
+      try {
+        if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
+        const IcpResult icp = trimmed_icp(*s.index, local, s4.T_world_model, config.icp);
+        p.icp_iterations = icp.iterations;
+        const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
+                                      0.5 * (m->base_z + m->top_z));
+        const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
+        if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
+            shift <= config.max_icp_shift_m) {
+          const Verification vi =
+              verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
+          if (vi.confidence >= v4.confidence - 0.05) {
+            p.T_world_model = icp.T_world_model;
+            p.residual = structure_residual(local, *m, icp.T_world_model);
+            p.verification = vi;
+            p.icp_kept = true;
+          }
+        }
+      } catch (const Error&) {
+        // No scene point near the model: keep the 4D placement (judged below).
+      }
+    }
+    p.ground_z = p.verification.ground_z;
+    p.confidence = p.verification.confidence;
+    p.support = p.verification.explained;
+    p.observed = p.verification.seen;
+    p.seconds_registration = since(t1);
+    p.seconds = since(t0);
+    return rec;
+  };
+
+  auto reject = [&](ModelSearch& s, SearchRecord rec) {
+    rec.accepted = false;
+    ++s.rejected;
+    if (s.rejected >= config.max_rejections) s.done = true;
+    if (rec.scan.found) exclude_patch(s, rec.scan, coarse);
+    out.searches.push_back(std::move(rec));
+  };
+
+  // Competing hypotheses (beyond the thesis' fixed order of sec. 6.3.2.6): every model proposes
+  // its best candidate on the scene as it stands; of the candidates the verification finds, the
+  // one that explains the scene best (Verification::score_m3) is accepted and its area removed;
+  // the others are verified again on what is left. A region is therefore claimed by the model
+  // that explains it, whatever the catalogue's order, and never by two models.
+  Progress bar("recognize", order.size(), progress);
+  std::size_t finished = 0;
+  for (;;) {
+    for (ModelSearch& s : states) {
+      while (!s.done && !s.pending) {
+        SearchRecord rec = search(s);
+        if (!rec.scan.found) {
+          s.done = true;
+          out.searches.push_back(std::move(rec));
+        } else if (!rec.reason.empty()) {
+          reject(s, std::move(rec));
+        } else {
+          s.pending = std::move(rec);
+        }
+      }
+    }
+    ModelSearch* best = nullptr;
+    bool any_pending = false;
+    for (ModelSearch& s : states) {
+      if (!s.pending) continue;
+      any_pending = true;
+      s.pending->reason = verdict(s.pending->placement, *s.m, config);
+      if (!s.pending->reason.empty()) continue;
+      if (!best || s.pending->placement.verification.score_m3 >
+                       best->pending->placement.verification.score_m3) {
+        best = &s;
+      }
+    }
+    if (!any_pending) break;
+    if (!best) {
+      // No pending candidate is found on the scene as it now stands: each is rejected.
+      for (ModelSearch& s : states) {
+        if (!s.pending) continue;
+        SearchRecord rec = std::move(*s.pending);
+        s.pending.reset();
+        reject(s, std::move(rec));
+      }
+    } else {
+      SearchRecord rec = std::move(*best->pending);
+      best->pending.reset();
+      rec.accepted = true;
+      out.placements.push_back(rec.placement);
+      ++best->found;
+      if (best->found >= best->wanted) best->done = true;
+      exclude_patch(*best, rec.scan, coarse);
+      mark_placed(*best->m, rec.placement.T_world_model, coarse, config.removal_margin_m,
+                  removed_coarse);
+      mark_placed(*best->m, rec.placement.T_world_model, fine, config.removal_margin_m,
+                  removed_fine);
+      out.searches.push_back(std::move(rec));
+      // The other candidates, judged again without the accepted placement's area.
+      for (ModelSearch& s : states) {
+        if (!s.pending) continue;
+        Placement& p = s.pending->placement;
+        p.verification =
+            verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification);
+        p.confidence = p.verification.confidence;
+        p.support = p.verification.explained;
+        p.observed = p.verification.seen;
+      }
+    }
+    std::size_t now_done = 0;
+    for (const ModelSearch& s : states) now_done += s.done && !s.pending;
+    if (now_done > finished) bar.add(now_done - finished);
+    finished = now_done;
   }
   bar.finish();
   out.seconds = since(start);
@@ -635,6 +660,14 @@ nlohmann::json pose_json(const Eigen::Isometry3d& T) {
   return rows;
 }
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+nlohmann::json verification_json(const Verification& v) {
+  return {{"valid", v.valid},         {"seen", v.seen},
+          {"explained", v.explained}, {"violation", v.violation},
+          {"intrusion", v.intrusion}, {"unexplained", v.unexplained},
+          {"spill", v.spill},
+          {"overlap", v.overlap},     {"relief_m3", v.relief_m3},
+          {"scene_relief_m3", v.scene_relief_m3}, {"score_m3", v.score_m3}};
+}
 }  // namespace
 
 nlohmann::json rpy_deg_json(const Eigen::Isometry3d& T) {
@@ -670,6 +703,11 @@ nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
                     {"seconds_scan", p.seconds_scan},
                     {"seconds_registration", p.seconds_registration},
                     {"seconds", p.seconds}});
+    // The verified methods' confidence (a method that does not verify writes none).
+    if (p.method == "2d" || p.verification.valid) {
+      list.back()["confidence"] = p.confidence;
+      list.back()["verification"] = verification_json(p.verification);
+    }
   }
   return list;
 }
@@ -691,7 +729,23 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"icp", config.run_icp},
                    {"max_relative_score", config.max_relative_score},
                    {"max_residual_median_m", config.max_residual_median_m},
-                   {"min_support", config.min_support}};
+                   {"min_confidence", config.verification.min_confidence},
+                   {"max_overlap", config.max_overlap},
+                   {"verification",
+                    {{"tol_m", config.verification.tol_m},
+                     {"slip_m", config.verification.slip_m},
+                     {"relief_m", config.verification.relief_m},
+                     {"ground_ring_m", config.verification.ground_ring_m},
+                     {"context_min_m", config.verification.context_min_m},
+                     {"context_fraction", config.verification.context_fraction},
+                     {"spill_band_m", config.verification.spill_band_m},
+                     {"confidence_model",
+                      {{"bias", config.verification.bias},
+                       {"w_seen", config.verification.w_seen},
+                       {"w_explained", config.verification.w_explained},
+                       {"w_violation", config.verification.w_violation},
+                       {"w_unexplained", config.verification.w_unexplained},
+                       {"w_spill", config.verification.w_spill}}}}}};
   nlohmann::json list = placements_list_json(result.placements);
   j["placements"] = list;
   nlohmann::json searches = nlohmann::json::array();
@@ -717,6 +771,10 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
       e["rpy_deg"] = rpy_deg_json(s.placement.T_world_model);
       e["support"] = s.placement.support;
       e["observed"] = s.placement.observed;
+      e["confidence"] = s.placement.confidence;
+      e["verification"] = verification_json(s.placement.verification);
+      e["rms_4d_m"] = num(s.placement.rms_4d_m);
+      e["icp_kept"] = s.placement.icp_kept;
     }
     searches.push_back(e);
   }

@@ -19,6 +19,7 @@
 #include "sonar3d/recog/descriptor.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
+#include "sonar3d/recog/verify.hpp"
 
 namespace sonar3d {
 
@@ -92,13 +93,12 @@ struct RecognitionConfig {
   // buoyancies) leave 5-7 cm at the true pose, while a model pressed into flat seabed leaves under
   // 1 cm: the residual does not tell right from wrong, the support does (docs/recognition.md).
   double max_residual_median_m = 0.1;
-  // Support: over the model's relief cells (footprint cells > 10 cm above the local ground), each
-  // weighing its height above the ground, the fraction of the observed weight where the map
-  // agrees with the placed model within support_tol_m (min_support); and the fraction of the
-  // weight observed at all (min_observed).
-  double min_support = 0.35;
-  double support_tol_m = 0.06;
-  double min_observed = 0.15;
+  // Hypothesis verification and the calibrated confidence that decides "found" (verify.hpp,
+  // docs/recognition.md "Verification"): replaces the thesis' residual threshold.
+  VerificationConfig verification;
+  // A candidate whose footprint lies more than this fraction on cells of accepted placements
+  // is rejected: no region carries two placements.
+  double max_overlap = 0.25;
   // At most this fraction of the model's height may lie below the local seabed (half-buried
   // structures are found; a sphere sunk to a cap looks like any rock).
   double max_buried_fraction = 0.5;
@@ -123,8 +123,12 @@ struct Placement {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
   double score_m = 0;  // descriptor score of the winning patch
   Residual residual;   // after the last step
-  double support = 0;
-  double observed = 0;  // height-weighted fraction of the relief observed
+  // The verification's terms (2D method) and the calibrated confidence in [0, 1] that decided
+  // "found" (at or above RecognitionConfig::verification.min_confidence).
+  Verification verification;
+  double confidence = 0;
+  double support = 0;   // 2D: verification.explained; 3D: the method's coverage
+  double observed = 0;  // 2D: verification.seen (height-weighted fraction of the relief observed)
   double ground_z = 0;  // local seabed height around the footprint (world z), m
   // Step 1 (4D search) alone, for Table 6.1.
   Eigen::Isometry3d T_world_model_4d = Eigen::Isometry3d::Identity();

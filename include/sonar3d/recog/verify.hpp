@@ -1,0 +1,82 @@
+#pragma once
+// Hypothesis verification of a placed CAD model against the surveyed scene (beyond the thesis:
+// sec. 6.3.2.5 accepts a placement on its residual alone, which does not separate a model pressed
+// into seabed or laid on a wreck from a right one; docs/recognition.md, "Verification").
+//
+// A placement T_world_model is judged on the field's fine elevation map, seen as what a survey
+// from above observed: a cell with data saw the surface at that height and free water above it;
+// a cell without data was not observed (shadow, blind range, outside the survey).
+//   - seen:        of the model's relief (its top-view cells standing above the local seabed,
+//                  each weighing its height above it), the fraction the survey observed;
+//   - explained:   of the observed relief, the fraction where the scene's surface agrees with
+//                  the model's top within tol_m (allowing a horizontal slip of slip_m);
+//   - violation:   of the observed relief, the fraction where the scene lies lower than the
+//                  model's top by more than tol_m everywhere within slip_m — the sonar saw free
+//                  water where the model would stand (free-space violation);
+//   - unexplained: of the scene's relief within the footprint and a ring around it, the fraction
+//                  the model does not account for (a tank on a wreck leaves the wreck around it);
+//   - spill:       of the observed band just outside the footprint (beyond the slip, spill_band_m
+//                  wide), the fraction where unexplained relief stands: the scene's structure
+//                  continues past the model's outline (a part of a larger structure, whatever
+//                  the context ring's width);
+// and combines them into a calibrated confidence in [0, 1] (a logistic model fitted on labelled
+// candidates of the recognition benchmark, bench/recognition_fields.sh calib). One threshold,
+// `min_confidence`, decides "found".
+//
+// Frames: local ENU world (x East, y North, z up); placements are T_world_model.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "sonar3d/mapping/elevation_map.hpp"
+#include "sonar3d/recog/model.hpp"
+
+namespace sonar3d {
+
+struct VerificationConfig {
+  double tol_m = 0.06;     // vertical agreement between the scene's surface and the model's top, m
+  double slip_m = 0.04;    // horizontal slip allowed when comparing (carved thin parts shift), m
+  double relief_m = 0.10;  // model or scene cells this far above the local seabed are relief, m
+  double ground_ring_m = 0.4;  // ring around the footprint whose median height is the seabed, m
+  // Ring around the footprint in which scene relief must be explained too: at least
+  // context_min_m, else context_fraction · r_model, m.
+  double context_min_m = 0.2;
+  double context_fraction = 0.25;
+  double spill_band_m = 0.1;  // width of the band outside the footprint for `spill`, m
+  // The confidence: σ(bias + w_seen·seen + w_explained·explained + w_violation·violation +
+  // w_unexplained·unexplained + w_spill·spill), σ the logistic function. Fitted by logistic regression on the
+  // labelled candidates of bench/recognition_fields.sh (docs/recognition.md, "Calibration").
+  double bias = -4.0;
+  double w_seen = 2.0;
+  double w_explained = 9.0;
+  double w_violation = -8.0;
+  double w_unexplained = -6.0;
+  double w_spill = -4.0;
+  double min_confidence = 0.5;  // a candidate is "found" at or above this confidence
+  void validate() const;
+};
+
+struct Verification {
+  double ground_z = 0;                    // local seabed height (world z), NaN when unobserved
+  double relief_m3 = 0;                   // the model's relief weight: Σ height above seabed · cell area
+  double seen = 0, explained = 0, violation = 0, unexplained = 0, spill = 0;  // fractions, above
+  double intrusion = 0;       // of the observed relief, where the scene stands higher than the model
+  double scene_relief_m3 = 0;  // the scene's relief weight within footprint + ring
+  double overlap = 0;         // fraction of the footprint on cells already taken (removed)
+  // Explanation score for competing hypotheses (m³): relief the model explains minus relief it
+  // contradicts (violations) minus scene relief it leaves unexplained.
+  double score_m3 = 0;
+  double confidence = 0;
+  bool valid = false;  // false when nothing around the footprint was observed (no seabed)
+};
+
+// Verifies T_world_model on `scene` (the fine elevation map). `removed` (same size as scene.z, or
+// empty): cells taken by accepted placements, treated as unobserved and counted in `overlap`.
+Verification verify_placement(const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                              const ElevationMap& scene, const std::vector<uint8_t>& removed,
+                              const VerificationConfig& config);
+
+// The logistic confidence of the terms (see VerificationConfig).
+double verification_confidence(const Verification& v, const VerificationConfig& config);
+
+}  // namespace sonar3d

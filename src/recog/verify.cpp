@@ -1,0 +1,205 @@
+// Hypothesis verification of placed CAD models (docs/recognition.md, "Verification"): seen,
+// explained, free-space violation and unexplained relief on the field's elevation map, and the
+// calibrated confidence.
+#include "sonar3d/recog/verify.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+#include "sonar3d/core/error.hpp"
+
+namespace sonar3d {
+
+void VerificationConfig::validate() const {
+  require_positive(tol_m, "verification tol_m", "m");
+  require_non_negative(slip_m, "verification slip_m", "m");
+  require(slip_m <= 1.0, "verification slip_m must be <= 1 m");
+  require_positive(relief_m, "verification relief_m", "m");
+  require_positive(ground_ring_m, "verification ground_ring_m", "m");
+  require(ground_ring_m <= 10, "verification ground_ring_m must be <= 10 m");
+  require_non_negative(context_min_m, "verification context_min_m", "m");
+  require(context_min_m <= 10, "verification context_min_m must be <= 10 m");
+  require(context_fraction >= 0 && context_fraction <= 2,
+          "verification context_fraction must lie in [0, 2]");
+  require_positive(spill_band_m, "verification spill_band_m", "m");
+  require(spill_band_m <= 10, "verification spill_band_m must be <= 10 m");
+  for (double w : {bias, w_seen, w_explained, w_violation, w_unexplained, w_spill}) {
+    require(std::isfinite(w), "verification: the confidence weights must be finite");
+  }
+  require(min_confidence >= 0 && min_confidence <= 1, "min_confidence must lie in [0, 1]");
+}
+
+double verification_confidence(const Verification& v, const VerificationConfig& c) {
+  if (!v.valid) return 0.0;
+  const double s = c.bias + c.w_seen * v.seen + c.w_explained * v.explained +
+                   c.w_violation * v.violation + c.w_unexplained * v.unexplained +
+                   c.w_spill * v.spill;
+  return 1.0 / (1.0 + std::exp(-s));
+}
+
+Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T,
+                              const ElevationMap& scene, const std::vector<uint8_t>& removed,
+                              const VerificationConfig& config) {
+  config.validate();
+  require(!scene.empty(), "verification: the scene map is empty");
+  require(removed.empty() || removed.size() == scene.z.size(),
+          "verification: the removed-cell mask does not match the scene map");
+  Verification out;
+  out.ground_z = std::numeric_limits<double>::quiet_NaN();
+  const double cell = scene.cell_m;
+  const double context_m = std::max(config.context_min_m, config.context_fraction * m.radius_m);
+  const double ring_m =
+      std::max({config.ground_ring_m, context_m, config.slip_m + config.spill_band_m});
+
+  // The placed model's top view on the scene's grid, with the rings around its footprint.
+  TopViewConfig tv;
+  tv.cell_m = cell;
+  tv.grid_anchor_xy = scene.origin_xy;
+  tv.background_radius_m = m.radius_m + ring_m;
+  tv.background_ring_m = ring_m;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - scene.origin_xy.x()) / cell));
+  const int dr0 = static_cast<int>(std::lround((scene.origin_xy.y() - v.origin_xy.y()) / cell));
+  auto scene_index = [&](int r, int c) -> long {
+    const int rr = r + dr0, cc = c + dc0;
+    if (rr < 0 || cc < 0 || rr >= scene.rows || cc >= scene.cols) return -1;
+    return static_cast<long>(scene.index(rr, cc));
+  };
+  auto scene_at = [&](int r, int c) {
+    const long i = scene_index(r, c);
+    if (i < 0) return ElevationMap::kNoData;
+    return (!removed.empty() && removed[static_cast<std::size_t>(i)]) ? ElevationMap::kNoData
+                                                                       : scene.z[i];
+  };
+
+  // Distance of every cell to the footprint (Euclidean, m).
+  cv::Mat outside(v.rows, v.cols, CV_8U);
+  std::size_t fp_cells = 0, fp_taken = 0;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      const bool in = fp[v.index(r, c)] != 0;
+      outside.at<uint8_t>(r, c) = in ? 0 : 255;
+      if (!in) continue;
+      ++fp_cells;
+      const long i = scene_index(r, c);
+      if (i >= 0 && !removed.empty() && removed[static_cast<std::size_t>(i)]) ++fp_taken;
+    }
+  }
+  if (fp_cells == 0) return out;
+  out.overlap = static_cast<double>(fp_taken) / static_cast<double>(fp_cells);
+  cv::Mat dist;
+  cv::distanceTransform(outside, dist, cv::DIST_L2, 3);
+  auto dist_m = [&](int r, int c) { return dist.at<float>(r, c) * cell; };
+
+  // The local seabed: the median scene height in the ground ring around the footprint.
+  std::vector<float> ring;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (fp[v.index(r, c)] || dist_m(r, c) > config.ground_ring_m) continue;
+      const float zs = scene_at(r, c);
+      if (zs == zs) ring.push_back(zs);
+    }
+  }
+  if (ring.empty()) return out;
+  const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
+  std::nth_element(ring.begin(), mid, ring.end());
+  const double g = *mid;
+  out.ground_z = g;
+  out.valid = true;
+
+  const int k = static_cast<int>(std::lround(config.slip_m / cell));
+  const double tol = config.tol_m, area = cell * cell;
+  auto model_top = [&](int r, int c) -> float {
+    if (r < 0 || c < 0 || r >= v.rows || c >= v.cols || !fp[v.index(r, c)]) {
+      return ElevationMap::kNoData;
+    }
+    return v.at(r, c);
+  };
+
+  // The model's relief against the scene.
+  double seen = 0, agree = 0, violate = 0, intrude = 0;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (!fp[v.index(r, c)]) continue;
+      const float zm = v.at(r, c);
+      if (!(zm > g + config.relief_m)) continue;
+      const double w = (zm - g) * area;
+      out.relief_m3 += w;
+      const float zs = scene_at(r, c);
+      if (zs != zs) continue;  // not observed: neither for nor against
+      seen += w;
+      bool agrees = false;
+      float highest = zs;
+      for (int dr = -k; dr <= k && !agrees; ++dr) {
+        for (int dc = -k; dc <= k; ++dc) {
+          const float zn = scene_at(r + dr, c + dc);
+          if (zn != zn) continue;
+          if (std::abs(zn - zm) <= tol) {
+            agrees = true;
+            break;
+          }
+          highest = std::max(highest, zn);
+        }
+      }
+      if (agrees) {
+        agree += w;
+      } else if (highest < zm - tol) {
+        violate += w;  // the survey saw water where the model's top would be
+      } else {
+        intrude += w;
+      }
+    }
+  }
+
+  // The scene's relief within the footprint and the context ring, and how much of it the model
+  // accounts for: a scene surface at or below a model top within the slip is explained (seen, or
+  // hidden under the model).
+  double scene_relief = 0, unexplained = 0;
+  std::size_t band = 0, spilled = 0;
+  const double band0 = config.slip_m, band1 = config.slip_m + config.spill_band_m;
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      const double d = dist_m(r, c);
+      if (d > std::max(context_m, band1)) continue;
+      const float zs = scene_at(r, c);
+      const bool in_band = d > band0 && d <= band1 && zs == zs;
+      band += in_band;
+      if (!(zs > g + config.relief_m)) continue;
+      if (in_band) ++spilled;  // beyond the slip no model cell can explain it
+      if (d > context_m) continue;
+      const double w = (zs - g) * area;
+      scene_relief += w;
+      bool explained = false;
+      for (int dr = -k; dr <= k && !explained; ++dr) {
+        for (int dc = -k; dc <= k; ++dc) {
+          const float zm = model_top(r + dr, c + dc);
+          if (zm == zm && zs <= zm + tol) {
+            explained = true;
+            break;
+          }
+        }
+      }
+      if (!explained) unexplained += w;
+    }
+  }
+
+  out.scene_relief_m3 = scene_relief;
+  if (out.relief_m3 > 0) out.seen = seen / out.relief_m3;
+  if (seen > 0) {
+    out.explained = agree / seen;
+    out.violation = violate / seen;
+    out.intrusion = intrude / seen;
+  }
+  out.unexplained = scene_relief > 0 ? unexplained / scene_relief : 0.0;
+  out.spill = band > 0 ? static_cast<double>(spilled) / static_cast<double>(band) : 0.0;
+  out.score_m3 = agree - violate - unexplained;
+  out.confidence = verification_confidence(out, config);
+  return out;
+}
+
+}  // namespace sonar3d
