@@ -24,6 +24,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
 
 namespace sonar3d {
 
@@ -301,10 +302,11 @@ void Recognition3dConfig::validate() const {
   require_non_negative(relief_m, "3D recognition relief_m", "m");
   require(view_tilt_deg >= 0 && view_tilt_deg < 90,
           "3D recognition view_tilt_deg must lie in [0, 90)");
-  require(max_violation >= 0 && max_violation <= 1,
-          "3D recognition max_violation must lie in [0, 1]");
-  require(max_unexplained >= 0 && max_unexplained <= 1,
-          "3D recognition max_unexplained must lie in [0, 1]");
+  require_positive(map_cell_m, "3D recognition map_cell_m", "m");
+  verification.validate();
+  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
+          "3D recognition max_buried_fraction must lie in [0, 1]");
+  require(max_overlap >= 0 && max_overlap <= 1, "3D recognition max_overlap must lie in [0, 1]");
   require_non_negative(context_min_m, "3D recognition context_min_m", "m");
   require_non_negative(unexplained_height_m, "3D recognition unexplained_height_m", "m");
   require(context_fraction >= 0 && context_fraction <= 10,
@@ -666,6 +668,8 @@ struct Candidate {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity(), T_start = Eigen::Isometry3d::Identity();
   double start_score = 0;
   Verification3d v;
+  Verification ver;  // verify.hpp, when the residual and the tilt passed
+  bool verified = false;
   int iterations = 0;
 };
 
@@ -758,20 +762,36 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   c->v.unexplained = inside ? static_cast<double>(unexplained) / static_cast<double>(inside) : 0.0;
 }
 
-// The first acceptance test a candidate fails, as a line for the log (empty: accepted).
-std::string failed_test(const Verification3d& v, const Recognition3dConfig& cfg) {
-  char buf[96];
-  if (!(v.residual_median_m <= cfg.max_residual_median_m)) {
-    std::snprintf(buf, sizeof buf, "residual median %.3f m > %.3f m", v.residual_median_m,
+// Fraction of the model's height below the seabed ring around it (verify.hpp's ground_z).
+double buried_fraction_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
+  if (!std::isfinite(ground_z)) return 0.0;
+  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
+  return (ground_z - base) / std::max(1e-6, m.height());
+}
+
+// The first acceptance test a matched candidate fails, as a line for the log (empty: accepted):
+// the thesis' residual threshold (sec. 6.3.1.3), then the verification (verify.hpp).
+std::string failed_test(const Candidate& c, const ModelTemplate& m,
+                        const Recognition3dConfig& cfg) {
+  char buf[128];
+  const Verification& w = c.ver;
+  if (!(c.v.residual_median_m <= cfg.max_residual_median_m)) {
+    std::snprintf(buf, sizeof buf, "residual median %.3f m > %.3f m", c.v.residual_median_m,
                   cfg.max_residual_median_m);
-  } else if (!(v.coverage >= cfg.min_coverage)) {
-    std::snprintf(buf, sizeof buf, "coverage %.2f < %.2f", v.coverage, cfg.min_coverage);
-  } else if (!(v.violation <= cfg.max_violation)) {
-    std::snprintf(buf, sizeof buf, "free-space violation %.2f > %.2f", v.violation,
-                  cfg.max_violation);
-  } else if (!(v.unexplained <= cfg.max_unexplained)) {
-    std::snprintf(buf, sizeof buf, "unexplained scene %.2f > %.2f", v.unexplained,
-                  cfg.max_unexplained);
+  } else if (!c.verified || !w.valid) {
+    return "nothing observed around the model's footprint (no seabed to stand on)";
+  } else if (w.overlap > cfg.max_overlap) {
+    std::snprintf(buf, sizeof buf, "overlaps an accepted placement (%.2f > %.2f)", w.overlap,
+                  cfg.max_overlap);
+  } else if (buried_fraction_3d(m, c.T, w.ground_z) > cfg.max_buried_fraction) {
+    std::snprintf(buf, sizeof buf, "buried %.2f of its height > %.2f",
+                  buried_fraction_3d(m, c.T, w.ground_z), cfg.max_buried_fraction);
+  } else if (w.confidence < cfg.verification.min_confidence) {
+    std::snprintf(buf, sizeof buf,
+                  "confidence %.2f < %.2f (seen %.2f, explained %.2f, violation %.2f, "
+                  "unexplained %.2f, spill %.2f)",
+                  w.confidence, cfg.verification.min_confidence, w.seen, w.explained,
+                  w.violation, w.unexplained, w.spill);
   } else {
     return "";
   }
@@ -782,7 +802,8 @@ std::string failed_test(const Verification3d& v, const Recognition3dConfig& cfg)
 Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
                          const std::vector<V3f>& scene, const TopMap& top,
                          const std::vector<V3f>& sub, const Eigen::Vector3d& start_xy,
-                         const Ground& ground, const Recognition3dConfig& cfg) {
+                         const Ground& ground, const ElevationMap& fine,
+                         const std::vector<uint8_t>& removed, const Recognition3dConfig& cfg) {
   Candidate c;
   // With the upright prior the model's horizontal extent about the start is known: the matching
   // uses the subspace's points within the model's horizontal radius (plus the coarse gate) of
@@ -830,11 +851,15 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
     }
     std::sort(starts.begin(), starts.end(),
               [](const Start& a, const Start& b) { return a.score < b.score; });
-    // Early rejection: no start close enough to be worth refining.
-    if (starts.front().score > cfg.max_start_score_m) return c;
+    // Early rejection: no start close enough to be worth refining. The start lies up to about
+    // half the lattice period (0.25·r_model) from the structure's centre: for a large open frame
+    // (a 7 × 6 m lattice of 10 cm members, r_model 4.6 m) that alone puts most points beyond
+    // 0.2 m of a member, so the bound grows with the model (0.1·r_model).
+    const double max_start = std::max(cfg.max_start_score_m, 0.1 * m.r_model);
+    if (starts.front().score > max_start) return c;
     double best = std::numeric_limits<double>::infinity();
     for (int k = 0; k < std::min<int>(cfg.starts, static_cast<int>(starts.size())); ++k) {
-      if (starts[k].score > cfg.max_start_score_m) break;
+      if (starts[k].score > max_start) break;
       try {
         const IcpResult r = refine(*m.index, pts, starts[k].T, cfg);
         const double s = trimmed_mean_distance(*m.index, pts, r.T_world_model, cfg.coarse_gate_m);
@@ -861,8 +886,40 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
   }
   judge(m, scene_index, scene, top, ground, pts, cfg, &c);
   c.failed = "";
-  c.ok = failed_test(c.v, cfg).empty();
+  if (c.v.residual_median_m <= cfg.max_residual_median_m) {
+    c.ver = verify_placement(*m.t, c.T, fine, removed, cfg.verification);
+    c.verified = true;
+  }
+  c.ok = failed_test(c, *m.t, cfg).empty();
   return c;
+}
+
+// Marks the cells of `map` under the placed model's footprint, grown by `margin` (as the 2D
+// method does): later candidates on them count as overlapping.
+void mark_placed_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& map,
+                    double margin, std::vector<uint8_t>& mask) {
+  TopViewConfig tv;
+  tv.cell_m = map.cell_m;
+  tv.grid_anchor_xy = map.origin_xy;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int g = static_cast<int>(std::ceil(margin / map.cell_m));
+  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - map.origin_xy.x()) / map.cell_m));
+  const int dr0 = static_cast<int>(std::lround((map.origin_xy.y() - v.origin_xy.y()) / map.cell_m));
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (!fp[v.index(r, c)]) continue;
+      for (int dr = -g; dr <= g; ++dr) {
+        for (int dc = -g; dc <= g; ++dc) {
+          const int rr = r + dr0 + dr, cc = c + dc0 + dc;
+          if (rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+          mask[map.index(rr, cc)] = 1;
+        }
+      }
+    }
+  }
 }
 
 // Subspace centres (eq. 6.3) on the lattice of period T, only where a subspace of radius rs can
@@ -988,8 +1045,13 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     full = above_ground(full, ground, cfg.seabed_clearance_m);
   }
   subsample(full, nullptr, cfg.voxel_m, &scene, nullptr);
-  // What the survey saw from above, seabed included (free-space violation).
+  // What the survey saw from above, seabed included (free-space violation), and the field's
+  // elevation map for the verification (sec. 6.2.1) with the cells accepted placements took.
   const TopMap top = make_top_map(scene_world.points, cfg.voxel_m);
+  ElevationMapConfig mc;
+  mc.cell_m = cfg.map_cell_m;
+  const ElevationMap fine = elevation_map_from_points(scene_world, mc);
+  std::vector<uint8_t> removed_fine(fine.z.size(), 0);
   out.seconds_maps = since(start);
 
   // Sec. 6.3.2.6 (as in the 2D method): models in decreasing size.
@@ -1125,24 +1187,31 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
           pts.push_back(scene[i]);
         }
         cands[j] =
-            match_subspace(m, scene_index, scene, top, pts, centroid[reps[j]], ground, cfg);
+            match_subspace(m, scene_index, scene, top, pts, centroid[reps[j]], ground, fine,
+                           removed_fine, cfg);
         match_bar.add();
       });
       match_bar.finish();
     }
     std::vector<std::size_t> passed;
+    // The nearest miss: the highest confidence among the verified, else the highest coverage.
     const Candidate* miss = nullptr;
+    auto nearer = [](const Candidate& a, const Candidate* b) {
+      if (!b) return true;
+      if (a.verified != b->verified) return a.verified;
+      return a.verified ? a.ver.confidence > b->ver.confidence : a.v.coverage > b->v.coverage;
+    };
     for (std::size_t j = 0; j < cands.size(); ++j) {
       if (cands[j].ok) {
         passed.push_back(j);
-      } else if (std::isfinite(cands[j].v.coverage) &&
-                 (!miss || cands[j].v.coverage > miss->v.coverage)) {
+      } else if (std::isfinite(cands[j].v.coverage) && nearer(cands[j], miss)) {
         miss = &cands[j];
       }
     }
     rec.passed = passed.size();
     if (miss) {
-      rec.nearest_miss = failed_test(miss->v, cfg);
+      rec.nearest_miss = failed_test(*miss, *mt, cfg);
+      if (miss->verified) rec.best_rejected_confidence = miss->ver.confidence;
       rec.nearest_miss_terms = miss->v;
       rec.best_rejected_coverage = miss->v.coverage;
       rec.best_rejected_residual_m = miss->v.residual_median_m;
@@ -1158,14 +1227,15 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
                          subspace_test_name(static_cast<SubspaceTest>(worst)) + " (" +
                          std::to_string(rec.failed[worst]) + ")";
     }
-    // Non-maximum suppression: best coverage first (then lowest residual). Each accepted
-    // placement takes the scene points it covers; a later candidate's coverage counts only the
-    // points not taken (a placement over part of a found structure falls below min_coverage),
-    // and one whose centre lies within nms_fraction · r_model (horizontal) of a kept one is the
-    // same instance.
+    // Competing placements of this model (non-maximum suppression): best explanation score
+    // first (verify.hpp's score_m3: relief explained minus contradicted minus left unexplained).
+    // Each is verified again against the cells of the placements accepted so far (overlap), must
+    // still cover min_coverage with scene points no accepted placement took, and lie farther than
+    // nms_fraction · r_model (horizontal) from an accepted one of the same model; at most
+    // `expected`.
     std::sort(passed.begin(), passed.end(), [&](std::size_t a, std::size_t b) {
-      if (cands[a].v.coverage != cands[b].v.coverage) {
-        return cands[a].v.coverage > cands[b].v.coverage;
+      if (cands[a].ver.score_m3 != cands[b].ver.score_m3) {
+        return cands[a].ver.score_m3 > cands[b].ver.score_m3;
       }
       return cands[a].v.residual_median_m < cands[b].v.residual_median_m;
     });
@@ -1176,14 +1246,19 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     std::vector<uint8_t> taken(scene.size(), 0);
     const float tol2 = static_cast<float>(cfg.coverage_tol_m * cfg.coverage_tol_m);
     for (std::size_t j : passed) {
-      const Eigen::Vector3d c = cands[j].T * cm;
+      Candidate& cj = cands[j];
+      const Eigen::Vector3d c = cj.T * cm;
       bool dup = static_cast<int>(accepted.size()) >= wanted;
       for (const auto& o : placed_centres) {
         dup = dup || (o - c).norm() < cfg.nms_fraction * mt->radius_m;
       }
+      if (!dup && !accepted.empty()) {
+        cj.ver = verify_placement(*mt, cj.T, fine, removed_fine, cfg.verification);
+        dup = !failed_test(cj, *mt, cfg).empty();
+      }
       std::vector<std::size_t> hits;
       if (!dup) {
-        const Eigen::Isometry3f Tf = cands[j].T.cast<float>();
+        const Eigen::Isometry3f Tf = cj.T.cast<float>();
         std::size_t free = 0;
         for (const auto& q : m.seen_pts) {
           float d2 = 0;
@@ -1200,9 +1275,10 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
         continue;
       }
       for (std::size_t i : hits) taken[i] = 1;
+      mark_placed_3d(*mt, cj.T, fine, cfg.removal_margin_m, removed_fine);
       placed_centres.push_back(c);
-      accepted.push_back(&cands[j]);
-      rec.accepted_terms.push_back(cands[j].v);
+      accepted.push_back(&cj);
+      rec.accepted_terms.push_back(cj.v);
     }
     rec.accepted = accepted.size();
     rec.seconds_matching = since(t1);
@@ -1214,13 +1290,14 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       p.T_world_model = c->T;
       p.T_world_model_4d = c->T_start;
       p.score_m = c->start_score;
-      p.support = c->v.coverage;
-      p.observed = std::numeric_limits<double>::quiet_NaN();
+      p.verification = c->ver;
+      p.confidence = c->ver.confidence;
+      p.support = c->ver.explained;
+      p.observed = c->ver.seen;
       p.icp_iterations = c->iterations;
       p.icp_kept = true;
       const Eigen::Vector3d ctr = c->T * cm;
-      p.ground_z =
-          ground.z.empty() ? std::numeric_limits<double>::quiet_NaN() : ground.at(ctr.x(), ctr.y());
+      p.ground_z = c->ver.ground_z;
       // Table 6.1's metric on the full-resolution points (above the seabed) near the model.
       std::vector<V3f> local;
       const double reach = m.r_model + 0.3;
@@ -1282,8 +1359,10 @@ std::string placements_json_3d(const RecognitionResult& result,
                    {"coverage_tol_m", config.coverage_tol_m},
                    {"relief_m", config.relief_m},
                    {"view_tilt_deg", config.view_tilt_deg},
-                   {"max_violation", config.max_violation},
-                   {"max_unexplained", config.max_unexplained},
+                   {"map_cell_m", config.map_cell_m},
+                   {"min_confidence", config.verification.min_confidence},
+                   {"max_buried_fraction", config.max_buried_fraction},
+                   {"max_overlap", config.max_overlap},
                    {"max_subspaces", config.max_subspaces}};
   auto terms_json = [](const Verification3d& v) {
     auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); };
@@ -1326,6 +1405,9 @@ std::string placements_json_3d(const RecognitionResult& result,
                     {"accepted", s.accepted},
                     {"nearest_miss", s.nearest_miss},
                     {"nearest_miss_terms", terms_json(s.nearest_miss_terms)},
+                    {"nearest_miss_confidence", std::isfinite(s.best_rejected_confidence)
+                                                    ? nlohmann::json(s.best_rejected_confidence)
+                                                    : nlohmann::json()},
                     {"seconds_subspaces", s.seconds_subspaces},
                     {"seconds_matching", s.seconds_matching}});
   }

@@ -18,6 +18,7 @@
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
 #include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/verify.hpp"
 
 namespace sonar3d {
 
@@ -68,31 +69,39 @@ struct Recognition3dConfig {
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
   int coarse_iterations = 15;      // first ICP pass iterations
   std::size_t max_points = 1500;   // scene points per subspace used in the matching
-  double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance
+  double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance (or
+                                   // 0.1·r_model when larger: see match_subspace)
                                    // exceeds this is not refined, m
   TrimmedIcpConfig icp;            // fine ICP pass
-  // Decision ("found", sec. 6.3.1.3: a threshold on the error to the CAD model after matching,
-  // plus verification terms beyond the thesis, docs/recognition.md "3D acceptance"):
-  //  - residual: the median distance from the scene points over the placed model to its samples;
+  // Decision ("found"): the thesis' threshold on the error to the CAD model after matching
+  // (sec. 6.3.1.3: the median distance from the scene points over the placed model to its
+  // samples, max_residual_median_m), then the hypothesis verification shared with the 2D method
+  // (verify.hpp, docs/recognition.md "Verification") on the field's elevation map of
+  // map_cell_m: seen, explained, free-space violation, unexplained relief, spill and the
+  // calibrated confidence (at least verification.min_confidence), no more than
+  // max_buried_fraction of the model below the seabed ring around it, no more than max_overlap
+  // of its footprint on accepted placements.
+  double max_residual_median_m = 0.04;
+  double map_cell_m = 0.02;
+  VerificationConfig verification;
+  double max_buried_fraction = 0.5;
+  double max_overlap = 0.25;
+  // Diagnostics of the 3D point cloud (Verification3d, reported per placement, not deciding):
   //  - coverage: of the model's samples a downward survey sees (visible from above along the
-  //    vertical or view_tilt_deg off it, sec. "visible samples") that stand at least relief_m
-  //    above its base, the fraction with a scene point within coverage_tol_m (samples on the
-  //    seabed, which any bump explains, do not count);
+  //    vertical or view_tilt_deg off it) that stand at least relief_m above its base, the
+  //    fraction with a scene point within coverage_tol_m;
   //  - violation: of its samples seen straight from above and standing relief_m above its base,
   //    the fraction over which the survey saw the surface lower than the sample by more than
-  //    coverage_tol_m in every column within coverage_tol_m (the sonar saw free water where the
-  //    model would stand); unobserved columns do not count;
-  //  - unexplained: of the scene points above the seabed in the model's footprint grown by
-  //    context (max(context_min_m, context_fraction · r_model)) and up to context above its top,
-  //    the fraction farther than coverage_tol_m from the model (a model on a wreck leaves the
-  //    wreck unexplained).
-  double max_residual_median_m = 0.04;
+  //    coverage_tol_m in every column within coverage_tol_m; unobserved columns do not count;
+  //  - unexplained: of the scene points standing unexplained_height_m above the seabed in the
+  //    model's footprint grown by max(context_min_m, context_fraction · r_model) and up to that
+  //    above its top, the fraction farther than coverage_tol_m from the model.
+  // min_coverage also bounds non-maximum suppression: a candidate must still cover that
+  // fraction with scene points no accepted placement took.
   double min_coverage = 0.5;
   double coverage_tol_m = 0.06;
   double relief_m = 0.1;
   double view_tilt_deg = 30;
-  double max_violation = 0.15;
-  double max_unexplained = 0.35;
   double context_min_m = 0.2;
   double context_fraction = 0.25;
   // Scene points count as unexplained only when standing this high above the local seabed (the
@@ -166,12 +175,13 @@ struct Search3dRecord {
   std::size_t suppressed = 0;  // passed but overlapping a better placement
   std::size_t accepted = 0;
   // Why nothing (more) was accepted: the matched survivor that came nearest to passing (highest
-  // coverage) with the test it failed, or, when no survivor was matched, the subspace test that
+  // confidence, else highest coverage) with the test it failed, or, when no survivor was matched, the subspace test that
   // rejected most subspaces. The figures are NaN when no match was made (never a "perfect" 0).
   std::string nearest_miss;  // e.g. "coverage 0.31 < 0.5", "all 812 subspaces failed: obb_fit 790"
   double best_rejected_coverage = std::numeric_limits<double>::quiet_NaN();
   double best_rejected_residual_m = std::numeric_limits<double>::quiet_NaN();
   Verification3d nearest_miss_terms;
+  double best_rejected_confidence = std::numeric_limits<double>::quiet_NaN();
   std::vector<Verification3d> accepted_terms;  // per accepted placement, in output order
   double seconds_subspaces = 0, seconds_matching = 0;
 };
