@@ -307,6 +307,8 @@ void Recognition3dConfig::validate() const {
   require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
           "3D recognition max_buried_fraction must lie in [0, 1]");
   require(max_overlap >= 0 && max_overlap <= 1, "3D recognition max_overlap must lie in [0, 1]");
+  require(min_net_explained >= -10 && min_net_explained <= 1,
+          "3D recognition min_net_explained must lie in [-10, 1]");
   require_non_negative(context_min_m, "3D recognition context_min_m", "m");
   require_non_negative(unexplained_height_m, "3D recognition unexplained_height_m", "m");
   require(context_fraction >= 0 && context_fraction <= 10,
@@ -786,6 +788,9 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
   } else if (buried_fraction_3d(m, c.T, w.ground_z) > cfg.max_buried_fraction) {
     std::snprintf(buf, sizeof buf, "buried %.2f of its height > %.2f",
                   buried_fraction_3d(m, c.T, w.ground_z), cfg.max_buried_fraction);
+  } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
+    std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
+                  w.relief_m3, cfg.min_net_explained);
   } else if (w.confidence < cfg.verification.min_confidence) {
     std::snprintf(buf, sizeof buf,
                   "confidence %.2f < %.2f (seen %.2f, explained %.2f, violation %.2f, "
@@ -1363,6 +1368,7 @@ std::string placements_json_3d(const RecognitionResult& result,
                    {"min_confidence", config.verification.min_confidence},
                    {"max_buried_fraction", config.max_buried_fraction},
                    {"max_overlap", config.max_overlap},
+                   {"min_net_explained", config.min_net_explained},
                    {"max_subspaces", config.max_subspaces}};
   auto terms_json = [](const Verification3d& v) {
     auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); };

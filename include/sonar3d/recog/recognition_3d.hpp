@@ -86,6 +86,11 @@ struct Recognition3dConfig {
   VerificationConfig verification;
   double max_buried_fraction = 0.5;
   double max_overlap = 0.25;
+  // The net explanation, verify.hpp's score_m3 (relief explained − contradicted − left
+  // unexplained) over the model's relief relief_m3, at least this: a model with no relief of its
+  // own (a 5 cm valve) or one laid on a wreck explains little net of what it contradicts
+  // (measured on the issue-28-like field, docs/recognition.md: true 0.70-0.75, false -inf-0.17).
+  double min_net_explained = 0.4;
   // Diagnostics of the 3D point cloud (Verification3d, reported per placement, not deciding):
   //  - coverage: of the model's samples a downward survey sees (visible from above along the
   //    vertical or view_tilt_deg off it) that stand at least relief_m above its base, the
