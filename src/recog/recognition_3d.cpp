@@ -5,6 +5,7 @@
 #include "sonar3d/recog/recognition_3d.hpp"
 
 #include <tbb/global_control.h>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
@@ -15,11 +16,15 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <tuple>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "recog_common.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
 
 namespace sonar3d {
 
@@ -118,20 +123,56 @@ Ground estimate_ground(const std::vector<V3f>& points, const Recognition3dConfig
   g.z.assign(zmin.size(), nan);
   const int w = static_cast<int>(std::ceil(cfg.ground_window_m / g.cell));
   tbb::parallel_for(0, g.ny, [&](int r) {
-    std::vector<float> v;
+    std::vector<Eigen::Vector3d> v, kept;
+    std::vector<double> res;
     for (int c = 0; c < g.nx; ++c) {
       v.clear();
       for (int rr = std::max(0, r - w); rr <= std::min(g.ny - 1, r + w); ++rr) {
         for (int cc = std::max(0, c - w); cc <= std::min(g.nx - 1, c + w); ++cc) {
           const float z = zmin[static_cast<std::size_t>(rr) * g.nx + cc];
-          if (z == z) v.push_back(z);
+          if (z == z) v.emplace_back((cc - c) * g.cell, (rr - r) * g.cell, z);
         }
       }
       if (v.empty()) continue;
-      const auto k = v.begin() + static_cast<std::ptrdiff_t>(cfg.ground_quantile *
-                                                             static_cast<double>(v.size() - 1));
-      std::nth_element(v.begin(), k, v.end());
-      g.z[static_cast<std::size_t>(r) * g.nx + c] = *k;
+      // A plane z = a + b·dx + c·dy through the window's lowest points, refitted twice to the
+      // lower half of all cells' residuals: it follows slopes (a quantile of a sloping window
+      // lies below its upper side by the slope times the window: 0.3-0.4 m on the issue's
+      // relief, which left the seabed in the subspaces) and ignores structures covering less
+      // than half the window.
+      Eigen::Vector3d abc(0, 0, 0);
+      kept = v;
+      for (int it = 0; it < 3; ++it) {
+        if (kept.size() < 6) break;
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        for (const auto& p : kept) {
+          const Eigen::Vector3d x(1, p.x(), p.y());
+          A += x * x.transpose();
+          b += x * p.z();
+        }
+        abc = A.ldlt().solve(b);
+        if (!abc.allFinite()) break;
+        res.clear();
+        for (const auto& p : v) res.push_back(p.z() - abc.dot(Eigen::Vector3d(1, p.x(), p.y())));
+        std::vector<double> sorted = res;
+        const auto m = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+        std::nth_element(sorted.begin(), m, sorted.end());
+        const double cut = *m;  // the lower half of the window's cells
+        kept.clear();
+        for (std::size_t i = 0; i < v.size(); ++i) {
+          if (res[i] <= cut) kept.push_back(v[i]);
+        }
+      }
+      if (kept.size() < 6 || !abc.allFinite()) {  // too few cells for a plane: the quantile
+        std::vector<double> z;
+        for (const auto& p : v) z.push_back(p.z());
+        const auto k = z.begin() + static_cast<std::ptrdiff_t>(cfg.ground_quantile *
+                                                               static_cast<double>(z.size() - 1));
+        std::nth_element(z.begin(), k, z.end());
+        g.z[static_cast<std::size_t>(r) * g.nx + c] = static_cast<float>(*k);
+      } else {
+        g.z[static_cast<std::size_t>(r) * g.nx + c] = static_cast<float>(abc.x());
+      }
     }
   });
   return g;
@@ -256,6 +297,22 @@ void Recognition3dConfig::validate() const {
   require_positive(max_residual_median_m, "3D recognition max_residual_median_m", "m");
   require(min_coverage >= 0 && min_coverage <= 1, "3D recognition min_coverage must lie in [0, 1]");
   require_positive(coverage_tol_m, "3D recognition coverage_tol_m", "m");
+  require(max_subspaces >= 1 && max_subspaces <= 50'000'000,
+          "3D recognition max_subspaces must lie in 1-50000000");
+  require_non_negative(relief_m, "3D recognition relief_m", "m");
+  require(view_tilt_deg >= 0 && view_tilt_deg < 90,
+          "3D recognition view_tilt_deg must lie in [0, 90)");
+  require_positive(map_cell_m, "3D recognition map_cell_m", "m");
+  verification.validate();
+  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
+          "3D recognition max_buried_fraction must lie in [0, 1]");
+  require(max_overlap >= 0 && max_overlap <= 1, "3D recognition max_overlap must lie in [0, 1]");
+  require(min_net_explained >= -10 && min_net_explained <= 1,
+          "3D recognition min_net_explained must lie in [-10, 1]");
+  require_non_negative(context_min_m, "3D recognition context_min_m", "m");
+  require_non_negative(unexplained_height_m, "3D recognition unexplained_height_m", "m");
+  require(context_fraction >= 0 && context_fraction <= 10,
+          "3D recognition context_fraction must lie in [0, 10]");
   require(max_tilt_deg >= 0 && max_tilt_deg <= 180,
           "3D recognition max_tilt_deg must lie in [0, 180]");
   require(nms_fraction >= 0 && nms_fraction <= 10,
@@ -410,11 +467,96 @@ IcpResult global_registration(const ModelIndex& model, const std::vector<Eigen::
 
 namespace {
 
+// Which of `samples` are seen from direction `up` (a unit vector pointing from the surface
+// toward the sensor): an orthographic z-buffer of the dense samples `occluders` on cells of
+// `cell` across `up`; a sample is seen when it lies within `tol` of the highest occluder in its
+// cell.
+std::vector<uint8_t> seen_along(const std::vector<V3f>& occluders, const std::vector<V3f>& samples,
+                                const Eigen::Vector3f& up, double cell, double tol) {
+  const Eigen::Vector3f a = std::abs(up.z()) < 0.9f ? V3f::UnitZ() : V3f::UnitX();
+  const Eigen::Vector3f u = up.cross(a).normalized(), v = up.cross(u);
+  auto key = [&](const V3f& p) {
+    const int64_t i = static_cast<int64_t>(std::floor(p.dot(u) / cell)) + (1 << 20);
+    const int64_t j = static_cast<int64_t>(std::floor(p.dot(v) / cell)) + (1 << 20);
+    return static_cast<uint64_t>(i) << 32 | static_cast<uint64_t>(j);
+  };
+  std::unordered_map<uint64_t, float> top;
+  top.reserve(occluders.size() / 4);
+  for (const auto& p : occluders) {
+    auto [it, fresh] = top.emplace(key(p), p.dot(up));
+    if (!fresh) it->second = std::max(it->second, p.dot(up));
+  }
+  std::vector<uint8_t> out(samples.size(), 0);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const auto it = top.find(key(samples[i]));
+    out[i] = it == top.end() || samples[i].dot(up) >= it->second - static_cast<float>(tol);
+  }
+  return out;
+}
+
+// A model's footprint in its own frame: cells (of `cell`) within `grow` of a sample, seen from
+// above.
+struct Footprint {
+  double x0 = 0, y0 = 0, cell = 0.05;
+  int nx = 0, ny = 0;
+  std::vector<uint8_t> in;
+  bool contains(const V3f& q) const {
+    const int c = static_cast<int>(std::floor((q.x() - x0) / cell));
+    const int r = static_cast<int>(std::floor((q.y() - y0) / cell));
+    return c >= 0 && r >= 0 && c < nx && r < ny && in[static_cast<std::size_t>(r) * nx + c];
+  }
+};
+
+Footprint make_footprint(const std::vector<V3f>& pts, double grow, double cell) {
+  Footprint f;
+  f.cell = cell;
+  Eigen::Vector2f lo(std::numeric_limits<float>::infinity(),
+                     std::numeric_limits<float>::infinity());
+  Eigen::Vector2f hi = -lo;
+  for (const auto& p : pts) lo = lo.cwiseMin(p.head<2>()), hi = hi.cwiseMax(p.head<2>());
+  f.x0 = lo.x() - grow - cell;
+  f.y0 = lo.y() - grow - cell;
+  f.nx = static_cast<int>(std::ceil((hi.x() - f.x0 + grow + cell) / cell)) + 1;
+  f.ny = static_cast<int>(std::ceil((hi.y() - f.y0 + grow + cell) / cell)) + 1;
+  limits::checked_count(static_cast<double>(f.nx) * f.ny, 1, 5e7, "model footprint cells",
+                        "the model is too large for its footprint cell");
+  std::vector<uint8_t> core(static_cast<std::size_t>(f.nx) * f.ny, 0);
+  for (const auto& p : pts) {
+    const int c = static_cast<int>((p.x() - f.x0) / cell), r = static_cast<int>((p.y() - f.y0) / cell);
+    core[static_cast<std::size_t>(r) * f.nx + c] = 1;
+  }
+  f.in.assign(core.size(), 0);
+  const int k = static_cast<int>(std::ceil(grow / cell));
+  for (int r = 0; r < f.ny; ++r) {
+    for (int c = 0; c < f.nx; ++c) {
+      if (!core[static_cast<std::size_t>(r) * f.nx + c]) continue;
+      for (int dr = -k; dr <= k; ++dr) {
+        for (int dc = -k; dc <= k; ++dc) {
+          if ((dr * dr + dc * dc) * cell * cell > (grow + 0.5 * cell) * (grow + 0.5 * cell)) continue;
+          const int rr = r + dr, cc = c + dc;
+          if (rr >= 0 && cc >= 0 && rr < f.ny && cc < f.nx) {
+            f.in[static_cast<std::size_t>(rr) * f.nx + cc] = 1;
+          }
+        }
+      }
+    }
+  }
+  return f;
+}
+
 // A catalogue model prepared for the 3D method.
 struct Model3d {
   const ModelTemplate* t = nullptr;
   std::vector<V3f> pts, normals;  // subsampled, above the base clearance
   std::unique_ptr<ModelIndex> index;
+  // What a downward survey sees (docs/recognition.md "3D acceptance"): the samples seen from
+  // above (vertical or view_tilt_deg off it) standing relief_m above the base (coverage), and
+  // those seen straight from above (free-space violation); all seen samples for eq. 6.4-6.7.
+  std::vector<V3f> seen_pts, top_pts;
+  std::size_t visible = 0;
+  Footprint footprint;  // grown by the context ring
+  double context_m = 0;
+  double occupancy_voxel = 0.1;
   ShapeStats stats;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   double r_model = 0;  // bounding sphere radius about the bounding box centre
@@ -439,29 +581,142 @@ Model3d prepare(const ModelTemplate& t, const Recognition3dConfig& cfg) {
   for (const auto& q : t.points) m.r_model = std::max(m.r_model, (q.cast<double>() - c).norm());
   for (const auto& q : m.pts) m.centroid += q.cast<double>();
   m.centroid /= static_cast<double>(m.pts.size());
+
+  // Visibility from above: the vertical and 8 azimuths view_tilt_deg off it (a lawnmower survey
+  // with a wide across-track fan sees tops and the upper parts of sides).
+  const std::vector<uint8_t> top = seen_along(t.points, m.pts, V3f::UnitZ(), cfg.voxel_m, cfg.voxel_m);
+  std::vector<uint8_t> seen = top;
+  const float tilt = static_cast<float>(cfg.view_tilt_deg * kDeg);
+  if (tilt > 0) {
+    for (int k = 0; k < 8; ++k) {
+      const float az = static_cast<float>(k * M_PI / 4);
+      const V3f up(std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt));
+      const std::vector<uint8_t> s = seen_along(t.points, m.pts, up, cfg.voxel_m, cfg.voxel_m);
+      for (std::size_t i = 0; i < s.size(); ++i) seen[i] |= s[i];
+    }
+  }
+  std::vector<V3f> visible_pts, seen_all, top_all;
+  const float relief = static_cast<float>(t.base_z + cfg.relief_m);
+  for (std::size_t i = 0; i < m.pts.size(); ++i) {
+    if (seen[i]) {
+      visible_pts.push_back(m.pts[i]);
+      if (m.pts[i].z() >= relief) m.seen_pts.push_back(m.pts[i]);
+    }
+    if (top[i] && m.pts[i].z() >= relief) m.top_pts.push_back(m.pts[i]);
+    if (top[i]) top_all.push_back(m.pts[i]);
+  }
+  m.visible = visible_pts.size();
+  // A model lower than relief_m (a plate, a buried shell): all its seen samples count.
+  if (m.seen_pts.size() < 6) m.seen_pts = visible_pts;
+  if (m.top_pts.size() < 6) m.top_pts = top_all;
+  if (visible_pts.size() < 6) visible_pts = m.pts;
+
+  m.context_m = std::max(cfg.context_min_m, cfg.context_fraction * m.r_model);
+  m.footprint = make_footprint(t.points, m.context_m, std::max(cfg.voxel_m, 0.02));
+
+  // Eq. 6.4-6.7 compare the subspace with the part of the model a downward survey sees: the
+  // full model's OBB and occupancy ask for parts no survey from above observes (undersides,
+  // sides in shadow, legs carved away), and reject the structure's own subspace.
+  m.occupancy_voxel = std::min(cfg.occupancy_voxel_m, std::max(cfg.voxel_m, m.r_model / 4));
   std::vector<V3f> coarse;
   std::vector<uint32_t> weight;
-  subsample(m.pts, nullptr, cfg.occupancy_voxel_m, &coarse, nullptr, &weight);
+  subsample(visible_pts, nullptr, m.occupancy_voxel, &coarse, nullptr, &weight);
   std::vector<std::size_t> all(coarse.size());
   std::iota(all.begin(), all.end(), std::size_t(0));
-  m.stats = coarse_stats(coarse, weight, all, cfg.occupancy_voxel_m);
+  m.stats = coarse_stats(coarse, weight, all, m.occupancy_voxel);
   m.index = std::make_unique<ModelIndex>(m.pts, m.normals);
   return m;
 }
 
+// The top of the surveyed surface per column (the highest point of the whole scene, seabed
+// included, per cell of `cell`): what a downward survey saw; NaN where nothing was seen.
+struct TopMap {
+  double x0 = 0, y0 = 0, cell = 0.03;
+  int nx = 0, ny = 0;
+  std::vector<float> z;
+  float at(int c, int r) const {
+    if (c < 0 || r < 0 || c >= nx || r >= ny) return std::numeric_limits<float>::quiet_NaN();
+    return z[static_cast<std::size_t>(r) * nx + c];
+  }
+};
+
+TopMap make_top_map(const std::vector<V3f>& points, double cell) {
+  TopMap t;
+  t.cell = cell;
+  if (points.empty()) return t;
+  Eigen::Vector2f lo(std::numeric_limits<float>::infinity(),
+                     std::numeric_limits<float>::infinity());
+  Eigen::Vector2f hi = -lo;
+  for (const auto& p : points) lo = lo.cwiseMin(p.head<2>()), hi = hi.cwiseMax(p.head<2>());
+  t.x0 = lo.x();
+  t.y0 = lo.y();
+  t.nx = static_cast<int>(std::floor((hi.x() - lo.x()) / cell)) + 1;
+  t.ny = static_cast<int>(std::floor((hi.y() - lo.y()) / cell)) + 1;
+  limits::checked_count(static_cast<double>(t.nx) * t.ny, 1, 2e8, "surface top cells",
+                        "use a larger subsampling voxel");
+  t.z.assign(static_cast<std::size_t>(t.nx) * t.ny, std::numeric_limits<float>::quiet_NaN());
+  for (const auto& p : points) {
+    const int c = std::min(t.nx - 1, static_cast<int>((p.x() - t.x0) / cell));
+    const int r = std::min(t.ny - 1, static_cast<int>((p.y() - t.y0) / cell));
+    float& z = t.z[static_cast<std::size_t>(r) * t.nx + c];
+    if (!(z >= p.z())) z = p.z();
+  }
+  return t;
+}
+
 struct Candidate {
   bool ok = false;
+  const char* failed = "no start within max_start_score_m";  // the test that rejected it
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity(), T_start = Eigen::Isometry3d::Identity();
-  double start_score = 0, residual_median = 0, coverage = 0;
+  double start_score = 0;
+  Verification3d v;
+  Verification ver;  // verify.hpp, when the residual and the tilt passed
+  bool verified = false;
   int iterations = 0;
 };
 
-// Median distance from the scene points over the placed model (inside its box grown by 5 cm) to
-// its samples, and the fraction of its samples with a scene point within tol.
-void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3f>& local,
+// Free-space violation: where the survey saw the surface's top lower than the model's top (by
+// more than coverage_tol_m in every column within coverage_tol_m), the model stands in observed
+// water.
+void free_space_terms(const Model3d& m, const TopMap& top, const Eigen::Isometry3d& T_world_model,
+                      const Recognition3dConfig& cfg, Verification3d* v) {
+  const Eigen::Isometry3f T = T_world_model.cast<float>();
+  const float tol = static_cast<float>(cfg.coverage_tol_m);
+  std::size_t observed = 0, violated = 0;
+  const int k = static_cast<int>(std::ceil(cfg.coverage_tol_m / top.cell));
+  for (const auto& q : m.top_pts) {
+    const V3f w = T * q;
+    const int c0 = static_cast<int>(std::floor((w.x() - top.x0) / top.cell));
+    const int r0 = static_cast<int>(std::floor((w.y() - top.y0) / top.cell));
+    bool seen = false, reached = false;
+    for (int dr = -k; dr <= k && !reached; ++dr) {
+      for (int dc = -k; dc <= k; ++dc) {
+        const float z = top.at(c0 + dc, r0 + dr);
+        if (!(z == z)) continue;
+        seen = true;
+        if (z >= w.z() - tol) {
+          reached = true;
+          break;
+        }
+      }
+    }
+    observed += seen;
+    violated += seen && !reached;
+  }
+  v->observed = static_cast<double>(observed) / static_cast<double>(m.top_pts.size());
+  v->violation = observed ? static_cast<double>(violated) / static_cast<double>(observed) : 0.0;
+}
+
+// The acceptance terms of a placement (Recognition3dConfig, "Decision"): the residual (sec.
+// 6.3.1.3) and, beyond the thesis, the seen coverage, the free-space violation and the
+// unexplained scene in the footprint.
+void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3f>& scene,
+           const TopMap& top, const Ground& ground, const std::vector<V3f>& local,
            const Recognition3dConfig& cfg, Candidate* c) {
   const Eigen::AlignedBox3f box = m.t->mesh.bounding_box();
   const Eigen::Isometry3f T_mw = c->T.inverse().cast<float>();
+  const Eigen::Isometry3f T = c->T.cast<float>();
+  const float tol = static_cast<float>(cfg.coverage_tol_m), tol2 = tol * tol;
   std::vector<float> d;
   for (const auto& p : local) {
     const V3f q = T_mw * p;
@@ -473,30 +728,105 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
     m.index->nearest(q, &d2);
     d.push_back(std::sqrt(d2));
   }
-  if (d.empty()) {
-    c->residual_median = std::numeric_limits<double>::infinity();
-    return;
+  c->v.tilt_deg = tilt_deg(c->T);
+  if (d.empty()) {  // nothing over the model: no error to measure, the other terms still hold
+    c->v.residual_median_m = std::numeric_limits<double>::infinity();
+  } else {
+    const auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+    std::nth_element(d.begin(), mid, d.end());
+    c->v.residual_median_m = *mid;
   }
-  const auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
-  std::nth_element(d.begin(), mid, d.end());
-  c->residual_median = *mid;
-  const Eigen::Isometry3f T = c->T.cast<float>();
+  // Seen coverage: the model's relief seen from above, explained by a scene point.
   std::size_t hit = 0;
-  const float tol2 = static_cast<float>(cfg.coverage_tol_m * cfg.coverage_tol_m);
-  for (const auto& q : m.pts) {
+  for (const auto& q : m.seen_pts) {
     float d2 = 0;
     scene_index.nearest(T * q, &d2);
     hit += d2 <= tol2;
   }
-  c->coverage = static_cast<double>(hit) / static_cast<double>(m.pts.size());
+  c->v.coverage = static_cast<double>(hit) / static_cast<double>(m.seen_pts.size());
+  free_space_terms(m, top, c->T, cfg, &c->v);
+  // Unexplained: scene points standing unexplained_height_m above the seabed (seabed texture is no evidence
+  // either way) in the footprint (grown by the context ring) and up to the context above the
+  // model's top, farther than tol from the model.
+  const V3f ctr = (c->T * model_center(*m.t)).cast<float>();
+  const float reach = static_cast<float>(m.r_model + m.context_m);
+  std::size_t inside = 0, unexplained = 0;
+  for (std::size_t i : scene_index.within(ctr, reach)) {
+    const V3f q = T_mw * scene[i];
+    if (q.z() > m.t->top_z + m.context_m || !m.footprint.contains(q)) continue;
+    const double g = ground.at(scene[i].x(), scene[i].y());
+    if (std::isfinite(g) && scene[i].z() < g + cfg.unexplained_height_m) continue;
+    ++inside;
+    float d2 = 0;
+    m.index->nearest(q, &d2);
+    unexplained += d2 > tol2;
+  }
+  c->v.unexplained = inside ? static_cast<double>(unexplained) / static_cast<double>(inside) : 0.0;
+}
+
+// Fraction of the model's height below the seabed ring around it (verify.hpp's ground_z).
+double buried_fraction_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
+  if (!std::isfinite(ground_z)) return 0.0;
+  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
+  return (ground_z - base) / std::max(1e-6, m.height());
+}
+
+// The first acceptance test a matched candidate fails, as a line for the log (empty: accepted):
+// the thesis' residual threshold (sec. 6.3.1.3), then the verification (verify.hpp).
+std::string failed_test(const Candidate& c, const ModelTemplate& m,
+                        const Recognition3dConfig& cfg) {
+  char buf[128];
+  const Verification& w = c.ver;
+  if (!(c.v.residual_median_m <= cfg.max_residual_median_m)) {
+    std::snprintf(buf, sizeof buf, "residual median %.3f m > %.3f m", c.v.residual_median_m,
+                  cfg.max_residual_median_m);
+  } else if (!c.verified || !w.valid) {
+    return "nothing observed around the model's footprint (no seabed to stand on)";
+  } else if (w.overlap > cfg.max_overlap) {
+    std::snprintf(buf, sizeof buf, "overlaps an accepted placement (%.2f > %.2f)", w.overlap,
+                  cfg.max_overlap);
+  } else if (buried_fraction_3d(m, c.T, w.ground_z) > cfg.max_buried_fraction) {
+    std::snprintf(buf, sizeof buf, "buried %.2f of its height > %.2f",
+                  buried_fraction_3d(m, c.T, w.ground_z), cfg.max_buried_fraction);
+  } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
+    std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
+                  w.relief_m3, cfg.min_net_explained);
+  } else if (w.confidence < cfg.verification.min_confidence) {
+    std::snprintf(buf, sizeof buf,
+                  "confidence %.2f < %.2f (seen %.2f, explained %.2f, violation %.2f, "
+                  "unexplained %.2f, spill %.2f)",
+                  w.confidence, cfg.verification.min_confidence, w.seen, w.explained,
+                  w.violation, w.unexplained, w.spill);
+  } else {
+    return "";
+  }
+  return buf;
 }
 
 // Direct 3D matching in one subspace (sec. 6.3.1.2).
 Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
-                         const std::vector<V3f>& sub, const Ground& ground,
-                         const Recognition3dConfig& cfg) {
+                         const std::vector<V3f>& scene, const TopMap& top,
+                         const std::vector<V3f>& sub, const Eigen::Vector3d& start_xy,
+                         const Ground& ground, const ElevationMap& fine,
+                         const std::vector<uint8_t>& removed, const Recognition3dConfig& cfg) {
   Candidate c;
-  const std::vector<V3f> pts = thin(sub, cfg.max_points);
+  // With the upright prior the model's horizontal extent about the start is known: the matching
+  // uses the subspace's points within the model's horizontal radius (plus the coarse gate) of
+  // the start. A large model's subspace (6.9 m for a 7 × 6 m frame) otherwise holds the
+  // neighbours' points too: the trimmed start score then exceeded max_start_score_m at the
+  // frame's own pose (issue 28 field: "no start" for both frames).
+  std::vector<V3f> near;
+  if (cfg.upright) {
+    const double reach = m.t->radius_m + cfg.coarse_gate_m;
+    for (const auto& p : sub) {
+      if ((p.head<2>().cast<double>() - start_xy.head<2>()).norm() <= reach) near.push_back(p);
+    }
+    if (near.size() < 6) {
+      c.failed = "fewer than 6 points within the model's radius of the start";
+      return c;
+    }
+  }
+  const std::vector<V3f> pts = thin(cfg.upright ? near : sub, cfg.max_points);
   if (!cfg.upright) {
     double score = 0;
     const IcpResult r = global_registration(*m.index, pts, cfg, &score);
@@ -505,11 +835,10 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
     c.start_score = score;
     c.iterations = r.iterations;
   } else {
-    // Yaw sweep about the vertical through the points' centroid, the model's base on the local
-    // seabed (or centroids level when the seabed is kept).
-    Eigen::Vector3d cs = Eigen::Vector3d::Zero();
-    for (const auto& p : pts) cs += p.cast<double>();
-    cs /= static_cast<double>(pts.size());
+    // Yaw sweep about the vertical through `start_xy` (the centroid of the points within r_model
+    // of the subspace's centre), the model's base on the local seabed (or centroids level when the
+    // seabed is kept).
+    const Eigen::Vector3d cs = start_xy;
     const double g = ground.at(cs.x(), cs.y());
     const double tz = (cfg.seabed_clearance_m > 0 && std::isfinite(g)) ? g - m.t->base_z
                                                                        : cs.z() - m.centroid.z();
@@ -527,11 +856,15 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
     }
     std::sort(starts.begin(), starts.end(),
               [](const Start& a, const Start& b) { return a.score < b.score; });
-    // Early rejection: no start close enough to be worth refining.
-    if (starts.front().score > cfg.max_start_score_m) return c;
+    // Early rejection: no start close enough to be worth refining. The start lies up to about
+    // half the lattice period (0.25·r_model) from the structure's centre: for a large open frame
+    // (a 7 × 6 m lattice of 10 cm members, r_model 4.6 m) that alone puts most points beyond
+    // 0.2 m of a member, so the bound grows with the model (0.1·r_model).
+    const double max_start = std::max(cfg.max_start_score_m, 0.1 * m.r_model);
+    if (starts.front().score > max_start) return c;
     double best = std::numeric_limits<double>::infinity();
     for (int k = 0; k < std::min<int>(cfg.starts, static_cast<int>(starts.size())); ++k) {
-      if (starts[k].score > cfg.max_start_score_m) break;
+      if (starts[k].score > max_start) break;
       try {
         const IcpResult r = refine(*m.index, pts, starts[k].T, cfg);
         const double s = trimmed_mean_distance(*m.index, pts, r.T_world_model, cfg.coarse_gate_m);
@@ -546,15 +879,146 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
         // Nothing within the coarse gate from this start.
       }
     }
-    if (!std::isfinite(best)) return c;
-    if (tilt_deg(c.T) > cfg.max_tilt_deg) return c;
+    if (!std::isfinite(best)) {
+      c.failed = "no correspondence within the ICP gate";
+      return c;
+    }
+    if (tilt_deg(c.T) > cfg.max_tilt_deg) {
+      c.failed = "tilted beyond max_tilt_deg";
+      c.v.tilt_deg = tilt_deg(c.T);
+      return c;
+    }
   }
-  judge(m, scene_index, pts, cfg, &c);
-  c.ok = c.residual_median <= cfg.max_residual_median_m && c.coverage >= cfg.min_coverage;
+  judge(m, scene_index, scene, top, ground, pts, cfg, &c);
+  c.failed = "";
+  if (c.v.residual_median_m <= cfg.max_residual_median_m) {
+    c.ver = verify_placement(*m.t, c.T, fine, removed, cfg.verification);
+    c.verified = true;
+  }
+  c.ok = failed_test(c, *m.t, cfg).empty();
   return c;
 }
 
+// Marks the cells of `map` under the placed model's footprint, grown by `margin` (as the 2D
+// method does): later candidates on them count as overlapping.
+void mark_placed_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& map,
+                    double margin, std::vector<uint8_t>& mask) {
+  TopViewConfig tv;
+  tv.cell_m = map.cell_m;
+  tv.grid_anchor_xy = map.origin_xy;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int g = static_cast<int>(std::ceil(margin / map.cell_m));
+  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - map.origin_xy.x()) / map.cell_m));
+  const int dr0 = static_cast<int>(std::lround((map.origin_xy.y() - v.origin_xy.y()) / map.cell_m));
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (!fp[v.index(r, c)]) continue;
+      for (int dr = -g; dr <= g; ++dr) {
+        for (int dc = -g; dc <= g; ++dc) {
+          const int rr = r + dr0 + dr, cc = c + dc0 + dc;
+          if (rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+          mask[map.index(rr, cc)] = 1;
+        }
+      }
+    }
+  }
+}
+
+// Subspace centres (eq. 6.3) on the lattice of period T, only where a subspace of radius rs can
+// hold a point of `pts` (the lattice nodes within rs of an occupied cell). Planar (the upright
+// prior): the horizontal lattice, each node at the height the model's bounding-sphere centre has
+// when its base stands on the local seabed (`rise` above it); nodes over unknown seabed are
+// skipped. Otherwise the 3D lattice. Stops early once more than `cap` nodes are found (the caller
+// raises T).
+std::vector<V3f> subspace_centres(const std::vector<V3f>& pts, double rs, double T, bool planar,
+                                  const Ground& ground, double rise, std::size_t cap) {
+  auto key = [](int64_t x, int64_t y, int64_t z) {
+    return static_cast<uint64_t>(x + (1 << 20)) | static_cast<uint64_t>(y + (1 << 20)) << 21 |
+           static_cast<uint64_t>(z + (1 << 20)) << 42;
+  };
+  std::unordered_set<uint64_t> occupied;
+  for (const auto& p : pts) {
+    const Eigen::Vector3d c = (p.cast<double>() / T).array().floor();
+    occupied.insert(key(static_cast<int64_t>(c.x()), static_cast<int64_t>(c.y()),
+                        planar ? 0 : static_cast<int64_t>(c.z())));
+  }
+  // The nodes i·T within rs of some point of cell c (which spans [c·T, (c+1)·T) on each axis):
+  // offsets i - c whose distance to the cell's box is at most rs.
+  const int k = static_cast<int>(std::ceil(rs / T));
+  auto gap = [](int d) { return d < 0 ? -d : (d > 1 ? d - 1 : 0); };
+  std::vector<Eigen::Vector3i> offsets;
+  for (int dz = planar ? 0 : -k; dz <= (planar ? 0 : k + 1); ++dz) {
+    for (int dy = -k; dy <= k + 1; ++dy) {
+      for (int dx = -k; dx <= k + 1; ++dx) {
+        const Eigen::Vector3d o(gap(dx), gap(dy), planar ? 0 : gap(dz));
+        if (o.norm() * T <= rs) offsets.emplace_back(dx, dy, dz);
+      }
+    }
+  }
+  std::unordered_set<uint64_t> nodes;
+  std::vector<V3f> out;
+  for (uint64_t c : occupied) {
+    const int64_t cx = static_cast<int64_t>(c & 0x1FFFFF) - (1 << 20);
+    const int64_t cy = static_cast<int64_t>((c >> 21) & 0x1FFFFF) - (1 << 20);
+    const int64_t cz = static_cast<int64_t>(c >> 42) - (1 << 20);
+    for (const auto& o : offsets) {
+      const int64_t x = cx + o.x(), y = cy + o.y(), z = cz + o.z();
+      if (!nodes.insert(key(x, y, z)).second) continue;
+      V3f n(static_cast<float>(x * T), static_cast<float>(y * T), static_cast<float>(z * T));
+      if (planar) {
+        const double g = ground.at(n.x(), n.y());
+        if (!std::isfinite(g)) continue;
+        n.z() = static_cast<float>(g + rise);
+      }
+      out.push_back(n);
+      if (out.size() > cap) return out;
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const V3f& a, const V3f& b) {
+    return std::tie(a.z(), a.y(), a.x()) < std::tie(b.z(), b.y(), b.x());
+  });
+  return out;
+}
+
 }  // namespace
+
+Verification3d verify_placement_3d(const ModelTemplate& model,
+                                   const Eigen::Isometry3d& T_world_model,
+                                   const PointCloud& scene_world,
+                                   const Recognition3dConfig& config) {
+  config.validate();
+  require(!scene_world.points.empty(), "3D verification: the scene cloud is empty");
+  std::vector<V3f> full = scene_world.points, scene;
+  Ground ground;
+  if (config.seabed_clearance_m > 0) {
+    ground = estimate_ground(full, config);
+    full = above_ground(full, ground, config.seabed_clearance_m);
+  }
+  subsample(full, nullptr, config.voxel_m, &scene, nullptr);
+  const TopMap top = make_top_map(scene_world.points, config.voxel_m);
+  const Model3d m = prepare(model, config);
+  Candidate c;
+  c.T = T_world_model;
+  if (scene.empty()) {  // nothing above the seabed: nothing covered, nothing unexplained
+    c.v.residual_median_m = std::numeric_limits<double>::infinity();
+    c.v.coverage = 0;
+    c.v.unexplained = 0;
+    c.v.tilt_deg = tilt_deg(T_world_model);
+    free_space_terms(m, top, T_world_model, config, &c.v);
+    return c.v;
+  }
+  const ModelIndex index(scene, std::vector<V3f>(scene.size(), V3f::UnitZ()));
+  const V3f ctr = (T_world_model * model_center(model)).cast<float>();
+  std::vector<V3f> local;
+  for (std::size_t i : index.within(ctr, static_cast<float>(m.r_model + 0.3))) {
+    local.push_back(scene[i]);
+  }
+  judge(m, index, scene, top, ground, local, config, &c);
+  return c.v;
+}
 
 RecognitionResult recognize_3d(const PointCloud& scene_world,
                                const std::vector<ModelTemplate>& models_in,
@@ -586,52 +1050,72 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     full = above_ground(full, ground, cfg.seabed_clearance_m);
   }
   subsample(full, nullptr, cfg.voxel_m, &scene, nullptr);
+  // What the survey saw from above, seabed included (free-space violation), and the field's
+  // elevation map for the verification (sec. 6.2.1) with the cells accepted placements took.
+  const TopMap top = make_top_map(scene_world.points, cfg.voxel_m);
+  ElevationMapConfig mc;
+  mc.cell_m = cfg.map_cell_m;
+  const ElevationMap fine = elevation_map_from_points(scene_world, mc);
+  std::vector<uint8_t> removed_fine(fine.z.size(), 0);
   out.seconds_maps = since(start);
 
   // Sec. 6.3.2.6 (as in the 2D method): models in decreasing size.
   const std::vector<const ModelTemplate*> order = by_decreasing_size(models_in);
-  Progress bar("recognize 3d", order.size(), progress);
   for (const ModelTemplate* mt : order) {
     Search3dRecord rec;
     rec.model = mt->name;
     const auto t0 = Clock::now();
     if (scene.size() < static_cast<std::size_t>(cfg.n_min)) {
+      rec.nearest_miss = "fewer than n_min scene points above the seabed";
       if (searches) searches->push_back(rec);
-      bar.add();
       continue;
     }
     const Model3d m = prepare(*mt, cfg);
     rec.r_model_m = m.r_model;
-    rec.period_m = cfg.period_fraction * m.r_model;
-    rec.r_subspace_m = m.r_model + std::sqrt(3.0) / 2 * rec.period_m;  // eq. 6.3
+    rec.model_samples = m.pts.size();
+    rec.model_visible = m.visible;
     const ModelIndex scene_index(scene, std::vector<V3f>(scene.size(), V3f::UnitZ()));
     std::vector<V3f> coarse;
     std::vector<uint32_t> weight;
-    subsample(scene, nullptr, cfg.occupancy_voxel_m, &coarse, nullptr, &weight);
+    subsample(scene, nullptr, m.occupancy_voxel, &coarse, nullptr, &weight);
     const ModelIndex coarse_index(coarse, std::vector<V3f>(coarse.size(), V3f::UnitZ()));
 
-    // Subspace centres on a grid of period T over the scene's points.
-    Eigen::AlignedBox3f box;
-    for (const auto& p : scene) box.extend(p);
-    const double T = rec.period_m;
-    const Eigen::Vector3i n = ((box.sizes().cast<double>() / T).array().floor() + 1).cast<int>();
-    limits::checked_count(static_cast<double>(n.x()) * n.y() * n.z(), 1, 5e7,
-                          "subspaces of model '" + mt->name + "'",
-                          "increase the period fraction or crop the scene");
-    const std::size_t count = static_cast<std::size_t>(n.x()) * n.y() * n.z();
+    // Subspace centres (eq. 6.3), bounded: see Recognition3dConfig::max_subspaces.
+    rec.planar = cfg.upright && !ground.z.empty();
+    const double rise = model_center(*mt).z() - mt->base_z;  // sphere centre above the base
+    double T = std::max(cfg.period_fraction * m.r_model, cfg.voxel_m);
+    std::vector<V3f> centres;
+    for (int attempt = 0;; ++attempt) {
+      rec.period_m = T;
+      rec.r_subspace_m = m.r_model + std::sqrt(3.0) / 2 * T;  // eq. 6.3
+      centres = subspace_centres(coarse, rec.r_subspace_m, T, rec.planar, ground, rise,
+                                 cfg.max_subspaces);
+      if (centres.size() <= cfg.max_subspaces) break;
+      T *= 1.25;
+      rec.period_raised = true;
+      limits::checked_count(attempt, 0, 60, "subspace period raises",
+                            "raise max_subspaces");
+    }
+    const std::size_t count = centres.size();
     std::vector<SubspaceTest> verdict(count, SubspaceTest::Points);
     std::vector<uint8_t> nonempty(count, 0);
     const float rs = static_cast<float>(rec.r_subspace_m);
-    tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
-      const int ix = static_cast<int>(k % n.x()), iy = static_cast<int>((k / n.x()) % n.y()),
-                iz = static_cast<int>(k / (static_cast<std::size_t>(n.x()) * n.y()));
-      const V3f c = box.min() + Eigen::Vector3i(ix, iy, iz).cast<float>() * static_cast<float>(T);
-      const std::vector<std::size_t> idx = coarse_index.within(c, rs);
-      nonempty[k] = !idx.empty();
-      if (idx.empty()) return;
-      verdict[k] =
-          subspace_test(coarse_stats(coarse, weight, idx, cfg.occupancy_voxel_m), m.stats, cfg);
-    });
+    {
+      Progress sub_bar("3d subspaces " + mt->name, count, progress);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256),
+                        [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                            const std::vector<std::size_t> idx =
+                                coarse_index.within(centres[k], rs);
+                            nonempty[k] = !idx.empty();
+                            if (idx.empty()) continue;
+                            verdict[k] = subspace_test(
+                                coarse_stats(coarse, weight, idx, m.occupancy_voxel), m.stats, cfg);
+                          }
+                          sub_bar.add(range.size());
+                        });
+      sub_bar.finish();
+    }
     std::vector<std::size_t> kept;
     for (std::size_t k = 0; k < count; ++k) {
       if (!nonempty[k]) continue;
@@ -647,17 +1131,17 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
 
     // Survivors around one structure hold nearly the same points: one representative (the
     // subspace with the most points) per group of survivors whose points' centroids lie within
-    // dedup_fraction · r_model of each other is matched.
+    // dedup_fraction · r_model of each other is matched (a hash grid of that edge: linear, not
+    // quadratic, in the survivors).
     const auto t1 = Clock::now();
-    auto centre_of = [&](std::size_t k) {
-      const int ix = static_cast<int>(k % n.x()), iy = static_cast<int>((k / n.x()) % n.y()),
-                iz = static_cast<int>(k / (static_cast<std::size_t>(n.x()) * n.y()));
-      return V3f(box.min() + Eigen::Vector3i(ix, iy, iz).cast<float>() * static_cast<float>(T));
-    };
     std::vector<Eigen::Vector3d> centroid(kept.size(), Eigen::Vector3d::Zero());
     std::vector<std::size_t> npts(kept.size(), 0);
     tbb::parallel_for(std::size_t(0), kept.size(), [&](std::size_t j) {
-      const std::vector<std::size_t> idx = scene_index.within(centre_of(kept[j]), rs);
+      // The points a model centred on this subspace's centre would cover (all of the subspace's
+      // when none): their centroid starts the matching and groups nearly equal survivors.
+      std::vector<std::size_t> idx =
+          scene_index.within(centres[kept[j]], static_cast<float>(m.r_model));
+      if (idx.empty()) idx = scene_index.within(centres[kept[j]], rs);
       for (std::size_t i : idx) centroid[j] += scene[i].cast<double>();
       npts[j] = idx.size();
       centroid[j] /= static_cast<double>(std::max<std::size_t>(1, idx.size()));
@@ -667,71 +1151,139 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     std::stable_sort(by_count.begin(), by_count.end(),
                      [&](std::size_t a, std::size_t b) { return npts[a] > npts[b]; });
     std::vector<std::size_t> reps;
-    const double dedup = cfg.dedup_fraction * m.r_model;
+    const double dedup = std::max(cfg.dedup_fraction * m.r_model, 1e-6);
+    std::unordered_map<uint64_t, std::vector<std::size_t>> dedup_grid;
+    auto cell_of = [&](const Eigen::Vector3d& p) {
+      return ((p / dedup).array().floor().cast<int64_t>() + (1 << 20)).eval();
+    };
+    auto cell_key = [](int64_t x, int64_t y, int64_t z) {
+      return static_cast<uint64_t>(x) | static_cast<uint64_t>(y) << 21 |
+             static_cast<uint64_t>(z) << 42;
+    };
     for (std::size_t j : by_count) {
+      const auto cj = cell_of(centroid[j]);
       bool dup = false;
-      for (std::size_t k : reps) dup = dup || (centroid[k] - centroid[j]).norm() < dedup;
-      if (!dup) reps.push_back(j);
+      for (int dz = -1; dz <= 1 && !dup; ++dz) {
+        for (int dy = -1; dy <= 1 && !dup; ++dy) {
+          for (int dx = -1; dx <= 1 && !dup; ++dx) {
+            const auto it = dedup_grid.find(cell_key(cj.x() + dx, cj.y() + dy, cj.z() + dz));
+            if (it == dedup_grid.end()) continue;
+            for (std::size_t k : it->second) {
+              if ((centroid[k] - centroid[j]).norm() < dedup) {
+                dup = true;
+                break;
+              }
+            }
+          }
+        }
+      }
+      if (dup) continue;
+      reps.push_back(j);
+      dedup_grid[cell_key(cj.x(), cj.y(), cj.z())].push_back(j);
     }
     rec.registered = reps.size();
     // Direct matching in every representative, in parallel.
     std::vector<Candidate> cands(reps.size());
-    tbb::parallel_for(std::size_t(0), reps.size(), [&](std::size_t j) {
-      std::vector<V3f> pts;
-      for (std::size_t i : scene_index.within(centre_of(kept[reps[j]]), rs)) {
-        pts.push_back(scene[i]);
-      }
-      cands[j] = match_subspace(m, scene_index, pts, ground, cfg);
-    });
+    {
+      Progress match_bar("3d matching " + mt->name, reps.size(), progress);
+      tbb::parallel_for(std::size_t(0), reps.size(), [&](std::size_t j) {
+        std::vector<V3f> pts;
+        for (std::size_t i : scene_index.within(centres[kept[reps[j]]], rs)) {
+          pts.push_back(scene[i]);
+        }
+        cands[j] =
+            match_subspace(m, scene_index, scene, top, pts, centroid[reps[j]], ground, fine,
+                           removed_fine, cfg);
+        match_bar.add();
+      });
+      match_bar.finish();
+    }
     std::vector<std::size_t> passed;
+    // The nearest miss: the highest confidence among the verified, else the highest coverage.
+    const Candidate* miss = nullptr;
+    auto nearer = [](const Candidate& a, const Candidate* b) {
+      if (!b) return true;
+      if (a.verified != b->verified) return a.verified;
+      return a.verified ? a.ver.confidence > b->ver.confidence : a.v.coverage > b->v.coverage;
+    };
     for (std::size_t j = 0; j < cands.size(); ++j) {
       if (cands[j].ok) {
         passed.push_back(j);
-      } else if (cands[j].iterations > 0 && cands[j].coverage >= rec.best_rejected_coverage) {
-        rec.best_rejected_coverage = cands[j].coverage;
-        rec.best_rejected_residual_m = cands[j].residual_median;
+      } else if (std::isfinite(cands[j].v.coverage) && nearer(cands[j], miss)) {
+        miss = &cands[j];
       }
     }
     rec.passed = passed.size();
-    // Non-maximum suppression: best coverage first (then lowest residual). Each accepted
-    // placement takes the scene points it covers; a later candidate's coverage counts only the
-    // points not taken (a placement over part of a found structure falls below min_coverage),
-    // and one whose centre lies within nms_fraction · r_model (horizontal) of a kept one is the
-    // same instance.
+    if (miss) {
+      rec.nearest_miss = failed_test(*miss, *mt, cfg);
+      if (miss->verified) rec.best_rejected_confidence = miss->ver.confidence;
+      rec.nearest_miss_terms = miss->v;
+      rec.best_rejected_coverage = miss->v.coverage;
+      rec.best_rejected_residual_m = miss->v.residual_median_m;
+    } else if (!cands.empty()) {
+      rec.nearest_miss = std::string("no match: ") + cands.front().failed;
+    } else if (rec.subspaces == 0) {
+      rec.nearest_miss = "no subspace holds a scene point above the seabed";
+    } else {
+      int worst = 1;
+      for (int t = 2; t <= 4; ++t) worst = rec.failed[t] > rec.failed[worst] ? t : worst;
+      rec.nearest_miss = "all " + std::to_string(rec.subspaces) +
+                         " subspaces failed eq. 6.4-6.7, most " +
+                         subspace_test_name(static_cast<SubspaceTest>(worst)) + " (" +
+                         std::to_string(rec.failed[worst]) + ")";
+    }
+    // Competing placements of this model (non-maximum suppression): best explanation score
+    // first (verify.hpp's score_m3: relief explained minus contradicted minus left unexplained).
+    // Each is verified again against the cells of the placements accepted so far (overlap), must
+    // still cover min_coverage with scene points no accepted placement took, and lie farther than
+    // nms_fraction · r_model (horizontal) from an accepted one of the same model; at most
+    // `expected`.
     std::sort(passed.begin(), passed.end(), [&](std::size_t a, std::size_t b) {
-      if (cands[a].coverage != cands[b].coverage) return cands[a].coverage > cands[b].coverage;
-      return cands[a].residual_median < cands[b].residual_median;
+      if (cands[a].ver.score_m3 != cands[b].ver.score_m3) {
+        return cands[a].ver.score_m3 > cands[b].ver.score_m3;
+      }
+      return cands[a].v.residual_median_m < cands[b].v.residual_median_m;
     });
     const int wanted = mt->expected >= 0 ? mt->expected : cfg.max_instances;
     const Eigen::Vector3d cm = model_center(*mt);
-    std::vector<Eigen::Vector3d> centres;
+    std::vector<Eigen::Vector3d> placed_centres;
     std::vector<const Candidate*> accepted;
     std::vector<uint8_t> taken(scene.size(), 0);
     const float tol2 = static_cast<float>(cfg.coverage_tol_m * cfg.coverage_tol_m);
     for (std::size_t j : passed) {
-      const Eigen::Vector3d c = cands[j].T * cm;
+      Candidate& cj = cands[j];
+      const Eigen::Vector3d c = cj.T * cm;
       bool dup = static_cast<int>(accepted.size()) >= wanted;
-      for (const auto& o : centres) dup = dup || (o - c).norm() < cfg.nms_fraction * mt->radius_m;
+      for (const auto& o : placed_centres) {
+        dup = dup || (o - c).norm() < cfg.nms_fraction * mt->radius_m;
+      }
+      if (!dup && !accepted.empty()) {
+        cj.ver = verify_placement(*mt, cj.T, fine, removed_fine, cfg.verification);
+        dup = !failed_test(cj, *mt, cfg).empty();
+      }
       std::vector<std::size_t> hits;
       if (!dup) {
-        const Eigen::Isometry3f Tf = cands[j].T.cast<float>();
+        const Eigen::Isometry3f Tf = cj.T.cast<float>();
         std::size_t free = 0;
-        for (const auto& q : m.pts) {
+        for (const auto& q : m.seen_pts) {
           float d2 = 0;
           const std::size_t i = scene_index.nearest(Tf * q, &d2);
           if (d2 > tol2) continue;
           hits.push_back(i);
           free += !taken[i];
         }
-        dup = static_cast<double>(free) < cfg.min_coverage * static_cast<double>(m.pts.size());
+        dup = static_cast<double>(free) <
+              cfg.min_coverage * static_cast<double>(m.seen_pts.size());
       }
       if (dup) {
         ++rec.suppressed;
         continue;
       }
       for (std::size_t i : hits) taken[i] = 1;
-      centres.push_back(c);
-      accepted.push_back(&cands[j]);
+      mark_placed_3d(*mt, cj.T, fine, cfg.removal_margin_m, removed_fine);
+      placed_centres.push_back(c);
+      accepted.push_back(&cj);
+      rec.accepted_terms.push_back(cj.v);
     }
     rec.accepted = accepted.size();
     rec.seconds_matching = since(t1);
@@ -743,13 +1295,14 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       p.T_world_model = c->T;
       p.T_world_model_4d = c->T_start;
       p.score_m = c->start_score;
-      p.support = c->coverage;
-      p.observed = std::numeric_limits<double>::quiet_NaN();
+      p.verification = c->ver;
+      p.confidence = c->ver.confidence;
+      p.support = c->ver.explained;
+      p.observed = c->ver.seen;
       p.icp_iterations = c->iterations;
       p.icp_kept = true;
       const Eigen::Vector3d ctr = c->T * cm;
-      p.ground_z =
-          ground.z.empty() ? std::numeric_limits<double>::quiet_NaN() : ground.at(ctr.x(), ctr.y());
+      p.ground_z = c->ver.ground_z;
       // Table 6.1's metric on the full-resolution points (above the seabed) near the model.
       std::vector<V3f> local;
       const double reach = m.r_model + 0.3;
@@ -780,9 +1333,7 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       full.erase(std::remove_if(full.begin(), full.end(), near_placed), full.end());
     }
     if (searches) searches->push_back(rec);
-    bar.add();
   }
-  bar.finish();
   out.seconds = since(start);
   return out;
 }
@@ -809,8 +1360,34 @@ std::string placements_json_3d(const RecognitionResult& result,
                    {"yaw_step_deg", config.yaw_step_deg},
                    {"seabed_clearance_m", config.seabed_clearance_m},
                    {"max_residual_median_m", config.max_residual_median_m},
-                   {"min_coverage", config.min_coverage}};
+                   {"min_coverage", config.min_coverage},
+                   {"coverage_tol_m", config.coverage_tol_m},
+                   {"relief_m", config.relief_m},
+                   {"view_tilt_deg", config.view_tilt_deg},
+                   {"map_cell_m", config.map_cell_m},
+                   {"min_confidence", config.verification.min_confidence},
+                   {"max_buried_fraction", config.max_buried_fraction},
+                   {"max_overlap", config.max_overlap},
+                   {"min_net_explained", config.min_net_explained},
+                   {"max_subspaces", config.max_subspaces}};
+  auto terms_json = [](const Verification3d& v) {
+    auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); };
+    return nlohmann::json{{"residual_median_m", num(v.residual_median_m)},
+                          {"coverage", num(v.coverage)},
+                          {"violation", num(v.violation)},
+                          {"unexplained", num(v.unexplained)},
+                          {"observed", num(v.observed)},
+                          {"tilt_deg", num(v.tilt_deg)}};
+  };
   j["placements"] = placements_list_json(result.placements);
+  // The acceptance terms of each placement (the searches hold them in the placements' order).
+  std::size_t next = 0;
+  for (const Search3dRecord& s : searches) {
+    for (const Verification3d& v : s.accepted_terms) {
+      if (next < j["placements"].size()) j["placements"][next]["terms_3d"] = terms_json(v);
+      ++next;
+    }
+  }
   nlohmann::json list = nlohmann::json::array();
   for (const Search3dRecord& s : searches) {
     nlohmann::json failed;
@@ -821,6 +1398,10 @@ std::string placements_json_3d(const RecognitionResult& result,
                     {"r_model_m", s.r_model_m},
                     {"r_subspace_m", s.r_subspace_m},
                     {"period_m", s.period_m},
+                    {"period_raised", s.period_raised},
+                    {"planar", s.planar},
+                    {"model_samples", s.model_samples},
+                    {"model_visible", s.model_visible},
                     {"subspaces", s.subspaces},
                     {"kept", s.kept},
                     {"failed", failed},
@@ -828,8 +1409,11 @@ std::string placements_json_3d(const RecognitionResult& result,
                     {"passed", s.passed},
                     {"suppressed", s.suppressed},
                     {"accepted", s.accepted},
-                    {"best_rejected_coverage", s.best_rejected_coverage},
-                    {"best_rejected_residual_median_m", s.best_rejected_residual_m},
+                    {"nearest_miss", s.nearest_miss},
+                    {"nearest_miss_terms", terms_json(s.nearest_miss_terms)},
+                    {"nearest_miss_confidence", std::isfinite(s.best_rejected_confidence)
+                                                    ? nlohmann::json(s.best_rejected_confidence)
+                                                    : nlohmann::json()},
                     {"seconds_subspaces", s.seconds_subspaces},
                     {"seconds_matching", s.seconds_matching}});
   }

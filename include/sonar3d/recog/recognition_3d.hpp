@@ -10,6 +10,7 @@
 //
 // Frames: local ENU world (x East, y North, z up). Placements are T_world_model.
 #include <Eigen/Geometry>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
 #include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/verify.hpp"
 
 namespace sonar3d {
 
@@ -25,13 +27,23 @@ struct Recognition3dConfig {
   double voxel_m = 0.03;
   // Subspace grid period T as a fraction of r_model (the thesis: T = 0.5·r_model); the subspace
   // radius is r_model + √3/2·T (eq. 6.3), r_model the radius of the model's bounding sphere.
+  // T is at least voxel_m (no finer than the scene's sampling).
   double period_fraction = 0.5;
+  // Bound on the subspaces per model (the thesis' grid grows as 1/r_model³: 112 k for a 0.69 m
+  // panel on a 40 × 30 m field, a 0.13 m tool never finished). Centres are only placed near the
+  // scene's occupied cells (within the subspace radius of a point): with the upright prior on a
+  // horizontal lattice at the height the model's bounding-sphere centre has when it stands on the
+  // local seabed (2D: the count grows with the occupied area / T²), otherwise on the 3D lattice
+  // (occupied volume / T³). When more than max_subspaces remain, T is raised by steps of 1.25
+  // until they fit (reported as period_m and period_raised).
+  std::size_t max_subspaces = 100000;
   // Eq. 6.4-6.7 (the thesis' values).
   double alpha_fit = 1.2;        // eq. 6.4: l_model[i] <= alpha_fit · l_subspace[i]
   double alpha_volume = 0.6;     // eq. 6.5: V_subspace >= alpha_volume · V_model
   int n_min = 10;                // eq. 6.6: N_subspace >= N_min
   double alpha_occupancy = 0.6;  // eq. 6.7: O_subspace >= alpha_occupancy · O_model
-  // Voxel edge of the occupancy count of eq. 6.7, m.
+  // Voxel edge of the occupancy count of eq. 6.7, m; for a model with r_model < 4 × this, the
+  // edge is r_model / 4 (at least voxel_m): a 0.1 m tool would otherwise fill one voxel.
   double occupancy_voxel_m = 0.1;
   // Orientation prior: structures stand upright on the seabed (yaw unknown). When true, each
   // subspace is matched by a yaw sweep and trimmed ICP from the best yaws; when false, by the
@@ -43,8 +55,10 @@ struct Recognition3dConfig {
   // plus this is dropped likewise; 0 keeps the seabed (the thesis kept it: its OBBs then grow
   // with the seabed, sec. 6.3.1.4). Used with `upright` only.
   double seabed_clearance_m = 0.05;
-  // Local seabed: a low quantile of the lowest point per ground_cell_m cell within
-  // ground_window_m of each cell, m.
+  // Local seabed: per ground_cell_m cell, a plane fitted to the lowest point per cell within
+  // ground_window_m, refitted to the lower half of the cells (slopes followed, structures over
+  // less than half the window ignored); where fewer than 6 cells hold points, the
+  // ground_quantile of their lowest points. m.
   double ground_cell_m = 0.25;
   double ground_window_m = 2.0;
   double ground_quantile = 0.25;
@@ -55,16 +69,49 @@ struct Recognition3dConfig {
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
   int coarse_iterations = 15;      // first ICP pass iterations
   std::size_t max_points = 1500;   // scene points per subspace used in the matching
-  double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance
+  double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance (or
+                                   // 0.1·r_model when larger: see match_subspace)
                                    // exceeds this is not refined, m
   TrimmedIcpConfig icp;            // fine ICP pass
-  // Decision ("found", sec. 6.3.1.3: a threshold on the error to the CAD model after matching):
-  // the median distance from the scene points over the placed model to its samples, and the
-  // fraction of the model's samples (above its base clearance) with a scene point within
-  // coverage_tol_m (a model placed into empty space has no error and no coverage).
+  // Decision ("found"): the thesis' threshold on the error to the CAD model after matching
+  // (sec. 6.3.1.3: the median distance from the scene points over the placed model to its
+  // samples, max_residual_median_m), then the hypothesis verification shared with the 2D method
+  // (verify.hpp, docs/recognition.md "Verification") on the field's elevation map of
+  // map_cell_m: seen, explained, free-space violation, unexplained relief, spill and the
+  // calibrated confidence (at least verification.min_confidence), no more than
+  // max_buried_fraction of the model below the seabed ring around it, no more than max_overlap
+  // of its footprint on accepted placements.
   double max_residual_median_m = 0.04;
+  double map_cell_m = 0.02;
+  VerificationConfig verification;
+  double max_buried_fraction = 0.5;
+  double max_overlap = 0.25;
+  // The net explanation, verify.hpp's score_m3 (relief explained − contradicted − left
+  // unexplained) over the model's relief relief_m3, at least this: a model with no relief of its
+  // own (a 5 cm valve) or one laid on a wreck explains little net of what it contradicts
+  // (measured on the issue-28-like field, docs/recognition.md: true 0.70-0.75, false -inf-0.17).
+  double min_net_explained = 0.4;
+  // Diagnostics of the 3D point cloud (Verification3d, reported per placement, not deciding):
+  //  - coverage: of the model's samples a downward survey sees (visible from above along the
+  //    vertical or view_tilt_deg off it) that stand at least relief_m above its base, the
+  //    fraction with a scene point within coverage_tol_m;
+  //  - violation: of its samples seen straight from above and standing relief_m above its base,
+  //    the fraction over which the survey saw the surface lower than the sample by more than
+  //    coverage_tol_m in every column within coverage_tol_m; unobserved columns do not count;
+  //  - unexplained: of the scene points standing unexplained_height_m above the seabed in the
+  //    model's footprint grown by max(context_min_m, context_fraction · r_model) and up to that
+  //    above its top, the fraction farther than coverage_tol_m from the model.
+  // min_coverage also bounds non-maximum suppression: a candidate must still cover that
+  // fraction with scene points no accepted placement took.
   double min_coverage = 0.5;
   double coverage_tol_m = 0.06;
+  double relief_m = 0.1;
+  double view_tilt_deg = 30;
+  double context_min_m = 0.2;
+  double context_fraction = 0.25;
+  // Scene points count as unexplained only when standing this high above the local seabed (the
+  // seabed plane leaves 10-20 cm of relief texture on the issue's 25 cm relief), m.
+  double unexplained_height_m = 0.2;
   double max_tilt_deg = 10;  // upright: a placement tilted more than this is refused
   // Non-maximum suppression: two placements of one model whose centres are closer than this
   // fraction of its horizontal radius are one instance (the better kept).
@@ -107,10 +154,24 @@ std::vector<Eigen::Vector3f> voxel_subsample(const std::vector<Eigen::Vector3f>&
 IcpResult global_registration(const ModelIndex& model, const std::vector<Eigen::Vector3f>& scene,
                               const Recognition3dConfig& config, double* score_m = nullptr);
 
+// The acceptance terms of one matched placement (see Recognition3dConfig, "Decision"). NaN when
+// not measured (nothing matched).
+struct Verification3d {
+  double residual_median_m = std::numeric_limits<double>::quiet_NaN();
+  double coverage = std::numeric_limits<double>::quiet_NaN();
+  double violation = std::numeric_limits<double>::quiet_NaN();
+  double unexplained = std::numeric_limits<double>::quiet_NaN();
+  double observed = std::numeric_limits<double>::quiet_NaN();  // of the top samples, observed
+  double tilt_deg = std::numeric_limits<double>::quiet_NaN();
+};
+
 // Per model: what the subspace analysis and the matching did.
 struct Search3dRecord {
   std::string model;
   double r_model_m = 0, r_subspace_m = 0, period_m = 0;
+  bool period_raised = false;  // T raised above period_fraction · r_model by max_subspaces
+  bool planar = false;         // centres on the horizontal lattice (upright prior)
+  std::size_t model_samples = 0, model_visible = 0;  // subsampled model, of which seen from above
   std::size_t subspaces = 0;                // centres with at least one point within r_subspace
   std::size_t kept = 0;                     // passed eq. 6.4-6.7
   std::size_t failed[5] = {0, 0, 0, 0, 0};  // per SubspaceTest (index 0 unused)
@@ -118,11 +179,25 @@ struct Search3dRecord {
   std::size_t passed = 0;      // survivors whose match passed the residual and coverage
   std::size_t suppressed = 0;  // passed but overlapping a better placement
   std::size_t accepted = 0;
-  // The matched survivor that came nearest to passing (highest coverage): its coverage and
-  // residual median, for the log.
-  double best_rejected_coverage = 0, best_rejected_residual_m = 0;
+  // Why nothing (more) was accepted: the matched survivor that came nearest to passing (highest
+  // confidence, else highest coverage) with the test it failed, or, when no survivor was matched, the subspace test that
+  // rejected most subspaces. The figures are NaN when no match was made (never a "perfect" 0).
+  std::string nearest_miss;  // e.g. "coverage 0.31 < 0.5", "all 812 subspaces failed: obb_fit 790"
+  double best_rejected_coverage = std::numeric_limits<double>::quiet_NaN();
+  double best_rejected_residual_m = std::numeric_limits<double>::quiet_NaN();
+  Verification3d nearest_miss_terms;
+  double best_rejected_confidence = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Verification3d> accepted_terms;  // per accepted placement, in output order
   double seconds_subspaces = 0, seconds_matching = 0;
 };
+
+// The 3D method's acceptance terms of `model` placed at T_world_model in a world-frame cloud
+// (the seabed estimated and removed as in recognize_3d). For tests and for judging a placement
+// found otherwise. Errors: an empty cloud.
+Verification3d verify_placement_3d(const ModelTemplate& model,
+                                   const Eigen::Isometry3d& T_world_model,
+                                   const PointCloud& scene_world,
+                                   const Recognition3dConfig& config);
 
 // The whole 3D method on a world-frame cloud: placements with method "3d" (score_m: the start's
 // trimmed mean distance; support: the coverage). Errors: an empty catalogue or cloud, a model
