@@ -18,7 +18,7 @@ fail=0
 expect() { if [ -s "$work/$1" ]; then echo "ok    $1"; else echo "FAIL  $1 missing or empty"; fail=1; fi; }
 for f in ref/sonar.yaml ref/truth/scene.yaml sphere.png carve.ply deconv.ply metrics.json \
          pipe/sonar.yaml noise/mean.tiff noise/std.tiff plan/results.csv plan/report.html \
-         imported/sonar.yaml imported/navigation.tum survey_map/merged.tif \
+         imported/sonar.yaml imported/navigation.tum imported_deconv.ply survey_map/merged.tif \
          survey_map/navigation_corrected.tum survey_map/summary.json; do
   expect "tour/$f"
 done

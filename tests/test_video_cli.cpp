@@ -185,9 +185,9 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
   const fs::path bad_out = tmp / "bad.ply";
   std::ofstream(tmp / "notes.txt") << "my notes\n";
   r = run(tmp, args + (tmp / "notes.txt").string() + " --quiet --overwrite");
-  expect_one_line_error(r, "not a point cloud sonar3d wrote");
+  expect_one_line_error(r, "not a sonar3d point cloud");
   r = run(tmp, args + in.string() + " --quiet --overwrite");
-  expect_one_line_error(r, "is the input cloud");
+  expect_one_line_error(r, "is the input");
   {  // an image whose size is not its camera's
     RgbImage small;
     small.width = 100;
