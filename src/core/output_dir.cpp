@@ -387,6 +387,12 @@ std::string describe(const fs::file_status& st) {
   }
 }
 
+std::string with_article(const std::string& noun) {
+  return (std::string("aeiou").find(noun.empty() ? 'x' : noun[0]) != std::string::npos ? "an "
+                                                                                       : "a ") +
+         noun;
+}
+
 // The kind of sonar3d output a file or directory is, if any (for "is a sonar3d X, not a Y").
 std::string other_sonar3d_kind(const fs::path& path, OutputKind wanted) {
   for (OutputKind k : {OutputKind::Dataset, OutputKind::Plan, OutputKind::PointCloud,
@@ -459,8 +465,8 @@ void check_output(const fs::path& path, OutputKind kind, const OutputPolicy& pol
     }
     if (fs::is_empty(path, ec) && !ec) return;
   } else if (fs::is_directory(st)) {
-    throw Error("'" + path.string() + "'" + in_flag + " is a directory, not a " + what +
-                " file: choose a file name");
+    throw Error("'" + path.string() + "'" + in_flag + " is a directory, not " +
+                with_article(what) + " file: choose a file name");
   }
   if (is_sonar3d_output(path, kind)) {
     if (policy.overwrite) return;
@@ -469,7 +475,7 @@ void check_output(const fs::path& path, OutputKind kind, const OutputPolicy& pol
   }
   const std::string other = other_sonar3d_kind(path, kind);
   const std::string why =
-      !other.empty() ? "is a sonar3d " + other + ", not a " + what
+      !other.empty() ? "is a sonar3d " + other + ", not " + with_article(what)
       : kind == OutputKind::Dataset
           ? "is not a sonar3d dataset (no sonar.yaml with 'format: sonar3d-dataset')"
           : "is not a sonar3d " + what;
@@ -523,13 +529,13 @@ fs::path OutputFiles::add(fs::path final_path, OutputKind kind, const std::strin
     notes_.push_back(n);
     if (policy_.on_note) policy_.on_note(n);
   }
-  check_output(final_path, kind, policy_, flag);
   const fs::path abs = resolved(final_path);
   for (const Member& m : members_) {
     if (resolved(m.final_path) == abs) {
       throw Error(m.flag + " and " + flag + " name the same file '" + final_path.string() + "'");
     }
   }
+  check_output(final_path, kind, policy_, flag);
   const fs::path parent = final_path.has_parent_path() ? final_path.parent_path() : ".";
   // The final extension kept last: writers choose the encoder by it.
   const fs::path temp =
