@@ -418,7 +418,7 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     expect_one_line_error(run(tmp, "texture " + (tmp / "scene.obj").string() + " --mesh --neus " +
                                        npz.string() + " --images " + images.string() +
                                        " --quiet --overwrite -o " + (tmp / "other.glb").string()),
-                          "not a glTF file sonar3d wrote");
+                          "is not a sonar3d glTF file");
     expect_one_line_error(run(tmp, args + (tmp / "cloud.glb").string()), "needs --mesh");
     const CliRun plain = run(tmp, args + (tmp / "cloud.ply").string() + " --plain-mean");
     EXPECT_EQ(plain.code, 2) << plain.err;  // a usage error
@@ -564,7 +564,8 @@ camera:
                    tmp.string());
   EXPECT_EQ(r.code, 2) << r.err;  // a usage error
   EXPECT_NE(r.err.find("--images: does not apply to --dataset"), std::string::npos) << r.err;
-  r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + tmp.string());
+  fs::create_directories(tmp / "no_camera");  // the output may not lie inside the --dataset
+  r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + (tmp / "no_camera").string());
   expect_one_line_error(r, "camera/camera.yaml is missing");
 
   // --navigation places the frames on another navigation (a map's corrected one): moved 0.5 m
