@@ -18,7 +18,7 @@ fail=0
 expect() { if [ -s "$work/$1" ]; then echo "ok    $1"; else echo "FAIL  $1 missing or empty"; fail=1; fi; }
 for f in ref/sonar.yaml ref/truth/scene.yaml sphere.png carve.ply deconv.ply metrics.json \
          pipe/sonar.yaml noise/mean.tiff noise/std.tiff plan/results.csv plan/report.html \
-         imported/sonar.yaml imported/navigation.tum survey_map/merged.tif \
+         imported/sonar.yaml imported/navigation.tum imported_deconv.ply survey_map/merged.tif \
          survey_map/navigation_corrected.tum survey_map/summary.json; do
   expect "tour/$f"
 done
@@ -35,4 +35,17 @@ for name, e in m.items():
     assert e["outliers"] < 0.1, name
 PY
 grep -q '"ok"\|,ok,' "$work/tour/plan/results.csv" || { echo "FAIL  no planner point ok"; fail=1; }
+# The HoloOcean example deconvolves (issue 29: auto mode): its wall stands 3 m ahead (x = 3).
+/usr/bin/python3 - "$work/tour/imported_deconv.ply" <<'PY' || fail=1
+import sys
+import numpy as np
+f = open(sys.argv[1], "rb").read()
+end = f.index(b"end_header\n") + len(b"end_header\n")
+props = [l.split() for l in f[:end].decode().split("\n") if l.startswith("property")]
+types = {"float": "<f4", "double": "<f8", "uchar": "u1"}
+pts = np.frombuffer(f[end:], dtype=np.dtype([(p[2], types[p[1]]) for p in props]))
+x = float(np.median(pts["x"]))
+print(f"deconv of the HoloOcean example: {len(pts)} points, median x {x:.3f} m")
+assert len(pts) > 100 and abs(x - 3.0) < 0.1, (len(pts), x)
+PY
 exit $fail

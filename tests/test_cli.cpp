@@ -122,7 +122,7 @@ TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
   EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--min-bracket 0.5 drops"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--explain-returns with --min-bracket 0.5"), std::string::npos) << r.out;
-  r = run(cmd + " --explain-returns --min-bracket 0.5");
+  r = run(cmd + " --explain-returns --min-bracket 0.5 --overwrite");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;

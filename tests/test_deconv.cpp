@@ -390,6 +390,7 @@ TEST(DeconvPass, TooFewFramesForTheFootprint) {
   frames[10].at(spec.range_bins - 1, 150) = 0.5f;  // a return at the far range (4.99 m)
   frames[10].at(2, 150) = 0.5f;                    // and one near (1.05 m)
   DeconvConfig cfg;
+  cfg.mode = DeconvConfig::Mode::Passes;  // auto would take the voxel mode instead
   cfg.dering = false;
   try {
     // At 5 m a 10° aperture spans K = 87 layers of 1 cm; 20 frames are not enough.
@@ -431,6 +432,57 @@ TEST(DeconvPass, SplitsPassesAtJumpsAndReversals) {
   EXPECT_EQ(passes[0], std::make_pair(std::size_t{0}, std::size_t{50}));
   EXPECT_EQ(passes[1], std::make_pair(std::size_t{50}, std::size_t{90}));
   EXPECT_EQ(passes[2], std::make_pair(std::size_t{90}, std::size_t{120}));
+}
+
+// Mode::Auto's choice from the poses (issue 29): the passes mode for regular passes, even several
+// (a jump to the next object, a yo-yo), the voxel mode otherwise, with the reason in one line.
+TEST(DeconvPass, AutoModeTakesThePassesModeOnlyForRegularPasses) {
+  DeconvConfig cfg;
+  EXPECT_EQ(cfg.mode, DeconvConfig::Mode::Auto);  // the default
+  EXPECT_EQ(auto_mode_reason(vertical_pass(60, 0.01), cfg), "");
+  // Two objects and a yo-yo: three regular passes.
+  std::vector<Eigen::Isometry3d> two = vertical_pass(50, 0.01);
+  for (const auto& T : vertical_pass(40, 0.01)) {
+    Eigen::Isometry3d U = T;
+    U.translation().y() = 4.0;
+    two.push_back(U);
+  }
+  for (int k = 0; k < 30; ++k) {
+    Eigen::Isometry3d T = two.back();
+    T.translation().z() -= 0.01;
+    two.push_back(T);
+  }
+  EXPECT_EQ(auto_mode_reason(two, cfg), "");
+  // Spacing: frames ±1.5 spacings off the grid (jittered along the pass).
+  std::vector<Eigen::Isometry3d> jittered = vertical_pass(100, 0.01);
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> J(-0.015, 0.015);
+  for (auto& T : jittered) T.translation().z() += J(rng);
+  std::string why = auto_mode_reason(jittered, cfg);
+  EXPECT_NE(why.find("spacing is not uniform"), std::string::npos) << why;
+  // Attitude: the sonar rolls 6° over the pass (±3° about the mean; tolerance 2°), 0.1° a
+  // frame (no split).
+  std::vector<Eigen::Isometry3d> rolling = vertical_pass(60, 0.01);
+  for (int k = 0; k < 60; ++k) {
+    rolling[k].linear() =
+        Eigen::AngleAxisd(0.1 * k * kDeg, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  }
+  why = auto_mode_reason(rolling, cfg);
+  EXPECT_NE(why.find("orientation changes"), std::string::npos) << why;
+  // A gap of 20 spacings in one pass splits it in two regular parts: still one irregular pass.
+  std::vector<Eigen::Isometry3d> gap = vertical_pass(40, 0.01);
+  for (const auto& T : vertical_pass(40, 0.01, -3.0, 0.6)) gap.push_back(T);
+  ASSERT_EQ(split_passes(gap, cfg).size(), 2u);
+  why = auto_mode_reason(gap, cfg);
+  EXPECT_NE(why.find("one pass broken"), std::string::npos) << why;
+  // A pass too short to reconstruct: its frames lie in no pass.
+  std::vector<Eigen::Isometry3d> stub = vertical_pass(40, 0.01);
+  Eigen::Isometry3d far = stub.back();
+  far.translation().y() = 3.0;
+  stub.push_back(far);
+  why = auto_mode_reason(stub, cfg);
+  EXPECT_NE(why.find("1 of 41 frames lie in no pass"), std::string::npos) << why;
+  EXPECT_EQ(why.find('\n'), std::string::npos);
 }
 
 TEST(DeconvSpecLookup, BeamOfBearingMatchesCellEdgesOnEveryTable) {

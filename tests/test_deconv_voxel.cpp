@@ -87,6 +87,7 @@ TEST(DeconvVoxel, OrbitOfASphereIsRecovered) {
 
   // The passes mode finds no straight pass along the sonar z axis.
   DeconvConfig cfg;
+  cfg.mode = DeconvConfig::Mode::Passes;
   cfg.num_threads = 2;
   DeconvReport passes;
   PointCloud none;
@@ -106,14 +107,17 @@ TEST(DeconvVoxel, OrbitOfASphereIsRecovered) {
   const EvalResult r = evaluate(cloud, s.truth, ec);
   expect_at_least_carving(r, carve_and_evaluate(s, ec));
 
-  // auto falls back to the voxel mode, and says why.
-  cfg.mode = DeconvConfig::Mode::Auto;
+  // auto (the default) takes the voxel mode, and says why: the orbit's frames lie in no pass.
+  cfg.mode = DeconvConfig().mode;
+  ASSERT_EQ(cfg.mode, DeconvConfig::Mode::Auto);
   DeconvReport autorep;
   const PointCloud autocloud = deconvolve_frames(s.frames, s.poses, s.spec, cfg, &autorep);
   EXPECT_EQ(autorep.mode, "voxel");
   EXPECT_EQ(autocloud.size(), cloud.size());
-  ASSERT_FALSE(autorep.warnings.empty());
-  EXPECT_NE(autorep.warnings[0].find("mode auto: voxel"), std::string::npos) << autorep.warnings[0];
+  EXPECT_NE(autorep.mode_note.find("mode auto: voxel mode"), std::string::npos)
+      << autorep.mode_note;
+  EXPECT_NE(autorep.mode_note.find("lie in no pass"), std::string::npos) << autorep.mode_note;
+  EXPECT_NE(autorep.to_json().find("\"mode_note\""), std::string::npos);
 
   // The normal kernel (sec. 5.6.7.1) solves again with Lambert's cosine at the first solution's
   // normals: an orbit sees the sphere from every side, which one isotropic ρ per voxel cannot
@@ -146,6 +150,7 @@ TEST(DeconvVoxel, JitteredPassOfASphereIsRecovered) {
   ec.samples_per_cm2 = 0.5;
 
   DeconvConfig cfg;
+  cfg.mode = DeconvConfig::Mode::Passes;
   cfg.num_threads = 2;
   try {
     deconvolve_frames(s.frames, s.poses, s.spec, cfg);
@@ -161,6 +166,20 @@ TEST(DeconvVoxel, JitteredPassOfASphereIsRecovered) {
   EXPECT_EQ(rep.voxel.kept_bracketed, 0u);  // the lower tier is off by default
   const EvalResult r = evaluate(cloud, s.truth, ec);
   expect_at_least_carving(r, carve_and_evaluate(s, ec));
+
+  // The default, auto (issue 29), deconvolves this pass: the voxel mode, because the spacing is
+  // beyond the passes mode's tolerance, said in one line; the same cloud as the voxel mode's.
+  DeconvConfig auto_cfg;
+  auto_cfg.num_threads = 2;
+  DeconvReport auto_rep;
+  const PointCloud auto_cloud = deconvolve_frames(s.frames, s.poses, s.spec, auto_cfg, &auto_rep);
+  EXPECT_EQ(auto_rep.mode, "voxel");
+  EXPECT_EQ(auto_cloud.size(), cloud.size());
+  EXPECT_NE(auto_rep.mode_note.find("not uniform"), std::string::npos) << auto_rep.mode_note;
+  EXPECT_EQ(auto_rep.mode_note.find('\n'), std::string::npos) << auto_rep.mode_note;
+  const EvalResult a = evaluate(auto_cloud, s.truth, ec);
+  EXPECT_LT(a.median_error, 0.01) << to_table(a);
+  EXPECT_GE(a.coverage, 0.97 * r.coverage) << to_table(a);
 
   // The lower tier (min_relative_bracketed): the faint voxels the pass bracketed are kept too,
   // on the sphere (more coverage, no more error or outliers), none of the others.

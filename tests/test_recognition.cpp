@@ -604,7 +604,7 @@ TEST(RecogCli, SimulatedSceneStructuresFoundAtTheirTruePoses) {
                        (dir / "cat.yaml").string() + " -o " + (dir / "mine.json").string() +
                        " --overwrite -q");
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("not written by sonar3d"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not a sonar3d placements file"), std::string::npos) << r.out;
   std::ifstream mine(dir / "mine.json");
   EXPECT_EQ(std::string((std::istreambuf_iterator<char>(mine)), std::istreambuf_iterator<char>()),
             "{\"mine\": 1}\n");

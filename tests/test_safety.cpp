@@ -18,6 +18,7 @@
 #include "../src/plan/plan_internal.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/output_dir.hpp"
+#include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/plan/sweep.hpp"
 #include "test_support.hpp"
@@ -303,8 +304,17 @@ TEST_F(Safety, NothingInViewIsAnErrorUnlessAllowed) {
   const fs::path ply = dir / "cloud.ply";
   expect_error(cli("reconstruct " + ds.string() + " --method carve -q -o " + ply.string()), 1,
                "carving found no surface");
-  expect_error(cli("reconstruct " + ds.string() + " --method deconv -q -o " + ply.string()), 1,
-               "no return in any frame");
+  expect_error(cli("reconstruct " + ds.string() + " --method deconv --deconv-mode passes -q -o " +
+                   ply.string()),
+               1, "no return in any frame");
+  EXPECT_FALSE(fs::exists(ply));
+  // The default mode (auto) tries the voxel mode too, says so in a note, then fails the same way.
+  const CliRun deconv_auto =
+      cli("reconstruct " + ds.string() + " --method deconv -q -o " + ply.string());
+  EXPECT_EQ(deconv_auto.code, 1) << deconv_auto.err;
+  EXPECT_NE(deconv_auto.err.find("sonar3d: error: deconvolution produced 0 points"),
+            std::string::npos)
+      << deconv_auto.err;
   EXPECT_FALSE(fs::exists(ply));
   const CliRun allowed =
       cli("reconstruct " + ds.string() + " --method carve -q --allow-empty -o " + ply.string());
@@ -321,8 +331,8 @@ TEST_F(Safety, DeconvolutionOfAnOrbitFailsWithOneSummary) {
         "start_deg: 180, sweep_deg: 360}\n");
   const fs::path ds = dir / "orbit";
   ASSERT_EQ(cli(simulate("orbit.yaml", ds)).code, 0);
-  const CliRun r =
-      cli("reconstruct " + ds.string() + " --method deconv -q -o " + (dir / "o.ply").string());
+  const CliRun r = cli("reconstruct " + ds.string() + " --method deconv --deconv-mode passes -q -o " +
+                       (dir / "o.ply").string());
   expect_error(r, 1, "deconvolution reconstructed no pass of the 60 frames");
   EXPECT_NE(r.err.find("--method carve"), std::string::npos) << r.err;
   // 60 skipped passes: one summary line, not 60 warnings.
@@ -334,6 +344,16 @@ TEST_F(Safety, DeconvolutionOfAnOrbitFailsWithOneSummary) {
   EXPECT_LE(warnings, 3u) << r.out;
   EXPECT_NE(r.out.find("60 passes"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(dir / "o.ply"));
+  // The default mode, auto (issue 29), deconvolves the orbit in the voxel mode and says so in
+  // one line on stderr.
+  const CliRun a =
+      cli("reconstruct " + ds.string() + " --method deconv -q -o " + (dir / "o.ply").string());
+  EXPECT_EQ(a.code, 0) << a.err;
+  EXPECT_EQ(a.err.rfind("sonar3d: note: deconvolution mode auto: voxel mode", 0), 0u) << a.err;
+  EXPECT_NE(a.err.find("60 of 60 frames lie in no pass"), std::string::npos) << a.err;
+  EXPECT_EQ(lines(a.err), 1u) << a.err;
+  EXPECT_EQ(a.out.find("deconvolution mode auto"), std::string::npos) << a.out;  // not stdout
+  EXPECT_TRUE(sonar3d::is_sonar3d_ply((dir / "o.ply").string()));
 }
 
 TEST(PlanSafety, AWorkerThatDiedFailsItsPointWhateverItWrote) {

@@ -185,9 +185,9 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
   const fs::path bad_out = tmp / "bad.ply";
   std::ofstream(tmp / "notes.txt") << "my notes\n";
   r = run(tmp, args + (tmp / "notes.txt").string() + " --quiet --overwrite");
-  expect_one_line_error(r, "not a point cloud sonar3d wrote");
+  expect_one_line_error(r, "not a sonar3d point cloud");
   r = run(tmp, args + in.string() + " --quiet --overwrite");
-  expect_one_line_error(r, "is the input cloud");
+  expect_one_line_error(r, "is the input");
   {  // an image whose size is not its camera's
     RgbImage small;
     small.width = 100;
@@ -418,7 +418,7 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
     expect_one_line_error(run(tmp, "texture " + (tmp / "scene.obj").string() + " --mesh --neus " +
                                        npz.string() + " --images " + images.string() +
                                        " --quiet --overwrite -o " + (tmp / "other.glb").string()),
-                          "not a glTF file sonar3d wrote");
+                          "is not a sonar3d glTF file");
     expect_one_line_error(run(tmp, args + (tmp / "cloud.glb").string()), "needs --mesh");
     const CliRun plain = run(tmp, args + (tmp / "cloud.ply").string() + " --plain-mean");
     EXPECT_EQ(plain.code, 2) << plain.err;  // a usage error
@@ -564,7 +564,8 @@ camera:
                    tmp.string());
   EXPECT_EQ(r.code, 2) << r.err;  // a usage error
   EXPECT_NE(r.err.find("--images: does not apply to --dataset"), std::string::npos) << r.err;
-  r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + tmp.string());
+  fs::create_directories(tmp / "no_camera");  // the output may not lie inside the --dataset
+  r = run(tmp, args + (tmp / "o5.ply").string() + " --dataset " + (tmp / "no_camera").string());
   expect_one_line_error(r, "camera/camera.yaml is missing");
 
   // --navigation places the frames on another navigation (a map's corrected one): moved 0.5 m

@@ -18,18 +18,28 @@ void add_elevation(CLI::App& app, const GlobalOptions&, Runner& run) {
     std::string cloud, output, png;
     ElevationMapConfig cfg;
     double uint16_step_m = 0;
+    bool overwrite = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("cloud", o->cloud, "point cloud (PLY, world frame: x East, y North, z up)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("-o,--output", o->output, "GeoTIFF to write")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "GeoTIFF to write (an existing one only if sonar3d wrote it, with --overwrite)")
+      ->required();
   cmd->add_option("--cell-m", o->cfg.cell_m, "cell size, metres")->capture_default_str();
   cmd->add_option("--uint16-step-m", o->uint16_step_m,
                   "store heights as uint16 with this step, metres (default: float32)");
-  cmd->add_option("--png", o->png, "also write a viewable PNG (colour map and colour bar)");
+  cmd->add_option("--png", o->png,
+                  "also write a viewable PNG (colour map and colour bar); the GeoTIFF and the PNG "
+                  "appear together or not at all");
+  add_overwrite_flag(cmd, o->overwrite, "a GeoTIFF and PNG sonar3d wrote earlier");
   cmd->callback([&run, o] {
     run = [o] {
+      OutputFiles out(output_policy(o->overwrite, {o->cloud}));  // checked before the work
+      const std::filesystem::path tif = out.add(o->output, OutputKind::GeoTiff, "-o");
+      const std::filesystem::path png =
+          o->png.empty() ? std::filesystem::path() : out.add(o->png, OutputKind::Png, "--png");
       const PointCloud cloud = read_ply(o->cloud);
       const ElevationMap map = elevation_map_from_points(cloud, o->cfg);
       ElevationWriteOptions w;
@@ -37,14 +47,17 @@ void add_elevation(CLI::App& app, const GlobalOptions&, Runner& run) {
         w.encoding = ElevationEncoding::UInt16;
         w.uint16_step_m = o->uint16_step_m;
       }
-      write_elevation_geotiff(o->output, map, w);
+      write_elevation_geotiff(tif.string(), map, w);
+      const auto tif_bytes = std::filesystem::file_size(tif);
+      Eigen::Vector2f range(0, 0);
+      if (!o->png.empty()) range = write_elevation_png(png.string(), map);
+      out.commit();  // the GeoTIFF and its picture together
       fmt::print(
           "elevation map {} x {} cells of {} m ({} with data) from {} points -> {} ({} "
           "bytes; the cloud: {} bytes)\n",
-          map.cols, map.rows, map.cell_m, map.num_valid(), cloud.size(), o->output,
-          std::filesystem::file_size(o->output), std::filesystem::file_size(o->cloud));
+          map.cols, map.rows, map.cell_m, map.num_valid(), cloud.size(), o->output, tif_bytes,
+          std::filesystem::file_size(o->cloud));
       if (!o->png.empty()) {
-        const Eigen::Vector2f range = write_elevation_png(o->png, map);
         fmt::print("picture {} (heights {:.3f} to {:.3f} m)\n", o->png, range.x(), range.y());
       }
       return 0;

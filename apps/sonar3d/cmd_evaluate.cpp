@@ -20,6 +20,7 @@ void add_evaluate(CLI::App& app, const GlobalOptions& g, Runner& run) {
   struct Opts {
     std::string cloud, truth, json;
     EvalConfig cfg;
+    bool overwrite = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("cloud", o->cloud, "reconstructed point cloud (PLY, world frame)")
@@ -36,10 +37,17 @@ void add_evaluate(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "surface samples per cm² for coverage (>= 1)")
       ->capture_default_str();
   cmd->add_option("--seed", o->cfg.seed, "surface sampling seed")->capture_default_str();
-  cmd->add_option("--json", o->json, "also write the metrics as JSON to this file");
+  cmd->add_option("--json", o->json,
+                  "also write the metrics as JSON to this file (an existing one only if sonar3d "
+                  "evaluate wrote it, with --overwrite)");
+  add_overwrite_flag(cmd, o->overwrite, "metrics JSON sonar3d evaluate wrote earlier");
   cmd->callback([&run, o] {
     run = [o] {
       o->cfg.validate();
+      OutputFiles out(output_policy(o->overwrite, {o->cloud, o->truth}));
+      const std::filesystem::path json =
+          o->json.empty() ? std::filesystem::path()
+                          : out.add(o->json, OutputKind::EvaluationJson, "--json");
       const PointCloud cloud = read_ply(o->cloud);
       std::vector<SceneObject> objects;
       if (std::filesystem::is_directory(o->truth)) {
@@ -56,9 +64,13 @@ void add_evaluate(CLI::App& app, const GlobalOptions& g, Runner& run) {
         fmt::print("{}\n", to_table(r.result, r.name));
         nlohmann::json item = nlohmann::json::parse(to_json(r.result));
         item["object"] = r.name;
+        item["format"] = json_format_marker(OutputKind::EvaluationJson);
         j.push_back(item);
       }
-      if (!o->json.empty()) write_text_file(o->json, j.dump(2) + "\n");
+      if (!o->json.empty()) {
+        write_text_file(json.string(), j.dump(2) + "\n");
+        out.commit();
+      }
       return 0;
     };
   });

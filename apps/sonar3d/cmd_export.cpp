@@ -38,6 +38,9 @@ void add_export(CLI::App& app, const GlobalOptions& g, Runner& run) {
   bag->add_option("--sonar-frame", cfg->sonar_frame)->capture_default_str();
   bag->callback([&g, &run, dataset, out, ros1, cfg] {
     run = [&g, dataset, out, ros1, cfg] {
+      // The output rule (core/output_dir.hpp): never the dataset, inside it, or a special file;
+      // an existing path is refused by export_rosbag (a bag is always new).
+      check_output_location(*out, output_policy(false, {*dataset}), "-o", "bag");
       cfg->wire = *ros1 ? RosWire::Ros1 : RosWire::Cdr;
       const RosbagExportResult r = export_rosbag(*dataset, *out, *cfg, !g.quiet);
       fmt::print("exported {} frames and {} navigation samples of {} to the {} bag {}\n", r.frames,

@@ -55,6 +55,9 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
+      // The output rule (core/output_dir.hpp): never the dataset, inside it, or a special file;
+      // an existing path is refused by map_survey (a map directory is always new).
+      check_output_location(o->output, output_policy(false, {o->dataset}), "-o", "map");
       MapSurveyConfig cfg = o->cfg;
       cfg.method = swath_adjust_method_from_string(o->method);
       cfg.registration.num_threads = cfg.carve.num_threads;

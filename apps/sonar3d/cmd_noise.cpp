@@ -1,9 +1,10 @@
 #include <fmt/core.h>
 
 #include <filesystem>
+#include <memory>
 
 #include "commands.hpp"
-#include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
@@ -12,16 +13,6 @@
 namespace fs = std::filesystem;
 
 namespace sonar3d::cli {
-namespace {
-
-// Writes `image` completely under `out`'s temporary name (renamed by out.commit()).
-void write_float_image_to(const AtomicPath& out, const SonarImage& image) {
-  const std::string tmp = out.temp().string() + ".tiff";  // the extension picks the encoder
-  write_float_image(tmp, image);
-  fs::rename(tmp, out.temp());
-}
-
-}  // namespace
 
 void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto* noise = app.add_subcommand("noise", "Sonar noise models (thesis sec. 2.5.2).");
@@ -37,21 +28,27 @@ void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
   est->add_option("dataset", *in, "dataset directory of open-water frames")->required();
   est->add_option("-o,--output", *out,
                   "directory for mean.tiff and std.tiff (created if missing; other files in it "
-                  "are left alone)")
+                  "are left alone; never inside the dataset)")
       ->required();
   add_overwrite_flag(est, *overwrite, "existing mean.tiff and std.tiff in --output");
   est->callback([&g, &run, in, out, overwrite] {
     run = [&g, in, out, overwrite] {
       const fs::path dir = *out;
+      const OutputPolicy policy = output_policy(*overwrite, {*in});
+      check_output_location(dir, policy, "-o", "noise statistics");
       if (fs::exists(dir) && !fs::is_directory(dir)) {
-        throw Error("'" + dir.string() + "' exists and is not a directory; choose another -o");
+        throw Error("'" + dir.string() + "' (-o) exists and is not a directory; choose another -o");
       }
-      for (const char* name : {"mean.tiff", "std.tiff"}) {
-        if (fs::exists(dir / name) && !*overwrite) {
-          throw Error("'" + (dir / name).string() +
-                      "' exists: pass --overwrite to replace it, or choose another -o");
-        }
-      }
+      // mean.tiff and std.tiff: sonar3d's own only, with --overwrite; appear together or not at
+      // all. A missing directory is created when the statistics are ready.
+      std::unique_ptr<OutputFiles> files;
+      fs::path mean_tmp, std_tmp;
+      auto open_outputs = [&] {
+        files = std::make_unique<OutputFiles>(policy);
+        mean_tmp = files->add(dir / "mean.tiff", OutputKind::Tiff, "-o");
+        std_tmp = files->add(dir / "std.tiff", OutputKind::Tiff, "-o");
+      };
+      if (fs::is_directory(dir)) open_outputs();  // fail fast
       const Dataset ds = read_dataset(*in);
       NoiseEstimator estimator;
       Progress bar("noise", ds.size(), !g.quiet);
@@ -61,15 +58,13 @@ void add_noise(CLI::App& app, const GlobalOptions& g, Runner& run) {
       }
       bar.finish();
       const NoiseImages n = estimator.result();
-      fs::create_directories(dir);
-      // Both images are written completely (and flushed) before either gets its final name, and
-      // std.tiff is renamed first: a final-named mean.tiff always has its std.tiff beside it,
-      // whatever fails (a full disk) or stops the run.
-      AtomicPath mean(dir / "mean.tiff"), std_dev(dir / "std.tiff");
-      write_float_image_to(mean, n.mean);
-      write_float_image_to(std_dev, n.std);
-      std_dev.commit();
-      mean.commit();
+      if (!files) {
+        fs::create_directories(dir);
+        open_outputs();
+      }
+      write_float_image(mean_tmp.string(), n.mean);
+      write_float_image(std_tmp.string(), n.std);
+      files->commit();
       fmt::print("noise statistics from {} frames written to {}\n", estimator.count(), *out);
       return 0;
     };

@@ -23,12 +23,17 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("sweep", o->sweep, "sweep YAML file")->required()->check(CLI::ExistingFile);
-  cmd->add_option("-o,--output", o->out, "output directory (created; finished points are kept)")
+  cmd->add_option("-o,--output", o->out,
+                  "output directory: created, or an empty directory, or a plan directory of "
+                  "sonar3d, which is resumed (finished points are kept); anything else is an "
+                  "error")
       ->required();
   cmd->add_flag("--allow-empty", o->allow_empty,
                 "exit with status 0 even when no point succeeded (by default an error)");
   cmd->callback([&g, &run, o] {
     run = [&g, o] {
+      // Resuming is what a plan directory is for: no --overwrite needed for sonar3d's own.
+      check_output(o->out, OutputKind::Plan, output_policy(true, {o->sweep}), "-o");
       const Sweep sweep = load_sweep(o->sweep);
       MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
       PlanOptions opt;

@@ -14,12 +14,15 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
   struct Opts {
     std::string dataset, out;
     int frame = 0;
-    bool polar = false, grey = false;
+    bool polar = false, grey = false, overwrite = false;
     PreviewConfig cfg;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("dataset", o->dataset, "dataset directory")->required();
-  cmd->add_option("-o,--output", o->out, "PNG file to write")->required();
+  cmd->add_option("-o,--output", o->out,
+                  "PNG file to write (an existing one only if sonar3d wrote it, with --overwrite)")
+      ->required();
+  add_overwrite_flag(cmd, o->overwrite, "a picture sonar3d wrote earlier");
   cmd->add_option("--frame", o->frame, "frame index (0-based)")->capture_default_str();
   cmd->add_flag("--polar", o->polar, "save the polar image (range bins × beams) instead of the fan");
   cmd->add_flag("--grey", o->grey, "grey levels instead of the JET colour map");
@@ -30,6 +33,8 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--gamma", o->cfg.gamma, "display gamma")->capture_default_str();
   cmd->callback([&run, o] {
     run = [o] {
+      OutputFiles out(output_policy(o->overwrite, {o->dataset}));
+      const std::filesystem::path png = out.add(o->out, OutputKind::Png, "-o");
       const Dataset ds = read_dataset(o->dataset);
       if (o->frame < 0 || static_cast<std::size_t>(o->frame) >= ds.size()) {
         throw Error("--frame " + std::to_string(o->frame) + " is out of range (dataset has " +
@@ -37,7 +42,8 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
       }
       o->cfg.fan = !o->polar;
       o->cfg.colormap = !o->grey;
-      write_preview_png(o->out, ds.load_frame(o->frame), ds.spec, o->cfg);
+      write_preview_png(png.string(), ds.load_frame(o->frame), ds.spec, o->cfg);
+      out.commit();
       fmt::print("wrote {}\n", o->out);
       return 0;
     };

@@ -21,27 +21,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Whether `path` starts with `prefix` (an output sonar3d wrote has a recognisable header).
-bool file_starts_with(const fs::path& path, const std::string& prefix, std::size_t scan = 4096) {
-  std::ifstream f(path, std::ios::binary);
-  std::string head(scan, '\0');
-  f.read(head.data(), static_cast<std::streamsize>(scan));
-  head.resize(static_cast<std::size_t>(f.gcount()));
-  return head.find(prefix) != std::string::npos;
-}
-
-void check_replaceable(const fs::path& path, bool overwrite, const std::string& marker) {
-  if (!fs::exists(path)) return;
-  if (!overwrite) {
-    throw Error("'" + path.string() +
-                "' exists: pass --overwrite to replace it, or choose another -o");
-  }
-  if (!fs::is_regular_file(path) || !file_starts_with(path, marker)) {
-    throw Error("'" + path.string() +
-                "' exists and was not written by sonar3d recognize: choose another -o");
-  }
-}
-
 // MAP: a cloud (.ply), a map directory (merged.ply), or a dataset (reconstructed by carving).
 PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, std::string* what) {
   if (fs::is_regular_file(map)) {
@@ -176,10 +155,12 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       const fs::path mesh_path =
           o->mesh.empty() ? fs::path(json_path).replace_extension(".ply") : fs::path(o->mesh);
       require(fs::path(mesh_path).extension() == ".ply", "--mesh: give a .ply path");
-      require(fs::absolute(json_path) != fs::absolute(mesh_path),
-              "-o and --mesh name the same file");
-      check_replaceable(json_path, o->overwrite, "\"format\": \"sonar3d-placements\"");
-      check_replaceable(mesh_path, o->overwrite, "comment sonar3d mesh");
+      // The output rule (core/output_dir.hpp): checked before the work; the placements and
+      // their mesh appear together or not at all.
+      OutputFiles out(output_policy(o->overwrite, {o->map, o->catalogue}));
+      const fs::path json_tmp = out.add(json_path, OutputKind::PlacementsJson, "-o");
+      const fs::path mesh_tmp =
+          out.add(mesh_path, OutputKind::Mesh, o->mesh.empty() ? "-o, its .ply" : "--mesh");
       const Catalogue cat = read_catalogue(o->catalogue);
       std::vector<ModelTemplate> models;
       for (const auto& m : cat.models) {
@@ -193,11 +174,11 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                                           : recognize_2d(scene, models, cfg, !g.quiet);
       fmt::print("scene: {} ({} points); catalogue: {} models\n", what, scene.size(),
                  models.size());
-      // Mesh first, JSON last: a placements file always has its mesh beside it.
-      save_mesh(mesh_path.string(), placed_models_mesh(models, r.placements));
-      write_text_file(json_path.string(),
+      save_mesh(mesh_tmp.string(), placed_models_mesh(models, r.placements));
+      write_text_file(json_tmp.string(),
                       three_d ? placements_json_3d(r, searches3, o->map, o->catalogue, cfg3)
                               : placements_json(r, o->map, o->catalogue, cfg));
+      out.commit();
       for (const Placement& p : r.placements) {
         const Eigen::Vector3d t = p.T_world_model.translation();
         const Eigen::Matrix3d R = p.T_world_model.linear();

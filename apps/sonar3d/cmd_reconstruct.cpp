@@ -27,11 +27,24 @@ struct ReconstructCliOptions {
   DeconvConfig deconv;
   BracketConfig bracket;
   std::string beam = "sinc";
-  std::string deconv_mode = "passes";
+  std::string deconv_mode = "auto";
   std::string kernel = "plain";
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
-  bool allow_empty = false;
+  bool allow_empty = false, overwrite = false;
+};
+
+// The outputs of one run (-o, and --json, --vdb when given): checked against the output rule
+// before the work starts, written under temporary names, renamed together by commit().
+struct RunOutputs {
+  OutputFiles files;
+  std::filesystem::path ply, json, vdb;  // temporary paths ("" = not asked for)
+  explicit RunOutputs(const ReconstructCliOptions& o)
+      : files(output_policy(o.overwrite, {o.dataset})) {
+    ply = files.add(o.output, OutputKind::PointCloud, "-o");
+    if (!o.json.empty()) json = files.add(o.json, OutputKind::ReconstructionJson, "--json");
+    if (!o.vdb.empty() && o.method == "carve") vdb = files.add(o.vdb, OutputKind::VoxelMap, "--vdb");
+  }
 };
 
 // --roi: xmin ymin zmin xmax ymax zmax (checked by the library: finite, max > min).
@@ -94,11 +107,13 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   cfg.validate();
   std::optional<Eigen::AlignedBox3d> roi;  // checked before the work starts
   if (!o.roi.empty()) roi = roi_box(o.roi);
+  RunOutputs out(o);
   const Dataset ds = read_dataset(o.dataset);
   DeconvReport report;
   PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
   const std::size_t before_roi = cloud.size();
   if (roi) cloud = crop_to_region(cloud, *roi);
+  if (!report.mode_note.empty()) print_note(report.mode_note);  // auto chose the voxel mode
   fmt::print("{}", report.to_text());  // per-pass figures, then the warnings (collapsed)
   std::vector<Eigen::Isometry3d> poses;
   for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
@@ -128,18 +143,21 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
                      : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
                 "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
   }
-  write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
-  fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
+  write_ply(out.ply.string(), cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   if (!o.json.empty()) {
     nlohmann::json j;
+    j["format"] = json_format_marker(OutputKind::ReconstructionJson);
     j["method"] = "deconv";
     j["mode"] = report.mode;
+    if (!report.mode_note.empty()) j["mode_note"] = report.mode_note;
     j["points"] = cloud.size();
     j["report"] = report.to_text();
     j["warnings"] = report.warnings;
     j["bracketing"] = nlohmann::json::parse(br.to_json());
-    write_text_file(o.json, j.dump(2) + "\n");
+    write_text_file(out.json.string(), j.dump(2) + "\n");
   }
+  out.files.commit();
+  fmt::print("wrote {} points to {}\n", cloud.size(), o.output);
   return 0;
 }
 
@@ -149,6 +167,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   cfg.denoise.z_test = !o.no_z_test;
   if (!o.roi.empty()) cfg.region = roi_box(o.roi);
   cfg.validate();
+  RunOutputs out(o);
   const Dataset ds = read_dataset(o.dataset);
   Carver carver(ds.spec, cfg, ds.noise);
   integrate_dataset(carver, ds, !g.quiet);
@@ -178,8 +197,8 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
                 " candidates; relax --min-observations, --min-elevation-span or "
                 "--static-threshold, try --no-occlusion, or pass --allow-empty");
   }
-  write_ply(o.output, cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
-  if (!o.vdb.empty()) carver.write_vdb(o.vdb, &cloud);
+  write_ply(out.ply.string(), cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
+  if (!out.vdb.empty()) carver.write_vdb(out.vdb.string(), &cloud);
 
   const double n = static_cast<double>(st.frames);
   fmt::print(
@@ -201,6 +220,8 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   }
   if (!o.json.empty()) {
     nlohmann::json j;
+    j["format"] = json_format_marker(OutputKind::ReconstructionJson);
+    j["method"] = "carve";
     j["frames"] = st.frames;
     j["candidates"] = st.candidates;
     j["points"] = st.points;
@@ -218,8 +239,9 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
     if (cfg.occlusion.explain_returns) j["ghosts_explained"] = st.ghosts;
     j["voxel_size"] = cfg.voxel_size;
     j["bracketing"] = nlohmann::json::parse(br.to_json());
-    write_text_file(o.json, j.dump(2) + "\n");
+    write_text_file(out.json.string(), j.dump(2) + "\n");
   }
+  out.files.commit();  // the cloud, its --json and --vdb together
   return 0;
 }
 
@@ -240,7 +262,10 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--method", o->method, "reconstruction method")
       ->check(CLI::IsMember({"carve", "deconv"}))
       ->capture_default_str();
-  cmd->add_option("-o,--output", o->output, "point cloud to write (.ply)")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "point cloud to write (.ply; an existing one only if sonar3d wrote it, with "
+                  "--overwrite; never inside the dataset)")
+      ->required();
   cmd->add_option("--vdb", o->vdb,
                   "also write an OpenVDB file: grids carve_map (0 = free, > 0 = bound, inactive "
                   "= unknown) and surface (the output points)");
@@ -335,7 +360,8 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "deconv: passes (the thesis: per column of straight passes along the sonar z "
                   "axis), voxel (any trajectory and spacing: orbits, lawnmowers, irregular passes; "
                   "non-negative least squares over carving's candidate voxels, --voxel-size) or "
-                  "auto (passes when every frame lies in an accepted pass, voxel otherwise)")
+                  "auto (passes when the frames form regular passes; voxel, with a note on stderr, when "
+                  "frames lie in no pass or a pass is irregular in spacing or attitude)")
       ->capture_default_str();
   cmd->add_option("--voxel-iterations", o->deconv.voxel.max_iterations,
                   "deconv, voxel mode: projected-gradient iterations at most")
@@ -398,6 +424,7 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--allow-empty", o->allow_empty,
                 "write the cloud even when it has no point (by default an error, exit status 1)");
   cmd->add_option("--json", o->json, "also write run statistics (timings, memory) as JSON");
+  add_overwrite_flag(cmd, o->overwrite, "a cloud, --json and --vdb sonar3d wrote earlier");
   cmd->callback([&g, &run, o] {
     run = [&g, o]() -> int {
       if (o->method == "deconv") return run_deconv(*o, g);

@@ -18,6 +18,7 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
   struct Opts {
     std::string reference, moving, json;
     SwathRegistrationConfig cfg;
+    bool overwrite = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("reference", o->reference, "elevation map GeoTIFF (sonar3d elevation)")
@@ -36,9 +37,16 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--threads", o->cfg.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
-  cmd->add_option("--json", o->json, "also write the result as JSON to this file");
+  cmd->add_option("--json", o->json,
+                  "also write the result as JSON to this file (an existing one only if sonar3d "
+                  "register wrote it, with --overwrite)");
+  add_overwrite_flag(cmd, o->overwrite, "a result JSON sonar3d register wrote earlier");
   cmd->callback([&run, o] {
     run = [o] {
+      OutputFiles out(output_policy(o->overwrite, {o->reference, o->moving}));
+      const std::filesystem::path json =
+          o->json.empty() ? std::filesystem::path()
+                          : out.add(o->json, OutputKind::RegistrationJson, "--json");
       const ElevationMap a = read_elevation_geotiff(o->reference);
       const ElevationMap b = read_elevation_geotiff(o->moving);
       const SwathTie t = register_elevation_maps(a, b, o->cfg);
@@ -47,7 +55,8 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
           "m over {} cells; confidence {:.2f}; {:.2f} s\n",
           t.t.x(), t.t.y(), t.t.z(), t.score_m, t.overlap_cells, t.confidence, t.seconds);
       if (!o->json.empty()) {
-        const nlohmann::json j = {{"reference", o->reference},
+        const nlohmann::json j = {{"format", json_format_marker(OutputKind::RegistrationJson)},
+                                  {"reference", o->reference},
                                   {"moving", o->moving},
                                   {"shift_east_m", t.t.x()},
                                   {"shift_north_m", t.t.y()},
@@ -56,7 +65,8 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
                                   {"overlap_cells", t.overlap_cells},
                                   {"confidence", t.confidence},
                                   {"seconds", t.seconds}};
-        write_text_file(o->json, j.dump(2) + "\n");
+        write_text_file(json.string(), j.dump(2) + "\n");
+        out.commit();
       }
       return 0;
     };

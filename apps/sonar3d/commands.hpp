@@ -2,9 +2,12 @@
 // Each subcommand registers itself on the CLI11 app and runs through a library call: no
 // algorithm lives here.
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
+
+#include "sonar3d/core/output_dir.hpp"
 
 namespace sonar3d::cli {
 
@@ -20,6 +23,9 @@ inline constexpr int kExitUsage = 2;    // the command line is wrong: same one-l
 void add_overwrite_flag(CLI::App* cmd, bool& flag, const std::string& what);
 // Prints `sonar3d: note: LINE` on stderr (e.g. an interrupted run cleaned up).
 void print_note(const std::string& line);
+// The output rule's policy (core/output_dir.hpp) of a command: --overwrite, its inputs (files or
+// directories, none of which an output may be, contain or lie inside), notes printed on stderr.
+OutputPolicy output_policy(bool overwrite, std::vector<std::filesystem::path> inputs);
 
 // Registers the subcommand and returns the function that runs it once parsed.
 using Runner = std::function<int()>;

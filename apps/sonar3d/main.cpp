@@ -20,6 +20,14 @@ void print_note(const std::string& line) {
   std::fprintf(stderr, "sonar3d: note: %s\n", line.c_str());
 }
 
+OutputPolicy output_policy(bool overwrite, std::vector<std::filesystem::path> inputs) {
+  OutputPolicy policy;
+  policy.overwrite = overwrite;
+  policy.sources = std::move(inputs);
+  policy.on_note = print_note;
+  return policy;
+}
+
 namespace {
 
 // One line: newlines of multi-line messages become spaces.

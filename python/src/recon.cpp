@@ -262,8 +262,9 @@ void bind_recon(py::module_& m) {
       .def("validate", &VoxelDeconvConfig::validate);
 
   py::class_<DeconvConfig>(m, "DeconvConfig",
-                           "Deconvolution (ch. 5): mode ('passes', 'voxel': any trajectory, "
-                           "'auto'), voxel (VoxelDeconvConfig), beam ('sinc', 'flat', 'sensor'), "
+                           "Deconvolution (ch. 5): mode ('auto', the default: passes "
+                           "when the frames form regular passes, else voxel; 'passes'; 'voxel': "
+                           "any trajectory), voxel (VoxelDeconvConfig), beam ('sinc', 'flat', 'sensor'), "
                            "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
                            "resolve_occlusions, kernel ('plain', 'normal', 'occlusion', "
                            "'normal+occlusion'), max_range, num_threads ...")
@@ -338,6 +339,7 @@ void bind_recon(py::module_& m) {
           out.cloud = deconvolve_frames(imgs, P, spec, config, &report, p.terminal());
           out.method = "deconv";
           out.report = report.to_json();
+          out.notes = report.mode_note;  // mode auto chose the voxel mode, and why
           for (const auto& w : report.warnings) out.notes += (out.notes.empty() ? "" : "; ") + w;
           out.seconds =
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

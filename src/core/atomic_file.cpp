@@ -41,15 +41,19 @@ bool process_is_dead(long pid) {
 struct LeftOver {
   long pid = 0;
   bool backup = false;  // a previous version of the output (restore it), else a temporary
+  bool group = false;   // the journal of an interrupted OutputFiles::commit()
 };
 
 // Recognises the names AtomicPath uses beside `final_name` (see atomic_file.hpp).
 std::optional<LeftOver> parse_left_over(const std::string& entry, const std::string& final_name) {
   const std::string tmp1 = "." + final_name + ".tmp-", tmp2 = ".." + final_name + ".tmp-",
-                    bak = "." + final_name + ".backup-";
+                    bak = "." + final_name + ".backup-", grp = "." + final_name + ".group-";
   LeftOver lo;
   std::size_t pos = 0;
-  if (entry.rfind(bak, 0) == 0) {
+  if (entry.rfind(grp, 0) == 0) {
+    pos = grp.size();
+    lo.group = true;
+  } else if (entry.rfind(bak, 0) == 0) {
     pos = bak.size();
     lo.backup = true;
   } else if (entry.rfind(tmp1, 0) == 0) {
@@ -86,7 +90,112 @@ void fsync_or_throw(const fs::path& path, bool whole_file_system) {
   }
 }
 
+void put_record(std::string& out, const std::string& value) {
+  out += std::to_string(value.size()) + " " + value + "\n";
+}
+
+bool get_record(const std::string& in, std::size_t& pos, std::string& value) {
+  const std::size_t sp = in.find(' ', pos);
+  if (sp == std::string::npos || sp == pos || sp - pos > 9) return false;
+  for (std::size_t i = pos; i < sp; ++i) {
+    if (!std::isdigit(static_cast<unsigned char>(in[i]))) return false;
+  }
+  const std::size_t len = std::stoul(in.substr(pos, sp - pos));
+  if (sp + 1 + len >= in.size() || in[sp + 1 + len] != '\n') return false;
+  value = in.substr(sp + 1, len);
+  pos = sp + 2 + len;
+  return true;
+}
+
+constexpr const char* kGroupMagic = "sonar3d-output-group 1\n";
+
+// A member or journal count: 1–3 digits.
+bool is_count(const std::string& v) {
+  return !v.empty() && v.size() < 4 &&
+         std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
 }  // namespace
+
+std::string group_journal_text(const std::vector<GroupJournalEntry>& members,
+                               const std::vector<fs::path>& journals) {
+  std::string out = kGroupMagic;
+  put_record(out, std::to_string(members.size()));
+  for (const auto& m : members) {
+    put_record(out, m.final_path.string());
+    put_record(out, m.temp.string());
+    put_record(out, m.backup.string());
+  }
+  put_record(out, std::to_string(journals.size()));
+  for (const auto& j : journals) put_record(out, j.string());
+  return out;
+}
+
+std::string finish_interrupted_group(const fs::path& journal) {
+  std::string text;
+  {
+    std::ifstream f(journal, std::ios::binary);
+    std::ostringstream os;
+    os << f.rdbuf();
+    text = os.str();
+  }
+  std::vector<GroupJournalEntry> members;
+  std::vector<fs::path> journals;
+  std::size_t pos = std::string(kGroupMagic).size();
+  std::string v;
+  bool ok = text.rfind(kGroupMagic, 0) == 0 && get_record(text, pos, v) && is_count(v);
+  const std::size_t n = ok ? std::stoul(v) : 0;
+  for (std::size_t i = 0; ok && i < n; ++i) {
+    GroupJournalEntry e;
+    ok = get_record(text, pos, v) && !v.empty();
+    e.final_path = v;
+    ok = ok && get_record(text, pos, v) && !v.empty();
+    e.temp = v;
+    ok = ok && get_record(text, pos, v);
+    e.backup = v;
+    members.push_back(e);
+  }
+  ok = ok && get_record(text, pos, v) && is_count(v);
+  const std::size_t m = ok ? std::stoul(v) : 0;
+  for (std::size_t i = 0; ok && i < m; ++i) {
+    ok = get_record(text, pos, v);
+    journals.emplace_back(v);
+  }
+  std::error_code ec;
+  if (!ok) {
+    // Cut short while being written: the commit had not started renaming (the journals are
+    // complete before the first rename), so the generic clean-up of temporaries applies.
+    fs::remove(journal, ec);
+    return "removed the incomplete journal '" + journal.string() +
+           "' of an interrupted sonar3d run (nothing had been renamed yet)";
+  }
+  bool all_in = true;  // every new file got its final name: complete the set
+  for (const auto& e : members) all_in = all_in && !exists_no_follow(e.temp) && exists_no_follow(e.final_path);
+  std::string names;
+  for (const auto& e : members) names += (names.empty() ? "'" : ", '") + e.final_path.string() + "'";
+  std::string problems;
+  for (const auto& e : members) {
+    if (!all_in) {
+      if (exists_no_follow(e.temp)) {
+        fs::remove(e.temp, ec);
+      } else if (exists_no_follow(e.final_path)) {
+        fs::remove(e.final_path, ec);  // the new file, whose partners are missing
+      }
+      if (!e.backup.empty() && exists_no_follow(e.backup)) {
+        fs::rename(e.backup, e.final_path, ec);
+        if (ec) problems += "; could not restore '" + e.final_path.string() + "' from '" +
+                            e.backup.string() + "': " + ec.message();
+      }
+    } else if (!e.backup.empty()) {
+      fs::remove(e.backup, ec);
+    }
+  }
+  for (const auto& j : journals) fs::remove(j, ec);
+  fs::remove(journal, ec);
+  return std::string(all_in ? "completed" : "rolled back") + " the outputs " + names +
+         " that an interrupted sonar3d run was renaming into place together" +
+         (all_in ? "" : " (the previous versions, if any, are back)") + problems;
+}
 
 std::vector<std::string> recover_interrupted_writes(const fs::path& final_path) {
   fs::path final_p = final_path;
@@ -95,10 +204,21 @@ std::vector<std::string> recover_interrupted_writes(const fs::path& final_path) 
   std::vector<std::string> notes;
   if (name.empty() || name == "." || name == "..") return notes;
   std::error_code ec;
+  // First the journals of interrupted group commits: they decide for every member of the set.
+  std::vector<fs::path> journals;
+  for (fs::directory_iterator it(parent_of(final_p), ec), end; !ec && it != end; it.increment(ec)) {
+    const auto lo = parse_left_over(it->path().filename().string(), name);
+    if (lo && lo->group && process_is_dead(lo->pid)) journals.push_back(it->path());
+  }
+  std::sort(journals.begin(), journals.end());
+  for (const fs::path& j : journals) {
+    if (exists_no_follow(j)) notes.push_back(finish_interrupted_group(j));
+  }
+  ec.clear();
   std::vector<std::pair<fs::path, LeftOver>> found;
   for (fs::directory_iterator it(parent_of(final_p), ec), end; !ec && it != end; it.increment(ec)) {
     const auto lo = parse_left_over(it->path().filename().string(), name);
-    if (lo && process_is_dead(lo->pid)) found.emplace_back(it->path(), *lo);
+    if (lo && !lo->group && process_is_dead(lo->pid)) found.emplace_back(it->path(), *lo);
   }
   std::sort(found.begin(), found.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -182,6 +302,12 @@ void AtomicPath::commit() {
   } else {
     if (fs::is_directory(final_) && !temp_is_dir) {
       throw Error("cannot write file '" + final_.string() + "': a directory has that name");
+    }
+    const fs::file_status st = fs::symlink_status(final_, ec);
+    if (fs::exists(st) && !fs::is_regular_file(st) && !fs::is_symlink(st)) {
+      throw Error("cannot write '" + final_.string() +
+                  "': it is a special file (FIFO, device or socket), which sonar3d never "
+                  "replaces; choose a regular file");
     }
     fs::rename(temp_, final_, ec);
     if (ec) throw Error("cannot write '" + final_.string() + "': " + ec.message());

@@ -10,6 +10,7 @@
 
 #include "image_header.hpp"
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/io/yaml_config.hpp"
@@ -72,6 +73,8 @@ void write_float_image(const std::string& path, const SonarImage& image) {
   AtomicPath out(path);
   const std::string tmp = out.temp().string() + fs::path(path).extension().string();
   if (!cv::imwrite(tmp, to_mat(image))) throw Error("cannot write image '" + path + "'");
+  const std::string ext = fs::path(path).extension().string();
+  if (ext == ".tif" || ext == ".tiff") mark_tiff_as_sonar3d(tmp);  // replaceable by sonar3d only
   fs::rename(tmp, out.temp());
   out.commit();
 }

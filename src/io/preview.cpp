@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
@@ -75,6 +76,7 @@ void write_preview_png(const std::string& path, const SonarImage& image, const S
   AtomicPath tmp(path);
   const std::string tmp_png = tmp.temp().string() + ".png";
   if (!cv::imwrite(tmp_png, rgb)) throw Error("cannot write preview '" + path + "'");
+  mark_png_as_sonar3d(tmp_png);  // replaceable by sonar3d only
   std::filesystem::rename(tmp_png, tmp.temp());
   tmp.commit();
 }

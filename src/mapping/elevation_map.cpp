@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
@@ -171,6 +172,7 @@ void write_elevation_geotiff(const std::string& path, const ElevationMap& map,
   srs.SetLinearUnits(SRS_UL_METER, 1.0);
   ds->SetSpatialRef(&srs);
   ds->SetMetadataItem("SONAR3D_CONTENT", "elevation: highest observed height z per cell, m");
+  ds->SetMetadataItem("TIFFTAG_SOFTWARE", "sonar3d");  // is_sonar3d_output(OutputKind::GeoTiff)
   GDALRasterBand* band = ds->GetRasterBand(1);
   CPLErr err;
   if (quantised) {
@@ -290,6 +292,7 @@ Eigen::Vector2f write_elevation_png(const std::string& path, const ElevationMap&
   AtomicPath out(path);
   std::vector<int> params;
   require(cv::imwrite(out.temp().string() + ".png", canvas, params), "cannot write '" + path + "'");
+  mark_png_as_sonar3d(out.temp().string() + ".png");  // replaceable by sonar3d only
   std::filesystem::rename(out.temp().string() + ".png", out.temp());
   out.commit();
   return {lo, hi};

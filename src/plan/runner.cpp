@@ -23,6 +23,7 @@
 #include "plan_internal.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/progress.hpp"
 
 extern char** environ;
@@ -310,6 +311,7 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
 std::size_t write_sweep_results(const Sweep& sweep, const fs::path& dir) {
   // ordered_json keeps the axes in the sweep file's order (the report's plots follow it).
   nlohmann::ordered_json results;
+  results["format"] = json_format_marker(OutputKind::PlanResultsJson);
   results["version"] = 1;
   results["rank_by"] = sweep.rank_by;
   const bool higher = metric_higher_is_better(sweep.rank_by);
@@ -370,7 +372,7 @@ std::size_t write_sweep_results(const Sweep& sweep, const fs::path& dir) {
   });
   for (std::size_t r = 0; r < order.size(); ++r) points[order[r]]["rank"] = r + 1;
   results["points"] = nlohmann::ordered_json::parse(nlohmann::json(points).dump());
-  write_text_file((dir / "results.json").string(), results.dump(2) + "\n");
+  const std::string results_json = results.dump(2) + "\n";
 
   // results.csv: one row per point.
   std::ostringstream csv;
@@ -411,7 +413,16 @@ std::size_t write_sweep_results(const Sweep& sweep, const fs::path& dir) {
     }
     csv << ',' << quoted(p.value("message", "")) << '\n';
   }
-  write_text_file((dir / "results.csv").string(), csv.str());
+  // results.json and results.csv appear together (the output rule, core/output_dir.hpp); they
+  // are the plan directory's own, replaced on every run.
+  OutputPolicy policy;
+  policy.overwrite = true;
+  OutputFiles out(policy);
+  const fs::path json_tmp = out.add(dir / "results.json", OutputKind::PlanResultsJson, "-o");
+  const fs::path csv_tmp = out.add(dir / "results.csv", OutputKind::PlanResultsCsv, "-o");
+  write_text_file(json_tmp.string(), results_json);
+  write_text_file(csv_tmp.string(), csv.str());
+  out.commit();
   std::size_t ok = 0;
   for (const auto& p : points) ok += p.value("status", "") == "ok";
   return ok;

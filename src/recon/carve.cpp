@@ -812,7 +812,9 @@ void Carver::write_vdb(const std::string& path, const PointCloud* surface) const
   AtomicPath out(path);
   try {
     openvdb::io::File file(out.temp().string());
-    file.write(grids);
+    openvdb::MetaMap meta;  // is_sonar3d_output(OutputKind::VoxelMap) looks for it
+    meta.insertMeta("creator", openvdb::StringMetadata("sonar3d-voxel-map"));
+    file.write(grids, meta);
     file.close();
   } catch (const openvdb::Exception& e) {
     throw Error("cannot write '" + path + "': " + e.what());

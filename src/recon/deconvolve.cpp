@@ -389,6 +389,67 @@ PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
   return g;
 }
 
+namespace {
+
+std::string frames_label(std::size_t index, std::size_t first, std::size_t count) {
+  return "pass " + std::to_string(index + 1) + " (frames " + std::to_string(first) + "–" +
+         std::to_string(first + count - 1) + ")";
+}
+
+}  // namespace
+
+std::string auto_mode_reason(const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const DeconvConfig& config) {
+  const std::size_t n = T_world_sonar.size();
+  if (n == 0) return "no frame";
+  const std::vector<std::pair<std::size_t, std::size_t>> ranges =
+      config.split_passes ? split_passes(T_world_sonar, config)
+                          : std::vector<std::pair<std::size_t, std::size_t>>{{0, n}};
+  std::size_t outside = 0;  // frames in passes too short to reconstruct
+  for (const auto& [first, last] : ranges) {
+    if (static_cast<int>(last - first) < config.min_pass_frames) outside += last - first;
+  }
+  if (outside > 0) {
+    return std::to_string(outside) + " of " + std::to_string(n) + " frames lie in no pass of " +
+           std::to_string(config.min_pass_frames) + " frames or more";
+  }
+  // Each pass within the tolerances of analyze_pass (attitude, axis, lateral, spacing).
+  for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
+    const auto [first, last] = ranges[pi];
+    const std::vector<Eigen::Isometry3d> poses(T_world_sonar.begin() + first,
+                                               T_world_sonar.begin() + last);
+    try {
+      analyze_pass(poses, config, frames_label(pi, first, last - first));
+    } catch (const Error& e) {
+      return e.what();
+    }
+  }
+  // One pass broken in two (a gap in the recording, a jolt of attitude) is one irregular pass,
+  // not two regular ones: the next part continues along the same line, in the same direction.
+  for (std::size_t pi = 0; pi + 1 < ranges.size(); ++pi) {
+    const Eigen::Isometry3d& a0 = T_world_sonar[ranges[pi].first];
+    const Eigen::Isometry3d& a1 = T_world_sonar[ranges[pi].second - 1];
+    const Eigen::Isometry3d& b0 = T_world_sonar[ranges[pi + 1].first];
+    const Eigen::Isometry3d& b1 = T_world_sonar[ranges[pi + 1].second - 1];
+    const Eigen::Vector3d ez = a1.linear().col(2);
+    const double along_a = (a1.translation() - a0.translation()).dot(ez);
+    const double along_b = (b1.translation() - b0.translation()).dot(ez);
+    const Eigen::Vector3d step = b0.translation() - a1.translation();
+    const double along = step.dot(ez), lateral = (step - along * ez).norm();
+    const double turn = Eigen::AngleAxisd(a1.linear().transpose() * b0.linear()).angle();
+    if (along_a * along_b > 0 && along * along_a >= 0 &&
+        lateral <= 2.0 * config.max_lateral_deviation && turn <= 10.0 * kDeg) {
+      return frames_label(pi, ranges[pi].first, ranges[pi].second - ranges[pi].first) + " and " +
+             frames_label(pi + 1, ranges[pi + 1].first,
+                          ranges[pi + 1].second - ranges[pi + 1].first) +
+             " are one pass broken by a step of " + fmt(step.norm() * 100, 2) +
+             " cm and a turn of " + fmt(std::abs(turn) / kDeg, 2) +
+             "°: its spacing or attitude is beyond the tolerances of the passes mode";
+    }
+  }
+  return "";
+}
+
 // ---------------------------------------------------------------------------------------------
 // The column kernel A* (eq. 5.27)
 
@@ -736,14 +797,6 @@ BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
 
 }  // namespace deconv_detail
 
-namespace {
-
-std::string frames_label(std::size_t index, std::size_t first, std::size_t count) {
-  return "pass " + std::to_string(index + 1) + " (frames " + std::to_string(first) + "–" +
-         std::to_string(first + count - 1) + ")";
-}
-
-}  // namespace
 
 PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
                              const std::vector<Eigen::Isometry3d>& T_world_sonar,
@@ -765,31 +818,34 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
     }
   }
   if (config.mode == DeconvConfig::Mode::Auto) {
-    // Passes when every frame lies in an accepted pass, the voxel mode otherwise.
-    DeconvConfig pc = config;
-    pc.mode = DeconvConfig::Mode::Passes;
-    DeconvReport pr;
-    std::string why;
-    try {
-      PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
-      std::size_t in_passes = 0;
-      for (const PassReport& p : pr.passes) in_passes += p.frames;
-      if (in_passes == denoised.size()) {
-        if (report_out) *report_out = std::move(pr);
-        return cloud;
+    // The passes mode when the frames form regular passes, the voxel mode otherwise: decided
+    // first from the poses alone (auto_mode_reason), then, should the passes mode still refuse
+    // (e.g. too few frames for a footprint) or leave frames out, by its outcome.
+    std::string why = auto_mode_reason(T_world_sonar, config);
+    if (why.empty()) {
+      DeconvConfig pc = config;
+      pc.mode = DeconvConfig::Mode::Passes;
+      DeconvReport pr;
+      try {
+        PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
+        std::size_t in_passes = 0;
+        for (const PassReport& p : pr.passes) in_passes += p.frames;
+        if (in_passes == denoised.size()) {
+          if (report_out) *report_out = std::move(pr);
+          return cloud;
+        }
+        why = std::to_string(denoised.size() - in_passes) + " of " +
+              std::to_string(denoised.size()) + " frames in no reconstructed pass";
+      } catch (const Error& e) {
+        why = e.what();
       }
-      why = std::to_string(denoised.size() - in_passes) + " of " + std::to_string(denoised.size()) +
-            " frames in no accepted pass";
-    } catch (const Error& e) {
-      why = e.what();
     }
     DeconvConfig vc = config;
     vc.mode = DeconvConfig::Mode::Voxel;
     DeconvReport vr;
     PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
-    vr.warnings.insert(
-        vr.warnings.begin(),
-        "mode auto: voxel deconvolution, the passes mode does not apply (" + why + ")");
+    vr.mode_note = "deconvolution mode auto: voxel mode, the passes mode does not apply (" + why +
+                   "); --deconv-mode passes forces it";
     if (report_out) *report_out = std::move(vr);
     return cloud;
   }
@@ -1184,6 +1240,7 @@ std::string DeconvReport::to_text() const {
 std::string DeconvReport::to_json(int indent) const {
   nlohmann::ordered_json j;
   j["mode"] = mode;
+  if (!mode_note.empty()) j["mode_note"] = mode_note;
   j["frames"] = frames;
   j["points"] = points;
   if (mode == "voxel") {

@@ -70,6 +70,7 @@ ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructO
     DeconvReport report;
     out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
     if (options.region) out.cloud = crop_to_region(out.cloud, *options.region);
+    out.notes = report.mode_note;  // mode auto chose the voxel mode, and why
     for (const auto& w : summarize_pass_warnings(report.warnings))
       out.notes += (out.notes.empty() ? "" : "; ") + w;
     out.report = report.to_json();

@@ -18,6 +18,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -151,36 +152,19 @@ bool is_glb_path(const fs::path& p) {
   return ext == ".glb";
 }
 
-// A .glb whose JSON chunk names sonar3d as its generator (write_glb).
-bool is_sonar3d_glb(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  char head[20] = {};
-  if (!f.read(head, sizeof head) || std::string(head, 4) != "glTF") return false;
-  std::uint32_t json_len = 0;
-  std::memcpy(&json_len, head + 12, 4);
-  std::string json(std::min<std::uint32_t>(json_len, 4096), '\0');
-  f.read(json.data(), static_cast<std::streamsize>(json.size()));
-  return json.find("\"generator\":\"sonar3d\"") != std::string::npos;
-}
-
+// The output rule (core/output_dir.hpp): a coloured cloud or mesh sonar3d wrote is replaced only
+// with `overwrite`; never a foreign file, an input or a special file.
 void check_output(const TextureFilesJob& job) {
-  const fs::path& out = job.output;
-  require(!out.empty(), "texture: no output file given");
-  std::error_code ec;
-  if (!fs::exists(out, ec)) return;
-  if (fs::equivalent(out, job.cloud, ec)) {
-    throw Error("texture: the output '" + out.string() + "' is the input cloud");
-  }
-  const bool glb = is_glb_path(out);
-  if (!fs::is_regular_file(out, ec) ||
-      !(glb ? is_sonar3d_glb(out) : is_sonar3d_ply(out.string()))) {
-    throw Error("'" + out.string() + "' exists and is not a " +
-                (glb ? "glTF file" : "point cloud") +
-                " sonar3d wrote: not replaced (choose another output)");
-  }
-  if (!job.overwrite) {
-    throw Error("'" + out.string() + "' exists (use --overwrite to replace it)");
-  }
+  require(!job.output.empty(), "texture: no output file given");
+  OutputPolicy policy;
+  policy.overwrite = job.overwrite;
+  policy.sources = {job.cloud,       job.colmap_dir,      job.neus_file,
+                    job.images_dir,  job.dataset_dir,     job.navigation_file};
+  policy.sources.insert(policy.sources.end(), job.occluders.begin(), job.occluders.end());
+  const OutputKind kind = is_glb_path(job.output) ? OutputKind::Gltf
+                          : job.is_mesh           ? OutputKind::Mesh
+                                                  : OutputKind::PointCloud;
+  sonar3d::check_output(job.output, kind, policy, "-o");
 }
 
 }  // namespace

@@ -4,7 +4,8 @@
 //
 // Names used beside an output NAME (docs/formats.md, "Temporary and backup names"):
 //   .NAME.tmp-PID-N      being written by process PID (removed on failure)
-//   .NAME.backup-PID-N   the previous NAME while a directory is being replaced
+//   .NAME.backup-PID-N   the previous NAME while a directory (or a group of files) is replaced
+//   .NAME.group-PID-N    the journal of files renamed into place together (OutputFiles)
 // Both are recognised after a crash (see recover_interrupted_writes()).
 #include <filesystem>
 #include <string>
@@ -46,6 +47,19 @@ class AtomicPath {
 //     the two renames of a replacement), and removed when NAME exists (a crash after them).
 // Returns one line per action, for the user. AtomicPath's constructor calls it.
 std::vector<std::string> recover_interrupted_writes(const std::filesystem::path& final_path);
+
+// The journal of a group commit (OutputFiles::commit(), output_dir.hpp): for each member its
+// final name, temporary name and backup name (empty: there was no previous version).
+struct GroupJournalEntry {
+  std::filesystem::path final_path, temp, backup;
+};
+std::string group_journal_text(const std::vector<GroupJournalEntry>& members,
+                               const std::vector<std::filesystem::path>& journals);
+// Finishes the group commit that `journal` describes, left by a dead process: when every new
+// file has its final name the set is completed (backups removed), otherwise it is rolled back
+// (new files and temporaries removed, previous versions restored). Removes every journal of the
+// group and returns one line for the user. recover_interrupted_writes() calls it first.
+std::string finish_interrupted_group(const std::filesystem::path& journal);
 
 // fsync()s a file or directory (a directory: its entries, i.e. renames inside it). Throws Error
 // naming the path when the data cannot be made durable (e.g. EIO, ENOSPC on write-back).

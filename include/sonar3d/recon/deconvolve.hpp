@@ -102,10 +102,13 @@ struct VoxelDeconvConfig {
 struct DeconvConfig {
   // passes: the thesis' per-column deconvolution of straight passes along the sonar z axis (each
   // pass checked, sec. 5.6.3.1); voxel: voxel-domain NNLS over carving's candidates, for any
-  // trajectory and irregular sampling (VoxelDeconvConfig); auto: passes when every pass is
-  // accepted, voxel otherwise (a refused pass, an orbit with no pass, a pass skipped).
+  // trajectory and irregular sampling (VoxelDeconvConfig); auto (the default, issue 29): passes
+  // when the frames form regular passes, voxel otherwise — frames in no pass (an orbit, a pass
+  // too short), a pass irregular in spacing or attitude beyond the passes mode's tolerances
+  // (auto_mode_reason), or a pass the passes mode refuses or skips. DeconvReport::mode says which
+  // ran, DeconvReport::mode_note why the voxel mode did.
   enum class Mode { Passes, Voxel, Auto };
-  Mode mode = Mode::Passes;
+  Mode mode = Mode::Auto;
   VoxelDeconvConfig voxel;
   // Beam pattern of the kernel A*: sinc (eq. 2.8), flat (sec. 5.6.6: β = C inside the aperture)
   // or the sensor's own pattern (sonar.yaml beam_pattern, e.g. a measured table).
@@ -244,6 +247,13 @@ PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
 std::vector<std::pair<std::size_t, std::size_t>> split_passes(
     const std::vector<Eigen::Isometry3d>& T_world_sonar, const DeconvConfig& config);
 
+// Mode::Auto's choice from the poses alone: empty when the passes mode applies, else why not, in
+// one line: frames in no pass of min_pass_frames or more, a pass that analyze_pass refuses
+// (spacing, attitude, axis, lateral deviation beyond the tolerances), or one pass broken in two by
+// a gap or a jolt (the next part continues along the same line in the same direction).
+std::string auto_mode_reason(const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const DeconvConfig& config);
+
 // eq. 5.25: K = ⌊2·r·tan(A_v/2)/Δz⌋, at least 1 (a footprint thinner than a layer still sees it).
 int footprint_layers(double range, double vertical_aperture_rad, double dz);
 // Arc-vs-chord mismatch of the rectilinear approximation at range r (m): a scatterer on the
@@ -319,6 +329,8 @@ struct VoxelDeconvReport {
 
 struct DeconvReport {
   std::string mode = "passes";  // the mode that ran ("passes" or "voxel")
+  // Mode::Auto ran the voxel mode: one line saying so and why (empty otherwise).
+  std::string mode_note;
   std::vector<PassReport> passes;
   VoxelDeconvReport voxel;  // mode "voxel"
   std::size_t frames = 0;
