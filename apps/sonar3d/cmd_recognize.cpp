@@ -102,7 +102,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                       "accept placements whose residual median is at most this, m (2d default "
                       "0.1, 3d default 0.04)");
   cmd->add_option("--min-confidence", o->cfg.verification.min_confidence,
-                  "2d: a candidate is found at or above this calibrated confidence, 0-1 "
+                  "a candidate is found at or above this calibrated confidence, 0-1 "
                   "(docs/recognition.md, Verification)")
       ->capture_default_str();
   cmd->add_flag("--no-icp", o->no_icp, "2d: stop after the 4D search (step 1 of Table 6.1)");
@@ -127,8 +127,12 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "3d: drop points lower than the local seabed plus this, m (0: keep the seabed)")
       ->capture_default_str();
   cmd->add_option("--min-coverage", c3.min_coverage,
-                  "3d: accept placements with a scene point near at least this fraction of the "
-                  "model's samples")
+                  "3d: a placement must have a scene point near at least this fraction of the "
+                  "model's samples seen from above, and keep it after suppression, 0-1")
+      ->capture_default_str();
+  cmd->add_option("--max-subspaces", c3.max_subspaces,
+                  "3d: at most this many subspaces per model (the grid period is raised until "
+                  "they fit)")
       ->capture_default_str();
   cmd->add_option("--starts", c3.starts, "3d: ICP starts per subspace")->capture_default_str();
   cmd->add_flag("--no-upright", o->no_upright,
@@ -147,6 +151,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       Recognition3dConfig cfg3 = o->cfg3;
       cfg3.upright = !o->no_upright;
       cfg3.num_threads = cfg.num_threads;
+      cfg3.verification = cfg.verification;  // one --min-confidence for both methods
       if (yaw_given) cfg3.yaw_step_deg = cfg.search.yaw_step_deg;
       if (residual_given) cfg3.max_residual_median_m = cfg.max_residual_median_m;
       const bool three_d = o->method == "3d";
@@ -203,6 +208,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
             "passed, {} accepted, {} suppressed ({:.2f} s subspaces, {:.2f} s matching)\n",
             s.model, s.subspaces, s.r_subspace_m, s.kept, s.registered, s.passed, s.accepted,
             s.suppressed, s.seconds_subspaces, s.seconds_matching);
+        if (!s.nearest_miss.empty()) fmt::print("    nearest miss: {}\n", s.nearest_miss);
       }
       fmt::print("{} placements{} in {:.2f} s -> {}, {}\n", r.placements.size(),
                  three_d ? "" : fmt::format(" ({} candidates rejected)", rejected), r.seconds,

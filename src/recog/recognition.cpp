@@ -361,13 +361,6 @@ void mark_placed(const ModelTemplate& m, const Eigen::Isometry3d& T, const Eleva
   }
 }
 
-// Fraction of the model's height below the ground (0 when the ground is unknown).
-double buried_fraction(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
-  if (!std::isfinite(ground_z)) return 0.0;
-  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
-  return (ground_z - base) / std::max(1e-6, m.height());
-}
-
 // One model's search state in the competition between hypotheses (docs/recognition.md,
 // "Competing hypotheses").
 struct ModelSearch {
@@ -392,16 +385,6 @@ void exclude_patch(ModelSearch& s, const ScanResult& scan, const ElevationMap& c
       }
     }
   }
-}
-
-// A placement's verification and the fields read from it (confidence, support = explained,
-// observed = seen, the local seabed).
-void set_verification(Placement& p, const Verification& v) {
-  p.verification = v;
-  p.ground_z = v.ground_z;
-  p.confidence = v.confidence;
-  p.support = v.explained;
-  p.observed = v.seen;
 }
 
 // The verification's verdict on a registered candidate: empty when found, else why not.
@@ -517,7 +500,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     p.residual_4d = structure_residual(local, *m, s4.T_world_model);
     p.T_world_model = s4.T_world_model;
     p.residual = p.residual_4d;
-    set_verification(p, v4);
+    p.set_verification(v4);
     if (config.run_icp && local.size() >= 6 &&
         buried_fraction(*m, s4.T_world_model, v4.ground_z) <= config.max_buried_fraction) {
       // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
@@ -534,7 +517,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
           if (vi.confidence >= v4.confidence - 0.05) {
             p.T_world_model = icp.T_world_model;
             p.residual = structure_residual(local, *m, icp.T_world_model);
-            set_verification(p, vi);
+            p.set_verification(vi);
             p.icp_kept = true;
           }
         }
@@ -682,8 +665,8 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       for (ModelSearch& s : states) {
         if (!s.pending) continue;
         Placement& p = s.pending->placement;
-        set_verification(
-            p, verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification));
+        p.set_verification(
+            verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification));
       }
     }
     std::size_t now_done = 0;

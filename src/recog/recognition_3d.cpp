@@ -4,8 +4,8 @@
 // non-maximum suppression, models in decreasing size with their points removed.
 #include "sonar3d/recog/recognition_3d.hpp"
 
-#include <tbb/global_control.h>
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
@@ -522,7 +522,8 @@ Footprint make_footprint(const std::vector<V3f>& pts, double grow, double cell) 
                         "the model is too large for its footprint cell");
   std::vector<uint8_t> core(static_cast<std::size_t>(f.nx) * f.ny, 0);
   for (const auto& p : pts) {
-    const int c = static_cast<int>((p.x() - f.x0) / cell), r = static_cast<int>((p.y() - f.y0) / cell);
+    const int c = static_cast<int>((p.x() - f.x0) / cell),
+              r = static_cast<int>((p.y() - f.y0) / cell);
     core[static_cast<std::size_t>(r) * f.nx + c] = 1;
   }
   f.in.assign(core.size(), 0);
@@ -532,7 +533,8 @@ Footprint make_footprint(const std::vector<V3f>& pts, double grow, double cell) 
       if (!core[static_cast<std::size_t>(r) * f.nx + c]) continue;
       for (int dr = -k; dr <= k; ++dr) {
         for (int dc = -k; dc <= k; ++dc) {
-          if ((dr * dr + dc * dc) * cell * cell > (grow + 0.5 * cell) * (grow + 0.5 * cell)) continue;
+          if ((dr * dr + dc * dc) * cell * cell > (grow + 0.5 * cell) * (grow + 0.5 * cell))
+            continue;
           const int rr = r + dr, cc = c + dc;
           if (rr >= 0 && cc >= 0 && rr < f.ny && cc < f.nx) {
             f.in[static_cast<std::size_t>(rr) * f.nx + cc] = 1;
@@ -584,7 +586,8 @@ Model3d prepare(const ModelTemplate& t, const Recognition3dConfig& cfg) {
 
   // Visibility from above: the vertical and 8 azimuths view_tilt_deg off it (a lawnmower survey
   // with a wide across-track fan sees tops and the upper parts of sides).
-  const std::vector<uint8_t> top = seen_along(t.points, m.pts, V3f::UnitZ(), cfg.voxel_m, cfg.voxel_m);
+  const std::vector<uint8_t> top =
+      seen_along(t.points, m.pts, V3f::UnitZ(), cfg.voxel_m, cfg.voxel_m);
   std::vector<uint8_t> seen = top;
   const float tilt = static_cast<float>(cfg.view_tilt_deg * kDeg);
   if (tilt > 0) {
@@ -745,9 +748,9 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   }
   c->v.coverage = static_cast<double>(hit) / static_cast<double>(m.seen_pts.size());
   free_space_terms(m, top, c->T, cfg, &c->v);
-  // Unexplained: scene points standing unexplained_height_m above the seabed (seabed texture is no evidence
-  // either way) in the footprint (grown by the context ring) and up to the context above the
-  // model's top, farther than tol from the model.
+  // Unexplained: scene points standing unexplained_height_m above the seabed (seabed texture is no
+  // evidence either way) in the footprint (grown by the context ring) and up to the context above
+  // the model's top, farther than tol from the model.
   const V3f ctr = (c->T * model_center(*m.t)).cast<float>();
   const float reach = static_cast<float>(m.r_model + m.context_m);
   std::size_t inside = 0, unexplained = 0;
@@ -764,13 +767,6 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   c->v.unexplained = inside ? static_cast<double>(unexplained) / static_cast<double>(inside) : 0.0;
 }
 
-// Fraction of the model's height below the seabed ring around it (verify.hpp's ground_z).
-double buried_fraction_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, double ground_z) {
-  if (!std::isfinite(ground_z)) return 0.0;
-  const double base = (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), m.base_z)).z();
-  return (ground_z - base) / std::max(1e-6, m.height());
-}
-
 // The first acceptance test a matched candidate fails, as a line for the log (empty: accepted):
 // the thesis' residual threshold (sec. 6.3.1.3), then the verification (verify.hpp).
 std::string failed_test(const Candidate& c, const ModelTemplate& m,
@@ -785,9 +781,9 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
   } else if (w.overlap > cfg.max_overlap) {
     std::snprintf(buf, sizeof buf, "overlaps an accepted placement (%.2f > %.2f)", w.overlap,
                   cfg.max_overlap);
-  } else if (buried_fraction_3d(m, c.T, w.ground_z) > cfg.max_buried_fraction) {
+  } else if (buried_fraction(m, c.T, w.ground_z) > cfg.max_buried_fraction) {
     std::snprintf(buf, sizeof buf, "buried %.2f of its height > %.2f",
-                  buried_fraction_3d(m, c.T, w.ground_z), cfg.max_buried_fraction);
+                  buried_fraction(m, c.T, w.ground_z), cfg.max_buried_fraction);
   } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
     std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
                   w.relief_m3, cfg.min_net_explained);
@@ -795,8 +791,8 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
     std::snprintf(buf, sizeof buf,
                   "confidence %.2f < %.2f (seen %.2f, explained %.2f, violation %.2f, "
                   "unexplained %.2f, spill %.2f)",
-                  w.confidence, cfg.verification.min_confidence, w.seen, w.explained,
-                  w.violation, w.unexplained, w.spill);
+                  w.confidence, cfg.verification.min_confidence, w.seen, w.explained, w.violation,
+                  w.unexplained, w.spill);
   } else {
     return "";
   }
@@ -1093,8 +1089,7 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       if (centres.size() <= cfg.max_subspaces) break;
       T *= 1.25;
       rec.period_raised = true;
-      limits::checked_count(attempt, 0, 60, "subspace period raises",
-                            "raise max_subspaces");
+      limits::checked_count(attempt, 0, 60, "subspace period raises", "raise max_subspaces");
     }
     const std::size_t count = centres.size();
     std::vector<SubspaceTest> verdict(count, SubspaceTest::Points);
@@ -1191,9 +1186,8 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
         for (std::size_t i : scene_index.within(centres[kept[reps[j]]], rs)) {
           pts.push_back(scene[i]);
         }
-        cands[j] =
-            match_subspace(m, scene_index, scene, top, pts, centroid[reps[j]], ground, fine,
-                           removed_fine, cfg);
+        cands[j] = match_subspace(m, scene_index, scene, top, pts, centroid[reps[j]], ground, fine,
+                                  removed_fine, cfg);
         match_bar.add();
       });
       match_bar.finish();
@@ -1272,8 +1266,7 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
           hits.push_back(i);
           free += !taken[i];
         }
-        dup = static_cast<double>(free) <
-              cfg.min_coverage * static_cast<double>(m.seen_pts.size());
+        dup = static_cast<double>(free) < cfg.min_coverage * static_cast<double>(m.seen_pts.size());
       }
       if (dup) {
         ++rec.suppressed;
@@ -1295,14 +1288,10 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       p.T_world_model = c->T;
       p.T_world_model_4d = c->T_start;
       p.score_m = c->start_score;
-      p.verification = c->ver;
-      p.confidence = c->ver.confidence;
-      p.support = c->ver.explained;
-      p.observed = c->ver.seen;
+      p.set_verification(c->ver);
       p.icp_iterations = c->iterations;
       p.icp_kept = true;
       const Eigen::Vector3d ctr = c->T * cm;
-      p.ground_z = c->ver.ground_z;
       // Table 6.1's metric on the full-resolution points (above the seabed) near the model.
       std::vector<V3f> local;
       const double reach = m.r_model + 0.3;

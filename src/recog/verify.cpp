@@ -202,4 +202,12 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
   return out;
 }
 
+double buried_fraction(const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                       double ground_z) {
+  if (!std::isfinite(ground_z)) return 0.0;
+  const double base =
+      (T_world_model * Eigen::Vector3d(model.center_xy.x(), model.center_xy.y(), model.base_z)).z();
+  return (ground_z - base) / std::max(1e-6, model.height());
+}
+
 }  // namespace sonar3d

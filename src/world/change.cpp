@@ -1248,7 +1248,17 @@ std::vector<SurveyPlacement> recognize_placements(const PointCloud& cloud_world,
   }
   const RecognitionResult r = recognize_2d(cloud_world, models, config);
   std::vector<SurveyPlacement> out;
-  for (const Placement& p : r.placements) out.push_back({p.model, p.T_world_model});
+  for (const Placement& p : r.placements) {
+    SurveyPlacement rec;
+    rec.model = p.model;
+    rec.T_world_model = p.T_world_model;
+    rec.score_m = p.score_m;
+    rec.residual_median_m = p.residual.median_m;
+    rec.residual_mean_m = p.residual.mean_m;
+    rec.method = "2d";
+    rec.confidence = p.confidence;
+    out.push_back(rec);
+  }
   return out;
 }
 

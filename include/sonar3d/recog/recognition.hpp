@@ -127,18 +127,27 @@ struct Placement {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
   double score_m = 0;  // descriptor score of the winning patch
   Residual residual;   // after the last step
-  // The verification's terms (2D method) and the calibrated confidence in [0, 1] that decided
-  // "found" (at or above RecognitionConfig::verification.min_confidence).
+  // The verification's terms (verify.hpp, both methods) and the calibrated confidence in [0, 1]
+  // that decided "found" (at or above the config's verification.min_confidence).
   Verification verification;
   double confidence = 0;
+  // Sets verification and the fields read from it (confidence, support = explained,
+  // observed = seen, ground_z).
+  void set_verification(const Verification& v) {
+    verification = v;
+    ground_z = v.ground_z;
+    confidence = v.confidence;
+    support = v.explained;
+    observed = v.seen;
+  }
   // The same placement turned 180° about the model's vertical axis (models without a symmetry):
   // its confidence, and whether the top view cannot tell the two apart (its explanation score
   // within compete_margin of this one's and its confidence above the threshold; a panel's top
   // view is often the same both ways). NaN / false when not checked.
   double turned_confidence = std::numeric_limits<double>::quiet_NaN();
   bool yaw_ambiguous = false;
-  double support = 0;   // 2D: verification.explained; 3D: the method's coverage
-  double observed = 0;  // 2D: verification.seen (height-weighted fraction of the relief observed)
+  double support = 0;   // verification.explained
+  double observed = 0;  // verification.seen (height-weighted fraction of the relief observed)
   double ground_z = 0;  // local seabed height around the footprint (world z), m
   // Step 1 (4D search) alone, for Table 6.1.
   Eigen::Isometry3d T_world_model_4d = Eigen::Isometry3d::Identity();

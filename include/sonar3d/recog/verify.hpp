@@ -82,4 +82,10 @@ Verification verify_placement(const ModelTemplate& model, const Eigen::Isometry3
 // The logistic confidence of the terms (see VerificationConfig).
 double verification_confidence(const Verification& v, const VerificationConfig& config);
 
+// Fraction of the model's height below ground_z (its base measured at the footprint's centre);
+// 0 when ground_z is unknown (NaN). Both methods refuse placements buried more than their
+// max_buried_fraction.
+double buried_fraction(const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                       double ground_z);
+
 }  // namespace sonar3d
