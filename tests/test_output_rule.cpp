@@ -46,7 +46,8 @@ void expect_refused(const CliRun& r, const std::vector<std::string>& needles,
   EXPECT_EQ(r.code, 1) << what << ": " << r.out;
   EXPECT_EQ(r.out.rfind("sonar3d: error: ", 0), 0u) << what << ": " << r.out;
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << what << ": " << r.out;
-  for (const auto& n : needles) EXPECT_NE(r.out.find(n), std::string::npos) << what << ": " << r.out;
+  for (const auto& n : needles)
+    EXPECT_NE(r.out.find(n), std::string::npos) << what << ": " << r.out;
 }
 
 void expect_no_left_overs(const fs::path& dir) {
@@ -72,21 +73,21 @@ trajectory: {period: 0.1, type: straight, start: [0, 0, -0.3], end: [0, 0, 0.3],
 class OutputRule : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    base = fs::temp_directory_path() / "sonar3d_test_OutputRule";
+    // One folder per process: ctest runs the suite's tests in parallel processes.
+    base = fs::temp_directory_path() / ("sonar3d_test_OutputRule_" + std::to_string(::getpid()));
     fs::remove_all(base);
     fs::create_directories(base);
     write(base / "scene.yaml", kScene);
     ds = base / "ds";
     cloud = base / "cloud.ply";
     map = base / "map.tif";
-    ASSERT_EQ(run_cli(base, "simulate " + (base / "scene.yaml").string() + " -o " + ds.string())
-                  .code,
-              0);
+    ASSERT_EQ(
+        run_cli(base, "simulate " + (base / "scene.yaml").string() + " -o " + ds.string()).code, 0);
     ASSERT_EQ(run_cli(base, "reconstruct " + ds.string() + " -o " + cloud.string()).code, 0);
     ASSERT_EQ(
-        run_cli(base, "elevation " + cloud.string() + " --cell-m 0.02 -o " + map.string()).code,
-        0);
+        run_cli(base, "elevation " + cloud.string() + " --cell-m 0.02 -o " + map.string()).code, 0);
   }
+  static void TearDownTestSuite() { fs::remove_all(base); }
   void SetUp() override {
     dir = test::temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
   }
@@ -128,8 +129,7 @@ TEST_F(OutputRule, EverySubcommandFollowsTheRule) {
        cloud},
       {"evaluate --json", ".json",
        [&](const fs::path& o) {
-         return "evaluate " + cloud.string() + " --truth " + ds.string() + " --json " +
-                o.string();
+         return "evaluate " + cloud.string() + " --truth " + ds.string() + " --json " + o.string();
        },
        cloud, true},
       {"register --json", ".json",
@@ -196,9 +196,9 @@ TEST_F(OutputRule, ElevationMapAndItsPictureAppearTogether) {
   EXPECT_FALSE(fs::exists(tif));
   EXPECT_EQ(slurp(png), "not a picture\n");
   fs::remove(png);
-  ASSERT_EQ(cli("elevation " + cloud.string() + " -o " + tif.string() + " --png " + png.string())
-                .code,
-            0);
+  ASSERT_EQ(
+      cli("elevation " + cloud.string() + " -o " + tif.string() + " --png " + png.string()).code,
+      0);
   EXPECT_TRUE(is_sonar3d_output(tif, OutputKind::GeoTiff));
   EXPECT_TRUE(is_sonar3d_output(png, OutputKind::Png));
   EXPECT_FALSE(cv::imread(png.string()).empty());  // the marked PNG still decodes
@@ -222,8 +222,8 @@ TEST_F(OutputRule, NoiseEstimateAndPlanRefuseWhatTheyDidNotWrite) {
   ASSERT_EQ(cli("noise estimate " + ds.string() + " -o " + noise.string()).code, 0);
   EXPECT_TRUE(is_sonar3d_output(noise / "mean.tiff", OutputKind::Tiff));
   EXPECT_TRUE(is_sonar3d_output(noise / "std.tiff", OutputKind::Tiff));
-  expect_refused(cli("noise estimate " + ds.string() + " -o " + noise.string()),
-                 {"--overwrite"}, "noise onto its own");
+  expect_refused(cli("noise estimate " + ds.string() + " -o " + noise.string()), {"--overwrite"},
+                 "noise onto its own");
   EXPECT_EQ(cli("noise estimate " + ds.string() + " -o " + noise.string() + " --overwrite").code,
             0);
   expect_refused(cli("noise estimate " + ds.string() + " -o " + (ds / "noise2").string()),
@@ -236,7 +236,8 @@ TEST_F(OutputRule, NoiseEstimateAndPlanRefuseWhatTheyDidNotWrite) {
   fs::create_directories(foreign);
   write(foreign / "results.csv", "mine\n");
   expect_refused(cli("plan " + sweep.string() + " -o " + foreign.string()),
-                 {"'" + foreign.string() + "'", "not a sonar3d plan directory"}, "plan into a foreign dir");
+                 {"'" + foreign.string() + "'", "not a sonar3d plan directory"},
+                 "plan into a foreign dir");
   EXPECT_EQ(slurp(foreign / "results.csv"), "mine\n");
   EXPECT_FALSE(fs::exists(foreign / "points"));
   const fs::path fifo = dir / "fifo";

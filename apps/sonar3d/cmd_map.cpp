@@ -94,15 +94,25 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
           fmt::print(
               " (navigation error within the map {:.3f} → {:.3f} m, absolute {:.3f} → "
               "{:.3f} m)",
-              w.internal_error_before.x(), w.internal_error_after.x(), w.error_before.x(),
+              w.rigid_error_before.x(), w.rigid_error_after.x(), w.error_before.x(),
               w.error_after.x());
         }
         fmt::print("\n");
       }
+      if (r.has_alignment) {  // simulated navigation: the whole map against the truth
+        const NavigationError &b = r.navigation_before, &a = r.navigation_after;
+        fmt::print(
+            "  navigation error (median over frames, horizontal, as logged → corrected): "
+            "absolute {:.3f} → {:.3f} m; within the map (after a rigid placement) {:.3f} → "
+            "{:.3f} m; after an affine placement {:.3f} → {:.3f} m, which hides a scale of "
+            "{:.4f} → {:.4f} (docs/mapping.md)\n",
+            b.absolute_m, a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
+            r.alignment_before.scale(), r.alignment_after.scale());
+      }
       for (const StructureEval& e : r.structures) {  // simulated site: against the CAD
         fmt::print(
             "  {} {}: median {:.1f} → {:.1f} cm, coverage {:.0f} → {:.0f} %, outliers "
-            "{:.0f} → {:.0f} % (as logged → corrected, each placed in the world)\n",
+            "{:.0f} → {:.0f} % (as logged → corrected, each map placed by its affine fit)\n",
             to_string(e.kind), e.name, 100 * e.before.median_error, 100 * e.after.median_error,
             100 * e.before.coverage, 100 * e.after.coverage, 100 * e.before.outliers,
             100 * e.after.outliers);

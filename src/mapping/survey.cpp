@@ -4,12 +4,15 @@
 
 #include <fmt/core.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
@@ -149,6 +152,33 @@ MapAlignment fit_alignment(const std::vector<Eigen::Vector3d>& nav,
   return a;
 }
 
+// The best rigid placement of the logged (or corrected) positions onto the true ones: a turn
+// and shift of (x, y) by least squares (Umeyama 1991, without scale) and the mean height offset.
+MapAlignment fit_rigid_alignment(const std::vector<Eigen::Vector3d>& nav,
+                                 const std::vector<Eigen::Vector3d>& truth) {
+  MapAlignment a;
+  if (nav.empty()) return a;
+  Eigen::Matrix2Xd src(2, nav.size()), dst(2, nav.size());
+  double dz = 0;
+  for (std::size_t i = 0; i < nav.size(); ++i) {
+    src.col(static_cast<Eigen::Index>(i)) = nav[i].head<2>();
+    dst.col(static_cast<Eigen::Index>(i)) = truth[i].head<2>();
+    dz += truth[i].z() - nav[i].z();
+  }
+  const Eigen::Matrix3d T = Eigen::umeyama(src, dst, false);
+  a.M = T.topLeftCorner<2, 2>();
+  a.b = T.topRightCorner<2, 1>();
+  a.dz = dz / static_cast<double>(nav.size());
+  return a;
+}
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
 SwathTrack make_track(const Dataset& dataset, int first, int last) {
   SwathTrack tr;
   tr.origin = dataset.T_world_sonar(first).translation().head<2>();
@@ -190,6 +220,11 @@ std::vector<SwathPiece> cut_pieces(const PointCloud& cloud, const SwathTrack& tr
 }
 
 }  // namespace
+
+double MapAlignment::stretch() const {
+  const Eigen::Vector2d sv = Eigen::JacobiSVD<Eigen::Matrix2d>(M).singularValues();
+  return sv.y() > 0 ? sv.x() / sv.y() : std::numeric_limits<double>::infinity();
+}
 
 const char* to_string(SwathAdjustMethod method) {
   switch (method) {
@@ -562,18 +597,38 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     result.has_alignment = true;
     result.alignment_before = fit_alignment(logged_p, true_p);
     result.alignment_after = fit_alignment(corrected_p, true_p);
+    result.rigid_before = fit_rigid_alignment(logged_p, true_p);
+    result.rigid_after = fit_rigid_alignment(corrected_p, true_p);
+    std::vector<double> abs_b, abs_a, rigid_b, rigid_a, affine_b, affine_a;
     std::size_t k = 0;
     for (int s = 0; s < num_swaths; ++s) {
       SwathInfo& w = result.swaths[s];
       for (int i = w.first_frame; i <= w.last_frame; ++i, ++k) {
-        const Eigen::Vector3d b = result.alignment_before.apply(logged_p[k]) - true_p[k];
-        const Eigen::Vector3d a = result.alignment_after.apply(corrected_p[k]) - true_p[k];
-        w.internal_error_before += Eigen::Vector2d(b.head<2>().norm(), std::abs(b.z()));
-        w.internal_error_after += Eigen::Vector2d(a.head<2>().norm(), std::abs(a.z()));
+        const Eigen::Vector3d rb = result.rigid_before.apply(logged_p[k]) - true_p[k];
+        const Eigen::Vector3d ra = result.rigid_after.apply(corrected_p[k]) - true_p[k];
+        const Eigen::Vector3d fb = result.alignment_before.apply(logged_p[k]) - true_p[k];
+        const Eigen::Vector3d fa = result.alignment_after.apply(corrected_p[k]) - true_p[k];
+        w.rigid_error_before += Eigen::Vector2d(rb.head<2>().norm(), std::abs(rb.z()));
+        w.rigid_error_after += Eigen::Vector2d(ra.head<2>().norm(), std::abs(ra.z()));
+        w.affine_error_before += Eigen::Vector2d(fb.head<2>().norm(), std::abs(fb.z()));
+        w.affine_error_after += Eigen::Vector2d(fa.head<2>().norm(), std::abs(fa.z()));
+        rigid_b.push_back(rb.head<2>().norm());
+        rigid_a.push_back(ra.head<2>().norm());
+        affine_b.push_back(fb.head<2>().norm());
+        affine_a.push_back(fa.head<2>().norm());
+        const double t = dataset.frames[i].timestamp;
+        const Eigen::Vector3d e = true_p[k] - logged_p[k] - e0;
+        abs_b.push_back(e.head<2>().norm());
+        abs_a.push_back((e - adj.correction(s, t)).head<2>().norm());
       }
-      w.internal_error_before /= static_cast<double>(w.last_frame - w.first_frame + 1);
-      w.internal_error_after /= static_cast<double>(w.last_frame - w.first_frame + 1);
+      const double n = static_cast<double>(w.last_frame - w.first_frame + 1);
+      w.rigid_error_before /= n;
+      w.rigid_error_after /= n;
+      w.affine_error_before /= n;
+      w.affine_error_after /= n;
     }
+    result.navigation_before = {median_of(abs_b), median_of(rigid_b), median_of(affine_b)};
+    result.navigation_after = {median_of(abs_a), median_of(rigid_a), median_of(affine_a)};
   }
 
   // 3. Corrected navigation: a swath's offset over its time span, linear across the turns
@@ -681,8 +736,10 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       j["true_offset_m"] = vec3(s.true_offset);
       j["error_before_m"] = {s.error_before.x(), s.error_before.y()};
       j["error_after_m"] = {s.error_after.x(), s.error_after.y()};
-      j["internal_error_before_m"] = {s.internal_error_before.x(), s.internal_error_before.y()};
-      j["internal_error_after_m"] = {s.internal_error_after.x(), s.internal_error_after.y()};
+      j["rigid_error_before_m"] = {s.rigid_error_before.x(), s.rigid_error_before.y()};
+      j["rigid_error_after_m"] = {s.rigid_error_after.x(), s.rigid_error_after.y()};
+      j["affine_error_before_m"] = {s.affine_error_before.x(), s.affine_error_before.y()};
+      j["affine_error_after_m"] = {s.affine_error_after.x(), s.affine_error_after.y()};
     }
     swaths.push_back(j);
   }
@@ -715,11 +772,27 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                               {"total", result.seconds_total}}}};
   if (result.has_alignment) {
     auto alignment = [](const MapAlignment& a) {
-      return nlohmann::json{{"matrix", {{a.M(0, 0), a.M(0, 1)}, {a.M(1, 0), a.M(1, 1)}}},
-                            {"shift_m", {a.b.x(), a.b.y(), a.dz}}};
+      return nlohmann::json{
+          {"matrix", {{a.M(0, 0), a.M(0, 1)}, {a.M(1, 0), a.M(1, 1)}}},
+          {"shift_m", {a.b.x(), a.b.y(), a.dz}},
+          {"scale", a.scale()},
+          {"stretch", a.stretch()},
+          {"turn_deg", std::atan2(a.M(1, 0) - a.M(0, 1), a.M(0, 0) + a.M(1, 1)) * 180 / M_PI}};
     };
+    // "alignment": the affine placement the structures are scored after (its scale is what it
+    // hides); "rigid_alignment": the turn and shift the within-map errors are measured after.
     summary["alignment"] = {{"before", alignment(result.alignment_before)},
                             {"after", alignment(result.alignment_after)}};
+    summary["rigid_alignment"] = {{"before", alignment(result.rigid_before)},
+                                  {"after", alignment(result.rigid_after)}};
+    auto nav = [](const NavigationError& e) {
+      return nlohmann::json{{"absolute_m", e.absolute_m},
+                            {"within_map_m", e.rigid_m},
+                            {"after_affine_m", e.affine_m}};
+    };
+    summary["navigation_error"] = {{"before", nav(result.navigation_before)},
+                                   {"after", nav(result.navigation_after)},
+                                   {"statistic", "median over frames, horizontal"}};
   }
   if (!result.structures.empty()) {
     summary["structures"] = structures;

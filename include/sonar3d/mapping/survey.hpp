@@ -9,6 +9,7 @@
 // World frame: local ENU. A swath's offset o = (dx, dy, dz) is added to the positions of its
 // frames (and of its cloud) to correct them.
 #include <Eigen/Geometry>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -81,10 +82,16 @@ struct SwathInfo {
   bool has_truth = false;
   Eigen::Vector3d true_offset = Eigen::Vector3d::Zero();
   Eigen::Vector2d error_before = Eigen::Vector2d::Zero(), error_after = Eigen::Vector2d::Zero();
-  // The same after the map's placement in the world (MapAlignment) is taken out: the error
-  // within the map, which registration between swaths can see and correct.
-  Eigen::Vector2d internal_error_before = Eigen::Vector2d::Zero();
-  Eigen::Vector2d internal_error_after = Eigen::Vector2d::Zero();
+  // The same after the map's best rigid placement in the world (turn and shift, fitted to the
+  // true navigation) is taken out: the error within the map, in metres — a scale error of the
+  // navigation stays in it.
+  Eigen::Vector2d rigid_error_before = Eigen::Vector2d::Zero();
+  Eigen::Vector2d rigid_error_after = Eigen::Vector2d::Zero();
+  // The same after the best affine placement (MapAlignment) is taken out: what registration
+  // between swaths can see (the map's local shape). It also absorbs a uniform scale, shear and
+  // stretch of the whole map, so it is never the map's error in metres.
+  Eigen::Vector2d affine_error_before = Eigen::Vector2d::Zero();
+  Eigen::Vector2d affine_error_after = Eigen::Vector2d::Zero();
 };
 
 // How a whole map sits in the world: a stretch, shear, turn and shift of (x, y) and a height
@@ -101,6 +108,18 @@ struct MapAlignment {
     const Eigen::Vector2d xy = M * p.head<2>() + b;
     return {xy.x(), xy.y(), p.z() + dz};
   }
+  // The uniform scale M applies, √|det M| (1 for a rigid placement; 1/(1 + s) for a navigation
+  // whose velocities are scaled by 1 + s), and its stretch, the ratio of M's singular values.
+  double scale() const { return std::sqrt(std::abs(M.determinant())); }
+  double stretch() const;
+};
+
+// The navigation's error over a whole survey (simulated datasets): medians over the frames of
+// the horizontal error, absolute (relative to the error where the first swath starts), after the
+// best rigid placement (turn + shift: the map's error in metres) and after the best affine
+// placement (local shape only), as logged or corrected.
+struct NavigationError {
+  double absolute_m = 0, rigid_m = 0, affine_m = 0;
 };
 
 // Simulated datasets with truth/scene.yaml: a structure or pipeline scored against its CAD in
@@ -117,7 +136,9 @@ struct MapSurveyResult {
   std::vector<StructureEval> structures;  // empty without ground truth
   // With truth/navigation.tum: the map's placement, as logged and corrected.
   bool has_alignment = false;
-  MapAlignment alignment_before, alignment_after;
+  MapAlignment alignment_before, alignment_after;  // affine (structures are scored after it)
+  MapAlignment rigid_before, rigid_after;          // rigid (M a rotation)
+  NavigationError navigation_before, navigation_after;
   std::vector<SwathTie> ties;
   SwathAdjustment adjustment;
   std::size_t merged_points = 0;
