@@ -414,6 +414,37 @@ TEST(RecogPipeline, CompetingLabelsAreResolvedByExplanationNotSearchOrder) {
   }
 }
 
+// Relief proposals: a tank 40 % buried among rocks, with the descriptor scan unable to propose
+// anything (its bound set to nothing): the blob of relief that fits the tank is proposed once
+// the scan gives up, registered and verified; the rocks (too small for the tank) are not
+// proposed to it. Without relief proposals nothing is found.
+TEST(RecogPipeline, ABuriedStructureTheScanDoesNotProposeIsFoundFromItsRelief) {
+  const ModelTemplate tank = reference_template("tank", Symmetry::Full);
+  const double buried = 0.4 * tank.height();
+  const Eigen::Isometry3d T = pose(4.0, 2.6, -buried - tank.base_z, 0);
+  const PointCloud cloud = synthetic_scene({{&tank, T}}, 0, 0, 8, 5.5, 0.02, 0.004, 11);
+  RecognitionConfig cfg = test_config();
+  cfg.max_relative_score = 1e-9;  // no patch ever scores below this
+  cfg.max_relief_proposals = 0;
+  EXPECT_TRUE(recognize_2d(cloud, {tank}, cfg).placements.empty());
+  cfg.max_relief_proposals = RecognitionConfig{}.max_relief_proposals;
+  const RecognitionResult r = recognize_2d(cloud, {tank}, cfg);
+  ASSERT_EQ(r.placements.size(), 1u) << placements_json(r, "", "", cfg);
+  const Placement& p = r.placements[0];
+  EXPECT_LT((p.T_world_model.translation() - T.translation()).head<2>().norm(), 0.05);
+  EXPECT_GE(p.confidence, cfg.verification.min_confidence);
+  std::size_t relief = 0;
+  for (const SearchRecord& s : r.searches) {
+    if (s.proposal != "relief") continue;
+    ++relief;
+    // Every relief proposal lay on the tank, none on a rock.
+    EXPECT_LT((s.scan.center_xy - T.translation().head<2>()).norm(), 0.5 * tank.radius_m);
+  }
+  EXPECT_GE(relief, 1u);
+  // The JSON names where the candidate came from.
+  EXPECT_NE(placements_json(r, "", "", cfg).find("\"proposal\": \"relief\""), std::string::npos);
+}
+
 TEST(RecogVerify, BadSettingsGiveClearErrors) {
   auto message = [](VerificationConfig c) {
     try {

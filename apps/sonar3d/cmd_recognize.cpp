@@ -105,6 +105,17 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "a candidate is found at or above this calibrated confidence, 0-1 "
                   "(docs/recognition.md, Verification)")
       ->capture_default_str();
+  cmd->add_option("--max-rejections", o->cfg.max_rejections,
+                  "2d: rejected scan candidates per model before its scan gives up")
+      ->capture_default_str();
+  cmd->add_option("--max-relief-proposals", o->cfg.max_relief_proposals,
+                  "2d: then at most this many blobs of relief that fit the model are tried "
+                  "(partly buried or small structures the scan ranks low; 0: none)")
+      ->capture_default_str();
+  cmd->add_option("--relief-window", o->cfg.relief_window_m,
+                  "2d: seabed window of the relief proposals, m (models wider are left to the "
+                  "scan)")
+      ->capture_default_str();
   cmd->add_flag("--no-icp", o->no_icp, "2d: stop after the 4D search (step 1 of Table 6.1)");
   // The 3D method (Recognition3dConfig).
   Recognition3dConfig& c3 = o->cfg3;

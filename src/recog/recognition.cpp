@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <string>
 
@@ -207,6 +209,10 @@ void RecognitionConfig::validate() const {
   require(max_tilt_deg >= 0 && max_tilt_deg <= 180, "max_tilt_deg must lie in [0, 180]");
   require_non_negative(max_icp_shift_m, "max_icp_shift_m", "m");
   require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
+  require(std::isfinite(relief_window_m) && relief_window_m > 0 && relief_window_m <= 50,
+          "relief_window_m must lie in (0, 50] m");
+  require(max_relief_proposals >= 0 && max_relief_proposals <= 1000,
+          "max_relief_proposals must lie in [0, 1000]");
 }
 
 Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,
@@ -361,6 +367,62 @@ void mark_placed(const ModelTemplate& m, const Eigen::Isometry3d& T, const Eleva
   }
 }
 
+// A connected blob of relief on the recognition map (relief proposals).
+struct ReliefBlob {
+  int row = 0, col = 0;  // the cell nearest the blob's centroid
+  Eigen::Vector2d center_xy{0, 0};
+  double area_m2 = 0, relief_m = 0;  // its area and its highest relief above the seabed
+};
+
+// Blobs of cells standing more than relief_m above the local seabed, the seabed being the
+// grey-scale opening (erosion then dilation, a square of window_m) of the map: anything narrower
+// than the window is lifted off it, slopes are followed within window_m · slope / 2. Cells
+// without data take no part.
+std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, double relief_m) {
+  std::vector<ReliefBlob> out;
+  if (map.empty()) return out;
+  const float big = std::numeric_limits<float>::max();
+  cv::Mat z(map.rows, map.cols, CV_32F);
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c < map.cols; ++c) {
+      const float v = map.at(r, c);
+      z.at<float>(r, c) = v == v ? v : big;  // no data: never the minimum
+    }
+  }
+  const int k = std::max(3, 2 * static_cast<int>(std::lround(0.5 * window_m / map.cell_m)) + 1);
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  cv::Mat low, ground;
+  cv::erode(z, low, kernel, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  low.setTo(-big, low >= big);  // no data within the window: never the maximum
+  cv::dilate(low, ground, kernel, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  cv::Mat mask = cv::Mat::zeros(map.rows, map.cols, CV_8U);
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c < map.cols; ++c) {
+      const float v = map.at(r, c), g = ground.at<float>(r, c);
+      if (v == v && g > -big && v - g > relief_m) mask.at<uint8_t>(r, c) = 1;
+    }
+  }
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  out.resize(static_cast<std::size_t>(std::max(0, n - 1)));
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c < map.cols; ++c) {
+      const int l = labels.at<int>(r, c);
+      if (l <= 0) continue;
+      ReliefBlob& b = out[static_cast<std::size_t>(l - 1)];
+      b.relief_m = std::max(b.relief_m, static_cast<double>(map.at(r, c) - ground.at<float>(r, c)));
+    }
+  }
+  for (int l = 1; l < n; ++l) {
+    ReliefBlob& b = out[static_cast<std::size_t>(l - 1)];
+    b.area_m2 = stats.at<int>(l, cv::CC_STAT_AREA) * map.cell_m * map.cell_m;
+    b.col = std::clamp(static_cast<int>(std::lround(centroids.at<double>(l, 0))), 0, map.cols - 1);
+    b.row = std::clamp(static_cast<int>(std::lround(centroids.at<double>(l, 1))), 0, map.rows - 1);
+    b.center_xy = map.cell_center_xy(b.row, b.col);
+  }
+  return out;
+}
+
 // One model's search state in the competition between hypotheses (docs/recognition.md,
 // "Competing hypotheses").
 struct ModelSearch {
@@ -369,6 +431,14 @@ struct ModelSearch {
   RingDescriptor desc;
   int wanted = 0, found = 0, rejected = 0;
   bool done = false;
+  // Relief proposals (RecognitionConfig::max_relief_proposals): the model's footprint area above
+  // relief_m (m²), the blobs that fit it, best first, the next one to try, and whether the scan
+  // has given up (then proposals are tried).
+  double footprint_m2 = 0;
+  std::vector<std::size_t> proposals;
+  std::size_t next_proposal = 0;
+  int proposals_rejected = 0;
+  bool scan_over = false;
   std::vector<uint8_t> excluded;        // coarse cells this model's scan skips
   std::unique_ptr<ModelIndex> index;    // the model's KD-tree, built at its first registration
   std::optional<SearchRecord> pending;  // a registered, verified candidate awaiting the decision
@@ -437,6 +507,11 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                   " m): check the model's unit and the map");
     }
   }
+  // Relief proposals: the blobs of the scene as it was given, offered to the models they fit.
+  const std::vector<ReliefBlob> blobs =
+      config.max_relief_proposals > 0
+          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m)
+          : std::vector<ReliefBlob>{};
   std::vector<ModelSearch> states(order.size());
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelSearch& s = states[k];
@@ -453,6 +528,46 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     const int vr = static_cast<int>(std::floor((view.origin_xy.y() - h) / view.cell_m));
     const int vc = static_cast<int>(std::floor((h - view.origin_xy.x()) / view.cell_m));
     s.desc = describe_model(view, vr, vc, s.layout, config.descriptor);
+    // The model's footprint standing relief_m above its base (the top view's lowest height),
+    // and the blobs that fit it, best first (area and height ratios nearest 1).
+    float base = std::numeric_limits<float>::infinity();
+    for (float zv : view.z) {
+      if (zv == zv) base = std::min(base, zv);
+    }
+    cv::Mat fp_mask = cv::Mat::zeros(view.rows, view.cols, CV_8U);
+    for (int r = 0; r < view.rows; ++r) {
+      for (int c = 0; c < view.cols; ++c) {
+        const float zv = view.at(r, c);
+        if (zv == zv && zv > base + config.verification.relief_m) fp_mask.at<uint8_t>(r, c) = 1;
+      }
+    }
+    s.footprint_m2 = cv::countNonZero(fp_mask) * view.cell_m * view.cell_m;
+    // The opening lifts the model off the seabed only when its footprint holds no square of the
+    // window (a 2.6 m torpedo 0.3 m wide does; a 2 m wide frame does not).
+    bool isolated = s.footprint_m2 > 0;
+    if (isolated) {
+      const int kw = std::max(
+          3, 2 * static_cast<int>(std::lround(0.5 * config.relief_window_m / view.cell_m)) + 1);
+      cv::Mat core;
+      cv::erode(fp_mask, core, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(kw, kw)),
+                cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+      isolated = cv::countNonZero(core) == 0;
+    }
+    if (!blobs.empty() && isolated) {
+      const double hm = s.m->height();
+      const double h_lo = 0.5 * (1 - config.max_buried_fraction) * hm, h_hi = 1.5 * hm + 0.1;
+      std::vector<std::pair<double, std::size_t>> fits;
+      for (std::size_t b = 0; b < blobs.size(); ++b) {
+        const double ratio = blobs[b].area_m2 / s.footprint_m2;
+        if (blobs[b].relief_m < h_lo || blobs[b].relief_m > h_hi || ratio < 0.25 || ratio > 3) {
+          continue;
+        }
+        fits.emplace_back(std::abs(std::log(ratio)) + std::abs(std::log(blobs[b].relief_m / hm)),
+                          b);
+      }
+      std::sort(fits.begin(), fits.end());
+      for (const auto& f : fits) s.proposals.push_back(f.second);
+    }
     s.wanted = s.m->expected >= 0 ? s.m->expected : config.max_instances;
     s.done = s.wanted == 0;
     s.excluded.assign(coarse.z.size(), 0);
@@ -528,21 +643,44 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     p.seconds_registration = since(t1);
     p.seconds = since(t0);
   };
-  // The model's next candidate: scan (sec. 6.3.2.4), then register_at the winning patch.
+  // The model's next candidate: scan (sec. 6.3.2.4), then register_at the winning patch; once
+  // the scan has given up, the next relief proposal that fits the model (its centre neither
+  // taken by a placement nor tried by this model). A record whose scan is not `found` ends the
+  // model's search.
   auto search = [&](ModelSearch& s) {
     SearchRecord rec;
     rec.model = s.m->name;
     const auto t0 = Clock::now();
-    rec.scan = scan_patches(coarse, removed_coarse, s.excluded, s.layout, s.desc,
-                            config.descriptor.min_valid_fraction,
-                            config.max_relative_score * s.m->height(), config.scan);
-    if (!rec.scan.found) {
-      rec.reason = "no patch scores below max_relative_score x model height";
+    if (!s.scan_over) {
+      rec.scan = scan_patches(coarse, removed_coarse, s.excluded, s.layout, s.desc,
+                              config.descriptor.min_valid_fraction,
+                              config.max_relative_score * s.m->height(), config.scan);
+      if (rec.scan.found) {
+        rec.placement.score_m = rec.scan.score_m;
+        rec.placement.seconds_scan = since(t0);
+        register_at(s, rec, t0);
+        return rec;
+      }
+      s.scan_over = true;
+    }
+    while (s.proposals_rejected < config.max_relief_proposals &&
+           s.next_proposal < s.proposals.size()) {
+      const ReliefBlob& b = blobs[s.proposals[s.next_proposal++]];
+      const std::size_t i = coarse.index(b.row, b.col);
+      if (removed_coarse[i] || s.excluded[i]) continue;
+      rec.proposal = "relief";
+      rec.scan = ScanResult{};
+      rec.scan.found = true;
+      rec.scan.row = b.row;
+      rec.scan.col = b.col;
+      rec.scan.center_xy = b.center_xy;
+      rec.scan.score_m = std::numeric_limits<double>::quiet_NaN();  // no descriptor score
+      rec.placement.score_m = rec.scan.score_m;
+      register_at(s, rec, t0);
       return rec;
     }
-    rec.placement.score_m = rec.scan.score_m;
-    rec.placement.seconds_scan = since(t0);
-    register_at(s, rec, t0);
+    rec.scan = ScanResult{};
+    rec.reason = "no patch scores below max_relative_score x model height, no relief proposal left";
     return rec;
   };
   // Does candidate a explain its region better than b? The larger explanation score wins; within
@@ -560,8 +698,12 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
 
   auto reject = [&](ModelSearch& s, SearchRecord rec) {
     rec.accepted = false;
-    ++s.rejected;
-    if (s.rejected >= config.max_rejections) s.done = true;
+    if (rec.proposal == "relief") {
+      ++s.proposals_rejected;  // search() stops at max_relief_proposals
+    } else if (++s.rejected >= config.max_rejections) {
+      s.scan_over = true;  // then the relief proposals, if any fit
+      s.done = config.max_relief_proposals == 0 || s.next_proposal >= s.proposals.size();
+    }
     if (rec.scan.found) exclude_patch(s, rec.scan, coarse);
     out.searches.push_back(std::move(rec));
   };
@@ -776,6 +918,9 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"min_confidence", config.verification.min_confidence},
                    {"max_overlap", config.max_overlap},
                    {"compete_margin", config.compete_margin},
+                   {"max_rejections", config.max_rejections},
+                   {"max_relief_proposals", config.max_relief_proposals},
+                   {"relief_window_m", config.relief_window_m},
                    {"verification",
                     {{"tol_m", config.verification.tol_m},
                      {"slip_m", config.verification.slip_m},
@@ -802,6 +947,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                         {"aborted_early", s.scan.aborted},
                         {"seconds_scan", s.scan.seconds}};
     if (!s.accepted) e["reason"] = s.reason;
+    e["proposal"] = s.proposal;
     if (s.scan.found) {
       e["score_m"] = num(s.scan.score_m);
       e["patch_center_xy"] = {s.scan.center_xy.x(), s.scan.center_xy.y()};

@@ -111,8 +111,20 @@ struct RecognitionConfig {
   // has slid onto something else (a tank laid along a pipeline); the 4D placement is kept.
   double max_tilt_deg = 10;
   double max_icp_shift_m = 0.2;
-  int max_instances = 20;         // per model whose count is not given
-  int max_rejections = 3;         // rejected candidates per model before giving up
+  int max_instances = 20;  // per model whose count is not given
+  int max_rejections = 3;  // rejected scan candidates per model before giving up
+  // Relief proposals (beyond the thesis' scan of sec. 6.3.2.4): the descriptor ranks a partly
+  // buried structure, or a small tool among rocks, below look-alike patches, so the scan gives up
+  // before reaching it. Once a model's scan has given up, every blob of relief standing
+  // verification.relief_m above the local seabed (a grey-scale opening of the recognition map
+  // over relief_window_m) whose size fits the model (its height at least half of what
+  // max_buried_fraction leaves standing and at most 1.5 × the model's plus 0.1 m, its area
+  // 0.25–3 × the model's footprint) is proposed to it, best-fitting first, at most
+  // max_relief_proposals of them; each is registered and verified like a scan candidate. Models
+  // whose footprint holds a square of the window are left to the scan (the opening cannot lift
+  // them off the seabed).
+  double relief_window_m = 2.0;
+  int max_relief_proposals = 4;   // per model; 0: no relief proposals
   double removal_margin_m = 0.1;  // area removed around a placed model's footprint
   // Scene points used by ICP and the residuals: those higher than the local seabed (median
   // scene height around the footprint) plus this, m.
@@ -163,6 +175,9 @@ struct SearchRecord {
   std::string model;
   bool accepted = false;
   std::string reason;  // why rejected (empty when accepted)
+  // Where the candidate came from: the descriptor scan ("scan") or a blob of relief ("relief",
+  // RecognitionConfig::max_relief_proposals; scan.center_xy is then the blob's centre).
+  std::string proposal = "scan";
   ScanResult scan;
   Placement placement;  // filled when the search went as far as registration
 };
