@@ -388,6 +388,12 @@ TEST(Oculus, CorruptHeadersNameTheFileAndOffset) {
        "rangeResolution -0.01"},
       {"beams", [&](std::string& b) { poke<std::uint16_t>(b, p1 + 108, 0); },
        "(offset 182124): nBeams 0"},
+      {"pixels",
+       [&](std::string& b) {
+         poke<std::uint16_t>(b, p1 + 106, 65000);
+         poke<std::uint16_t>(b, p1 + 108, 16000);
+       },
+       "(offset 182122): 65000 range lines × 16000 beams exceed 33554432 pixels"},
       {"image size", [&](std::string& b) { poke<std::uint32_t>(b, p1 + 114, 179969); },
        "(offset 182130): imageSize 179969 is not 703 range lines × 256 bytes"},
       {"image offset", [&](std::string& b) { poke<std::uint32_t>(b, p1 + 110, 100); },

@@ -143,6 +143,11 @@ OculusPing decode_oculus_ping(const unsigned char* p, std::size_t n, std::uint64
     throw Error(where(o.n_ranges) + ": nRanges " + std::to_string(g.n_ranges) + " is outside [1, " +
                 std::to_string(limits::kMaxRangeBins) + "]");
   }
+  if (double(g.n_ranges) * g.n_beams > limits::kMaxPixels) {
+    throw Error(where(o.n_ranges) + ": " + std::to_string(g.n_ranges) + " range lines × " +
+                std::to_string(g.n_beams) + " beams exceed " + num(limits::kMaxPixels) +
+                " pixels per image");
+  }
   if (!(g.range_resolution > 0) || !std::isfinite(g.range_resolution) ||
       g.range_resolution * g.n_ranges > limits::kMaxRange) {
     throw Error(where(o.range_resolution) + ": rangeResolution " + num(g.range_resolution) +
