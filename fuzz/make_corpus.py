@@ -182,6 +182,47 @@ w('aris', 'static_96', b'\x00' + aris(frames=3, samples=2, ping=3, nav=False))
 w('aris', 'aris3000_64_cut', b'\x02' + aris(frames=3, samples=3, ping=6, cut=100))
 w('aris', 'aris3000_128_sonar_clock', b'\x05' + aris(frames=1, samples=2, ping=9))
 
+# Oculus ping streams (fuzz_oculus): first byte = options, then SimplePingResult messages (the
+# published Oculus.h layout: v1 122-byte / v2 202-byte structures, int16 bearings in 0.01°, the
+# image at imageOffset, a 4-byte gain before each line with fire flag bit 2), plus the first real
+# ping of data/oculus (BSD-3, licence beside it) cut to its first 64 range lines.
+def oculus(version=2, bytes_=2, gains=True, ranges=6, beams=4, k=0, msg_id=0x23):
+    head = 202 if version == 2 else 122
+    off = head + 2 * beams + 2
+    line = beams * bytes_ + (4 if gains else 0)
+    b = bytearray(off + line * ranges)
+    struct.pack_into('<HHHHHIH', b, 0, 0x4f53, 1, 0, msg_id, version, len(b) - 16, 0)
+    struct.pack_into('<BBBBBdddd', b, 16, 2, 0, 0, 0, 0x09 | (2 if bytes_ == 2 else 0) | (4 if gains else 0),
+                     0.1 * ranges, 50.0, 0.0, 0.0)
+    if version == 2:
+        struct.pack_into('<IIdddddddd', b, 89, 10 + k, 0, 2.1e6, 10, 1, 0, 0, 0, 1480, 5.0 + 0.1 * k)
+        struct.pack_into('<BdHH', b, 161, bytes_ - 1, 0.02, ranges, beams)
+        struct.pack_into('<III', b, 190, off, line * ranges, len(b))
+    else:
+        struct.pack_into('<IIddddI', b, 53, 10 + k, 0, 1.2e6, 10, 1, 1480, 1000000 + 50000000 * k)
+        struct.pack_into('<BdHHIII', b, 97, bytes_ - 1, 0.02, ranges, beams, off, line * ranges, len(b))
+    for j in range(beams):
+        struct.pack_into('<h', b, head + 2 * j, -3000 + j * 6000 // max(beams - 1, 1))
+    for r in range(ranges):
+        at = off + r * line
+        if gains:
+            struct.pack_into('<f', b, at, 1.5 + r)
+            at += 4
+        for j in range(beams):
+            v = (37 * r + 11 * j + k) % (256 if bytes_ == 1 else 65536)
+            struct.pack_into('<B' if bytes_ == 1 else '<H', b, at + bytes_ * j, v)
+    return bytes(b)
+w('oculus', 'v2_16bit_gains', b'\x00' + oculus() + oculus(k=1))
+w('oculus', 'v2_16bit_gains_divide_mirror', b'\x03' + oculus(k=0) + oculus(k=1)[:-7])
+w('oculus', 'v1_8bit_other_message', b'\x04' + oculus(1, 1, False) +
+  struct.pack('<HHHHHIH', 0x4f53, 1, 0, 0x80, 0, 4, 0) + b'abcd' + oculus(1, 1, False, k=1))
+real = open('data/oculus/three_pings_8bit.raw', 'rb').read()[:182016]
+r = bytearray(real[:2048 + 64 * 256])
+struct.pack_into('<I', r, 10, len(r) - 16)
+struct.pack_into('<H', r, 106, 64)
+struct.pack_into('<II', r, 114, 64 * 256, len(r))
+w('oculus', 'real_ping_64_lines', b'\x00' + bytes(r))
+
 # ROS bags (fuzz_rosbag) and messages (fuzz_rosmsg): a 2-frame dataset (4 beams × 8 range bins)
 # exported by `sonar3d export rosbag` (ROS 2 and --ros1), so the seeds are what the importer
 # reads; needs a built CLI ($SONAR3D, else build/bin/sonar3d). fuzz_rosmsg's seeds are the

@@ -19,7 +19,8 @@ expect() { if [ -s "$work/$1" ]; then echo "ok    $1"; else echo "FAIL  $1 missi
 for f in ref/sonar.yaml ref/truth/scene.yaml sphere.png carve.ply deconv.ply metrics.json \
          pipe/sonar.yaml noise/mean.tiff noise/std.tiff plan/results.csv plan/report.html \
          imported/sonar.yaml imported/navigation.tum imported_deconv.ply survey_map/merged.tif \
-         survey_map/navigation_corrected.tum survey_map/summary.json; do
+         survey_map/navigation_corrected.tum survey_map/summary.json oculus/sonar.yaml \
+         oculus/frames/000002.png; do
   expect "tour/$f"
 done
 # The carving of the reference objects is a real reconstruction: coverage and median error in

@@ -5,6 +5,7 @@
 #include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
+#include "sonar3d/io/oculus.hpp"
 #include "sonar3d/io/rosbag.hpp"
 
 namespace sonar3d::cli {
@@ -328,6 +329,112 @@ void add_import_rosbag(CLI::App& parent, const GlobalOptions& g, Runner& run) {
   });
 }
 
+void add_import_oculus(CLI::App& parent, const GlobalOptions& g, Runner& run) {
+  auto* cmd = parent.add_subcommand(
+      "oculus",
+      "Import a Blueprint Subsea Oculus raw ping stream (SimplePingResult v1/v2 messages one after "
+      "another, as the sonar sends them): the bearing table, range lines, 8/16-bit samples and "
+      "per-line gains of each ping; vertical aperture from the published specifications of the "
+      "model the frequency identifies; poses from a navigation file or a fixed sonar. See "
+      "docs/import.md.");
+  auto file = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto nav = std::make_shared<std::string>();
+  auto nav_format = std::make_shared<std::string>();
+  auto convention = std::make_shared<std::string>("enu");
+  auto angles = std::make_shared<std::string>("deg");
+  auto clock = std::make_shared<std::string>("ping");
+  auto gains = std::make_shared<std::string>("keep");
+  auto mount = std::make_shared<std::string>("0,0,0,0,0,0");
+  auto aperture = std::make_shared<double>(0.0);
+  auto cfg = std::make_shared<OculusImportConfig>();
+  auto overwrite = std::make_shared<bool>(false);
+  cmd->add_option("file", *file, "raw Oculus ping stream")->required()->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", *out,
+                  "dataset directory to write (must not exist, be empty, or be a sonar3d dataset "
+                  "with --overwrite)")
+      ->required();
+  add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
+  cmd->add_option("--nav", *nav,
+                  "navigation file: TUM (T_world_vehicle) or CSV (time,x,y,z,roll,pitch,yaw), "
+                  "timed onto the pings as `import frames` does")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--static", cfg->static_sonar, "a fixed sonar: no navigation, identity poses");
+  cmd->add_option("--nav-format", *nav_format, "tum or csv (default: by extension)")
+      ->check(CLI::IsMember({"tum", "csv"}));
+  cmd->add_option("--nav-convention", *convention, "CSV frames: 'enu' or 'ned'")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"enu", "ned"}));
+  cmd->add_option("--angles", *angles, "CSV roll/pitch/yaw unit: deg or rad")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"deg", "rad"}));
+  cmd->add_option("--clock", *clock,
+                  "ping times from pingStartTime ('ping': v2 seconds since power-up, v1 "
+                  "nanosecond counter) or from the ping order ('rate', with --rate)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"ping", "rate"}));
+  cmd->add_option("--rate", cfg->rate_hz, "pings per second for --clock rate");
+  cmd->add_option("--gains", *gains,
+                  "per-line gains of pings that carry them: 'keep' the samples as sent, or "
+                  "'divide' each line by its gain (float32 TIFF frames)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"keep", "divide"}));
+  cmd->add_flag("--mirror", cfg->mirror,
+                "the stream's bearings are positive to starboard: mirror them (default: positive "
+                "to port, docs/import.md §8)");
+  cmd->add_option("--mount", *mount,
+                  "T_vehicle_sonar as x,y,z,roll,pitch,yaw (m, degrees; vehicle x forward, y "
+                  "left, z up)")
+      ->capture_default_str();
+  cmd->add_option("--vertical-aperture-deg", *aperture,
+                  "full vertical aperture (default: the published one of the model and mode the "
+                  "ping frequency identifies: 20° or 12°)");
+  cmd->add_option("--time-offset", cfg->time_offset,
+                  "seconds added to ping times to reach the navigation clock")
+      ->capture_default_str();
+  cmd->add_flag("--drop-outside", cfg->drop_outside,
+                "drop (and count) pings outside the navigation span instead of failing");
+  cmd->callback([&g, &run, file, out, nav, nav_format, convention, angles, clock, gains, mount,
+                 aperture, cfg, overwrite] {
+    run = [&g, file, out, nav, nav_format, convention, angles, clock, gains, mount, aperture, cfg,
+           overwrite] {
+      cfg->navigation = *nav;
+      cfg->navigation_format = *nav_format;
+      cfg->navigation_csv.convention = parse_nav_convention(*convention);
+      cfg->navigation_csv.degrees = *angles == "deg";
+      cfg->clock = parse_oculus_clock(*clock);
+      cfg->gains = parse_oculus_gains(*gains);
+      cfg->T_vehicle_sonar = parse_mounting(*mount);
+      cfg->vertical_aperture_rad = *aperture * M_PI / 180;
+      cfg->validate();
+      OutputPolicy policy;
+      policy.overwrite = *overwrite;
+      policy.on_note = print_note;
+      policy.sources = {*file};
+      if (!nav->empty()) policy.sources.push_back(*nav);
+      OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      const OculusImportResult r = import_oculus(*file, dest.staging(), *cfg, !g.quiet);
+      dest.commit();
+      for (const auto& w : r.warnings) fmt::print(stderr, "sonar3d: warning: {}: {}\n", *file, w);
+      fmt::print(
+          "imported {} of {} pings (SimplePingResult v{}, {} lines × {} beams, {}-bit{}) "
+          "from {} to {}; poses: {}",
+          r.frames, r.pings, r.version, r.spec.range_bins, r.spec.beams(), r.spec.bit_depth,
+          r.has_gains ? ", per-line gains" : "", *file, *out,
+          cfg->static_sonar ? "static" : "navigation file");
+      if (r.dropped) fmt::print("; dropped {} outside the navigation span", r.dropped);
+      if (r.dropped_bytes) fmt::print("; dropped {} bytes of a cut last message", r.dropped_bytes);
+      fmt::print("\n");
+      fmt::print("sonar: {}, {:.4f}–{:.4f} m, bearings {:.2f}° … {:.2f}°, {:.1f}° vertical\n",
+                 r.model, r.spec.r_min, r.spec.r_max, r.spec.bearings_rad.front() * 180 / M_PI,
+                 r.spec.bearings_rad.back() * 180 / M_PI,
+                 r.spec.vertical_aperture_rad * 180 / M_PI);
+      if (r.has_gains) fmt::print("gains: {:.6g} … {:.6g}\n", r.gain_min, r.gain_max);
+      return 0;
+    };
+  });
+}
+
 }  // namespace
 
 void add_import(CLI::App& app, const GlobalOptions& g, Runner& run) {
@@ -335,12 +442,15 @@ void add_import(CLI::App& app, const GlobalOptions& g, Runner& run) {
       app.add_subcommand("import",
                          "Convert recordings into a sonar3d dataset: 'holoocean' (HoloOcean/neusis "
                          "pickles), 'frames' (images + timestamps + a navigation log), 'aris' "
-                         "(Sound Metrics ARIS files), 'rosbag' (ROS 1 and ROS 2 bags).");
+                         "(Sound Metrics ARIS files), 'rosbag' (ROS 1 and ROS 2 bags), 'oculus' "
+                         "(Blueprint Oculus ping "
+                         "streams).");
   cmd->require_subcommand(1);
   add_import_holoocean(*cmd, g, run);
   add_import_frames(*cmd, g, run);
   add_import_aris(*cmd, g, run);
   add_import_rosbag(*cmd, g, run);
+  add_import_oculus(*cmd, g, run);
 }
 
 }  // namespace sonar3d::cli

@@ -1,9 +1,10 @@
-// Datasets (read, write), HoloOcean and frames + navigation imports, navigation logs.
+// Datasets (read, write), HoloOcean, frames + navigation and Oculus imports, navigation logs.
 #include "common.hpp"
 #include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
+#include "sonar3d/io/oculus.hpp"
 #include "sonar3d/sim/simulation.hpp"
 
 namespace sonar3d::python {
@@ -291,6 +292,68 @@ void bind_io(py::module_& m) {
       "(a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a dataset. "
       "Frames outside the navigation span raise sonar3d.Error, or are dropped and counted with "
       "drop_outside=True. progress: True (terminal bar) or progress(done, total).");
+
+  m.def(
+      "import_oculus",
+      [](const std::string& file, const std::string& output, const py::object& navigation,
+         bool static_sonar, const std::string& convention, bool degrees,
+         const std::string& nav_format, const std::string& clock, double rate, double time_offset,
+         bool drop_outside, const std::string& gains, bool mirror, const py::object& mount,
+         double vertical_aperture_deg, const py::object& progress, bool overwrite) {
+        OutputPolicy policy;  // as the CLI: the stream and the navigation are never the output
+        policy.overwrite = overwrite;
+        policy.sources = {file};
+        OculusImportConfig cfg;
+        if (!navigation.is_none()) {
+          cfg.navigation = py::str(navigation).cast<std::string>();
+          policy.sources.push_back(cfg.navigation);
+        }
+        check_output_directory(output, OutputKind::Dataset, policy);
+        cfg.static_sonar = static_sonar;
+        cfg.navigation_format = nav_format;
+        cfg.navigation_csv.convention = parse_nav_convention(convention);
+        cfg.navigation_csv.degrees = degrees;
+        cfg.clock = parse_oculus_clock(clock);
+        cfg.rate_hz = rate;
+        cfg.time_offset = time_offset;
+        cfg.drop_outside = drop_outside;
+        cfg.gains = parse_oculus_gains(gains);
+        cfg.mirror = mirror;
+        if (!mount.is_none()) cfg.T_vehicle_sonar = array_to_pose(mount.cast<carray<double>>());
+        cfg.vertical_aperture_rad = vertical_aperture_deg * M_PI / 180.0;
+        ProgressArg p(progress);
+        const OculusImportResult r =
+            p.run([&] { return import_oculus(file, output, cfg, p.terminal()); });
+        py::dict d;
+        d["pings"] = r.pings;
+        d["frames"] = r.frames;
+        d["dropped"] = r.dropped;
+        d["dropped_bytes"] = r.dropped_bytes;
+        d["other_messages"] = r.other_messages;
+        d["version"] = r.version;
+        d["model"] = r.model;
+        d["has_gains"] = r.has_gains;
+        if (r.has_gains) d["gains"] = py::make_tuple(r.gain_min, r.gain_max);
+        d["first_time"] = r.first_time;
+        d["last_time"] = r.last_time;
+        d["spec"] = r.spec;
+        d["warnings"] = r.warnings;
+        return d;
+      },
+      "file"_a, "output"_a, "navigation"_a = py::none(), "static"_a = false, "convention"_a = "enu",
+      "degrees"_a = true, "nav_format"_a = "", "clock"_a = "ping", "rate"_a = 0.0,
+      "time_offset"_a = 0.0, "drop_outside"_a = false, "gains"_a = "keep", "mirror"_a = false,
+      "mount"_a = py::none(), "vertical_aperture_deg"_a = 0.0, "progress"_a = py::none(),
+      "overwrite"_a = false,
+      "Imports a Blueprint Oculus raw ping stream (SimplePingResult v1/v2) into a dataset, as "
+      "`sonar3d import oculus` (docs/import.md §8). navigation: a TUM or CSV file "
+      "(T_world_vehicle), or static=True for a fixed sonar; clock 'ping' (pingStartTime) or "
+      "'rate' (i / rate, pings/s); time_offset in s; gains 'keep' or 'divide'; mirror=True when "
+      "bearings are positive to starboard; mount: 4x4 T_vehicle_sonar; vertical_aperture_deg: "
+      "full aperture in degrees (0 = the published one of the model). Returns {pings, frames, "
+      "dropped, dropped_bytes (a cut last message), other_messages, version, model, has_gains, "
+      "gains (min, max), first_time, last_time, spec, warnings}. progress: True or "
+      "progress(done, total).");
 }
 
 }  // namespace sonar3d::python

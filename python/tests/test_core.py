@@ -8,7 +8,7 @@ import sonar3d
 def test_module_has_docstrings():
     assert "sonar" in sonar3d.__doc__
     for name in ["read_dataset", "write_dataset", "simulate", "denoise", "evaluate",
-                 "import_holoocean", "import_frames", "read_navigation"]:
+                 "import_holoocean", "import_frames", "import_oculus", "read_navigation"]:
         assert getattr(sonar3d, name).__doc__, name
 
 

@@ -201,3 +201,30 @@ def test_import_frames(tmp_path, small_spec):
     ds = sonar3d.read_dataset(str(tmp_path / "ds"))
     np.testing.assert_allclose(ds.pose(1)[:3, 3], [4.5, 0, 0], atol=1e-12)  # 2 m/s at t = 2
     np.testing.assert_allclose(ds.frame(1), images[1], atol=1e-6)
+
+
+REAL_PINGS = os.path.join(os.path.dirname(__file__), "..", "..", "data", "oculus",
+                          "three_pings_8bit.raw")
+
+
+def test_import_oculus_real_pings(tmp_path):
+    out = str(tmp_path / "ds")
+    r = sonar3d.import_oculus(REAL_PINGS, out, static=True)
+    assert r["pings"] == 3 and r["frames"] == 3 and r["version"] == 1
+    assert not r["has_gains"] and r["dropped_bytes"] == 0
+    assert "M1200d" in r["model"]
+    ds = sonar3d.read_dataset(out)
+    assert len(ds) == 3
+    assert ds.spec.beams == 256 and ds.spec.range_bins == 703
+    b = np.degrees(ds.spec.bearings)
+    assert b[0] == pytest.approx(-30) and b[-1] == pytest.approx(30) and np.all(np.diff(b) > 0)
+    raw = np.fromfile(REAL_PINGS, dtype=np.uint8)
+    np.testing.assert_allclose(ds.frame(0), raw[2048:2048 + 703 * 256].reshape(703, 256) / 255.0,
+                               atol=1e-7)
+    # A cut stream keeps its whole pings; no navigation is an error.
+    cut = tmp_path / "cut.raw"
+    cut.write_bytes(raw[:-1000].tobytes())
+    r = sonar3d.import_oculus(str(cut), str(tmp_path / "cut"), static=True)
+    assert r["frames"] == 2 and r["dropped_bytes"] == 181016
+    with pytest.raises(sonar3d.Error, match="--static"):
+        sonar3d.import_oculus(REAL_PINGS, str(tmp_path / "x"))

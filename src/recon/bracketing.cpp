@@ -41,7 +41,7 @@ class WedgeTester {
   Sighting test(const FrameView& f, const Eigen::Vector3d& p_world) const {
     const Eigen::Vector3d p = f.R_sonar_world * (p_world - f.t_world);
     const double r2 = p.squaredNorm();
-    if (r2 < g_.r_min * g_.r_min || r2 >= g_.r_max * g_.r_max) return {};
+    if (!(r2 > 0) || r2 < g_.r_min * g_.r_min || r2 >= g_.r_max * g_.r_max) return {};
     const double r = std::sqrt(r2);
     const double s = p.z() / r;
     if (std::abs(s) > g_.sin_theta3) return {};

@@ -350,7 +350,7 @@ class FrameCarver {
   // The voxel-centric carving rule for one voxel centre p (sonar frame).
   bool update_voxel(LeafCtx& c, openvdb::Index n, const Eigen::Vector3d& p) const {
     const double r2 = p.squaredNorm();
-    if (r2 < r_min2_ || r2 >= r_max2_) return false;
+    if (!(r2 > 0) || r2 < r_min2_ || r2 >= r_max2_) return false;  // r_min may be 0
     const double r = std::sqrt(r2);
     const double s = p.z() / r;
     if (std::abs(s) > g_.sin_theta3) return false;  // outside the vertical aperture

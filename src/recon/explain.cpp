@@ -153,7 +153,7 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
             if (!alive[n]) continue;
             const Eigen::Vector3d p = fp.to_sonar(points_world.points[n].cast<double>());
             const double r2 = p.squaredNorm();
-            if (r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
+            if (!(r2 > 0) || r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
             const double r = std::sqrt(r2);
             // The pixel first: most points lie in an empty one, and its test is cheaper than
             // the elevation's atan2 (the same points pass both tests in either order).

@@ -207,7 +207,7 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
           const auto bit = static_cast<std::uint32_t>(w * 64 + __builtin_ctzll(bits));
           const Eigen::Vector3d p = fp.to_sonar(position(bi, bit));
           const double r2 = p.squaredNorm();
-          if (r2 < r_min2 || r2 >= r_max2) continue;
+          if (!(r2 > 0) || r2 < r_min2 || r2 >= r_max2) continue;  // the centre: no direction
           const double r = std::sqrt(r2);
           const double s = p.z() / r;
           if (std::abs(s) > g.sin_theta3) continue;
