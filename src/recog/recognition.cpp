@@ -596,36 +596,52 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       p.seconds = since(t0);
       return;
     }
-    p.T_world_model_4d = s4.T_world_model;
+    // Step 1's height: eq. 6.9's ζ (the signed median of eq. 6.1), or the model standing on the
+    // local seabed, whichever explains the scene better (verify.hpp's score). The median
+    // aligns an open frame's top with the seabed seen through it (measured: a 1.6 m lattice
+    // frame placed 1.55 m deep and refused as buried); standing on the seabed is the prior of
+    // every catalogue structure, and a partly buried one keeps the median's height.
+    Eigen::Isometry3d T4 = s4.T_world_model;
+    Verification v4 = verify_placement(*m, T4, fine, removed_fine, config.verification);
+    if (std::isfinite(v4.ground_z)) {
+      Eigen::Isometry3d T_seated = T4;
+      T_seated.translation().z() +=
+          v4.ground_z - (T4 * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z)).z();
+      const Verification vs =
+          verify_placement(*m, T_seated, fine, removed_fine, config.verification);
+      if (vs.valid && vs.score_m3 > v4.score_m3) {
+        T4 = T_seated;
+        v4 = vs;
+      }
+    }
+    p.T_world_model_4d = T4;
     p.rms_4d_m = s4.rms_m;
     const double reach = m->radius_m + config.icp.max_distance_m + 0.1;
     const Eigen::Vector2d c4 =
-        (s4.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
+        (T4 * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
     std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
     // The structure's points only: those standing above the local seabed. Seabed points beside
     // a wall or a footing would otherwise pull the model sideways and tilt it.
-    const Verification v4 =
-        verify_placement(*m, s4.T_world_model, fine, removed_fine, config.verification);
     if (std::isfinite(v4.ground_z)) {
       const float cut = static_cast<float>(v4.ground_z + config.ground_clearance_m);
       local.erase(std::remove_if(local.begin(), local.end(),
                                  [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
                   local.end());
     }
-    p.residual_4d = structure_residual(local, *m, s4.T_world_model);
-    p.T_world_model = s4.T_world_model;
+    p.residual_4d = structure_residual(local, *m, T4);
+    p.T_world_model = T4;
     p.residual = p.residual_4d;
     p.set_verification(v4);
     if (config.run_icp && local.size() >= 6 &&
-        buried_fraction(*m, s4.T_world_model, v4.ground_z) <= config.max_buried_fraction) {
+        buried_fraction(*m, T4, v4.ground_z) <= config.max_buried_fraction) {
       // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
       try {
         if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
-        const IcpResult icp = trimmed_icp(*s.index, local, s4.T_world_model, config.icp);
+        const IcpResult icp = trimmed_icp(*s.index, local, T4, config.icp);
         p.icp_iterations = icp.iterations;
         const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
                                       0.5 * (m->base_z + m->top_z));
-        const double shift = (icp.T_world_model * c_model - s4.T_world_model * c_model).norm();
+        const double shift = (icp.T_world_model * c_model - T4 * c_model).norm();
         if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg && shift <= config.max_icp_shift_m) {
           const Verification vi =
               verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
