@@ -58,7 +58,15 @@ def test_recognize_finds_the_scale_of_a_larger_box(tmp_path):
     u = c * (xs - 2.5) + s * (ys - 2.0)
     v = -s * (xs - 2.5) + c * (ys - 2.0)
     z = np.where((np.abs(u) <= 0.535) & (np.abs(v) <= 0.321), 0.535, z)
-    pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()]).astype(np.float32)
+    pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()])
+    # Its walls every 1 cm, as a carved map has them (a bare height grid reads boxes 2-4 % small:
+    # docs/recognition.md, "Scale").
+    a, h = np.meshgrid(np.arange(-1, 1.0001, 0.01), np.arange(0.06, 0.535, 0.01))
+    a, h = a.ravel(), h.ravel()
+    for wu, wv in [(a * 0.535, -0.321 + 0 * a), (a * 0.535, 0.321 + 0 * a),
+                   (-0.535 + 0 * a, a * 0.321), (0.535 + 0 * a, a * 0.321)]:
+        pts = np.vstack([pts, np.column_stack([2.5 + c * wu - s * wv, 2.0 + s * wu + c * wv, h])])
+    pts = pts.astype(np.float32)
     box_catalogue(tmp_path)
     cat = tmp_path / "scaled.yaml"
     cat.write_text("models:\n  - {name: box, mesh: box.obj, symmetry: \"180\", "
