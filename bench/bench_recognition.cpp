@@ -100,8 +100,7 @@ int main(int argc, char** argv) {
     const Catalogue cat = read_catalogue(argv[3]);
     std::vector<ModelTemplate> models;
     for (const auto& m : cat.models) {
-      models.push_back(make_model_template(m.name, load_catalogue_mesh(cat, m), m.symmetry,
-                                           m.expected, cfg.sampling));
+      models.push_back(make_catalogue_template(cat, m, cfg.sampling));
     }
     fs::path map = argv[2];
     if (fs::is_directory(map)) map /= "merged.ply";

@@ -180,8 +180,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       const Catalogue cat = read_catalogue(o->catalogue);
       std::vector<ModelTemplate> models;
       for (const auto& m : cat.models) {
-        models.push_back(make_model_template(m.name, load_catalogue_mesh(cat, m), m.symmetry,
-                                             m.expected, cfg.sampling));
+        models.push_back(make_catalogue_template(cat, m, cfg.sampling));
       }
       std::string what;
       const PointCloud scene = read_scene(o->map, o->voxel_size, !g.quiet, &what);
@@ -199,10 +198,11 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
         const Eigen::Vector3d t = p.T_world_model.translation();
         const Eigen::Matrix3d R = p.T_world_model.linear();
         fmt::print(
-            "  {}: at E {:.3f} N {:.3f} U {:.3f} m, yaw {:.1f} deg; score {:.3f} m; residual "
-            "median {:.3f} m, mean {:.3f} m (step 1: {:.3f}, {:.3f}); {}; {:.2f} s\n",
-            p.model, t.x(), t.y(), t.z(), std::atan2(R(1, 0), R(0, 0)) * 180 / M_PI, p.score_m,
-            p.residual.median_m, p.residual.mean_m, p.residual_4d.median_m, p.residual_4d.mean_m,
+            "  {}: at E {:.3f} N {:.3f} U {:.3f} m, yaw {:.1f} deg, scale {:.3f}; score {:.3f} m; "
+            "residual median {:.3f} m, mean {:.3f} m (step 1: {:.3f}, {:.3f}); {}; {:.2f} s\n",
+            p.model, t.x(), t.y(), t.z(), std::atan2(R(1, 0), R(0, 0)) * 180 / M_PI, p.scale,
+            p.score_m, p.residual.median_m, p.residual.mean_m, p.residual_4d.median_m,
+            p.residual_4d.mean_m,
             three_d ? fmt::format("coverage {:.2f}", p.support)
                     : fmt::format("confidence {:.2f} (seen {:.2f}, explained {:.2f}, violation "
                                   "{:.2f}, unexplained {:.2f})",

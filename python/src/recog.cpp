@@ -39,8 +39,7 @@ void bind_recog(py::module_& m) {
         {
           py::gil_scoped_release release;
           for (const auto& mo : cat.models) {
-            models.push_back(make_model_template(mo.name, load_catalogue_mesh(cat, mo), mo.symmetry,
-                                                 mo.expected, cfg.sampling));
+            models.push_back(make_catalogue_template(cat, mo, cfg.sampling));
           }
           r = method == "3d" ? recognize_3d(cloud, models, cfg3)
                              : recognize_2d(cloud, models, cfg, false);
@@ -49,10 +48,10 @@ void bind_recog(py::module_& m) {
         for (const Placement& p : r.placements) {
           out.append(py::dict(
               "model"_a = p.model, "method"_a = p.method,
-              "T_world_model"_a = pose_to_array(p.T_world_model), "score_m"_a = p.score_m,
-              "residual_median_m"_a = p.residual.median_m, "residual_mean_m"_a = p.residual.mean_m,
-              "support"_a = p.support, "confidence"_a = p.confidence,
-              "yaw_ambiguous"_a = p.yaw_ambiguous,
+              "T_world_model"_a = pose_to_array(p.T_world_model), "scale"_a = p.scale,
+              "score_m"_a = p.score_m, "residual_median_m"_a = p.residual.median_m,
+              "residual_mean_m"_a = p.residual.mean_m, "support"_a = p.support,
+              "confidence"_a = p.confidence, "yaw_ambiguous"_a = p.yaw_ambiguous,
               "verification"_a = py::dict(
                   "valid"_a = p.verification.valid, "seen"_a = p.verification.seen,
                   "explained"_a = p.verification.explained,
@@ -72,7 +71,9 @@ void bind_recog(py::module_& m) {
       "map, 4D search (eq. 6.9), trimmed ICP (icp, period_m, map_cell_m, recog_cell_m, "
       "min_confidence apply); method '3d' (sec. 6.3.1): spherical subspaces filtered by eq. "
       "6.4-6.7, yaw sweep + trimmed ICP in each, or a global registration with upright=False. "
-      "Returns one dict per placement: model, method, T_world_model (4×4), score_m, "
+      "Returns one dict per placement: model, method, T_world_model (4×4), scale (the placed "
+      "model is T_world_model · scale · model; 1 unless the catalogue gives a scale_range), "
+      "score_m, "
       "residual_median_m, residual_mean_m, support, confidence, verification (2d: seen, explained, "
       "violation, unexplained, score_m3), step1_T_world_model, step1_residual_median_m, "
       "seconds.");

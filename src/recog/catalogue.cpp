@@ -1,6 +1,8 @@
 // The CAD-model catalogue of recognition (thesis sec. 6.3): YAML parsing and mesh loading.
 #include "sonar3d/recog/catalogue.hpp"
 
+#include <fmt/core.h>
+
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -48,7 +50,9 @@ Catalogue read_catalogue(const std::string& path) {
   for (std::size_t i = 0; i < list.size(); ++i) {
     const YAML::Node m = list[i];
     const std::string ctx = "models[" + std::to_string(i) + "]";
-    yaml::check_keys(m, {"name", "mesh", "reference", "symmetry", "expected", "scale"}, path, ctx);
+    yaml::check_keys(m,
+                     {"name", "mesh", "reference", "symmetry", "expected", "scale", "scale_range"},
+                     path, ctx);
     CatalogueModel model;
     model.line = m.Mark().line + 1;
     model.name = yaml::get_string(m, "name", "", path, ctx);
@@ -103,6 +107,34 @@ Catalogue read_catalogue(const std::string& path) {
     model.scale = yaml::get_double(m, "scale", 1.0, path, ctx);
     if (!(model.scale > 1e-3 && model.scale < 1e3)) {
       throw Error(yaml::where(path, m["scale"], ctx + ".scale") + ": must lie in (0.001, 1000)");
+    }
+    if (m["scale_range"]) {
+      // Thesis sec. 6.7 (future work): structures come in sizes off their CAD model's.
+      const std::string key = ctx + ".scale_range";
+      const std::string at =
+          yaml::where(path, m["scale_range"], key) + " (model '" + printable(model.name) + "')";
+      std::vector<double> r;
+      try {
+        r = yaml::get_vector(m, "scale_range", 2, path, ctx);
+      } catch (const Error&) {
+        throw Error(at + ": expected two finite numbers [min, max], e.g. [0.9, 1.1]");
+      }
+      if (r[0] > r[1]) {
+        throw Error(at + ": scale range inverted (" + fmt::format("{} > {}", r[0], r[1]) +
+                    "): give [min, max]");
+      }
+      if (!(r[0] >= kMinScaleSearch && r[1] <= kMaxScaleSearch)) {
+        throw Error(at + ": " + fmt::format("[{}, {}]", r[0], r[1]) + " lies outside [" +
+                    fmt::format("{}, {}", kMinScaleSearch, kMaxScaleSearch) +
+                    "]: the search refines sizes off by tens of percent; set 'scale' for a "
+                    "model of another size");
+      }
+      if (!(r[0] <= 1 && r[1] >= 1)) {
+        throw Error(at + ": " + fmt::format("[{}, {}]", r[0], r[1]) +
+                    " must contain 1 (the mesh at its 'scale')");
+      }
+      model.scale_min = r[0];
+      model.scale_max = r[1];
     }
     cat.models.push_back(std::move(model));
   }

@@ -73,6 +73,15 @@ ModelTemplate make_model_template(const std::string& name, const TriangleMesh& m
   return m;
 }
 
+ModelTemplate make_catalogue_template(const Catalogue& catalogue, const CatalogueModel& model,
+                                      const ModelSamplingConfig& config) {
+  ModelTemplate m = make_model_template(model.name, load_catalogue_mesh(catalogue, model),
+                                        model.symmetry, model.expected, config);
+  m.scale_min = model.scale_min;
+  m.scale_max = model.scale_max;
+  return m;
+}
+
 Eigen::Isometry3d top_view_pose(const ModelTemplate& m, double yaw_rad,
                                 const Eigen::Vector2d& center_world_xy, const Eigen::Vector3d& t) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -42,6 +42,14 @@ double tilt_deg(const Eigen::Isometry3d& T);
 std::unique_ptr<tbb::global_control> check_recognition_inputs(
     const PointCloud& scene, const std::vector<ModelTemplate>& models, int num_threads);
 
+// Thesis sec. 6.7 (sizes off by ±10 %): the scale of a model with a scale_range searched about
+// its placement p found at scale 1 (search_scale), and p updated: scale, pose, residual on
+// `local` (the structure's points), verification on `fine` (recog/scale.hpp).
+void refine_placement_scale(const ModelTemplate& m, Placement& p, const ElevationMap& fine,
+                            const std::vector<uint8_t>& removed_fine,
+                            const std::vector<Eigen::Vector3f>& local,
+                            const RecognitionConfig& config);
+
 // Sec. 6.3.2.6: the models in decreasing horizontal size (r_model), ties in catalogue order.
 std::vector<const ModelTemplate*> by_decreasing_size(const std::vector<ModelTemplate>& models);
 

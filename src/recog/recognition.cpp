@@ -197,6 +197,7 @@ void RecognitionConfig::validate() const {
   require_positive(max_relative_score, "max_relative_score");
   require_positive(max_residual_median_m, "max_residual_median_m", "m");
   verification.validate();
+  scale.validate();
   require(max_overlap >= 0 && max_overlap <= 1, "max_overlap must lie in [0, 1]");
   require(compete_margin >= 0 && compete_margin <= 1, "compete_margin must lie in [0, 1]");
   require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
@@ -462,7 +463,8 @@ std::string verdict(const Placement& p, const ModelTemplate& m, const Recognitio
   const Verification& v = p.verification;
   if (!v.valid) return "nothing observed around the model's footprint (no seabed to stand on)";
   if (v.overlap > config.max_overlap) return "overlaps an accepted placement";
-  if (buried_fraction(m, p.T_world_model, v.ground_z) > config.max_buried_fraction) {
+  if (buried_fraction(*ModelAtScale(m, p.scale), p.T_world_model, v.ground_z) >
+      config.max_buried_fraction) {
     return "more of the model below the seabed than max_buried_fraction";
   }
   if (!(p.residual.median_m <= config.max_residual_median_m)) {
@@ -616,7 +618,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     }
     p.T_world_model_4d = T4;
     p.rms_4d_m = s4.rms_m;
-    const double reach = m->radius_m + config.icp.max_distance_m + 0.1;
+    const double reach = m->radius_m * m->scale_max + config.icp.max_distance_m + 0.1;
     const Eigen::Vector2d c4 =
         (T4 * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
     std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
@@ -655,6 +657,9 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       } catch (const Error&) {
         // No scene point near the model: keep the 4D placement (judged below).
       }
+    }
+    if (m->scale_searched()) {
+      refine_placement_scale(*m, p, fine, removed_fine, local, config);  // scale.cpp
     }
     p.seconds_registration = since(t1);
     p.seconds = since(t0);
@@ -798,14 +803,15 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       if (best->m->symmetry == Symmetry::None) {
         // Would the model turned 180° explain the region as well?
         Placement& p = rec.placement;
+        const ModelAtScale mb(*best->m, p.scale);
         const Eigen::Vector3d axis =
-            p.T_world_model * Eigen::Vector3d(best->m->center_xy.x(), best->m->center_xy.y(), 0);
+            p.T_world_model * Eigen::Vector3d(mb->center_xy.x(), mb->center_xy.y(), 0);
         Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
         turn.translation() = axis;
         turn.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
         turn.translate(-axis);
-        const Verification vt = verify_placement(*best->m, turn * p.T_world_model, fine,
-                                                 removed_fine, config.verification);
+        const Verification vt =
+            verify_placement(*mb, turn * p.T_world_model, fine, removed_fine, config.verification);
         p.turned_confidence = vt.confidence;
         p.yaw_ambiguous = vt.confidence >= config.verification.min_confidence &&
                           vt.score_m3 >= (1 - config.compete_margin) * p.verification.score_m3;
@@ -814,17 +820,18 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       ++best->found;
       if (best->found >= best->wanted) best->done = true;
       exclude_patch(*best, rec.scan, coarse);
-      mark_placed(*best->m, rec.placement.T_world_model, coarse, config.removal_margin_m,
+      const ModelAtScale placed(*best->m, rec.placement.scale);
+      mark_placed(*placed, rec.placement.T_world_model, coarse, config.removal_margin_m,
                   removed_coarse);
-      mark_placed(*best->m, rec.placement.T_world_model, fine, config.removal_margin_m,
+      mark_placed(*placed, rec.placement.T_world_model, fine, config.removal_margin_m,
                   removed_fine);
       out.searches.push_back(std::move(rec));
       // The other candidates, judged again without the accepted placement's area.
       for (ModelSearch& s : states) {
         if (!s.pending) continue;
         Placement& p = s.pending->placement;
-        p.set_verification(
-            verify_placement(*s.m, p.T_world_model, fine, removed_fine, config.verification));
+        p.set_verification(verify_placement(*ModelAtScale(*s.m, p.scale), p.T_world_model, fine,
+                                            removed_fine, config.verification));
       }
     }
     std::size_t now_done = 0;
@@ -844,6 +851,7 @@ TriangleMesh placed_models_mesh(const std::vector<ModelTemplate>& models,
     for (const auto& m : models) {
       if (m.name != p.model) continue;
       TriangleMesh placed = m.mesh;
+      for (auto& v : placed.vertices) v *= static_cast<float>(p.scale);  // T · S(scale) · model
       placed.transform(p.T_world_model);
       out.append(placed);
     }
@@ -884,6 +892,7 @@ nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
     list.push_back({{"model", p.model},
                     {"method", p.method},
                     {"T_world_model", pose_json(p.T_world_model)},
+                    {"scale", p.scale},
                     {"translation",
                      {p.T_world_model.translation().x(), p.T_world_model.translation().y(),
                       p.T_world_model.translation().z()}},
@@ -902,6 +911,7 @@ nlohmann::json placements_list_json(const std::vector<Placement>& placements) {
                     {"icp_kept", p.icp_kept},
                     {"seconds_scan", p.seconds_scan},
                     {"seconds_registration", p.seconds_registration},
+                    {"seconds_scale", p.seconds_scale},
                     {"seconds", p.seconds}});
     // The verified methods' confidence (a method that does not verify writes none).
     if (p.method == "2d" || p.verification.valid) {
@@ -937,6 +947,11 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_rejections", config.max_rejections},
                    {"max_relief_proposals", config.max_relief_proposals},
                    {"relief_window_m", config.relief_window_m},
+                   {"scale_search",
+                    {{"coarse_step", config.scale.coarse_step},
+                     {"tolerance", config.scale.tolerance},
+                     {"rounds", config.scale.rounds},
+                     {"cap_m", config.scale.cap_m}}},
                    {"verification",
                     {{"tol_m", config.verification.tol_m},
                      {"slip_m", config.verification.slip_m},
@@ -975,6 +990,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                                 s.placement.T_world_model_4d.translation().y(),
                                 s.placement.T_world_model_4d.translation().z()};
       e["translation"] = {t.x(), t.y(), t.z()};
+      e["scale"] = s.placement.scale;
       e["rpy_deg"] = rpy_deg_json(s.placement.T_world_model);
       e["support"] = s.placement.support;
       e["observed"] = s.placement.observed;

@@ -262,9 +262,11 @@ class Models {
     throw Error("report: " + asked_by + ": model '" + model + "' is not in the catalogue '" +
                 cat_.path + "'");
   }
+  // The placed mesh: T · S(scale) · model (recognize's scale, docs/formats.md).
   TriangleMesh placed(const std::string& model, const Eigen::Matrix4d& T,
-                      const std::string& asked_by) {
+                      const std::string& asked_by, double scale = 1) {
     TriangleMesh m = mesh(model, asked_by);
+    for (auto& v : m.vertices) v *= static_cast<float>(scale);
     Eigen::Isometry3d iso;
     iso.matrix() = T;
     m.transform(iso);
@@ -317,7 +319,8 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
     const Eigen::Matrix4d T = p.T_world_model.matrix();
     const std::string asked = "'" + ppath + "': placements[" + std::to_string(i) + "]";
     scene.mesh("placement_" + std::to_string(i), p.model + " #" + std::to_string(i + 1),
-               models.placed(p.model, T, asked), {}, scene.model_color(p.model), 0.45, true);
+               models.placed(p.model, T, asked, p.scale), {}, scene.model_color(p.model), 0.45,
+               true);
     focus.push_back("placement_" + std::to_string(i));
     rows.push_back({i + 1, p.model, T(0, 3), T(1, 3), T(2, 3), yaw_deg(T), p.score_m,
                     num_or_null(p.residual_median_m), num_or_null(p.residual_mean_m), p.method,

@@ -479,7 +479,7 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
   auto centre = [](const SurveyPlacement& p, const ObjectModel& m) -> Eigen::Vector2d {
     if (!m.has_size()) return p.T_world_model.translation().head<2>();
     const Eigen::Vector2d c = m.footprint.center();
-    return (p.T_world_model * Eigen::Vector3d(c.x(), c.y(), 0)).head<2>();
+    return (p.T_world_model * Eigen::Vector3d(p.scale * c.x(), p.scale * c.y(), 0)).head<2>();
   };
   // The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
   auto radius = [&](const ObjectModel& m) {
@@ -1243,8 +1243,7 @@ std::vector<SurveyPlacement> recognize_placements(const PointCloud& cloud_world,
                                                   const RecognitionConfig& config) {
   std::vector<ModelTemplate> models;
   for (const CatalogueModel& m : catalogue.models) {
-    models.push_back(make_model_template(m.name, load_catalogue_mesh(catalogue, m), m.symmetry,
-                                         m.expected, config.sampling));
+    models.push_back(make_catalogue_template(catalogue, m, config.sampling));
   }
   const RecognitionResult r = recognize_2d(cloud_world, models, config);
   std::vector<SurveyPlacement> out;
@@ -1252,6 +1251,7 @@ std::vector<SurveyPlacement> recognize_placements(const PointCloud& cloud_world,
     SurveyPlacement rec;
     rec.model = p.model;
     rec.T_world_model = p.T_world_model;
+    rec.scale = p.scale;
     rec.score_m = p.score_m;
     rec.residual_median_m = p.residual.median_m;
     rec.residual_mean_m = p.residual.mean_m;

@@ -232,6 +232,9 @@ PlacementsFile parse_placements(const std::string& text, const std::string& sour
     PlacementRecord p;
     p.model = e["model"].get<std::string>();
     p.T_world_model = parse_pose(e["T_world_model"], at + ": T_world_model");
+    p.scale = optional_number(e, "scale", at);
+    if (!std::isfinite(p.scale)) p.scale = 1;  // absent or null: files before the size search
+    require(p.scale > 1e-3 && p.scale < 1e3, at + ": 'scale' must lie in (0.001, 1000)");
     p.score_m = optional_number(e, "score_m", at);
     p.residual_median_m = optional_number(e, "residual_median_m", at);
     p.residual_mean_m = optional_number(e, "residual_mean_m", at);
@@ -352,6 +355,13 @@ std::vector<WorldObject> world_objects(const PlacementsFile& placements,
     o.residual_median_m = p.residual_median_m;
     o.confidence = p.confidence;
     o.mesh_model = shared[static_cast<std::size_t>(it - catalogue_names.begin())];
+    if (p.scale != 1.0) {
+      // A placement at another size gets its own mesh: T_world_model · S(scale) · model.
+      TriangleMesh scaled = *o.mesh_model;
+      for (auto& v : scaled.vertices) v *= static_cast<float>(p.scale);
+      o.mesh_model = std::make_shared<const TriangleMesh>(std::move(scaled));
+      o.scale = p.scale;
+    }
     out.push_back(std::move(o));
   }
   return out;
@@ -905,7 +915,8 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
     placed.transform(o.T_world_model);
     save_mesh((tmp / file).string(), placed);
     r.models_bytes += fs::file_size(tmp / file);
-    const std::string mesh_name = o.confirmed ? o.model : o.model + " (unconfirmed)";
+    const std::string mesh_name = (o.confirmed ? o.model : o.model + " (unconfirmed)") +
+                                  (o.scale != 1.0 ? fmt::format(" x{:.4f}", o.scale) : "");
     if (!mesh_of_model.count(mesh_name)) {
       scene.meshes.push_back({mesh_name, *o.mesh_model, {}, o.confirmed ? steel : unconfirmed});
       mesh_of_model[mesh_name] = static_cast<int>(scene.meshes.size()) - 1;
@@ -923,6 +934,7 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                        {"model", o.model},
                        {"kind", o.kind},
                        {"T_world_model", T},
+                       {"scale", o.scale},
                        {"score_m", num_or_null(o.score_m)},
                        {"residual_median_m", num_or_null(o.residual_median_m)},
                        {"confidence", num_or_null(o.confidence)},

@@ -10,6 +10,8 @@
 //       symmetry: none             # none (yaw in [0°, 360°)), 180 ([0°, 180°)), full (any yaw)
 //       expected: 1                # optional: how many lie in the scene
 //       scale: 1.0                 # optional: multiplies the mesh (rough models, ±10 % tests)
+//       scale_range: [0.9, 1.1]    # optional: the size is searched within this range of `scale`
+//                                  # (thesis sec. 6.7, sizes off by ±10 %); default [1, 1]
 #include <string>
 #include <vector>
 
@@ -31,7 +33,10 @@ struct CatalogueModel {
   Symmetry symmetry = Symmetry::None;
   int expected = -1;   // -1: unknown (as many as are found)
   double scale = 1.0;  // applied to the mesh
-  int line = 0;        // 1-based line of the entry in the catalogue, for messages
+  // The range within which recognition searches the size of the (scaled) mesh, as factors of
+  // it: [1, 1] (the default) searches none. Within [kMinScaleSearch, kMaxScaleSearch].
+  double scale_min = 1.0, scale_max = 1.0;
+  int line = 0;  // 1-based line of the entry in the catalogue, for messages
 };
 
 struct Catalogue {
@@ -43,10 +48,15 @@ struct Catalogue {
 // decides loops and allocations).
 constexpr int kMaxCatalogueModels = 1000;
 constexpr int kMaxExpectedInstances = 1000;
+// Bounds of a model's scale_range: the scale search refines a size off by tens of percent around
+// a pose found at scale 1 (docs/recognition.md, "Scale"), it does not find a model of any size.
+constexpr double kMinScaleSearch = 0.5;
+constexpr double kMaxScaleSearch = 2.0;
 
 // Parses and validates a catalogue file without loading meshes. Errors name the file, line and
 // key: a missing or empty `models` list, unknown keys, both or neither of mesh/reference, an
-// unknown symmetry, duplicate names, a non-positive scale, a negative count.
+// unknown symmetry, duplicate names, a non-positive scale, a negative count, a scale_range that
+// is not two finite numbers, is inverted or lies outside [kMinScaleSearch, kMaxScaleSearch].
 Catalogue read_catalogue(const std::string& path);
 
 // The model's mesh in its own frame (metres, z up), scaled. Errors name the catalogue, the

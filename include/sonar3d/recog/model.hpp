@@ -34,12 +34,21 @@ struct ModelTemplate {
   double radius_m = 0;              // r_model in 2D: farthest vertex from center_xy, horizontally
   std::vector<Eigen::Vector3f> points;   // surface samples, model frame
   std::vector<Eigen::Vector3f> normals;  // unit normal of each sample's triangle
+  // The catalogue's scale_range (thesis sec. 6.7): the 2D method searches the model's size in
+  // [scale_min, scale_max] × this template (recog/scale.hpp); [1, 1] searches none.
+  double scale_min = 1, scale_max = 1;
   double height() const { return top_z - base_z; }
+  bool scale_searched() const { return scale_min < 1 || scale_max > 1; }
 };
 
 ModelTemplate make_model_template(const std::string& name, const TriangleMesh& mesh_model,
                                   Symmetry symmetry, int expected,
                                   const ModelSamplingConfig& config = {});
+
+// A catalogue entry's template: its mesh (load_catalogue_mesh), symmetry, expected count and
+// scale_range.
+ModelTemplate make_catalogue_template(const Catalogue& catalogue, const CatalogueModel& model,
+                                      const ModelSamplingConfig& config = {});
 
 // The placement of a top view at yaw θ centred at world (x, y), shifted by t (see above).
 Eigen::Isometry3d top_view_pose(const ModelTemplate& m, double yaw_rad,

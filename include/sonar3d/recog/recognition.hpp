@@ -20,6 +20,7 @@
 #include "sonar3d/recog/descriptor.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
+#include "sonar3d/recog/scale.hpp"
 #include "sonar3d/recog/verify.hpp"
 
 namespace sonar3d {
@@ -97,6 +98,9 @@ struct RecognitionConfig {
   // Hypothesis verification and the calibrated confidence that decides "found" (verify.hpp,
   // docs/recognition.md "Verification"): replaces the thesis' residual threshold.
   VerificationConfig verification;
+  // The size search of models with a scale_range (recog/scale.hpp, docs/recognition.md "Scale");
+  // its max_tilt_deg and max_icp_shift_m are taken from this config's.
+  ScaleSearchConfig scale;
   // A candidate whose footprint lies more than this fraction on cells of accepted placements
   // is rejected: no region carries two placements.
   double max_overlap = 0.25;
@@ -137,6 +141,10 @@ struct Placement {
   std::string model;
   std::string method = "2d";
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  // The model's size (thesis sec. 6.7): the placed model is T_world_model · S(scale) · model, S a
+  // uniform scale about the model frame's origin (recog/scale.hpp). 1 unless the catalogue gives
+  // the model a scale_range.
+  double scale = 1;
   double score_m = 0;  // descriptor score of the winning patch
   Residual residual;   // after the last step
   // The verification's terms (verify.hpp, both methods) and the calibrated confidence in [0, 1]
@@ -168,6 +176,7 @@ struct Placement {
   int icp_iterations = 0;
   bool icp_kept = false;  // whether the ICP result was kept (see max_tilt_deg)
   double seconds_scan = 0, seconds_registration = 0, seconds = 0;
+  double seconds_scale = 0;  // the scale search (part of seconds_registration)
 };
 
 // Every search, accepted or not, for the log and the measurements.
@@ -196,13 +205,13 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                                const std::vector<ModelTemplate>& models,
                                const RecognitionConfig& config, bool progress = false);
 
-// The placed models as one mesh (world frame).
+// The placed models as one mesh (world frame), each at its placement's scale.
 TriangleMesh placed_models_mesh(const std::vector<ModelTemplate>& models,
                                 const std::vector<Placement>& placements);
 
 // Placements as JSON (docs/recognition.md): per placement the model, T_world_model (4×4,
-// row-major), translation, roll/pitch/yaw in degrees, score, residual median and mean, support,
-// step-1 values, method and times.
+// row-major), scale, translation, roll/pitch/yaw in degrees, score, residual median and mean,
+// support, step-1 values, method and times.
 std::string placements_json(const RecognitionResult& result, const std::string& map_source,
                             const std::string& catalogue_source, const RecognitionConfig& config);
 

@@ -25,6 +25,9 @@ namespace sonar3d {
 struct PlacementRecord {
   std::string model;
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  // The placed model is T_world_model · S(scale) · model, S uniform about the model frame's
+  // origin (recognize's size search, docs/formats.md); 1 when the file does not say.
+  double scale = 1;
   double score_m = 0;
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();  // null in the file: NaN
   double residual_mean_m = std::numeric_limits<double>::quiet_NaN();    // null or absent: NaN
@@ -62,6 +65,7 @@ struct WorldObject {
   std::string model;  // catalogue name
   std::string kind = "structure";
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  double scale = 1;  // the placement's size (mesh_model is already scaled)
   double score_m = 0;
   double residual_median_m = std::numeric_limits<double>::quiet_NaN();
   double confidence = std::numeric_limits<double>::quiet_NaN();  // NaN: unknown (older files)
