@@ -3,6 +3,8 @@
 // calibrated confidence.
 #include "sonar3d/recog/verify.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -96,21 +98,67 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
   cv::distanceTransform(outside, dist, cv::DIST_L2, 3);
   auto dist_m = [&](int r, int c) { return dist.at<float>(r, c) * cell; };
 
-  // The local seabed: the median scene height in the ground ring around the footprint.
-  std::vector<float> ring;
+  // The local seabed: a plane through the scene heights in the ground ring around the footprint
+  // (a 5° slope across a 3 m ring is 26 cm: a level seabed would call the uphill side relief
+  // the model leaves unexplained), fitted by least squares and refitted without the cells
+  // farther than 2.5 robust σ (clutter in the ring); the ring's median height when fewer than 12
+  // cells hold data or the plane is steeper than 30°. ground_z is its height at the centre.
+  struct RingCell {
+    double x, y, z;
+  };
+  std::vector<RingCell> ring;
+  const double rc = (v.origin_xy.y() - center.y()) / cell - 0.5;
+  const double cc = (center.x() - v.origin_xy.x()) / cell - 0.5;
   for (int r = 0; r < v.rows; ++r) {
     for (int c = 0; c < v.cols; ++c) {
       if (fp[v.index(r, c)] || dist_m(r, c) > config.ground_ring_m) continue;
       const float zs = scene_at(r, c);
-      if (zs == zs) ring.push_back(zs);
+      if (zs == zs) ring.push_back({(c - cc) * cell, (rc - r) * cell, zs});
     }
   }
   if (ring.empty()) return out;
-  const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
-  std::nth_element(ring.begin(), mid, ring.end());
-  const double g = *mid;
+  std::vector<double> heights(ring.size());
+  for (std::size_t i = 0; i < ring.size(); ++i) heights[i] = ring[i].z;
+  const auto mid = heights.begin() + static_cast<std::ptrdiff_t>(heights.size() / 2);
+  std::nth_element(heights.begin(), mid, heights.end());
+  Eigen::Vector3d plane(*mid, 0, 0);  // z = p0 + p1·x + p2·y about the footprint's centre
+  if (ring.size() >= 12) {
+    std::vector<uint8_t> keep(ring.size(), 1);
+    Eigen::Vector3d fit = plane;
+    bool ok = true;
+    for (int pass = 0; pass < 2 && ok; ++pass) {
+      Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d Atb = Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < ring.size(); ++i) {
+        if (!keep[i]) continue;
+        const Eigen::Vector3d a(1, ring[i].x, ring[i].y);
+        AtA += a * a.transpose();
+        Atb += a * ring[i].z;
+      }
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(AtA);
+      ok = ldlt.info() == Eigen::Success && std::abs(AtA.determinant()) > 1e-12;
+      if (!ok) break;
+      fit = ldlt.solve(Atb);
+      std::vector<double> res(ring.size());
+      for (std::size_t i = 0; i < ring.size(); ++i) {
+        res[i] = std::abs(ring[i].z - fit.dot(Eigen::Vector3d(1, ring[i].x, ring[i].y)));
+      }
+      std::vector<double> sorted = res;
+      const auto m = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+      std::nth_element(sorted.begin(), m, sorted.end());
+      const double cut = std::max(0.02, 2.5 * 1.4826 * *m);
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < ring.size(); ++i) kept += keep[i] = res[i] <= cut;
+      ok = kept >= 12;
+    }
+    if (ok && std::hypot(fit.y(), fit.z()) <= std::tan(30 * M_PI / 180)) plane = fit;
+  }
+  const double g = plane.x();
   out.ground_z = g;
   out.valid = true;
+  auto ground_at = [&](int r, int c) {
+    return g + plane.y() * (c - cc) * cell + plane.z() * (rc - r) * cell;
+  };
 
   const int k = static_cast<int>(std::lround(config.slip_m / cell));
   const double tol = config.tol_m, area = cell * cell;
@@ -127,8 +175,9 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
     for (int c = 0; c < v.cols; ++c) {
       if (!fp[v.index(r, c)]) continue;
       const float zm = v.at(r, c);
-      if (!(zm > g + config.relief_m)) continue;
-      const double w = (zm - g) * area;
+      const double gz = ground_at(r, c);
+      if (!(zm > gz + config.relief_m)) continue;
+      const double w = (zm - gz) * area;
       out.relief_m3 += w;
       const float zs = scene_at(r, c);
       if (zs != zs) continue;  // not observed: neither for nor against
@@ -169,10 +218,11 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
       const float zs = scene_at(r, c);
       const bool in_band = d > band0 && d <= band1 && zs == zs;
       band += in_band;
-      if (!(zs > g + config.relief_m)) continue;
+      const double gz = ground_at(r, c);
+      if (!(zs > gz + config.relief_m)) continue;
       if (in_band) ++spilled;  // beyond the slip no model cell can explain it
       if (d > context_m) continue;
-      const double w = (zs - g) * area;
+      const double w = (zs - gz) * area;
       scene_relief += w;
       bool explained = false;
       for (int dr = -k; dr <= k && !explained; ++dr) {

@@ -37,7 +37,8 @@ struct VerificationConfig {
   double tol_m = 0.06;     // vertical agreement between the scene's surface and the model's top, m
   double slip_m = 0.04;    // horizontal slip allowed when comparing (carved thin parts shift), m
   double relief_m = 0.10;  // model or scene cells this far above the local seabed are relief, m
-  double ground_ring_m = 0.4;  // ring around the footprint whose median height is the seabed, m
+  // Ring around the footprint through whose heights the local seabed plane is fitted, m.
+  double ground_ring_m = 0.4;
   // Ring around the footprint in which scene relief must be explained too: at least
   // context_min_m, else context_fraction · r_model, m.
   double context_min_m = 0.2;
@@ -60,7 +61,9 @@ struct VerificationConfig {
 };
 
 struct Verification {
-  double ground_z = 0;   // local seabed height (world z), NaN when unobserved
+  // Local seabed height (world z) at the footprint's centre, NaN when unobserved; relief is
+  // measured above the seabed plane fitted to the ground ring (verify.cpp).
+  double ground_z = 0;
   double relief_m3 = 0;  // the model's relief weight: Σ height above seabed · cell area
   double seen = 0, explained = 0, violation = 0, unexplained = 0, spill = 0;  // fractions, above
   double intrusion = 0;  // of the observed relief, where the scene stands higher than the model
