@@ -428,7 +428,7 @@ TEST(RecogPipeline, ABuriedStructureTheScanDoesNotProposeIsFoundFromItsRelief) {
   cfg.max_relative_score = 1e-9;  // no patch ever scores below this
   cfg.max_relief_proposals = 0;
   EXPECT_TRUE(recognize_2d(cloud, {tank}, cfg).placements.empty());
-  cfg.max_relief_proposals = RecognitionConfig{}.max_relief_proposals;
+  cfg.max_relief_proposals = 4;
   const RecognitionResult r = recognize_2d(cloud, {tank}, cfg);
   ASSERT_EQ(r.placements.size(), 1u) << placements_json(r, "", "", cfg);
   const Placement& p = r.placements[0];

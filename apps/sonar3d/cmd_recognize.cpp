@@ -110,7 +110,8 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--max-relief-proposals", o->cfg.max_relief_proposals,
                   "2d: then at most this many blobs of relief that fit the model are tried "
-                  "(partly buried or small structures the scan ranks low; 0: none)")
+                  "(partly buried or small structures the scan ranks low; 0: none, the default; "
+                  "docs/recognition.md)")
       ->capture_default_str();
   cmd->add_option("--relief-window", o->cfg.relief_window_m,
                   "2d: seabed window of the relief proposals, m (models wider are left to the "
