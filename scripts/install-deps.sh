@@ -15,6 +15,10 @@ PACKAGES=(
   libceres-dev         # robust least squares: swath adjustment
   libsqlite3-dev       # ROS 2 bags (sqlite3 storage)
   libbz2-dev liblz4-dev  # ROS 1 bag chunks (bz2, lz4)
+  # Debian's ROS 1 (tests only: tests/test_rosbag_debian.py reads our bags with its `rosbag`
+  # Python API and CLI, and imports bags written by it); python3-yaml reads sonar.yaml there.
+  python3-rosbag python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs
+  python3-yaml
   libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
   zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev

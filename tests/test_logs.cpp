@@ -740,6 +740,17 @@ TEST(RosbagCompressed, Ros1ChunksInBz2AndLz4) {
     export_rosbag(root / "sim", root / (c + ".bag"), ec);
     const std::string bytes = read_all(root / (c + ".bag"));
     EXPECT_NE(bytes.find("compression=" + c), std::string::npos);
+    if (c == "lz4") {
+      // ROS 1's roslz4 reads only independent blocks with a content checksum, no content size,
+      // no block checksums, blocks of 64 KB–4 MB (tests/test_rosbag_debian.py reads the bag with
+      // it): the frame descriptor after the magic 04 22 4d 18 must say so.
+      const std::size_t f = bytes.find("\x04\x22\x4d\x18");
+      ASSERT_NE(f, std::string::npos);
+      const auto flg = static_cast<unsigned char>(bytes[f + 4]);
+      const auto bd = static_cast<unsigned char>(bytes[f + 5]);
+      EXPECT_EQ(flg, 0x64) << "version 1, independent blocks, content checksum";
+      EXPECT_GE((bd >> 4) & 7, 4);
+    }
     RosbagImportConfig ic;
     ic.sonar_topic = "/sonar3d/image";
     ic.nav_topic = "/sonar3d/odom";

@@ -41,6 +41,13 @@ std::string fmt(double v) {
   return os.str();
 }
 
+// A TF frame name as tf2 compares them: ROS 1 logs (tf before tf2, many drivers) write
+// "/base_link" where others write "base_link"; tf2 strips the leading slash, so do we.
+std::string tf_frame(const std::string& name) {
+  const std::size_t k = name.find_first_not_of('/');
+  return k == std::string::npos ? std::string() : name.substr(k);
+}
+
 std::string topic_list(const BagReader& r) {
   std::string s;
   std::size_t k = 0;
@@ -319,7 +326,7 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
     bag->read(navt->name,
               [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
                 const RosPose m = decode_pose(navt->type, p, n, wire, where);
-                if (body_frame.empty()) body_frame = m.child_frame_id;
+                if (body_frame.empty()) body_frame = tf_frame(m.child_frame_id);
                 if (std::abs(m.position.maxCoeff()) > limits::kMaxCoordinate ||
                     std::abs(m.position.minCoeff()) > limits::kMaxCoordinate) {
                   throw Error(where + ": position beyond " + fmt(limits::kMaxCoordinate) + " m");
@@ -352,11 +359,15 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
       sonar->name,
       [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
         if (!projected) {
-          sonar_frame = decode_image(p, n, wire, where).frame_id;
+          const RosImage m = decode_image(p, n, wire, where);
+          sonar_frame = tf_frame(m.frame_id);
+          // 32FC1 frames are linear intensities: a float TIFF dataset whatever bit depth the
+          // description gives for integer frames (which must be 8 or 16).
+          is_float = m.encoding == "32FC1";
           return;
         }
         const RosSonarImage m = decode_sonar_image(p, n, wire, where);
-        sonar_frame = m.frame_id;
+        sonar_frame = tf_frame(m.frame_id);
         spec = sonar_spec_from_message(m, where, &reversed);
         sample_size = dtype_size(m.dtype);
         is_float = m.dtype == kRosDtypeFloat32;
@@ -375,13 +386,13 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
                   ", not tf2_msgs/TFMessage");
     }
     std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent_of;  // child -> ...
-    bag->read(tf->name,
-              [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
-                for (const RosTransform& t : decode_tf(p, n, wire, where)) {
-                  parent_of[t.child] = {t.parent, iso(t.translation, t.rotation)};
-                }
-              });
-    const std::string base = !config.base_frame.empty() ? config.base_frame : body_frame;
+    bag->read(tf->name, [&](std::int64_t, const std::uint8_t* p, std::size_t n,
+                            const std::string& where) {
+      for (const RosTransform& t : decode_tf(p, n, wire, where)) {
+        parent_of[tf_frame(t.child)] = {tf_frame(t.parent), iso(t.translation, t.rotation)};
+      }
+    });
+    const std::string base = !config.base_frame.empty() ? tf_frame(config.base_frame) : body_frame;
     std::string frame = sonar_frame, chain = sonar_frame;
     int depth = 0;
     while (frame != base) {
@@ -437,7 +448,7 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
     // A fixed sonar: identity vehicle poses over every stamp (filled in below).
   }
 
-  const bool tiff = is_float || (!projected && spec.bit_depth != 8 && spec.bit_depth != 16);
+  const bool tiff = is_float;
   std::unique_ptr<DatasetWriter> writer;
   Progress bar("import", sonar->messages, progress);
   SonarImage img(spec.range_bins, spec.beams());
@@ -501,10 +512,10 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
                     std::to_string(m.height) + " rows of " + std::to_string(m.width) + " × " +
                     std::to_string(size) + " bytes");
       }
-      if (size == 4 && !tiff) {
-        throw Error(where +
-                    ": a 32FC1 image needs a float description (bit depth 32 is not a "
-                    "PNG encoding)");
+      if ((size == 4) != tiff) {
+        throw Error(where + ": a " + m.encoding + " image after " +
+                    (tiff ? "32FC1 images" : "integer images") +
+                    "; a dataset holds one encoding (float TIFF or integer PNG frames)");
       }
       samples_to_image(m.data.data(), size, m.is_bigendian != 0, size == 4, spec.intensity_scale,
                        false, img);

@@ -436,7 +436,7 @@ std::string md5(const std::string& type) {
   return "*";
 }
 
-// A chunk's records compressed as rosbag does (bz2 block size 9; lz4 frame format).
+// A chunk's records compressed as rosbag does (bz2 block size 9; lz4 frames as roslz4 writes them).
 std::vector<std::uint8_t> compress(const std::string& how, const std::vector<std::uint8_t>& in,
                                    const fs::path& file) {
   if (how == "none") return in;
@@ -453,8 +453,18 @@ std::vector<std::uint8_t> compress(const std::string& how, const std::vector<std
     out.resize(n);
     return out;
   }
-  out.resize(LZ4F_compressFrameBound(in.size(), nullptr));
-  const std::size_t n = LZ4F_compressFrame(out.data(), out.size(), in.data(), in.size(), nullptr);
+  // ROS 1 reads lz4 chunks with its own roslz4 stream decoder, which takes a subset of the LZ4
+  // frame format only: independent blocks, no block checksums, no content size, a content
+  // checksum, blocks of 64 KB to 4 MB. liblz4's defaults (linked blocks, no content checksum) are
+  // refused by it ("malformed data to decompress"); these are what `rosbag record --lz4` writes.
+  LZ4F_preferences_t prefs{};
+  prefs.frameInfo.blockSizeID = LZ4F_max1MB;
+  prefs.frameInfo.blockMode = LZ4F_blockIndependent;
+  prefs.frameInfo.contentChecksumFlag = LZ4F_contentChecksumEnabled;
+  prefs.frameInfo.blockChecksumFlag = LZ4F_noBlockChecksum;
+  prefs.frameInfo.contentSize = 0;
+  out.resize(LZ4F_compressFrameBound(in.size(), &prefs));
+  const std::size_t n = LZ4F_compressFrame(out.data(), out.size(), in.data(), in.size(), &prefs);
   if (LZ4F_isError(n)) {
     throw Error(file.string() + ": lz4 compression failed (" + LZ4F_getErrorName(n) + ")");
   }
