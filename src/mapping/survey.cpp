@@ -153,22 +153,33 @@ MapAlignment fit_alignment(const std::vector<Eigen::Vector3d>& nav,
 }
 
 // The best rigid placement of the logged (or corrected) positions onto the true ones: a turn
-// and shift of (x, y) by least squares (Umeyama 1991, without scale) and the mean height offset.
+// and shift of (x, y) by least squares (the 2D Procrustes solution: the turn from the
+// cross-covariance of the centred positions; Umeyama 1991 without scale) and the mean height
+// offset.
 MapAlignment fit_rigid_alignment(const std::vector<Eigen::Vector3d>& nav,
                                  const std::vector<Eigen::Vector3d>& truth) {
   MapAlignment a;
   if (nav.empty()) return a;
-  Eigen::Matrix2Xd src(2, nav.size()), dst(2, nav.size());
+  Eigen::Vector2d mn = Eigen::Vector2d::Zero(), mt = Eigen::Vector2d::Zero();
   double dz = 0;
   for (std::size_t i = 0; i < nav.size(); ++i) {
-    src.col(static_cast<Eigen::Index>(i)) = nav[i].head<2>();
-    dst.col(static_cast<Eigen::Index>(i)) = truth[i].head<2>();
+    mn += nav[i].head<2>();
+    mt += truth[i].head<2>();
     dz += truth[i].z() - nav[i].z();
   }
-  const Eigen::Matrix3d T = Eigen::umeyama(src, dst, false);
-  a.M = T.topLeftCorner<2, 2>();
-  a.b = T.topRightCorner<2, 1>();
-  a.dz = dz / static_cast<double>(nav.size());
+  const double n = static_cast<double>(nav.size());
+  mn /= n;
+  mt /= n;
+  double sxx = 0, sxy = 0;  // Σ p·q and Σ p × q of the centred positions
+  for (std::size_t i = 0; i < nav.size(); ++i) {
+    const Eigen::Vector2d p = nav[i].head<2>() - mn, q = truth[i].head<2>() - mt;
+    sxx += p.dot(q);
+    sxy += p.x() * q.y() - p.y() * q.x();
+  }
+  const double theta = std::atan2(sxy, sxx);
+  a.M << std::cos(theta), -std::sin(theta), std::sin(theta), std::cos(theta);
+  a.b = mt - a.M * mn;
+  a.dz = dz / n;
   return a;
 }
 
