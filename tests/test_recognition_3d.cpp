@@ -89,9 +89,10 @@ TriangleMesh standing_box(double sx, double sy, double sz) {
 // A wreck-like pile (clutter, in no catalogue): boxes of 0.3-0.9 m, tilted, over 3 × 2 m.
 TriangleMesh wreck_pile() {
   TriangleMesh m;
-  const double parts[][7] = {{0.9, 0.5, 0.5, -0.9, -0.4, 0, 8},   {0.7, 0.6, 0.8, 0.2, 0.3, 15, 0},
-                             {0.5, 0.4, 0.3, 1.0, -0.5, 40, -10}, {0.8, 0.3, 0.6, -0.3, 0.7, 70, 5},
-                             {0.4, 0.4, 0.9, 0.9, 0.6, 10, 12},   {0.6, 0.5, 0.4, -1.2, 0.6, 25, 0}};
+  const double parts[][7] = {
+      {0.9, 0.5, 0.5, -0.9, -0.4, 0, 8},   {0.7, 0.6, 0.8, 0.2, 0.3, 15, 0},
+      {0.5, 0.4, 0.3, 1.0, -0.5, 40, -10}, {0.8, 0.3, 0.6, -0.3, 0.7, 70, 5},
+      {0.4, 0.4, 0.9, 0.9, 0.6, 10, 12},   {0.6, 0.5, 0.4, -1.2, 0.6, 25, 0}};
   for (const auto& b : parts) {
     TriangleMesh part = make_box(b[0], b[1], b[2]);
     part.transform(pose(b[3], b[4], b[2] / 2 - 0.1, b[5], b[6]));
@@ -408,8 +409,8 @@ TEST(Recog3dPipeline, NearestMissNamesWhatRejected) {
 // not on the seabed — and nothing lands on the wreck.
 TEST(Recog3dPipeline, FindsAStructureAmongClutterAndRejectsASameSizeDistractor) {
   const ModelTemplate riser = reference_template("riser");
-  const ModelTemplate container = mesh_template("container", standing_box(2.0, 1.0, 0.6),
-                                                Symmetry::Half);
+  const ModelTemplate container =
+      mesh_template("container", standing_box(2.0, 1.0, 0.6), Symmetry::Half);
   const ModelTemplate wreck = mesh_template("wreck", wreck_pile());
   const Eigen::Isometry3d T_riser = pose(-1.3, 1.0, -0.03, 20);
   const Eigen::Isometry3d T_wreck = pose(1.4, -1.1, -0.05, -30);

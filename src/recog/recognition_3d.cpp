@@ -895,34 +895,6 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
   return c;
 }
 
-// Marks the cells of `map` under the placed model's footprint, grown by `margin` (as the 2D
-// method does): later candidates on them count as overlapping.
-void mark_placed_3d(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& map,
-                    double margin, std::vector<uint8_t>& mask) {
-  TopViewConfig tv;
-  tv.cell_m = map.cell_m;
-  tv.grid_anchor_xy = map.origin_xy;
-  const Eigen::Vector2d center =
-      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
-  std::vector<uint8_t> fp;
-  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
-  const int g = static_cast<int>(std::ceil(margin / map.cell_m));
-  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - map.origin_xy.x()) / map.cell_m));
-  const int dr0 = static_cast<int>(std::lround((map.origin_xy.y() - v.origin_xy.y()) / map.cell_m));
-  for (int r = 0; r < v.rows; ++r) {
-    for (int c = 0; c < v.cols; ++c) {
-      if (!fp[v.index(r, c)]) continue;
-      for (int dr = -g; dr <= g; ++dr) {
-        for (int dc = -g; dc <= g; ++dc) {
-          const int rr = r + dr0 + dr, cc = c + dc0 + dc;
-          if (rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
-          mask[map.index(rr, cc)] = 1;
-        }
-      }
-    }
-  }
-}
-
 // Subspace centres (eq. 6.3) on the lattice of period T, only where a subspace of radius rs can
 // hold a point of `pts` (the lattice nodes within rs of an occupied cell). Planar (the upright
 // prior): the horizontal lattice, each node at the height the model's bounding-sphere centre has
@@ -1273,7 +1245,7 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
         continue;
       }
       for (std::size_t i : hits) taken[i] = 1;
-      mark_placed_3d(*mt, cj.T, fine, cfg.removal_margin_m, removed_fine);
+      mark_placed(*mt, cj.T, fine, cfg.removal_margin_m, removed_fine);
       placed_centres.push_back(c);
       accepted.push_back(&cj);
       rec.accepted_terms.push_back(cj.v);

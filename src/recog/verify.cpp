@@ -260,4 +260,30 @@ double buried_fraction(const ModelTemplate& model, const Eigen::Isometry3d& T_wo
   return (ground_z - base) / std::max(1e-6, model.height());
 }
 
+void mark_placed(const ModelTemplate& m, const Eigen::Isometry3d& T, const ElevationMap& map,
+                 double margin, std::vector<uint8_t>& mask) {
+  TopViewConfig tv;
+  tv.cell_m = map.cell_m;
+  tv.grid_anchor_xy = map.origin_xy;
+  const Eigen::Vector2d center =
+      (T * Eigen::Vector3d(m.center_xy.x(), m.center_xy.y(), 0)).head<2>();
+  std::vector<uint8_t> fp;
+  const ElevationMap v = render_placed_top_view(m, T, center, tv, &fp);
+  const int g = static_cast<int>(std::ceil(margin / map.cell_m));
+  const int dc0 = static_cast<int>(std::lround((v.origin_xy.x() - map.origin_xy.x()) / map.cell_m));
+  const int dr0 = static_cast<int>(std::lround((map.origin_xy.y() - v.origin_xy.y()) / map.cell_m));
+  for (int r = 0; r < v.rows; ++r) {
+    for (int c = 0; c < v.cols; ++c) {
+      if (!fp[v.index(r, c)]) continue;
+      for (int dr = -g; dr <= g; ++dr) {
+        for (int dc = -g; dc <= g; ++dc) {
+          const int rr = r + dr0 + dr, cc = c + dc0 + dc;
+          if (rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+          mask[map.index(rr, cc)] = 1;
+        }
+      }
+    }
+  }
+}
+
 }  // namespace sonar3d

@@ -180,8 +180,9 @@ struct Search3dRecord {
   std::size_t suppressed = 0;  // passed but overlapping a better placement
   std::size_t accepted = 0;
   // Why nothing (more) was accepted: the matched survivor that came nearest to passing (highest
-  // confidence, else highest coverage) with the test it failed, or, when no survivor was matched, the subspace test that
-  // rejected most subspaces. The figures are NaN when no match was made (never a "perfect" 0).
+  // confidence, else highest coverage) with the test it failed, or, when no survivor was matched,
+  // the subspace test that rejected most subspaces. The figures are NaN when no match was made
+  // (never a "perfect" 0).
   std::string nearest_miss;  // e.g. "coverage 0.31 < 0.5", "all 812 subspaces failed: obb_fit 790"
   double best_rejected_coverage = std::numeric_limits<double>::quiet_NaN();
   double best_rejected_residual_m = std::numeric_limits<double>::quiet_NaN();

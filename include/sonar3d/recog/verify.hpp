@@ -85,6 +85,12 @@ Verification verify_placement(const ModelTemplate& model, const Eigen::Isometry3
 // The logistic confidence of the terms (see VerificationConfig).
 double verification_confidence(const Verification& v, const VerificationConfig& config);
 
+// Marks (sets to 1) the cells of `map` under the placed model's footprint grown by `margin_m`
+// in `mask` (same size as map.z): the area an accepted placement takes from later candidates,
+// in both methods.
+void mark_placed(const ModelTemplate& model, const Eigen::Isometry3d& T_world_model,
+                 const ElevationMap& map, double margin_m, std::vector<uint8_t>& mask);
+
 // Fraction of the model's height below ground_z (its base measured at the footprint's centre);
 // 0 when ground_z is unknown (NaN). Both methods refuse placements buried more than their
 // max_buried_fraction.
