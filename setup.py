@@ -2,8 +2,9 @@
 
     python3 -m pip install --no-build-isolation .
 
-The extension sonar3d/_sonar3d is the CMake target `sonar3d_python`, linked against a static
-libsonar3d so the installed package depends only on Debian's shared libraries. Environment:
+The extension sonar3d/_sonar3d is the CMake target `sonar3d_python`, linked against the static
+sonar3d module libraries so the installed package depends only on Debian's shared libraries.
+Environment:
   CMAKE_ARGS                  extra CMake arguments, e.g. "-DCMAKE_CXX_COMPILER_LAUNCHER=ccache"
   CMAKE_BUILD_PARALLEL_LEVEL  compile jobs (default: all cores)
   SONAR3D_CMAKE_BUILD_DIR     reuse this configured CMake build directory (e.g. build/) instead of

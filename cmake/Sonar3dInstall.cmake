@@ -6,7 +6,7 @@
 include(CMakePackageConfigHelpers)
 
 set(SONAR3D_CONFIG_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/sonar3d)
-get_target_property(_sonar3d_type sonar3d TYPE)
+get_target_property(_sonar3d_type sonar3d_core TYPE)  # every module is built alike
 if(_sonar3d_type STREQUAL "STATIC_LIBRARY")
   set(SONAR3D_STATIC ON)
 else()

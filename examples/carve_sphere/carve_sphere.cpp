@@ -4,9 +4,9 @@
 #include <cstdio>
 #include <exception>
 
+#include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/recon/carve.hpp"
-#include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
 #include "sonar3d/version.hpp"
 

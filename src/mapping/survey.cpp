@@ -20,8 +20,8 @@
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/eval/per_object.hpp"
+#include "sonar3d/io/truth.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
-#include "sonar3d/sim/simulation.hpp"
 
 namespace sonar3d {
 

@@ -8,11 +8,11 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/plan/sweep.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
-#include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
 

@@ -8,9 +8,9 @@
 #include <set>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/yaml_config.hpp"
-#include "sonar3d/sim/reference_objects.hpp"
 
 namespace sonar3d {
 

@@ -3,7 +3,7 @@
 #include <chrono>
 
 #include "sonar3d/core/error.hpp"
-#include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/core/reference_objects.hpp"
 
 namespace sonar3d {
 

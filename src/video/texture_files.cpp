@@ -11,12 +11,9 @@
 #include <exception>
 #include <fstream>
 #include <memory>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <vector>
 
-#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/point_cloud.hpp"
@@ -29,119 +26,6 @@
 namespace sonar3d {
 
 namespace fs = std::filesystem;
-
-float srgb_to_linear(float e) {
-  e = std::clamp(e, 0.0f, 1.0f);
-  return e <= 0.04045f ? e / 12.92f : std::pow((e + 0.055f) / 1.055f, 2.4f);
-}
-
-float linear_to_srgb(float l) {
-  l = std::clamp(l, 0.0f, 1.0f);
-  return l <= 0.0031308f ? 12.92f * l : 1.055f * std::pow(l, 1.0f / 2.4f) - 0.055f;
-}
-
-std::array<std::uint8_t, 3> linear_to_srgb8(const Eigen::Vector3f& linear) {
-  std::array<std::uint8_t, 3> out{};
-  for (int k = 0; k < 3; ++k) {
-    out[static_cast<std::size_t>(k)] =
-        static_cast<std::uint8_t>(std::lround(255.0f * linear_to_srgb(linear[k])));
-  }
-  return out;
-}
-
-RgbImage read_rgb_image(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw Error("image '" + path.string() + "' is not a file");
-  cv::Mat m;
-  try {
-    m = cv::imread(path.string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
-  } catch (const cv::Exception& e) {
-    throw Error("cannot read image '" + path.string() + "': " + e.what());
-  }
-  if (m.empty()) {
-    throw Error("cannot read image '" + path.string() + "' (not an image format OpenCV reads)");
-  }
-  const int ch = m.channels();
-  if (ch != 1 && ch != 3 && ch != 4) {
-    throw Error("image '" + path.string() + "' has " + std::to_string(ch) +
-                " channels (grey, BGR or BGRA expected)");
-  }
-  RgbImage img;
-  img.width = m.cols;
-  img.height = m.rows;
-  img.rgb.resize(3 * static_cast<std::size_t>(m.cols) * m.rows);
-  img.range_m.assign(static_cast<std::size_t>(m.cols) * m.rows,
-                     std::numeric_limits<float>::infinity());
-  // A table per encoded value: 8- and 16-bit are sRGB-encoded (made once; 65,536 powf calls for
-  // 16 bits took longer than decoding a VGA image).
-  auto make_lut = [](int levels) {
-    std::vector<float> lut(static_cast<std::size_t>(levels));
-    for (int k = 0; k < levels; ++k) lut[k] = srgb_to_linear(float(k) / float(levels - 1));
-    return lut;
-  };
-  static const std::vector<float> lut8 = make_lut(256), lut16 = make_lut(65536);
-  const std::vector<float>& lut = m.depth() == CV_8U ? lut8 : lut16;
-  if (m.depth() != CV_8U && m.depth() != CV_16U && m.depth() != CV_32F) {
-    throw Error("image '" + path.string() +
-                "' has an unsupported pixel type (8-bit, 16-bit or 32-bit float expected)");
-  }
-  for (int v = 0; v < m.rows; ++v) {
-    for (int u = 0; u < m.cols; ++u) {
-      float bgr[3];
-      for (int c = 0; c < 3; ++c) {
-        const int k = ch == 1 ? 0 : c;
-        switch (m.depth()) {
-          case CV_8U:
-            bgr[c] = lut[m.ptr<std::uint8_t>(v)[u * ch + k]];
-            break;
-          case CV_16U:
-            bgr[c] = lut[m.ptr<std::uint16_t>(v)[u * ch + k]];
-            break;
-          default: {
-            const float x = m.ptr<float>(v)[u * ch + k];
-            if (!std::isfinite(x)) {
-              throw Error("image '" + path.string() + "': pixel (" + std::to_string(u) + ", " +
-                          std::to_string(v) + ") is not finite");
-            }
-            bgr[c] = x;
-          }
-        }
-      }
-      const std::size_t o = 3 * (static_cast<std::size_t>(v) * m.cols + u);
-      img.rgb[o] = bgr[2];  // OpenCV's order is BGR
-      img.rgb[o + 1] = bgr[1];
-      img.rgb[o + 2] = bgr[0];
-    }
-  }
-  return img;
-}
-
-void write_rgb_image(const fs::path& path, const RgbImage& image) {
-  require(image.width > 0 && image.height > 0 &&
-              image.rgb.size() == 3 * static_cast<std::size_t>(image.width) * image.height,
-          "cannot write image '" + path.string() + "': its size and pixel count differ");
-  cv::Mat m(image.height, image.width, CV_16UC3);
-  for (int v = 0; v < image.height; ++v) {
-    for (int u = 0; u < image.width; ++u) {
-      const Eigen::Vector3f c = image.at(u, v);
-      auto* p = m.ptr<std::uint16_t>(v) + 3 * u;
-      for (int k = 0; k < 3; ++k) {
-        p[2 - k] = static_cast<std::uint16_t>(std::lround(65535.0f * linear_to_srgb(c[k])));
-      }
-    }
-  }
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".png", m, bytes)) throw Error("cannot encode '" + path.string() + "'");
-  AtomicPath out(path);
-  {
-    std::ofstream f(out.temp(), std::ios::binary);
-    f.write(reinterpret_cast<const char*>(bytes.data()),
-            static_cast<std::streamsize>(bytes.size()));
-    f.close();
-    if (!f) throw Error("failed writing '" + path.string() + "' (disk full?)");
-  }
-  out.commit();
-}
 
 namespace {
 
@@ -367,17 +251,6 @@ TextureFilesResult texture_cloud_files(const TextureFilesJob& job) {
   r.written = out.size();
   write_ply(job.output.string(), out);
   return r;
-}
-
-std::vector<std::uint8_t> video_coloured(const PointCloud& cloud) {
-  std::vector<std::uint8_t> out(cloud.size(), 0);
-  if (!cloud.has_color()) return out;
-  const PointProperty* views = cloud.property("views");
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const auto& c = cloud.color[i];
-    out[i] = views != nullptr ? views->values[i] > 0 : (c[0] | c[1] | c[2]) != 0;
-  }
-  return out;
 }
 
 }  // namespace sonar3d

@@ -13,10 +13,7 @@
 #include <unordered_map>
 
 #include "../core/embree_device.hpp"
-#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
-#include "sonar3d/video/texture_files.hpp"
-#include "sonar3d/world/gltf.hpp"
 #include "visibility_raster.hpp"
 
 namespace sonar3d {
@@ -27,11 +24,6 @@ void MeshTextureConfig::validate() const {
   require(max_vertices > 0, "texture mesh: max_vertices must be > 0");
   require(std::isfinite(silhouette_weight) && silhouette_weight > 0 && silhouette_weight <= 1,
           "texture mesh: silhouette_weight must be in (0, 1]");
-}
-
-std::size_t TexturedMesh::coloured() const {
-  return static_cast<std::size_t>(
-      std::count_if(views.begin(), views.end(), [](std::uint32_t v) { return v > 0; }));
 }
 
 namespace {
@@ -498,64 +490,6 @@ TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView
   MeshTexturer t(mesh, config, occluders);
   for (std::size_t f = 0; f < views.size(); ++f) t.add(views[f], f);
   return t.result();
-}
-
-void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMesh& tm) {
-  const TriangleMesh& m = tm.mesh;
-  require(tm.color.size() == m.vertices.size(),
-          "cannot write '" + path.string() + "': colour count differs from vertex count");
-  AtomicPath out(path);
-  {
-    std::ofstream f(out.temp(), std::ios::binary);
-    if (!f) throw Error("cannot open '" + path.string() + "' for writing");
-    f << "ply\nformat binary_little_endian 1.0\ncomment sonar3d textured mesh, world frame, "
-         "metres, sRGB vertex colours\nelement vertex "
-      << m.vertices.size()
-      << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
-         "property uchar green\nproperty uchar blue\nelement face "
-      << m.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
-    std::vector<char> buf(m.vertices.size() * 15 + m.triangles.size() * 13);
-    char* p = buf.data();
-    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-      std::memcpy(p, m.vertices[i].data(), 12);
-      p += 12;
-      const std::array<std::uint8_t, 3> c =
-          tm.views[i] ? linear_to_srgb8(tm.color[i]) : std::array<std::uint8_t, 3>{0, 0, 0};
-      std::memcpy(p, c.data(), 3);
-      p += 3;
-    }
-    for (const auto& t : m.triangles) {
-      *p++ = 3;
-      std::memcpy(p, t.data(), 12);
-      p += 12;
-    }
-    f.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-    f.close();
-    if (!f) throw Error("failed writing '" + path.string() + "' (disk full?)");
-  }
-  out.commit();
-}
-
-void write_textured_mesh_glb(const std::filesystem::path& path, const TexturedMesh& tm) {
-  require(tm.color.size() == tm.mesh.vertices.size(),
-          "cannot write '" + path.string() + "': colour count differs from vertex count");
-  GltfScene scene;
-  GltfMesh mesh;
-  mesh.name = "textured";
-  mesh.mesh = tm.mesh;
-  mesh.base_color = Eigen::Vector4f(1, 1, 1, 1);  // the vertex colours as they are
-  mesh.colors.resize(tm.color.size());
-  for (std::size_t i = 0; i < tm.color.size(); ++i) {
-    if (tm.views[i]) mesh.colors[i] = linear_to_srgb8(tm.color[i]);  // else black (resize)
-  }
-  scene.meshes.push_back(std::move(mesh));
-  GltfNode node;
-  node.name = "textured (world frame, ENU)";
-  node.mesh = 0;
-  node.matrix = enu_to_gltf();
-  scene.nodes.push_back(node);
-  scene.roots = {0};
-  write_glb(path, scene);
 }
 
 }  // namespace sonar3d

@@ -14,8 +14,9 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/rgb_image.hpp"
+#include "sonar3d/io/texture_io.hpp"
 #include "sonar3d/recog/model.hpp"
-#include "sonar3d/video/texture_files.hpp"
 
 namespace sonar3d {
 

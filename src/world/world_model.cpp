@@ -11,14 +11,14 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/rgb_image.hpp"
 #include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/io/gltf.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/io/texture_io.hpp"
+#include "sonar3d/io/truth.hpp"
 #include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/recog/catalogue.hpp"
-#include "sonar3d/sim/simulation.hpp"
-#include "sonar3d/video/texture_files.hpp"
-#include "sonar3d/video/texture_mesh.hpp"
-#include "sonar3d/world/gltf.hpp"
 
 namespace sonar3d {
 

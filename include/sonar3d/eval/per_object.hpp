@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/scene.hpp"
 #include "sonar3d/eval/metrics.hpp"
-#include "sonar3d/sim/scene.hpp"
 
 namespace sonar3d {
 

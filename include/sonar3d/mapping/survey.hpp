@@ -15,11 +15,11 @@
 #include <vector>
 
 #include "sonar3d/core/mpi.hpp"
+#include "sonar3d/core/scene.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recon/carve.hpp"
-#include "sonar3d/sim/scene.hpp"
 
 namespace sonar3d {
 

@@ -1,8 +1,8 @@
 #pragma once
 // The simulation benchmark of sec. 2.5.2 (Fig. 2.18): a forward-looking sonar 3 m from a vertical
 // pipeline over a seabed, images rendered back to back.
+#include "sonar3d/core/scene.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
-#include "sonar3d/sim/scene.hpp"
 #include "sonar3d/sim/simulator.hpp"
 
 namespace sonar3d {

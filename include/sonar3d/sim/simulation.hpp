@@ -7,11 +7,12 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/scene.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/io/truth.hpp"  // read_truth: what simulate_dataset writes to truth/
 #include "sonar3d/sim/dead_reckoning.hpp"
 #include "sonar3d/sim/noise.hpp"
-#include "sonar3d/sim/scene.hpp"
 #include "sonar3d/sim/simulator.hpp"
 #include "sonar3d/video/camera_dataset.hpp"
 #include "sonar3d/video/render.hpp"
@@ -65,8 +66,5 @@ SimulationStats simulate_dataset(const SimulationSetup& setup, const std::filesy
 
 // The noise statistics a setup applies (empty optional for Kind::None).
 std::optional<NoiseImages> noise_images(const SimulationSetup& setup);
-
-// Ground truth of a simulated dataset: the objects in truth/scene.yaml, world frame.
-std::vector<SceneObject> read_truth(const std::filesystem::path& dataset_dir);
 
 }  // namespace sonar3d

@@ -5,9 +5,9 @@
 #include <memory>
 #include <random>
 
+#include "sonar3d/core/scene.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
-#include "sonar3d/sim/scene.hpp"
 
 namespace sonar3d {
 

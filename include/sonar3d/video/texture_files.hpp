@@ -2,10 +2,9 @@
 // Video mapping from files (`sonar3d texture`): a point cloud, camera poses from a COLMAP text
 // model, and the camera images on disk → a PLY with per-point colours.
 //
-// Colour conventions (docs/video.md): 8- and 16-bit images are taken as sRGB-encoded (what
-// cameras and image tools write) and decoded to linear RGB before averaging, since averaging
-// light is only meaningful in linear units; 32-bit float images (TIFF) are taken as linear
-// already. The output PLY's uchar red/green/blue are sRGB-encoded again, as viewers display them.
+// Colour conventions (docs/video.md): images are read and the output's colours written as
+// io/texture_io.hpp describes (sRGB files, linear RGB inside); the sRGB helpers, RGB image I/O
+// and `video_coloured` live there, below the modules that use them (video, world).
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
@@ -14,31 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/io/texture_io.hpp"
 #include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
 #include "sonar3d/video/texture.hpp"
 #include "sonar3d/video/texture_mesh.hpp"
 
 namespace sonar3d {
-
-// The sRGB transfer function (IEC 61966-2-1) and its inverse, on [0, 1] (clamped).
-float srgb_to_linear(float encoded);
-float linear_to_srgb(float linear);
-// A linear-RGB colour as the 8-bit sRGB bytes PLY and glTF files carry (clamped to [0, 1]).
-std::array<std::uint8_t, 3> linear_to_srgb8(const Eigen::Vector3f& linear);
-
-// Reads a colour or grey image (PNG, JPEG, TIFF ... through OpenCV) into linear RGB: 8/16-bit
-// sRGB decoded, float taken as linear (it must be finite); grey replicated, alpha dropped.
-// Throws Error naming the file when it cannot be read or has an unsupported pixel type.
-RgbImage read_rgb_image(const std::filesystem::path& path);
-// Writes a 16-bit sRGB-encoded PNG (atomic). The inverse of read_rgb_image within 1e-5.
-void write_rgb_image(const std::filesystem::path& path, const RgbImage& image);
-
-// Which points of a coloured cloud carry a video colour: those whose `views` property (written by
-// sonar3d texture: the frames that coloured each point) is > 0, or, for a cloud without it, those
-// whose colour is not black (texture writes black where no frame saw a point). All 0 for a cloud
-// without colours. Read by sonar3d world (seabed colours) and sonar3d diff (colour change).
-std::vector<std::uint8_t> video_coloured(const PointCloud& cloud);
 
 struct TextureFilesJob {
   std::filesystem::path cloud;  // PLY, world frame

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/io/texture_io.hpp"  // TexturedMesh and its writers
 #include "sonar3d/video/texture.hpp"
 
 namespace sonar3d {
@@ -48,15 +49,6 @@ struct MeshTextureConfig {
 TriangleMesh subdivide_to_edge(const TriangleMesh& mesh, double max_edge_m,
                                std::size_t max_vertices);
 
-struct TexturedMesh {
-  TriangleMesh mesh;  // the subdivided mesh, its vertices renumbered in spatial (Morton) order
-  // per vertex: linear RGB, the (weighted, MeshTextureConfig::weight_by_view) mean over the
-  // frames; 0 if none
-  std::vector<Eigen::Vector3f> color;
-  std::vector<std::uint32_t> views;  // per vertex: frames that saw it (0: no colour)
-  std::size_t coloured() const;
-};
-
 // One frame at a time (memory: the mesh plus one image).
 class MeshTexturer {
  public:
@@ -85,12 +77,6 @@ class MeshTexturer {
 
 TexturedMesh texture_mesh(const TriangleMesh& mesh, const std::vector<CameraView>& views,
                           const MeshTextureConfig& config = {}, const TriangleMesh& occluders = {});
-
-// Binary PLY with float x y z, uchar red green blue (sRGB; black where no frame saw the vertex)
-// and the faces; atomic. read_ply_faces() reads it back.
-void write_textured_mesh_ply(const std::filesystem::path& path, const TexturedMesh& textured);
-// glTF 2.0 binary: the mesh with COLOR_0 (sRGB bytes; black where no frame saw the vertex) under a
-// root node turning sonar3d's ENU world (z up) into glTF's y-up frame; atomic (world/gltf.hpp).
-void write_textured_mesh_glb(const std::filesystem::path& path, const TexturedMesh& textured);
+// Written by write_textured_mesh_ply / write_textured_mesh_glb (io/texture_io.hpp).
 
 }  // namespace sonar3d

@@ -1,4 +1,4 @@
-#include "sonar3d/sim/scene.hpp"
+#include "sonar3d/core/scene.hpp"
 
 #include "sonar3d/core/error.hpp"
 

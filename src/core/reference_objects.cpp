@@ -42,7 +42,7 @@
 //           Bounding box 2.00 x 1.00 x 2.00 m (x from -1.0 to 1.0, y from -0.5 to 0.5).
 //
 // Triangle counts: sphere 16 128, tank 2 816, pillar 24, riser 1 036 (all below 40 k).
-#include "sonar3d/sim/reference_objects.hpp"
+#include "sonar3d/core/reference_objects.hpp"
 
 #include <algorithm>
 #include <cmath>

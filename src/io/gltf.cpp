@@ -1,4 +1,4 @@
-#include "sonar3d/world/gltf.hpp"
+#include "sonar3d/io/gltf.hpp"
 
 #include <cstring>
 #include <fstream>
