@@ -10,6 +10,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/world/world_model.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -105,9 +108,8 @@ TEST_F(CliMemory, TourDatasetHalfMillimetreVoxelsRefusedWithEstimate) {
   }
   // The estimate is computed from the options: at 1 cm it fits the default limit, and a lower
   // --max-memory refuses it too, with a smaller estimate.
-  const CliRun r =
-      run(dir, "reconstruct " + ds.string() + " -o " + (dir / "c.ply").string() +
-                   " --roi -3 -2 -0.03 3 14 3 --voxel-size 0.01 --max-memory 0.05 -q");
+  const CliRun r = run(dir, "reconstruct " + ds.string() + " -o " + (dir / "c.ply").string() +
+                                " --roi -3 -2 -0.03 3 14 3 --voxel-size 0.01 --max-memory 0.05 -q");
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("needs an estimated"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("MB"), std::string::npos) << r.err;
@@ -180,4 +182,62 @@ TEST_F(CliMemory, HintsNameFlags) {
   EXPECT_NE(r.err.find("change --cell-m"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("cell_m"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "e.tif"));
+}
+
+// Errors that leaked a library's words become one line naming the file and the key (issue 29
+// item 4, "while there").
+TEST_F(CliMemory, LibraryWordsBecomeOneLineNamingFileAndKey) {
+  // A non-UTF-8 name in a catalogue (was "[json.exception.type_error.316] invalid UTF-8 byte").
+  std::ofstream(dir / "cat.yaml") << "models:\n  - {name: \"ab\xff\", reference: sphere}\n";
+  std::ofstream(dir / "cloud.ply") << "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                      "property float y\nproperty float z\nend_header\n0 0 0\n";
+  CliRun r = run(dir, "recognize " + (dir / "cloud.ply").string() + " --catalogue " +
+                          (dir / "cat.yaml").string() + " -o " + (dir / "p.json").string() + " -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("cat.yaml:2: key 'models[0].name'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("not valid UTF-8"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("json.exception"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  // The same in a connections file, and an unknown top-level key there is an error too.
+  std::ofstream(dir / "c1.yaml") << "connections:\n  - {from: \"a\xfe\", to: b}\n";
+  EXPECT_THROW(
+      {
+        try {
+          sonar3d::read_given_connections((dir / "c1.yaml").string());
+        } catch (const sonar3d::Error& e) {
+          EXPECT_NE(std::string(e.what()).find("c1.yaml:2: key 'connection.from'"),
+                    std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      sonar3d::Error);
+  std::ofstream(dir / "c2.yaml") << "connections:\n  - {from: a, to: b}\nconections_extra: 1\n";
+  EXPECT_THROW(
+      {
+        try {
+          sonar3d::read_given_connections((dir / "c2.yaml").string());
+        } catch (const sonar3d::Error& e) {
+          EXPECT_NE(std::string(e.what()).find("conections_extra"), std::string::npos) << e.what();
+          EXPECT_NE(std::string(e.what()).find("unknown key"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      sonar3d::Error);
+  // A file name longer than the file system takes (was "filesystem error: ... File name too
+  // long" or GDAL's words with the temporary name twice).
+  r = run(dir, "elevation " + (dir / "cloud.ply").string() + " -o " +
+                   (dir / (std::string(300, 'x') + ".tif")).string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bytes long"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("(-o)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("filesystem error"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  // A path through a regular file (was a raw "Not a directory").
+  r = run(dir, "evaluate " + (dir / "cloud.ply").string() + " --truth " +
+                   (dir / "cloud.ply" / "mesh.ply").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("cloud.ply/mesh.ply"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("filesystem error"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
