@@ -85,7 +85,15 @@ const FlagNames kReconstructFlags = {
     {"deconv.exact_range_subsamples", "--exact-range-subsamples"},
     {"deconv.max_axis_angle_deg", "--max-axis-angle-deg"},
     {"deconv.max_lateral_deviation", "--max-lateral"},
+    {"deconv.kernel", "--kernel"},
+    {"deconv.beam", "--beam"},
+    {"deconv.mode", "--deconv-mode"},
+    {"deconv.exact_lambertian", "--exact-lambertian"},
+    {"deconv.exact", "--exact"},
 };
+
+// A library warning on stderr, naming flags rather than fields.
+void warn(const std::string& w) { print_warning(name_flags(w, kReconstructFlags)); }
 
 // The outputs of one run (-o, and --json, --vdb when given): checked against the output rule
 // before the work starts, written under temporary names, renamed together by commit().
@@ -127,7 +135,7 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
                                        bc.min_bracket, br.kept, br.points)
                          : std::string(),
       br.seconds);
-  for (const auto& w : br.warnings()) print_warning(w);
+  for (const auto& w : br.warnings()) warn(w);
   if (!br.extensions.empty() && bc.min_bracket == 0) {
     print_note(
         "--min-bracket 0.5 drops the points no frame saw from the other side of their "
@@ -174,8 +182,7 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   const std::size_t before_roi = cloud.size();
   if (roi) cloud = crop_to_region(cloud, *roi);
   if (!report.mode_note.empty()) print_note(report.mode_note);  // auto chose the voxel mode
-  fmt::print("{}", report.to_text(false));  // per-pass figures; the warnings (collapsed) on stderr
-  for (const auto& w : summarize_pass_warnings(report.warnings)) print_warning(w);
+  fmt::print("{}", report.to_text(false));  // per-pass figures; the warnings below, on stderr
   const BracketReport br = assess(cloud, ds, poses, o, roi);
   if (cloud.empty() && !o.allow_empty) {
     if (report.passes.empty() && report.mode == "passes") {
@@ -202,6 +209,8 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
                      : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
                 "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
   }
+  // The passes' warnings (collapsed), on stderr; a run that fails says them in its one error line.
+  for (const auto& w : summarize_pass_warnings(report.warnings)) warn(w);
   write_ply(out.ply.string(), cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   if (!o.json.empty()) {
     nlohmann::json j;
