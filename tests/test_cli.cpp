@@ -119,12 +119,17 @@ TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
   const std::string cmd = "reconstruct " + ds.string() + " -o " + (kTmp / "c.ply").string();
   CliRun r = run(cmd);
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("--min-bracket 0.5 drops"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("--explain-returns with --min-bracket 0.5"), std::string::npos) << r.out;
+  // Warnings and notes on stderr, never on stdout (issue 29).
+  EXPECT_NE(r.err.find("sonar3d: warning: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("stops short"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sonar3d: note: --min-bracket 0.5 drops"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--explain-returns with --min-bracket 0.5"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
   r = run(cmd + " --explain-returns --min-bracket 0.5 --overwrite");
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("stops short"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("stops short"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("note:"), std::string::npos) << r.err;
   EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
 }
 
@@ -190,12 +195,13 @@ TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
     expect_one_line_error(r, "'--roi'");
     EXPECT_FALSE(fs::exists(kTmp / "roi.ply"));
   }
-  // The voxel mode's options out of range: the parameter named, nothing written.
+  // The voxel mode's options out of range: the flag named (not the library's field), nothing
+  // written.
   for (const auto& [option, parameter] :
        {std::pair<std::string, std::string>{"--voxel-support-bracket 1.5",
-                                            "deconv.voxel.support_min_bracket"},
-        {"--voxel-bracketed 1.5", "deconv.voxel.bracketed"},
-        {"--kernel occlusion", "deconv.kernel"}}) {
+                                            "--voxel-support-bracket must lie in [0, 1]"},
+        {"--voxel-bracketed 1.5", "--voxel-bracketed must lie in [0, 1]"},
+        {"--kernel occlusion", "--kernel"}}) {
     r = run("reconstruct " + (kTmp / "ds").string() + " --method deconv --deconv-mode voxel -o " +
             (kTmp / "roi.ply").string() + " -q " + option);
     expect_one_line_error(r, parameter);

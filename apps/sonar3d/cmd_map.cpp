@@ -1,5 +1,6 @@
 #include <fmt/core.h>
 
+#include <cmath>
 #include <memory>
 
 #include "commands.hpp"
@@ -20,6 +21,7 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
     MapSurveyConfig cfg;
     std::vector<double> roi, swath_times;
     double turn_deg = 30;
+    double max_memory_gb = 0;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
@@ -53,73 +55,103 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "explicit swaths instead of turns: t0 t1 [t0 t1 ...] (seconds)");
   cmd->add_option("--threads", o->cfg.carve.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
+  add_max_memory_option(cmd, o->max_memory_gb);
+  // Library fields named in errors -> the flags that set them.
+  static const FlagNames kFlags = {{"cell_m", "--resolution"},
+                                   {"carve.voxel_size", "--voxel-size"},
+                                   {"carve.region", "--roi"},
+                                   {"search_m", "--search"},
+                                   {"registration.search_m", "--search"},
+                                   {"piece_m", "--piece"},
+                                   {"carve.num_threads", "--threads"},
+                                   {"num_threads", "--threads"}};
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
-      // The output rule (core/output_dir.hpp): never the dataset, inside it, or a special file;
-      // an existing path is refused by map_survey (a map directory is always new).
-      check_output_location(o->output, output_policy(false, {o->dataset}), "-o", "map");
-      MapSurveyConfig cfg = o->cfg;
-      cfg.method = swath_adjust_method_from_string(o->method);
-      cfg.registration.num_threads = cfg.carve.num_threads;
-      cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
-      if (!o->roi.empty()) {
-        const Eigen::AlignedBox3d box(Eigen::Vector3d(o->roi[0], o->roi[1], o->roi[2]),
-                                      Eigen::Vector3d(o->roi[3], o->roi[4], o->roi[5]));
-        validate_region(box, "--roi");
-        cfg.carve.region = box;
-      }
-      require(o->swath_times.size() % 2 == 0,
-              "--swath-times: give pairs of times (t0 t1 per swath)");
-      for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
-        cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
-      }
-      MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
-      const Dataset ds = read_dataset(o->dataset);
-      const MapSurveyResult r = map_survey(ds, cfg, o->output, !g.quiet, &mpi);
-      if (mpi.rank() != 0) return 0;  // rank 0 reports
-      std::size_t used = 0;
-      for (bool u : r.adjustment.tie_used) used += u;
-      fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method){}\n",
-                 r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method,
-                 mpi.size() > 1 ? fmt::format(", carved on {} ranks", mpi.size()) : "");
-      for (std::size_t s = 0; s < r.swaths.size(); ++s) {
-        const SwathInfo& w = r.swaths[s];
-        fmt::print("  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m",
-                   s, w.first_frame, w.last_frame, w.points, w.offset.x(), w.offset.y(),
-                   w.offset.z());
-        if (cfg.method == SwathAdjustMethod::Drift) {
-          fmt::print(", drift E {:+.2f} N {:+.2f} cm/min", 6000 * w.rate.x(), 6000 * w.rate.y());
+      return with_flag_names(kFlags, [&] {
+        // The output rule (core/output_dir.hpp): never the dataset, inside it, or a special file;
+        // an existing path is refused by map_survey (a map directory is always new).
+        check_output_location(o->output, output_policy(false, {o->dataset}), "-o", "map");
+        MapSurveyConfig cfg = o->cfg;
+        cfg.method = swath_adjust_method_from_string(o->method);
+        cfg.registration.num_threads = cfg.carve.num_threads;
+        cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
+        if (!o->roi.empty()) {
+          const Eigen::AlignedBox3d box(Eigen::Vector3d(o->roi[0], o->roi[1], o->roi[2]),
+                                        Eigen::Vector3d(o->roi[3], o->roi[4], o->roi[5]));
+          validate_region(box, "--roi");
+          cfg.carve.region = box;
         }
-        if (w.has_truth) {  // simulated drift: the navigation error left, mean over the swath
+        require(o->swath_times.size() % 2 == 0,
+                "--swath-times: give pairs of times (t0 t1 per swath)");
+        for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
+          cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
+        }
+        MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
+        const Dataset ds = read_dataset(o->dataset);
+        if (mpi.rank() == 0) {
+          const std::string w = implausible_voxel_size(ds.spec, cfg.carve.voxel_size,
+                                                       cfg.carve.region, "--voxel-size");
+          if (!w.empty()) print_warning(w);
+          // A map cell larger than the sonar's swath leaves nothing to register.
+          const double swath =
+              2 * ds.spec.r_max *
+              std::sin(0.5 * std::min(M_PI, ds.spec.fov_max() - ds.spec.fov_min()));
+          if (cfg.cell_m > swath / 10) {
+            print_warning(fmt::format(
+                "--resolution {:.4g} m leaves {:.0f} cell(s) across the sonar's {:.3g} m swath: "
+                "the swath maps cannot be registered; is it in centimetres? (--resolution {:.4g} "
+                "is {:.4g} cm)",
+                cfg.cell_m, std::floor(swath / cfg.cell_m), swath, cfg.cell_m / 100, cfg.cell_m));
+          }
+        }
+        const double limit = memory_limit_bytes(o->max_memory_gb);
+        check_memory(estimate_map_survey_memory(ds, cfg, limit), limit, "map");
+        const MapSurveyResult r = map_survey(ds, cfg, o->output, !g.quiet, &mpi);
+        if (mpi.rank() != 0) return 0;  // rank 0 reports
+        std::size_t used = 0;
+        for (bool u : r.adjustment.tie_used) used += u;
+        fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method){}\n",
+                   r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method,
+                   mpi.size() > 1 ? fmt::format(", carved on {} ranks", mpi.size()) : "");
+        for (std::size_t s = 0; s < r.swaths.size(); ++s) {
+          const SwathInfo& w = r.swaths[s];
           fmt::print(
-              " (navigation error within the map {:.3f} → {:.3f} m, absolute {:.3f} → "
-              "{:.3f} m)",
-              w.rigid_error_before.x(), w.rigid_error_after.x(), w.error_before.x(),
-              w.error_after.x());
+              "  swath {:2d}: frames {}–{}, {} points, offset E {:+.3f} N {:+.3f} U {:+.3f} m", s,
+              w.first_frame, w.last_frame, w.points, w.offset.x(), w.offset.y(), w.offset.z());
+          if (cfg.method == SwathAdjustMethod::Drift) {
+            fmt::print(", drift E {:+.2f} N {:+.2f} cm/min", 6000 * w.rate.x(), 6000 * w.rate.y());
+          }
+          if (w.has_truth) {  // simulated drift: the navigation error left, mean over the swath
+            fmt::print(
+                " (navigation error within the map {:.3f} → {:.3f} m, absolute {:.3f} → "
+                "{:.3f} m)",
+                w.rigid_error_before.x(), w.rigid_error_after.x(), w.error_before.x(),
+                w.error_after.x());
+          }
+          fmt::print("\n");
         }
-        fmt::print("\n");
-      }
-      if (r.has_alignment) {  // simulated navigation: the whole map against the truth
-        const NavigationError &b = r.navigation_before, &a = r.navigation_after;
-        fmt::print(
-            "  navigation error (median over frames, horizontal, as logged → corrected): "
-            "absolute {:.3f} → {:.3f} m; within the map (after a rigid placement) {:.3f} → "
-            "{:.3f} m; after an affine placement {:.3f} → {:.3f} m, which hides a scale of "
-            "{:.4f} → {:.4f} (docs/mapping.md)\n",
-            b.absolute_m, a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
-            r.alignment_before.scale(), r.alignment_after.scale());
-      }
-      for (const StructureEval& e : r.structures) {  // simulated site: against the CAD
-        fmt::print(
-            "  {} {}: median {:.1f} → {:.1f} cm, coverage {:.0f} → {:.0f} %, outliers "
-            "{:.0f} → {:.0f} % (as logged → corrected, each map placed by its affine fit)\n",
-            to_string(e.kind), e.name, 100 * e.before.median_error, 100 * e.after.median_error,
-            100 * e.before.coverage, 100 * e.after.coverage, 100 * e.before.outliers,
-            100 * e.after.outliers);
-      }
-      fmt::print("  carving {:.1f} s, registration {:.2f} s, total {:.1f} s\n", r.seconds_carving,
-                 r.seconds_registration, r.seconds_total);
-      return 0;
+        if (r.has_alignment) {  // simulated navigation: the whole map against the truth
+          const NavigationError &b = r.navigation_before, &a = r.navigation_after;
+          fmt::print(
+              "  navigation error (median over frames, horizontal, as logged → corrected): "
+              "absolute {:.3f} → {:.3f} m; within the map (after a rigid placement) {:.3f} → "
+              "{:.3f} m; after an affine placement {:.3f} → {:.3f} m, which hides a scale of "
+              "{:.4f} → {:.4f} (docs/mapping.md)\n",
+              b.absolute_m, a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
+              r.alignment_before.scale(), r.alignment_after.scale());
+        }
+        for (const StructureEval& e : r.structures) {  // simulated site: against the CAD
+          fmt::print(
+              "  {} {}: median {:.1f} → {:.1f} cm, coverage {:.0f} → {:.0f} %, outliers "
+              "{:.0f} → {:.0f} % (as logged → corrected, each map placed by its affine fit)\n",
+              to_string(e.kind), e.name, 100 * e.before.median_error, 100 * e.after.median_error,
+              100 * e.before.coverage, 100 * e.after.coverage, 100 * e.before.outliers,
+              100 * e.after.outliers);
+        }
+        fmt::print("  carving {:.1f} s, registration {:.2f} s, total {:.1f} s\n", r.seconds_carving,
+                   r.seconds_registration, r.seconds_total);
+        return 0;
+      });
     };
   });
 }

@@ -32,7 +32,68 @@ struct ReconstructCliOptions {
   std::vector<double> roi;
   bool no_occlusion = false, no_z_test = false, ascii = false, no_dering = false;
   bool allow_empty = false, overwrite = false;
+  double max_memory_gb = 0;  // --max-memory (0 = the default limit)
 };
+
+// The dataset's frame poses (an error names a frame outside the navigation).
+std::vector<Eigen::Isometry3d> frame_poses(const Dataset& ds) {
+  std::vector<Eigen::Isometry3d> poses;
+  poses.reserve(ds.size());
+  for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
+  return poses;
+}
+
+// Refuses, before the map is allocated, a carving (or the voxel mode's candidates) whose
+// estimated memory exceeds --max-memory.
+void check_carve_memory(const Dataset& ds, const std::vector<Eigen::Isometry3d>& poses,
+                        const CarveConfig& cfg, const ReconstructCliOptions& o) {
+  const std::string w = implausible_voxel_size(ds.spec, cfg.voxel_size, cfg.region, "--voxel-size");
+  if (!w.empty()) print_warning(w);
+  const double limit = memory_limit_bytes(o.max_memory_gb);
+  check_memory(estimate_carve_memory(ds.spec, poses, cfg, limit), limit, "reconstruct");
+}
+
+// Library fields named in errors -> the flags that set them.
+const FlagNames kReconstructFlags = {
+    {"carve.voxel_size", "--voxel-size"},
+    {"deconv.voxel.voxel_size", "--voxel-size"},
+    {"carve.region", "--roi"},
+    {"carve.static_threshold", "--static-threshold"},
+    {"carve.carve_margin", "--carve-margin"},
+    {"carve.pose_sigma_position", "--pose-sigma"},
+    {"carve.pose_sigma_attitude_deg", "--attitude-sigma-deg"},
+    {"carve.pose_sigma_k", "--pose-sigma-k"},
+    {"carve.min_elevation_span", "--min-elevation-span"},
+    {"carve.min_observations", "--min-observations"},
+    {"deconv.voxel.min_observations", "--min-observations"},
+    {"carve.num_threads", "--threads"},
+    {"deconv.num_threads", "--threads"},
+    {"bracket.num_threads", "--threads"},
+    {"occlusion.num_threads", "--threads"},
+    {"denoise.z_threshold", "--z-threshold"},
+    {"denoise.static_threshold", "--image-threshold"},
+    {"occlusion.footprint_radius", "--footprint-radius"},
+    {"occlusion.range_tolerance_bins", "--range-tolerance"},
+    {"occlusion.explain_pin_fraction", "--explain-pin-fraction"},
+    {"bracket.min_bracket", "--min-bracket"},
+    {"deconv.lambda", "--lambda"},
+    {"deconv.voxel.max_iterations", "--voxel-iterations"},
+    {"deconv.voxel.min_relative", "--voxel-min-relative"},
+    {"deconv.voxel.min_relative_bracketed", "--voxel-min-relative-bracketed"},
+    {"deconv.voxel.bracketed", "--voxel-bracketed"},
+    {"deconv.voxel.support_min_bracket", "--voxel-support-bracket"},
+    {"deconv.exact_range_subsamples", "--exact-range-subsamples"},
+    {"deconv.max_axis_angle_deg", "--max-axis-angle-deg"},
+    {"deconv.max_lateral_deviation", "--max-lateral"},
+    {"deconv.kernel", "--kernel"},
+    {"deconv.beam", "--beam"},
+    {"deconv.mode", "--deconv-mode"},
+    {"deconv.exact_lambertian", "--exact-lambertian"},
+    {"deconv.exact", "--exact"},
+};
+
+// A library warning on stderr, naming flags rather than fields.
+void warn(const std::string& w) { print_warning(name_flags(w, kReconstructFlags)); }
 
 // The outputs of one run (-o, and --json, --vdb when given): checked against the output rule
 // before the work starts, written under temporary names, renamed together by commit().
@@ -43,7 +104,8 @@ struct RunOutputs {
       : files(output_policy(o.overwrite, {o.dataset})) {
     ply = files.add(o.output, OutputKind::PointCloud, "-o");
     if (!o.json.empty()) json = files.add(o.json, OutputKind::ReconstructionJson, "--json");
-    if (!o.vdb.empty() && o.method == "carve") vdb = files.add(o.vdb, OutputKind::VoxelMap, "--vdb");
+    if (!o.vdb.empty() && o.method == "carve")
+      vdb = files.add(o.vdb, OutputKind::VoxelMap, "--vdb");
   }
 };
 
@@ -73,18 +135,18 @@ BracketReport assess(PointCloud& cloud, const Dataset& ds, const std::vector<Eig
                                        bc.min_bracket, br.kept, br.points)
                          : std::string(),
       br.seconds);
-  for (const auto& w : br.warnings()) fmt::print("warning: {}\n", w);
+  for (const auto& w : br.warnings()) warn(w);
   if (!br.extensions.empty() && bc.min_bracket == 0) {
-    fmt::print(
-        "  note: --min-bracket 0.5 drops the points no frame saw from the other side of their "
-        "elevation (measured: docs/carving.md, \"Elevation bracketing\")\n");
+    print_note(
+        "--min-bracket 0.5 drops the points no frame saw from the other side of their "
+        "elevation (measured: docs/carving.md, \"Elevation bracketing\")");
   }
   if (!br.extensions.empty() && o.method == "carve" && !o.carve.occlusion.explain_returns) {
-    fmt::print(
-        "  note: on an open structure, --explain-returns with --min-bracket 0.5 also drops the "
+    print_note(
+        "on an open structure, --explain-returns with --min-bracket 0.5 also drops the "
         "ghosts inside it (measured at 20 degrees: 0-3.1 % outliers on the lattices of "
         "docs/carving.md, \"Interior ghosts\", 3.8 % on a 7 x 6 m one with "
-        "--explain-pin-fraction 0.4), for an occlusion step 2 to 14 times longer\n");
+        "--explain-pin-fraction 0.4), for an occlusion step 2 to 14 times longer");
   }
   return br;
 }
@@ -109,14 +171,18 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
   if (!o.roi.empty()) roi = roi_box(o.roi);
   RunOutputs out(o);
   const Dataset ds = read_dataset(o.dataset);
+  const std::vector<Eigen::Isometry3d> poses = frame_poses(ds);
+  if (cfg.mode != DeconvConfig::Mode::Passes) {  // the voxel mode carves its candidates first
+    CarveConfig cc = o.carve;
+    cc.voxel_size = cfg.voxel.voxel_size;
+    check_carve_memory(ds, poses, cc, o);
+  }
   DeconvReport report;
   PointCloud cloud = deconvolve_dataset(ds, cfg, !g.quiet, &report);
   const std::size_t before_roi = cloud.size();
   if (roi) cloud = crop_to_region(cloud, *roi);
   if (!report.mode_note.empty()) print_note(report.mode_note);  // auto chose the voxel mode
-  fmt::print("{}", report.to_text());  // per-pass figures, then the warnings (collapsed)
-  std::vector<Eigen::Isometry3d> poses;
-  for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
+  fmt::print("{}", report.to_text(false));  // per-pass figures; the warnings below, on stderr
   const BracketReport br = assess(cloud, ds, poses, o, roi);
   if (cloud.empty() && !o.allow_empty) {
     if (report.passes.empty() && report.mode == "passes") {
@@ -143,6 +209,8 @@ int run_deconv(const ReconstructCliOptions& o, const GlobalOptions& g) {
                      : std::string(" from ") + std::to_string(report.passes.size()) + " passes") +
                 "; check --roi, --image-threshold and --lambda, or pass --allow-empty");
   }
+  // The passes' warnings (collapsed), on stderr; a run that fails says them in its one error line.
+  for (const auto& w : summarize_pass_warnings(report.warnings)) warn(w);
   write_ply(out.ply.string(), cloud, o.ascii ? PlyFormat::Ascii : PlyFormat::Binary);
   if (!o.json.empty()) {
     nlohmann::json j;
@@ -169,6 +237,7 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
   cfg.validate();
   RunOutputs out(o);
   const Dataset ds = read_dataset(o.dataset);
+  check_carve_memory(ds, frame_poses(ds), cfg, o);
   Carver carver(ds.spec, cfg, ds.noise);
   integrate_dataset(carver, ds, !g.quiet);
   const std::size_t integrate_peak = peak_rss_bytes();  // before finalize's occlusion resolution
@@ -213,10 +282,10 @@ int run_carve(const ReconstructCliOptions& o, const GlobalOptions& g) {
                st.ghosts);
   }
   if (st.min_observations_used < cfg.min_observations) {
-    fmt::print(
-        "  note: a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need {} "
-        "observation(s), not --min-observations {}\n",
-        st.views_per_scatterer, st.min_observations_used, cfg.min_observations);
+    print_note(
+        fmt::format("a scatterer is seen by {:.0f} frame(s) of this trajectory, so candidates need "
+                    "{} observation(s), not --min-observations {}",
+                    st.views_per_scatterer, st.min_observations_used, cfg.min_observations));
   }
   if (!o.json.empty()) {
     nlohmann::json j;
@@ -356,12 +425,13 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "both (normal+occlusion), or none (plain)")
       ->check(CLI::IsMember({"plain", "normal", "occlusion", "normal+occlusion"}))
       ->capture_default_str();
-  cmd->add_option("--deconv-mode", o->deconv_mode,
-                  "deconv: passes (the thesis: per column of straight passes along the sonar z "
-                  "axis), voxel (any trajectory and spacing: orbits, lawnmowers, irregular passes; "
-                  "non-negative least squares over carving's candidate voxels, --voxel-size) or "
-                  "auto (passes when the frames form regular passes; voxel, with a note on stderr, when "
-                  "frames lie in no pass or a pass is irregular in spacing or attitude)")
+  cmd->add_option(
+         "--deconv-mode", o->deconv_mode,
+         "deconv: passes (the thesis: per column of straight passes along the sonar z "
+         "axis), voxel (any trajectory and spacing: orbits, lawnmowers, irregular passes; "
+         "non-negative least squares over carving's candidate voxels, --voxel-size) or "
+         "auto (passes when the frames form regular passes; voxel, with a note on stderr, when "
+         "frames lie in no pass or a pass is irregular in spacing or attitude)")
       ->capture_default_str();
   cmd->add_option("--voxel-iterations", o->deconv.voxel.max_iterations,
                   "deconv, voxel mode: projected-gradient iterations at most")
@@ -425,10 +495,12 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "write the cloud even when it has no point (by default an error, exit status 1)");
   cmd->add_option("--json", o->json, "also write run statistics (timings, memory) as JSON");
   add_overwrite_flag(cmd, o->overwrite, "a cloud, --json and --vdb sonar3d wrote earlier");
+  add_max_memory_option(cmd, o->max_memory_gb);
   cmd->callback([&g, &run, o] {
     run = [&g, o]() -> int {
-      if (o->method == "deconv") return run_deconv(*o, g);
-      return run_carve(*o, g);
+      return with_flag_names(kReconstructFlags, [&] {
+        return o->method == "deconv" ? run_deconv(*o, g) : run_carve(*o, g);
+      });
     };
   });
 }

@@ -3,6 +3,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -197,7 +198,8 @@ std::uint32_t crc32(const char* data, std::size_t n) {
     return t;
   }();
   std::uint32_t c = 0xFFFFFFFFu;
-  for (std::size_t i = 0; i < n; ++i) c = table[(c ^ static_cast<unsigned char>(data[i])) & 0xff] ^ (c >> 8);
+  for (std::size_t i = 0; i < n; ++i)
+    c = table[(c ^ static_cast<unsigned char>(data[i])) & 0xff] ^ (c >> 8);
   return c ^ 0xFFFFFFFFu;
 }
 
@@ -238,8 +240,10 @@ bool has_json_marker(const fs::path& path, const std::string& marker) {
 bool is_sonar3d_ply_kind(const fs::path& path, bool mesh) {
   const std::string h = read_head(path, 256);
   if (h.rfind("ply\nformat ", 0) != 0) return false;
-  const bool cloud = h.find("\ncomment sonar3d point cloud, world frame, metres\n") != std::string::npos;
-  const bool textured = h.find("\ncomment sonar3d textured mesh, world frame, metres") != std::string::npos;
+  const bool cloud =
+      h.find("\ncomment sonar3d point cloud, world frame, metres\n") != std::string::npos;
+  const bool textured =
+      h.find("\ncomment sonar3d textured mesh, world frame, metres") != std::string::npos;
   const bool plain_mesh = h.find("\ncomment sonar3d mesh") != std::string::npos;
   return mesh ? (plain_mesh || textured) : (cloud || textured);
 }
@@ -395,12 +399,11 @@ std::string with_article(const std::string& noun) {
 
 // The kind of sonar3d output a file or directory is, if any (for "is a sonar3d X, not a Y").
 std::string other_sonar3d_kind(const fs::path& path, OutputKind wanted) {
-  for (OutputKind k : {OutputKind::Dataset, OutputKind::Plan, OutputKind::PointCloud,
-                       OutputKind::Mesh, OutputKind::GeoTiff, OutputKind::Png, OutputKind::Gltf,
-                       OutputKind::VoxelMap, OutputKind::ReconstructionJson,
-                       OutputKind::EvaluationJson, OutputKind::RegistrationJson,
-                       OutputKind::PlacementsJson, OutputKind::PlanResultsJson,
-                       OutputKind::PlanResultsCsv}) {
+  for (OutputKind k :
+       {OutputKind::Dataset, OutputKind::Plan, OutputKind::PointCloud, OutputKind::Mesh,
+        OutputKind::GeoTiff, OutputKind::Png, OutputKind::Gltf, OutputKind::VoxelMap,
+        OutputKind::ReconstructionJson, OutputKind::EvaluationJson, OutputKind::RegistrationJson,
+        OutputKind::PlacementsJson, OutputKind::PlanResultsJson, OutputKind::PlanResultsCsv}) {
     if (k != wanted && is_sonar3d_output(path, k)) return output_kind_name(k);
   }
   return "";
@@ -412,6 +415,22 @@ void check_output_location(const fs::path& path, const OutputPolicy& policy,
                            const std::string& flag, const std::string& what) {
   const std::string in_flag = " (" + flag + ")";
   require(!path.empty(), "no output path given" + in_flag);
+  {
+    // An output is written under a temporary name next to it (".NAME.tmp-PID-N", and a
+    // GeoTIFF's writer again inside that one), which the file system must accept too: the name
+    // may take at most half of what the directory allows, less the temporaries' additions.
+    const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    long name_max = ::pathconf(parent.c_str(), _PC_NAME_MAX);
+    if (name_max <= 0) name_max = 255;
+    const std::size_t longest = static_cast<std::size_t>(std::max(16L, (name_max - 64) / 2));
+    const std::string name = path.filename().string();
+    if (name.size() > longest) {
+      throw Error("the output name '" + printable(name, 40) + "'" + in_flag + " is " +
+                  std::to_string(name.size()) + " bytes long; with sonar3d's temporary names " +
+                  "this file system takes at most " + std::to_string(longest) +
+                  ": choose a shorter name");
+    }
+  }
   const fs::path out = resolved(path);
   std::error_code ec;
   for (const fs::path& src : policy.sources) {
@@ -460,13 +479,14 @@ void check_output(const fs::path& path, OutputKind kind, const OutputPolicy& pol
   const fs::file_status st = fs::status(path, ec);  // a regular file or directory (above)
   if (is_directory_kind(kind)) {
     if (!fs::is_directory(st)) {
-      throw Error("'" + path.string() + "'" + in_flag + " exists and is not a directory: sonar3d "
+      throw Error("'" + path.string() + "'" + in_flag +
+                  " exists and is not a directory: sonar3d "
                   "will not replace it; choose another output or remove it yourself");
     }
     if (fs::is_empty(path, ec) && !ec) return;
   } else if (fs::is_directory(st)) {
-    throw Error("'" + path.string() + "'" + in_flag + " is a directory, not " +
-                with_article(what) + " file: choose a file name");
+    throw Error("'" + path.string() + "'" + in_flag + " is a directory, not " + with_article(what) +
+                " file: choose a file name");
   }
   if (is_sonar3d_output(path, kind)) {
     if (policy.overwrite) return;

@@ -2,7 +2,9 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "sonar3d/core/error.hpp"
@@ -75,6 +77,71 @@ std::vector<ObjectEval> evaluate_structures(const PointCloud& cloud,
     }
     out.push_back({objects[k].name, evaluate(sub, objects[k].mesh_world, config)});
   }
+  return out;
+}
+
+MemoryEstimate estimate_evaluation_memory(const PointCloud& cloud,
+                                          const std::vector<SceneObject>& objects,
+                                          const EvalConfig& config,
+                                          const std::string& samples_option) {
+  config.validate();
+  auto samples_of = [&](double area_m2) {
+    return std::max(1000.0, std::ceil(area_m2 * 1e4 * config.samples_per_cm2));
+  };
+  double samples = 0, area = 0, mesh_bytes = 0;
+  for (const auto& o : objects) {
+    const double a = o.mesh_world.surface_area();
+    samples += samples_of(a);
+    area += a;
+    mesh_bytes += static_cast<double>(o.mesh_world.triangles.size() * sizeof(Eigen::Vector3i) +
+                                      o.mesh_world.vertices.size() * sizeof(Eigen::Vector3f));
+  }
+  samples += samples_of(area);  // the whole scene ("all")
+  MemoryEstimate e;
+  char what[160];
+  std::snprintf(what, sizeof what, "%.3g surface samples over %.3g m² at %.3g per cm²", samples,
+                area, config.samples_per_cm2);
+  e.add(what, samples * sizeof(Eigen::Vector3f), samples_option);
+  // Per scoring (each object, then all): the coverage grid holds each point as a double vector
+  // with its cell key while sorting; the distances are one double per point.
+  const double n = static_cast<double>(cloud.size());
+  e.add("coverage grid and distances over " + std::to_string(cloud.size()) + " points",
+        n * (sizeof(Eigen::Vector3d) + 16 + 2 * sizeof(double)));
+  // Distance structures, each object's then all's: Embree's copy of the vertices and triangles,
+  // and its BVH, counted as large as the copy.
+  e.add("mesh distance structures", 2 * 2 * mesh_bytes);
+  return e;
+}
+
+std::vector<std::string> implausible_evaluation_radii(const std::vector<SceneObject>& objects,
+                                                      const EvalConfig& config,
+                                                      const std::string& coverage_flag,
+                                                      const std::string& outlier_flag) {
+  std::vector<std::string> out;
+  // The smallest object's size (its bounding box's longest edge) is the scene's finest scale.
+  double size = std::numeric_limits<double>::infinity();
+  std::string name;
+  for (const auto& o : objects) {
+    if (o.mesh_world.triangles.empty()) continue;
+    const double s = o.mesh_world.bounding_box().sizes().cast<double>().maxCoeff();
+    if (s < size) {
+      size = s;
+      name = o.name;
+    }
+  }
+  if (!std::isfinite(size) || size <= 0) return out;
+  auto check = [&](double r, const std::string& flag, const char* effect) {
+    if (r < 0.5 * size) return;
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "%s %.4g m is at least half the size of object '%s' (%.3g m across): %s; is it "
+                  "in centimetres? (%s %.4g is %.4g cm)",
+                  flag.c_str(), r, printable(name).c_str(), size, effect, flag.c_str(), r / 100, r);
+    out.push_back(buf);
+  };
+  check(config.coverage_radius, coverage_flag,
+        "any point near the object covers all of it, so coverage says nothing");
+  check(config.outlier_radius, outlier_flag, "no point near the object can be an outlier");
   return out;
 }
 

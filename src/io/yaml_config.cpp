@@ -120,12 +120,54 @@ int get_int(const YAML::Node& parent, const std::string& key, int fallback, cons
   }
 }
 
+namespace {
+
+// Whether `s` is well-formed UTF-8 (no overlong forms, surrogates or code points past U+10FFFF).
+bool valid_utf8(const std::string& s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    int n = 0;
+    unsigned min = 0;
+    unsigned cp = 0;
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if ((c & 0xE0) == 0xC0) {
+      n = 1, min = 0x80, cp = c & 0x1F;
+    } else if ((c & 0xF0) == 0xE0) {
+      n = 2, min = 0x800, cp = c & 0x0F;
+    } else if ((c & 0xF8) == 0xF0) {
+      n = 3, min = 0x10000, cp = c & 0x07;
+    } else {
+      return false;
+    }
+    for (int k = 1; k <= n; ++k) {
+      if (i + k >= s.size()) return false;
+      const auto d = static_cast<unsigned char>(s[i + k]);
+      if ((d & 0xC0) != 0x80) return false;
+      cp = (cp << 6) | (d & 0x3F);
+    }
+    if (cp < min || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += n + 1;
+  }
+  return true;
+}
+
+}  // namespace
+
 std::string get_string(const YAML::Node& parent, const std::string& key,
                        const std::string& fallback, const std::string& file,
                        const std::string& ctx) {
   const YAML::Node n = child(parent, key, file, ctx);
   if (!n) return fallback;
   if (!n.IsScalar()) throw Error(where(file, n, full_key(ctx, key)) + ": expected a string");
+  // Names travel into JSON outputs, which must be UTF-8: refused here, naming the key, rather
+  // than by the JSON writer later with its own words.
+  if (!valid_utf8(n.Scalar())) {
+    throw Error(where(file, n, full_key(ctx, key)) + ": '" + printable(n.Scalar()) +
+                "' is not valid UTF-8 text (save the file as UTF-8)");
+  }
   return n.Scalar();
 }
 

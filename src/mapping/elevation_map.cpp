@@ -14,8 +14,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
-#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/output_dir.hpp"
 
 namespace sonar3d {
 
@@ -75,8 +75,16 @@ void ElevationMapConfig::validate() const {
   require(max_cells > 0, "max_cells must be > 0");
 }
 
-ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
-                                       const ElevationMapConfig& config) {
+namespace {
+
+// The map's grid (cell indices of its corners) for a cloud and a config.
+struct Grid {
+  double kx0 = 0, kx1 = 0, ky0 = 0, ky1 = 0;
+  double cols() const { return kx1 - kx0 + 1; }
+  double rows() const { return ky1 - ky0 + 1; }
+};
+
+Grid grid_of(const PointCloud& cloud_world, const ElevationMapConfig& config) {
   config.validate();
   Eigen::Vector2d lo = config.region_min_xy, hi = config.region_max_xy;
   if (lo.x() > hi.x()) {
@@ -96,9 +104,38 @@ ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
   // Cells sit on one world grid, cell k along an axis covering [k·c, (k+1)·c): maps of different
   // swaths at one resolution then share their grid (swath registration needs that). Columns run
   // west → east, rows north → south.
-  const double kx0 = cell_index(lo.x(), c), kx1 = cell_index(hi.x(), c);
-  const double ky0 = cell_index(lo.y(), c), ky1 = cell_index(hi.y(), c);
-  const double ncols = kx1 - kx0 + 1, nrows = ky1 - ky0 + 1;
+  return {cell_index(lo.x(), c), cell_index(hi.x(), c), cell_index(lo.y(), c),
+          cell_index(hi.y(), c)};
+}
+
+}  // namespace
+
+MemoryEstimate estimate_elevation_memory(const PointCloud& cloud_world,
+                                         const ElevationMapConfig& config,
+                                         const ElevationWriteOptions& write, bool png,
+                                         const std::string& cell_option) {
+  const Grid grid = grid_of(cloud_world, config);
+  const double cells = grid.cols() * grid.rows();
+  char what[160];
+  std::snprintf(what, sizeof what, "elevation map of %.0f x %.0f cells of %.3g m", grid.cols(),
+                grid.rows(), config.cell_m);
+  MemoryEstimate e;
+  e.add(what, cells * sizeof(float), cell_option);
+  if (write.encoding == ElevationEncoding::UInt16) {
+    e.add("its uint16 GeoTIFF band", cells * sizeof(std::uint16_t), cell_option);
+  }
+  // The picture: grey and validity masks, the colour-mapped image and the canvas (8-bit BGR),
+  // and the encoded PNG (at most the canvas).
+  if (png) e.add("its PNG picture", cells * (1 + 1 + 3 + 3 + 3), cell_option);
+  return e;
+}
+
+ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
+                                       const ElevationMapConfig& config) {
+  const Grid grid = grid_of(cloud_world, config);
+  const double c = config.cell_m;
+  const double kx0 = grid.kx0, ky1 = grid.ky1;
+  const double ncols = grid.cols(), nrows = grid.rows();
   require(ncols * nrows <= static_cast<double>(config.max_cells),
           "elevation map: " + std::to_string(static_cast<long long>(ncols)) + " x " +
               std::to_string(static_cast<long long>(nrows)) + " cells of " + std::to_string(c) +

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -387,6 +388,41 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
                       "(turn threshold {:.1f}°): give swath time ranges, or lower min_frames",
                       config.min_frames, config.turn_threshold_rad * 180 / 3.14159265358979323846));
   return swaths;
+}
+
+MemoryEstimate estimate_map_survey_memory(const Dataset& dataset, const MapSurveyConfig& config,
+                                          double limit_bytes) {
+  config.validate();
+  const auto swaths = split_swaths(dataset, config.split);
+  MemoryEstimate largest;
+  std::vector<Eigen::Isometry3d> all;
+  double map_cells = 0;
+  for (const auto& [first, last] : swaths) {
+    std::vector<Eigen::Isometry3d> poses;
+    for (int i = first; i <= last; ++i) poses.push_back(dataset.T_world_sonar(i));
+    MemoryEstimate e = estimate_carve_memory(dataset.spec, poses, config.carve, limit_bytes);
+    if (e.total() > largest.total()) largest = e;
+    const Eigen::AlignedBox3d b = footprint_bounds(dataset.spec, poses, config.carve.region);
+    if (!b.isEmpty()) {
+      map_cells += std::ceil(b.sizes().x() / config.cell_m + 1) *
+                   std::ceil(b.sizes().y() / config.cell_m + 1);
+    }
+    all.insert(all.end(), poses.begin(), poses.end());
+  }
+  MemoryEstimate e;
+  for (auto& p : largest.parts) p.what = "the largest swath's " + p.what;
+  e += largest;
+  const Eigen::AlignedBox3d b = footprint_bounds(dataset.spec, all, config.carve.region);
+  if (!b.isEmpty()) {
+    map_cells += 2 * std::ceil(b.sizes().x() / config.cell_m + 1) *
+                 std::ceil(b.sizes().y() / config.cell_m + 1);
+  }
+  char what[160];
+  std::snprintf(what, sizeof what,
+                "elevation maps at %.3g m (%zu swaths, merged and uncorrected): %.3g cells",
+                config.cell_m, swaths.size(), map_cells);
+  e.add(what, map_cells * sizeof(float), "--resolution");
+  return e;
 }
 
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,

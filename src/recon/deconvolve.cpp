@@ -797,7 +797,6 @@ BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
 
 }  // namespace deconv_detail
 
-
 PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
                              const std::vector<Eigen::Isometry3d>& T_world_sonar,
                              const SonarSpec& spec, const DeconvConfig& config,
@@ -1192,7 +1191,7 @@ std::vector<std::string> summarize_pass_warnings(const std::vector<std::string>&
   return out;
 }
 
-std::string DeconvReport::to_text() const {
+std::string DeconvReport::to_text(bool with_warnings) const {
   std::ostringstream os;
   for (std::size_t i = 0; i < passes.size(); ++i) {
     const PassReport& p = passes[i];
@@ -1233,7 +1232,9 @@ std::string DeconvReport::to_text() const {
   os << "; " << fmt(seconds_total, 2) << " s (read " << fmt(seconds_load, 2) << ", solve "
      << fmt(seconds_solve, 2) << ", de-ring " << fmt(seconds_dering, 2) << ", multipass "
      << fmt(seconds_multipass, 2) << ", occlusion " << fmt(seconds_occlusion, 2) << ")\n";
-  for (const auto& w : summarize_pass_warnings(warnings)) os << "warning: " << w << "\n";
+  if (with_warnings) {
+    for (const auto& w : summarize_pass_warnings(warnings)) os << "warning: " << w << "\n";
+  }
   return os.str();
 }
 

@@ -688,6 +688,7 @@ std::vector<GivenConnection> read_given_connections(const std::string& path) {
   const YAML::Node root = yaml::load_file(path);  // size limit, syntax errors with file:line
   require(root.IsMap() && root["connections"] && root["connections"].IsSequence(),
           "connections '" + path + "': no 'connections' list (connections: - {from: ID, to: ID})");
+  yaml::check_keys(root, {"connections"}, path);  // a misspelt key is an error, as in every YAML
   const YAML::Node list = root["connections"];
   require(list.size() <= kMaxGivenConnections, "connections '" + path + "': more than " +
                                                    std::to_string(kMaxGivenConnections) +

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/eval/metrics.hpp"
 
@@ -27,5 +28,22 @@ std::vector<ObjectEval> evaluate_objects(const PointCloud& cloud,
 std::vector<ObjectEval> evaluate_structures(const PointCloud& cloud,
                                             const std::vector<SceneObject>& objects,
                                             const EvalConfig& config, double margin_m = 0.5);
+
+// Memory evaluate_objects() will take (core/memory.hpp), before it allocates: the surface
+// samples of every object and of the whole scene (area × config.samples_per_cm2, at least 1000
+// each), the coverage grid and the distances over the cloud's points, the meshes' distance
+// structures. `samples_option` names the option that sets samples_per_cm2.
+MemoryEstimate estimate_evaluation_memory(const PointCloud& cloud,
+                                          const std::vector<SceneObject>& objects,
+                                          const EvalConfig& config,
+                                          const std::string& samples_option);
+
+// Warnings (naming the flags) for radii implausible for the scene: a coverage radius of half an
+// object's size or more counts every sample of it as covered by any nearby point, and an outlier
+// radius that large counts no point as an outlier; usually centimetres given as metres.
+std::vector<std::string> implausible_evaluation_radii(const std::vector<SceneObject>& objects,
+                                                      const EvalConfig& config,
+                                                      const std::string& coverage_flag,
+                                                      const std::string& outlier_flag);
 
 }  // namespace sonar3d

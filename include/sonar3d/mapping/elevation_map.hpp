@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 
 namespace sonar3d {
@@ -71,6 +72,14 @@ struct ElevationWriteOptions {
 // Written atomically (temporary name, renamed when complete).
 void write_elevation_geotiff(const std::string& path, const ElevationMap& map,
                              const ElevationWriteOptions& options = {});
+// Memory an elevation map of this cloud will take (core/memory.hpp), before it is allocated: the
+// grid's float32 heights, the uint16 band when written so, the PNG picture when asked for.
+// `cell_option` names the option that sets config.cell_m (e.g. "--cell-m").
+MemoryEstimate estimate_elevation_memory(const PointCloud& cloud_world,
+                                         const ElevationMapConfig& config,
+                                         const ElevationWriteOptions& write, bool png,
+                                         const std::string& cell_option);
+
 // Reads a single-band north-up GeoTIFF written by write_elevation_geotiff (or any such raster
 // with square cells), applying offset/scale and no-data. Errors name the file.
 ElevationMap read_elevation_geotiff(const std::string& path);

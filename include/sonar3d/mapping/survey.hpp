@@ -149,6 +149,13 @@ struct MapSurveyResult {
 std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
                                               const SwathSplitConfig& config);
 
+// Memory map_survey() will take (core/memory.hpp), before it allocates: the carving of the
+// largest swath (swaths are carved one at a time) and the elevation maps (each swath's, the merged
+// and the uncorrected one) over the area the footprints cover. With `limit_bytes` > 0 the advice
+// names the voxel size that fits.
+MemoryEstimate estimate_map_survey_memory(const Dataset& dataset, const MapSurveyConfig& config,
+                                          double limit_bytes = 0);
+
 // Runs the whole field mapping and writes into `out_dir` (which must not exist; written under a
 // temporary name and renamed when complete):
 //   swaths/swath_NN.ply, .tif, .png   per-swath cloud and elevation map (as logged)

@@ -21,6 +21,7 @@
 #include <optional>
 #include <string>
 
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
@@ -153,6 +154,29 @@ class Carver {
 // with a progress bar when `progress` is set. Throws Error on an empty dataset or a frame without
 // pose (naming the frame).
 void integrate_dataset(Carver& carver, const Dataset& dataset, bool progress);
+
+// Memory a carving of these poses will take (core/memory.hpp), estimated before anything is
+// allocated from the sonar's footprint, the poses, config.region and config.voxel_size: the map's
+// nodes on the boundary of the observed volume and the frame summaries (the candidate surfaces
+// add to it: docs/carving.md, "Memory"). With `limit_bytes` > 0 and an estimate above it, the
+// advice names the voxel size that fits.
+MemoryEstimate estimate_carve_memory(const SonarSpec& spec,
+                                     const std::vector<Eigen::Isometry3d>& poses,
+                                     const CarveConfig& config, double limit_bytes = 0);
+
+// A warning (naming `flag`) when a voxel edge is implausible for the data, "" otherwise: more than
+// 10 times the sonar's resolution cell (its range bin, or its beam width at r_max, whichever is
+// larger: every structure the sonar resolves is then a voxel or two) or more than a quarter of
+// the region's smallest extent; such values are usually centimetres given as metres.
+std::string implausible_voxel_size(const SonarSpec& spec, double voxel_size,
+                                   const std::optional<Eigen::AlignedBox3d>& region,
+                                   const std::string& flag);
+
+// World box of what these poses' footprints cover (the sonar's wedges), clipped to `region`;
+// empty when nothing lies inside it.
+Eigen::AlignedBox3d footprint_bounds(const SonarSpec& spec,
+                                     const std::vector<Eigen::Isometry3d>& poses,
+                                     const std::optional<Eigen::AlignedBox3d>& region);
 
 // Peak resident memory of this process in bytes (Linux: VmHWM), 0 when unknown.
 std::size_t peak_rss_bytes();

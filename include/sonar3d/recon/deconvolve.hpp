@@ -343,7 +343,9 @@ struct DeconvReport {
   double seconds_occlusion = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> warnings;  // all passes' warnings, prefixed by the pass
-  std::string to_text() const;        // one line per pass + totals + summarize_pass_warnings()
+  // One line per pass + totals, then summarize_pass_warnings() unless `with_warnings` is false
+  // (the CLI prints those on stderr).
+  std::string to_text(bool with_warnings = true) const;
   std::string to_json(int indent = 2) const;
 };
 
