@@ -12,6 +12,7 @@
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/sim/simulation.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 
@@ -20,23 +21,8 @@ namespace {
 // Each test runs in its own process under ctest, possibly in parallel: one directory per test.
 fs::path kTmp;
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(const std::string& args) {
-  const fs::path out = kTmp / "stdout.txt", err = kTmp / "stderr.txt";
-  const std::string cmd =
-      std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int status = std::system(cmd.c_str());
-  auto slurp = [](const fs::path& p) {
-    std::ifstream f(p);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-  };
-  return {WEXITSTATUS(status), slurp(out), slurp(err)};
+sonar3d::test::CliRun run(const std::string& args) {
+  return sonar3d::test::run_cli_captured(kTmp, args);
 }
 
 void write(const fs::path& p, const std::string& text) {

@@ -12,6 +12,7 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/world/world_model.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 
@@ -24,9 +25,7 @@ fs::path tmp_dir() {
   return d;
 }
 
-struct CliRun {
-  int code;
-  std::string out, err;
+struct CliRun : sonar3d::test::CliRun {
   double seconds;      // wall clock
   double cpu_seconds;  // user + system time of the command
 };
@@ -38,21 +37,12 @@ double children_cpu_seconds() {
 }
 
 CliRun run(const fs::path& dir, const std::string& args) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd =
-      std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " + err.string();
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = children_cpu_seconds();
-  const int status = std::system(cmd.c_str());
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double cpu = children_cpu_seconds() - cpu0;
-  auto slurp = [](const fs::path& p) {
-    std::ifstream f(p);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-  };
-  return {WEXITSTATUS(status), slurp(out), slurp(err), s, cpu};
+  CliRun r{sonar3d::test::run_cli_captured(dir, args), 0.0, 0.0};
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cpu_seconds = children_cpu_seconds() - cpu0;
+  return r;
 }
 
 class CliMemory : public ::testing::Test {

@@ -27,8 +27,11 @@
 #include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
 
 using namespace sonar3d;
+using sonar3d::test::read_all;
+using sonar3d::test::run_cli;
 namespace fs = std::filesystem;
 
 namespace {
@@ -997,20 +1000,6 @@ TEST(HoloOceanRoundTrip, SimulatedSphereSurvivesExportAndImport) {
 }
 
 // ------------------------------------------------------------------------------ the CLI
-
-namespace {
-
-int run_cli(const std::string& args, const fs::path& log) {
-  const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + log.string() + " 2>&1";
-  return WEXITSTATUS(std::system(cmd.c_str()));
-}
-
-std::string read_all(const fs::path& p) {
-  std::ifstream f(p);
-  return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
-}  // namespace
 
 TEST(ImportCli, HoloOceanAndFramesCommands) {
   REQUIRE_NUMPY();

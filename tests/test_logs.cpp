@@ -27,32 +27,16 @@
 
 using namespace sonar3d;
 using sonar3d::test::expect_error;
+using sonar3d::test::poke;
+using sonar3d::test::read_all;
+using sonar3d::test::run_cli;
 using sonar3d::test::temp_dir;
+using sonar3d::test::write_all;
 namespace fs = std::filesystem;
 
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-int run_cli(const std::string& args, const fs::path& log) {
-  const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + log.string() + " 2>&1";
-  return WEXITSTATUS(std::system(cmd.c_str()));
-}
-
-std::string read_all(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
-void write_all(const fs::path& p, const std::string& bytes) {
-  std::ofstream f(p, std::ios::binary | std::ios::trunc);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-template <class T>
-void poke(std::string& bytes, std::size_t at, T v) {
-  std::memcpy(&bytes[at], &v, sizeof v);
-}
 
 // A simulated pass along a 1 m sphere: 8-bit images (the ARIS sample range), vehicle navigation
 // given as NED values exactly representable in the ARIS header's float fields, and a mounting.

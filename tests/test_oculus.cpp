@@ -19,7 +19,10 @@
 
 using namespace sonar3d;
 using sonar3d::test::expect_error;
+using sonar3d::test::poke;
+using sonar3d::test::read_all;
 using sonar3d::test::temp_dir;
+using sonar3d::test::write_all;
 namespace fs = std::filesystem;
 
 namespace {
@@ -27,21 +30,6 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 const fs::path kReal = fs::path(SONAR3D_SOURCE_DIR) / "data/oculus/three_pings_8bit.raw";
 constexpr std::size_t kRealPingBytes = 182016;  // 16 + payloadSize of each real ping
-
-std::string read_all(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
-void write_all(const fs::path& p, const std::string& bytes) {
-  std::ofstream f(p, std::ios::binary | std::ios::trunc);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-template <class T>
-void poke(std::string& bytes, std::size_t at, T v) {
-  std::memcpy(&bytes[at], &v, sizeof v);
-}
 
 // One synthetic SimplePingResult, laid out here from Oculus.h (independently of the reader).
 struct SynthPing {

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -20,6 +21,41 @@
 #include "sonar3d/video/camera.hpp"
 
 namespace sonar3d::test {
+
+// A whole file as bytes, and bytes written over a file (for the binary-format tests).
+inline std::string read_all(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(f)), {});
+}
+inline void write_all(const std::filesystem::path& p, const std::string& bytes) {
+  std::ofstream f(p, std::ios::binary | std::ios::trunc);
+  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+// `v`'s bytes at offset `at` of `bytes` (little-endian, as the formats and every machine we build
+// for).
+template <class T>
+void poke(std::string& bytes, std::size_t at, T v) {
+  std::memcpy(&bytes[at], &v, sizeof v);
+}
+#ifdef SONAR3D_CLI
+// The command line `sonar3d ARGS`, its standard output and error into `log`; the exit status.
+inline int run_cli(const std::string& args, const std::filesystem::path& log) {
+  const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + log.string() + " 2>&1";
+  return WEXITSTATUS(std::system(cmd.c_str()));
+}
+// The same with standard output and error kept apart, in `dir`/stdout.txt and stderr.txt.
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+inline CliRun run_cli_captured(const std::filesystem::path& dir, const std::string& args) {
+  const std::filesystem::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string cmd =
+      std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " + err.string();
+  const int status = std::system(cmd.c_str());
+  return {WEXITSTATUS(status), read_all(out), read_all(err)};
+}
+#endif
 
 // A 30 cm sphere (48 segments) centred at (0, 0, 0.5), reflectivity 0.8: the small object of the
 // deconvolution tests.

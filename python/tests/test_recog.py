@@ -21,17 +21,23 @@ def box_catalogue(tmp_path):
     return cat
 
 
-def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
-    # A 6 x 5 m seabed at 1 cm with gentle relief and, seen from above, a 1.0 x 0.6 x 0.5 m box
-    # centred at (2.5, 2.0) turned by 30 degrees.
+def seabed_with_box(length, width, height):
+    """A 6 x 5 m seabed every 2 cm with gentle relief and, seen from above, a length x width x
+    height box centred at (2.5, 2.0) turned by 30 degrees: the top-view points (N x 3)."""
     step = 0.02
     xs, ys = np.meshgrid(np.arange(0, 6, step) + step / 2, np.arange(0, 5, step) + step / 2)
     z = 0.05 * np.sin(0.8 * xs) * np.cos(0.6 * ys)
     c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
     u = c * (xs - 2.5) + s * (ys - 2.0)
     v = -s * (xs - 2.5) + c * (ys - 2.0)
-    z = np.where((np.abs(u) <= 0.5) & (np.abs(v) <= 0.3), 0.5, z)
-    pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()]).astype(np.float32)
+    z = np.where((np.abs(u) <= length / 2) & (np.abs(v) <= width / 2), height, z)
+    return np.column_stack([xs.ravel(), ys.ravel(), z.ravel()])
+
+
+def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
+    # A 6 x 5 m seabed at 1 cm with gentle relief and, seen from above, a 1.0 x 0.6 x 0.5 m box
+    # centred at (2.5, 2.0) turned by 30 degrees.
+    pts = seabed_with_box(1.0, 0.6, 0.5).astype(np.float32)
     cat = box_catalogue(tmp_path)
     placements = sonar3d.recognize(pts, str(cat))
     assert [p["model"] for p in placements] == ["box"]
@@ -51,18 +57,12 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
 def test_recognize_finds_the_scale_of_a_larger_box(tmp_path):
     # Issue 28 item 4: the 1.0 x 0.6 x 0.5 m catalogue box built 7 % larger (1.07 x 0.642 x
     # 0.535 m) at (2.5, 2.0), turned by 30 degrees; the catalogue gives scale_range [0.9, 1.1].
-    step = 0.02
-    xs, ys = np.meshgrid(np.arange(0, 6, step) + step / 2, np.arange(0, 5, step) + step / 2)
-    z = 0.05 * np.sin(0.8 * xs) * np.cos(0.6 * ys)
-    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
-    u = c * (xs - 2.5) + s * (ys - 2.0)
-    v = -s * (xs - 2.5) + c * (ys - 2.0)
-    z = np.where((np.abs(u) <= 0.535) & (np.abs(v) <= 0.321), 0.535, z)
-    pts = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()])
+    pts = seabed_with_box(1.07, 0.642, 0.535)
     # Its walls every 1 cm, as a carved map has them (a bare height grid reads boxes 2-4 % small:
     # docs/recognition.md, "Scale").
     a, h = np.meshgrid(np.arange(-1, 1.0001, 0.01), np.arange(0.06, 0.535, 0.01))
     a, h = a.ravel(), h.ravel()
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
     for wu, wv in [(a * 0.535, -0.321 + 0 * a), (a * 0.535, 0.321 + 0 * a),
                    (-0.535 + 0 * a, a * 0.321), (0.535 + 0 * a, a * 0.321)]:
         pts = np.vstack([pts, np.column_stack([2.5 + c * wu - s * wv, 2.0 + s * wu + c * wv, h])])
