@@ -21,7 +21,7 @@ namespace {
 // Each test runs in its own process under ctest, possibly in parallel: one directory per test.
 fs::path kTmp;
 
-sonar3d::test::CliRun run(const std::string& args) {
+sonar3d::test::CliRunSplit run(const std::string& args) {
   return sonar3d::test::run_cli_captured(kTmp, args);
 }
 
@@ -49,7 +49,7 @@ class Cli : public ::testing::Test {
   }
 };
 
-void expect_one_line_error(const CliRun& r, const std::string& needle) {
+void expect_one_line_error(const sonar3d::test::CliRunSplit& r, const std::string& needle) {
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("error"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
@@ -61,7 +61,7 @@ void expect_one_line_error(const CliRun& r, const std::string& needle) {
 TEST_F(Cli, SimulateInfoPreviewNoiseEvaluate) {
   write(kTmp / "scene.yaml", kScene);
   const fs::path ds = kTmp / "ds";
-  CliRun r = run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " --quiet");
+  auto r = run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " --quiet");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("wrote 7 frames"), std::string::npos) << r.out;
   r = run("info " + ds.string());
@@ -103,7 +103,7 @@ TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
   ASSERT_EQ(run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " -q").code,
             0);
   const std::string cmd = "reconstruct " + ds.string() + " -o " + (kTmp / "c.ply").string();
-  CliRun r = run(cmd);
+  auto r = run(cmd);
   ASSERT_EQ(r.code, 0) << r.err;
   // Warnings and notes on stderr, never on stdout (issue 29).
   EXPECT_NE(r.err.find("sonar3d: warning: "), std::string::npos) << r.err;
@@ -122,7 +122,7 @@ TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
 TEST_F(Cli, BadInputsFailCleanlyAndLeaveNothing) {
   const fs::path out = kTmp / "never";
   // Missing scene file.
-  CliRun r = run("simulate " + (kTmp / "missing.yaml").string() + " -o " + out.string());
+  auto r = run("simulate " + (kTmp / "missing.yaml").string() + " -o " + out.string());
   EXPECT_NE(r.code, 0);
   // Malformed YAML: file and line named.
   write(kTmp / "bad.yaml", "sensor: {preset: sim-10deg\nobjects: [\n");

@@ -25,7 +25,7 @@ fs::path tmp_dir() {
   return d;
 }
 
-struct CliRun : sonar3d::test::CliRun {
+struct CliRun : sonar3d::test::CliRunSplit {
   double seconds;      // wall clock
   double cpu_seconds;  // user + system time of the command
 };

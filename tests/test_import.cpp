@@ -31,7 +31,7 @@
 
 using namespace sonar3d;
 using sonar3d::test::read_all;
-using sonar3d::test::run_cli;
+using sonar3d::test::run_cli_log;
 namespace fs = std::filesystem;
 
 namespace {
@@ -1009,9 +1009,9 @@ TEST(ImportCli, HoloOceanAndFramesCommands) {
   place_scatterers(s, HoloOceanBins::Sample, 3, frames, 11);
   write_holoocean(root / "holo", s, frames, "uint8");
   const fs::path log = root / "log.txt";
-  ASSERT_EQ(run_cli("import holoocean " + (root / "holo").string() + " -o " +
-                        (root / "ds").string() + " -q",
-                    log),
+  ASSERT_EQ(run_cli_log("import holoocean " + (root / "holo").string() + " -o " +
+                            (root / "ds").string() + " -q",
+                        log),
             0)
       << read_all(log);
   EXPECT_NE(read_all(log).find("imported 3 frames (uint8, 100×64, sample bins)"), std::string::npos)
@@ -1021,8 +1021,8 @@ TEST(ImportCli, HoloOceanAndFramesCommands) {
   // A bad frame: one clear line, non-zero exit, no dataset.
   fs::resize_file(root / "holo/Data/002.pkl", 40);
   EXPECT_EQ(
-      run_cli("import holoocean " + (root / "holo").string() + " -o " + (root / "ds2").string(),
-              log),
+      run_cli_log("import holoocean " + (root / "holo").string() + " -o " + (root / "ds2").string(),
+                  log),
       1);
   EXPECT_NE(read_all(log).find("sonar3d: error: " + (root / "holo/Data/002.pkl").string()),
             std::string::npos)
@@ -1035,9 +1035,9 @@ TEST(ImportCli, HoloOceanAndFramesCommands) {
       (fx.root / "times.csv").string() + " --nav " + (fx.root / "nav.csv").string() +
       " --nav-convention ned --angles deg --sonar " + (fx.root / "sonar.yaml").string() + " -o " +
       (fx.root / "ds").string() + " --time-offset 7.75 -q";
-  EXPECT_EQ(run_cli(args, log), 1);
+  EXPECT_EQ(run_cli_log(args, log), 1);
   EXPECT_NE(read_all(log).find("outside the navigation span"), std::string::npos) << read_all(log);
-  ASSERT_EQ(run_cli(args + " --drop-outside", log), 0) << read_all(log);
+  ASSERT_EQ(run_cli_log(args + " --drop-outside", log), 0) << read_all(log);
   EXPECT_NE(read_all(log).find("imported 3 frames"), std::string::npos) << read_all(log);
   EXPECT_NE(read_all(log).find("dropped 2 outside the navigation span"), std::string::npos);
 }
@@ -1061,9 +1061,9 @@ TEST(ImportCli, ReconstructRunsOnAnImportedRecording) {
     w.commit();
   }
   const fs::path log = root / "log.txt";
-  ASSERT_EQ(run_cli("import holoocean " + (root / "holo").string() + " --bins cell -o " +
-                        (root / "imported").string() + " -q",
-                    log),
+  ASSERT_EQ(run_cli_log("import holoocean " + (root / "holo").string() + " --bins cell -o " +
+                            (root / "imported").string() + " -q",
+                        log),
             0)
       << read_all(log);
   const MeshDistance truth(make_sphere(0.5, 48));
@@ -1072,9 +1072,9 @@ TEST(ImportCli, ReconstructRunsOnAnImportedRecording) {
   int k = 0;
   for (const char* name : {"imported", "direct"}) {
     const fs::path ply = root / (std::string(name) + ".ply");
-    ASSERT_EQ(run_cli("reconstruct " + (root / name).string() + " --voxel-size 0.02 -o " +
-                          ply.string() + " -q",
-                      log),
+    ASSERT_EQ(run_cli_log("reconstruct " + (root / name).string() + " --voxel-size 0.02 -o " +
+                              ply.string() + " -q",
+                          log),
               0)
         << read_all(log);
     const PointCloud cloud = read_ply(ply.string());

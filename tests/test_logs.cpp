@@ -29,7 +29,7 @@ using namespace sonar3d;
 using sonar3d::test::expect_error;
 using sonar3d::test::poke;
 using sonar3d::test::read_all;
-using sonar3d::test::run_cli;
+using sonar3d::test::run_cli_log;
 using sonar3d::test::temp_dir;
 using sonar3d::test::write_all;
 namespace fs = std::filesystem;
@@ -473,9 +473,9 @@ TEST(ArisCli, ImportAndReconstruct) {
   const SimulatedPass p = simulate_pass(aris_spec_1800(), 41);
   write_aris(root / "pass.aris", aris_frames(p, true));
   const fs::path log = root / "log.txt";
-  ASSERT_EQ(run_cli("import aris " + (root / "pass.aris").string() + " -o " +
-                        (root / "ds").string() + " --mount 0.3,0,0.5,0,5,0 -q",
-                    log),
+  ASSERT_EQ(run_cli_log("import aris " + (root / "pass.aris").string() + " -o " +
+                            (root / "ds").string() + " --mount 0.3,0,0.5,0,5,0 -q",
+                        log),
             0)
       << read_all(log);
   EXPECT_NE(read_all(log).find("imported 41 frames (120 samples × 48 beams, aris-1800)"),
@@ -489,16 +489,16 @@ TEST(ArisCli, ImportAndReconstruct) {
   // Refuses to overwrite what it did not write; a bad file fails with one line.
   fs::create_directories(root / "precious");
   write_all(root / "precious/data.txt", "mine");
-  EXPECT_EQ(run_cli("import aris " + (root / "pass.aris").string() + " -o " +
-                        (root / "precious").string() + " -q",
-                    log),
+  EXPECT_EQ(run_cli_log("import aris " + (root / "pass.aris").string() + " -o " +
+                            (root / "precious").string() + " -q",
+                        log),
             1);
   EXPECT_EQ(read_all(root / "precious/data.txt"), "mine");
   std::string bytes = read_all(root / "pass.aris");
   write_all(root / "cut.aris", bytes.substr(0, bytes.size() - 10));
-  EXPECT_EQ(run_cli("import aris " + (root / "cut.aris").string() + " -o " +
-                        (root / "ds_cut").string() + " -q",
-                    log),
+  EXPECT_EQ(run_cli_log("import aris " + (root / "cut.aris").string() + " -o " +
+                            (root / "ds_cut").string() + " -q",
+                        log),
             1);
   EXPECT_NE(read_all(log).find("sonar3d: error: " + (root / "cut.aris").string()),
             std::string::npos)
@@ -508,9 +508,9 @@ TEST(ArisCli, ImportAndReconstruct) {
   // A reconstruction runs on the import and finds the sphere (the local ENU origin is frame 0's
   // fix, so the sphere sits at −(east, north) of frame 0).
   const fs::path ply = root / "cloud.ply";
-  ASSERT_EQ(run_cli("reconstruct " + (root / "ds").string() + " --voxel-size 0.03 -o " +
-                        ply.string() + " -q",
-                    log),
+  ASSERT_EQ(run_cli_log("reconstruct " + (root / "ds").string() + " --voxel-size 0.03 -o " +
+                            ply.string() + " -q",
+                        log),
             0)
       << read_all(log);
   PointCloud cloud = read_ply(ply.string());
@@ -1051,29 +1051,29 @@ TEST(RosbagCli, ExportImportAndReconstruct) {
     w.commit();
   }
   const fs::path log = root / "log.txt";
-  ASSERT_EQ(
-      run_cli("export rosbag " + (root / "sim").string() + " -o " + (root / "bag").string() + " -q",
-              log),
-      0)
+  ASSERT_EQ(run_cli_log("export rosbag " + (root / "sim").string() + " -o " +
+                            (root / "bag").string() + " -q",
+                        log),
+            0)
       << read_all(log);
   EXPECT_NE(read_all(log).find("exported 41 frames and 41 navigation samples"), std::string::npos)
       << read_all(log);
   // Never over anything: an existing output is refused.
-  EXPECT_EQ(
-      run_cli("export rosbag " + (root / "sim").string() + " -o " + (root / "bag").string(), log),
-      1);
+  EXPECT_EQ(run_cli_log(
+                "export rosbag " + (root / "sim").string() + " -o " + (root / "bag").string(), log),
+            1);
   EXPECT_NE(read_all(log).find("exists"), std::string::npos);
-  ASSERT_EQ(run_cli("export rosbag --ros1 " + (root / "sim").string() + " -o " +
-                        (root / "sim.bag").string() + " -q",
-                    log),
+  ASSERT_EQ(run_cli_log("export rosbag --ros1 " + (root / "sim").string() + " -o " +
+                            (root / "sim.bag").string() + " -q",
+                        log),
             0)
       << read_all(log);
   for (const std::string bag : {"bag", "sim.bag"}) {
-    ASSERT_EQ(run_cli("import rosbag " + (root / bag).string() +
-                          " --sonar-topic /sonar3d/image "
-                          "--nav-topic /sonar3d/odom -o " +
-                          (root / ("ds_" + bag)).string() + " -q",
-                      log),
+    ASSERT_EQ(run_cli_log("import rosbag " + (root / bag).string() +
+                              " --sonar-topic /sonar3d/image "
+                              "--nav-topic /sonar3d/odom -o " +
+                              (root / ("ds_" + bag)).string() + " -q",
+                          log),
               0)
         << read_all(log);
     EXPECT_NE(read_all(log).find("imported 41 frames"), std::string::npos) << read_all(log);
@@ -1081,17 +1081,17 @@ TEST(RosbagCli, ExportImportAndReconstruct) {
         << read_all(log);
   }
   EXPECT_EQ(
-      run_cli("import rosbag " + (root / "bag").string() +
-                  " --sonar-topic /x --nav-topic /sonar3d/odom -o " + (root / "ds_x").string(),
-              log),
+      run_cli_log("import rosbag " + (root / "bag").string() +
+                      " --sonar-topic /x --nav-topic /sonar3d/odom -o " + (root / "ds_x").string(),
+                  log),
       1);
   EXPECT_NE(read_all(log).find("sonar3d: error: " + (root / "bag").string() + ": no topic '/x'"),
             std::string::npos)
       << read_all(log);
   const fs::path ply = root / "cloud.ply";
-  ASSERT_EQ(run_cli("reconstruct " + (root / "ds_bag").string() + " --voxel-size 0.03 -o " +
-                        ply.string() + " -q",
-                    log),
+  ASSERT_EQ(run_cli_log("reconstruct " + (root / "ds_bag").string() + " --voxel-size 0.03 -o " +
+                            ply.string() + " -q",
+                        log),
             0)
       << read_all(log);
   PointCloud cloud = read_ply(ply.string());

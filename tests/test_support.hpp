@@ -39,16 +39,16 @@ void poke(std::string& bytes, std::size_t at, T v) {
 }
 #ifdef SONAR3D_CLI
 // The command line `sonar3d ARGS`, its standard output and error into `log`; the exit status.
-inline int run_cli(const std::string& args, const std::filesystem::path& log) {
+inline int run_cli_log(const std::string& args, const std::filesystem::path& log) {
   const std::string cmd = std::string(SONAR3D_CLI) + " " + args + " > " + log.string() + " 2>&1";
   return WEXITSTATUS(std::system(cmd.c_str()));
 }
 // The same with standard output and error kept apart, in `dir`/stdout.txt and stderr.txt.
-struct CliRun {
+struct CliRunSplit {
   int code;
   std::string out, err;
 };
-inline CliRun run_cli_captured(const std::filesystem::path& dir, const std::string& args) {
+inline CliRunSplit run_cli_captured(const std::filesystem::path& dir, const std::string& args) {
   const std::filesystem::path out = dir / "stdout.txt", err = dir / "stderr.txt";
   const std::string cmd =
       std::string(SONAR3D_CLI) + " " + args + " > " + out.string() + " 2> " + err.string();

@@ -1,49 +1,65 @@
 // CAD-model recognition (thesis sec. 6.3, docs/recognition.md): the 2D (sec. 6.3.2) or 3D
 // (sec. 6.3.1) method on a cloud.
+#include <pybind11/stl.h>
+
+#include <optional>
+
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recog/recognition.hpp"
 #include "sonar3d/recog/recognition_3d.hpp"
+#include "sonar3d/recog/recognize.hpp"
 
 namespace sonar3d::python {
 
 using namespace pybind11::literals;
 
 void bind_recog(py::module_& m) {
+  // The configurations, from their one declaration (core/params.hpp; docs/reference.md).
+  bind_config<DescriptorConfig>(m, "DescriptorConfig",
+                                "Ring-histogram descriptors (sec. 6.3.2.3).");
+  bind_config<ScanConfig>(m, "ScanConfig", "The descriptor scan (sec. 6.3.2.4).");
+  bind_config<Search4dConfig>(m, "Search4dConfig", "The exhaustive 4D search (eq. 6.9).");
+  bind_config<TrimmedIcpConfig>(m, "TrimmedIcpConfig", "Trimmed ICP (sec. 6.3.2.5).");
+  bind_config<ModelSamplingConfig>(m, "ModelSamplingConfig", "Surface sampling of the models.");
+  bind_config<VerificationConfig>(m, "VerificationConfig",
+                                  "Hypothesis verification and the calibrated confidence "
+                                  "(docs/recognition.md, Verification).");
+  bind_config<ScaleSearchConfig>(m, "ScaleSearchConfig",
+                                 "The size search of models with a scale_range.");
+  bind_config<RecognitionConfig>(m, "RecognitionConfig",
+                                 "The 2D method (sec. 6.3.2); its verification and num_threads "
+                                 "serve both methods.");
+  bind_config<Recognition3dConfig>(m, "Recognition3dConfig", "The 3D method (sec. 6.3.1).");
+  bind_config<RecognizeConfig>(m, "RecognizeConfig",
+                               "The recognition as `sonar3d recognize` runs it: method ('2d' or "
+                               "'3d'), two_d (RecognitionConfig), three_d "
+                               "(Recognition3dConfig).")
+      .def("validate", &RecognizeConfig::validate);
+
   m.def(
       "recognize",
-      [](const carray<float>& points, const std::string& catalogue, bool icp, double period_m,
-         double map_cell_m, double recog_cell_m, double min_confidence, int num_threads,
-         const std::string& method, bool upright) {
-        require(method == "2d" || method == "3d",
-                "recognize: method must be '2d' or '3d', not '" + method + "'");
+      [](const carray<float>& points, const std::string& catalogue,
+         const std::optional<RecognizeConfig>& config, const std::optional<std::string>& method,
+         const py::object& progress) {
+        RecognizeConfig cfg = config ? *config : RecognizeConfig();
+        if (method) cfg.method = *method;
+        cfg.validate();
         PointCloud cloud;
         cloud.points = array_to_points(points);
-        RecognitionConfig cfg;
-        cfg.run_icp = icp;
-        cfg.scan.period_m = period_m;
-        cfg.map_cell_m = map_cell_m;
-        cfg.recog_cell_m = recog_cell_m;
-        cfg.verification.min_confidence = min_confidence;
-        cfg.num_threads = num_threads;
-        cfg.scan.num_threads = num_threads;
-        cfg.validate();
-        Recognition3dConfig cfg3;
-        cfg3.upright = upright;
-        cfg3.num_threads = num_threads;
-        cfg3.validate();
         const Catalogue cat = read_catalogue(catalogue);
         std::vector<ModelTemplate> models;
-        RecognitionResult r;
-        {
-          py::gil_scoped_release release;
+        ProgressArg p(progress);
+        const RecognitionResult r = p.run([&] {
+          const ModelSamplingConfig& sampling =
+              cfg.method == "3d" ? cfg.three_d.sampling : cfg.two_d.sampling;
           for (const auto& mo : cat.models) {
-            models.push_back(make_catalogue_template(cat, mo, cfg.sampling));
+            models.push_back(make_catalogue_template(cat, mo, sampling));
           }
-          r = method == "3d" ? recognize_3d(cloud, models, cfg3)
-                             : recognize_2d(cloud, models, cfg, false);
-        }
+          return recognize(cloud, models, cfg, nullptr, p.terminal());
+        });
         py::list out;
         for (const Placement& p : r.placements) {
           out.append(py::dict(
@@ -63,20 +79,19 @@ void bind_recog(py::module_& m) {
         }
         return out;
       },
-      "points"_a, "catalogue"_a, "icp"_a = true, "period_m"_a = 0.16, "map_cell_m"_a = 0.02,
-      "recog_cell_m"_a = 0.08, "min_confidence"_a = VerificationConfig{}.min_confidence,
-      "num_threads"_a = 0, "method"_a = "2d", "upright"_a = true,
+      "points"_a, "catalogue"_a, "config"_a = py::none(), "method"_a = py::none(),
+      "progress"_a = py::none(),
       "Find the catalogue's CAD models (a YAML file, docs/recognition.md) in an (N, 3) world-frame "
-      "cloud and place them in 6D. method '2d' (sec. 6.3.2): ring descriptors on the elevation "
-      "map, 4D search (eq. 6.9), trimmed ICP (icp, period_m, map_cell_m, recog_cell_m, "
-      "min_confidence apply); method '3d' (sec. 6.3.1): spherical subspaces filtered by eq. "
-      "6.4-6.7, yaw sweep + trimmed ICP in each, or a global registration with upright=False. "
+      "cloud and place them in 6D, as `sonar3d recognize` does: config a RecognizeConfig (every "
+      "setting the command has; method overrides its method). method '2d' (sec. 6.3.2): ring "
+      "descriptors on the elevation map, 4D search (eq. 6.9), trimmed ICP; method '3d' (sec. "
+      "6.3.1): spherical subspaces filtered by eq. 6.4-6.7, yaw sweep + trimmed ICP in each. "
+      "progress: None, True (terminal bars) or a callable progress(done, total). "
       "Returns one dict per placement: model, method, T_world_model (4×4), scale (the placed "
       "model is T_world_model · scale · model; 1 unless the catalogue gives a scale_range), "
-      "score_m, "
-      "residual_median_m, residual_mean_m, support, confidence, verification (2d: seen, explained, "
-      "violation, unexplained, score_m3), step1_T_world_model, step1_residual_median_m, "
-      "seconds.");
+      "score_m, residual_median_m, residual_mean_m, support, confidence, verification (2d: seen, "
+      "explained, violation, unexplained, spill, score_m3), step1_T_world_model, "
+      "step1_residual_median_m, seconds.");
 }
 
 }  // namespace sonar3d::python

@@ -106,5 +106,25 @@ def test_recognize_3d_finds_a_box_with_walls(tmp_path):
     assert np.hypot(T[0, 3] - 0.5, T[1, 3] + 0.3) < 0.03
     yaw = math.degrees(math.atan2(T[1, 0], T[0, 0]))
     assert abs((yaw - 30 + 90) % 180 - 90) < 3
-    with pytest.raises(sonar3d.Error, match="method must be"):
+    with pytest.raises(sonar3d.Error, match="must be .2d. or .3d."):
         sonar3d.recognize(pts, str(cat), method="4d")
+
+
+def test_recognize_config_is_the_commands_configuration():
+    # One declaration per parameter (docs/design.md): every setting of `sonar3d recognize`, with
+    # the same keys and defaults, its groups as attributes, bounds checked on assignment.
+    cfg = sonar3d.RecognizeConfig()
+    assert cfg.method == "2d"
+    assert cfg.two_d.verification.min_confidence == 0.5
+    assert cfg.two_d.map_cell_m == 0.02 and cfg.three_d.voxel_m == 0.03
+    cfg.two_d.verification.min_confidence = 0.7  # nested groups are live attributes
+    assert cfg.two_d.verification.min_confidence == 0.7
+    assert cfg.to_dict()["two_d"]["verification"]["min_confidence"] == 0.7
+    with pytest.raises(sonar3d.Error, match=r"min_confidence must lie in \[0, 1\]"):
+        cfg.two_d.verification.min_confidence = 1.5
+    with pytest.raises(AttributeError):
+        sonar3d.RecognitionConfig(map_cel_m=0.03)
+    assert sonar3d.RecognitionConfig(map_cell_m=0.03).map_cell_m == 0.03
+    cfg.method = "4d"
+    with pytest.raises(sonar3d.Error, match="must be '2d' or '3d'"):
+        cfg.validate()

@@ -19,16 +19,10 @@
 
 namespace sonar3d {
 
-void DescriptorConfig::validate() const {
-  require_positive(ring_width_m, "descriptor ring_width_m", "m");
-  require_positive(bin_m, "descriptor bin_m", "m");
-  require_non_negative(margin_m, "descriptor margin_m", "m");
-  require(min_valid_fraction >= 0 && min_valid_fraction <= 1,
-          "descriptor min_valid_fraction must lie in [0, 1]");
-}
+void DescriptorConfig::validate() const { params::check(*this, "descriptor"); }
 
 void ScanConfig::validate() const {
-  require_positive(period_m, "scan period_m (T_NE)", "m");
+  params::check(*this, "scan");
   require(num_threads >= 0, "scan num_threads must be >= 0 (0 = all cores)");
 }
 

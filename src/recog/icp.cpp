@@ -12,13 +12,7 @@
 
 namespace sonar3d {
 
-void TrimmedIcpConfig::validate() const {
-  require(max_iterations >= 1 && max_iterations <= 10000, "ICP max_iterations must lie in 1-10000");
-  require_positive(max_distance_m, "ICP max_distance_m", "m");
-  require(keep_fraction > 0 && keep_fraction <= 1, "ICP keep_fraction must lie in (0, 1]");
-  require_positive(converged_m, "ICP converged_m", "m");
-  require(max_scene_points >= 10, "ICP max_scene_points must be >= 10");
-}
+void TrimmedIcpConfig::validate() const { params::check(*this, "ICP"); }
 
 namespace {
 struct Cloud {

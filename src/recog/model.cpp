@@ -12,10 +12,7 @@
 
 namespace sonar3d {
 
-void ModelSamplingConfig::validate() const {
-  require_positive(spacing_m, "model sampling spacing_m", "m");
-  require(max_samples >= 1, "model sampling max_samples must be >= 1");
-}
+void ModelSamplingConfig::validate() const { params::check(*this, "model sampling"); }
 
 ModelTemplate make_model_template(const std::string& name, const TriangleMesh& mesh,
                                   Symmetry symmetry, int expected,

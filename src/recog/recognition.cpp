@@ -174,46 +174,17 @@ std::vector<const ModelTemplate*> by_decreasing_size(const std::vector<ModelTemp
 }
 
 void Search4dConfig::validate() const {
-  require(yaw_step_deg > 0 && yaw_step_deg <= 180, "4D search yaw_step_deg must lie in (0, 180]");
-  require_non_negative(search_m, "4D search search_m", "m");
-  require(search_radius_fraction >= 0 && search_radius_fraction <= 2,
-          "4D search search_radius_fraction must lie in [0, 2]");
-  require_non_negative(refine_cell_m, "4D search refine_cell_m", "m");
-  require(refine_yaw_step_deg > 0 && refine_yaw_step_deg <= yaw_step_deg,
+  params::check(*this, "4D search");
+  require(refine_yaw_step_deg <= yaw_step_deg,
           "4D search refine_yaw_step_deg must lie in (0, yaw_step_deg]");
-  require(background_ring_cells >= 0 && background_ring_cells <= 100,
-          "4D search background_ring_cells must lie in 0-100");
 }
 
 void RecognitionConfig::validate() const {
-  require_positive(map_cell_m, "map_cell_m", "m");
-  require_positive(recog_cell_m, "recog_cell_m", "m");
+  params::check(*this, "recognition");
   require(recog_cell_m >= map_cell_m, "recog_cell_m must be >= map_cell_m");
-  descriptor.validate();
   scan.validate();
   search.validate();
-  icp.validate();
-  sampling.validate();
-  require_positive(max_relative_score, "max_relative_score");
-  require_positive(max_residual_median_m, "max_residual_median_m", "m");
-  verification.validate();
   scale.validate();
-  require(max_overlap >= 0 && max_overlap <= 1, "max_overlap must lie in [0, 1]");
-  require(compete_margin >= 0 && compete_margin <= 1, "compete_margin must lie in [0, 1]");
-  require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
-          "max_instances must lie in [1, " + std::to_string(kMaxExpectedInstances) + "]");
-  require(max_rejections >= 1 && max_rejections <= 100, "max_rejections must lie in [1, 100]");
-  require_non_negative(removal_margin_m, "removal_margin_m", "m");
-  require_non_negative(ground_clearance_m, "ground_clearance_m", "m");
-  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
-          "max_buried_fraction must lie in [0, 1]");
-  require(max_tilt_deg >= 0 && max_tilt_deg <= 180, "max_tilt_deg must lie in [0, 180]");
-  require_non_negative(max_icp_shift_m, "max_icp_shift_m", "m");
-  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
-  require(std::isfinite(relief_window_m) && relief_window_m > 0 && relief_window_m <= 50,
-          "relief_window_m must lie in (0, 50] m");
-  require(max_relief_proposals >= 0 && max_relief_proposals <= 1000,
-          "max_relief_proposals must lie in [0, 1000]");
 }
 
 Search4dResult search_4d(const ModelTemplate& model, const ElevationMap& scene,

@@ -268,61 +268,8 @@ void principal_frame(const std::vector<V3f>& pts, Eigen::Matrix3d* E, Eigen::Vec
 }  // namespace
 
 void Recognition3dConfig::validate() const {
-  require_positive(voxel_m, "3D recognition voxel_m", "m");
-  require(period_fraction > 0.05 && period_fraction <= 4,
-          "3D recognition period_fraction (T / r_model) must lie in (0.05, 4]");
-  require(alpha_fit > 0 && alpha_fit <= 100, "3D recognition alpha_fit must lie in (0, 100]");
-  require(alpha_volume >= 0 && alpha_volume <= 100,
-          "3D recognition alpha_volume must lie in [0, 100]");
-  require(n_min >= 3, "3D recognition n_min must be >= 3");
-  require(alpha_occupancy >= 0 && alpha_occupancy <= 100,
-          "3D recognition alpha_occupancy must lie in [0, 100]");
-  require_positive(occupancy_voxel_m, "3D recognition occupancy_voxel_m", "m");
-  require(yaw_step_deg > 0 && yaw_step_deg <= 180,
-          "3D recognition yaw_step_deg must lie in (0, 180]");
-  require_non_negative(seabed_clearance_m, "3D recognition seabed_clearance_m", "m");
-  require_positive(ground_cell_m, "3D recognition ground_cell_m", "m");
-  require_non_negative(ground_window_m, "3D recognition ground_window_m", "m");
-  require(ground_quantile >= 0 && ground_quantile <= 1,
-          "3D recognition ground_quantile must lie in [0, 1]");
-  require(starts >= 1 && starts <= 100, "3D recognition starts must lie in 1-100");
-  require_positive(coarse_gate_m, "3D recognition coarse_gate_m", "m");
-  require(coarse_iterations >= 1 && coarse_iterations <= 10000,
-          "3D recognition coarse_iterations must lie in 1-10000");
-  require(dedup_fraction >= 0 && dedup_fraction <= 10,
-          "3D recognition dedup_fraction must lie in [0, 10]");
-  require(max_points >= 10, "3D recognition max_points must be >= 10");
-  require_positive(max_start_score_m, "3D recognition max_start_score_m", "m");
-  icp.validate();
-  require_positive(max_residual_median_m, "3D recognition max_residual_median_m", "m");
-  require(min_coverage >= 0 && min_coverage <= 1, "3D recognition min_coverage must lie in [0, 1]");
-  require_positive(coverage_tol_m, "3D recognition coverage_tol_m", "m");
-  require(max_subspaces >= 1 && max_subspaces <= 50'000'000,
-          "3D recognition max_subspaces must lie in 1-50000000");
-  require_non_negative(relief_m, "3D recognition relief_m", "m");
-  require(view_tilt_deg >= 0 && view_tilt_deg < 90,
-          "3D recognition view_tilt_deg must lie in [0, 90)");
-  require_positive(map_cell_m, "3D recognition map_cell_m", "m");
+  params::check(*this, "3D recognition");
   verification.validate();
-  require(max_buried_fraction >= 0 && max_buried_fraction <= 1,
-          "3D recognition max_buried_fraction must lie in [0, 1]");
-  require(max_overlap >= 0 && max_overlap <= 1, "3D recognition max_overlap must lie in [0, 1]");
-  require(min_net_explained >= -10 && min_net_explained <= 1,
-          "3D recognition min_net_explained must lie in [-10, 1]");
-  require_non_negative(context_min_m, "3D recognition context_min_m", "m");
-  require_non_negative(unexplained_height_m, "3D recognition unexplained_height_m", "m");
-  require(context_fraction >= 0 && context_fraction <= 10,
-          "3D recognition context_fraction must lie in [0, 10]");
-  require(max_tilt_deg >= 0 && max_tilt_deg <= 180,
-          "3D recognition max_tilt_deg must lie in [0, 180]");
-  require(nms_fraction >= 0 && nms_fraction <= 10,
-          "3D recognition nms_fraction must lie in [0, 10]");
-  require_non_negative(removal_margin_m, "3D recognition removal_margin_m", "m");
-  require(max_instances >= 1 && max_instances <= kMaxExpectedInstances,
-          "3D recognition max_instances must lie in [1, " + std::to_string(kMaxExpectedInstances) +
-              "]");
-  sampling.validate();
-  require(num_threads >= 0, "3D recognition num_threads must be >= 0 (0 = all cores)");
 }
 
 std::vector<Eigen::Vector3f> voxel_subsample(const std::vector<Eigen::Vector3f>& points,

@@ -15,14 +15,8 @@
 namespace sonar3d {
 
 void ScaleSearchConfig::validate() const {
-  require(coarse_step > 0 && coarse_step <= 0.5, "scale search coarse_step must lie in (0, 0.5]");
-  require(tolerance > 0 && tolerance <= coarse_step,
-          "scale search tolerance must lie in (0, coarse_step]");
-  require(rounds >= 1 && rounds <= 10, "scale search rounds must lie in 1-10");
-  require_non_negative(ring_min_m, "scale search ring_min_m", "m");
-  require(ring_fraction >= 0 && ring_fraction <= 2,
-          "scale search ring_fraction must lie in [0, 2]");
-  require_positive(cap_m, "scale search cap_m", "m");
+  params::check(*this, "scale search");
+  require(tolerance <= coarse_step, "scale search tolerance must lie in (0, coarse_step]");
   require(max_tilt_deg >= 0 && max_tilt_deg <= 180,
           "scale search max_tilt_deg must lie in [0, 180]");
   require_non_negative(max_icp_shift_m, "scale search max_icp_shift_m", "m");

@@ -14,24 +14,7 @@
 
 namespace sonar3d {
 
-void VerificationConfig::validate() const {
-  require_positive(tol_m, "verification tol_m", "m");
-  require_non_negative(slip_m, "verification slip_m", "m");
-  require(slip_m <= 1.0, "verification slip_m must be <= 1 m");
-  require_positive(relief_m, "verification relief_m", "m");
-  require_positive(ground_ring_m, "verification ground_ring_m", "m");
-  require(ground_ring_m <= 10, "verification ground_ring_m must be <= 10 m");
-  require_non_negative(context_min_m, "verification context_min_m", "m");
-  require(context_min_m <= 10, "verification context_min_m must be <= 10 m");
-  require(context_fraction >= 0 && context_fraction <= 2,
-          "verification context_fraction must lie in [0, 2]");
-  require_positive(spill_band_m, "verification spill_band_m", "m");
-  require(spill_band_m <= 10, "verification spill_band_m must be <= 10 m");
-  for (double w : {bias, w_seen, w_explained, w_violation, w_unexplained, w_spill}) {
-    require(std::isfinite(w), "verification: the confidence weights must be finite");
-  }
-  require(min_confidence >= 0 && min_confidence <= 1, "min_confidence must lie in [0, 1]");
-}
+void VerificationConfig::validate() const { params::check(*this, "verification"); }
 
 double verification_confidence(const Verification& v, const VerificationConfig& c) {
   if (!v.valid) return 0.0;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 
 namespace sonar3d {
@@ -21,6 +22,29 @@ struct DescriptorConfig {
   double min_valid_fraction = 0.5;
   void validate() const;
 };
+// The fields' one declaration (core/params.hpp).
+template <class V>
+void describe(DescriptorConfig& c, V& v) {
+  using params::param;
+  v.field(c.ring_width_m, param("ring_width_m", "m",
+                                "width of each descriptor ring (the thesis: 24 cm at 8 cm cells)")
+                              .positive()
+                              .flag("--ring-width")
+                              .equation("sec. 6.3.2.3"));
+  v.field(c.bin_m, param("bin_m", "m", "depth resolution of the ring histograms (the thesis: 1 cm)")
+                       .positive()
+                       .flag("--bin"));
+  v.field(c.margin_m, param("margin_m", "m",
+                            "histogram range: the model's heights about their median widened by "
+                            "this; heights beyond fall in the end bins")
+                          .non_negative());
+  v.field(c.min_valid_fraction,
+          param("min_valid_fraction", "",
+                "score a patch only when each ring has at least this fraction of its cells "
+                "observed")
+              .range(0, 1)
+              .flag("--min-valid-fraction"));
+}
 
 // The cells of a disc of radius `radius_m` at cell size `cell_m`, by ring: offsets (drow, dcol)
 // of cells whose centres lie within the disc, ring k holding centres at distance in
@@ -82,6 +106,18 @@ struct ScanConfig {
   int num_threads = 0;      // 0 = all cores
   void validate() const;
 };
+// num_threads is not declared: the recognition sets it from its own num_threads.
+template <class V>
+void describe(ScanConfig& c, V& v) {
+  using params::param;
+  v.field(c.period_m, param("period_m", "m", "T_NE: spacing of the candidate patch centres")
+                          .positive()
+                          .flag("--period")
+                          .equation("eq. 6.8"));
+  v.field(
+      c.early_abort,
+      param("early_abort", "", "stop scoring a patch once it cannot win").equation("sec. 6.3.2.6"));
+}
 
 struct ScanResult {
   bool found = false;

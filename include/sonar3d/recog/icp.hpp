@@ -1,4 +1,5 @@
 #pragma once
+#include "sonar3d/core/params.hpp"
 // Trimmed ICP (Masuda et al. 1996, as the thesis uses it in sec. 6.3.2.5): the full 6D pose of a
 // model from scene points, each iteration keeping only the closest fraction of correspondences,
 // so that seabed, clutter and marine growth beyond the model do not pull it.
@@ -17,6 +18,24 @@ struct TrimmedIcpConfig {
   std::size_t max_scene_points = 30000;  // scene points used (a uniform stride beyond)
   void validate() const;
 };
+template <class V>
+void describe(TrimmedIcpConfig& c, V& v) {
+  using params::param;
+  v.field(c.max_iterations, param("max_iterations", "", "ICP iterations at most").range(1, 10000));
+  v.field(
+      c.max_distance_m,
+      param("max_distance_m", "m", "correspondences farther than this are never used").positive());
+  v.field(c.keep_fraction,
+          param("keep_fraction", "", "trimming: the closest fraction of correspondences kept")
+              .range_open_low(0, 1));
+  v.field(c.point_to_plane,
+          param("point_to_plane", "", "residual along the model normal (else point to point)"));
+  v.field(c.converged_m,
+          param("converged_m", "m", "stop when an update moves points less than this").positive());
+  v.field(
+      c.max_scene_points,
+      param("max_scene_points", "", "scene points used (a uniform stride beyond)").at_least(10));
+}
 
 struct IcpResult {
   Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 
@@ -23,6 +24,16 @@ struct ModelSamplingConfig {
   unsigned long long seed = 1;
   void validate() const;
 };
+template <class V>
+void describe(ModelSamplingConfig& c, V& v) {
+  using params::param;
+  v.field(c.spacing_m,
+          param("spacing_m", "m", "surface sample spacing of the models (the thesis: 1 cm)")
+              .positive());
+  v.field(c.max_samples,
+          param("max_samples", "", "refuses finer sampling of huge meshes").at_least(1));
+  v.field(c.seed, param("seed", "", "random seed of the surface sampling"));
+}
 
 struct ModelTemplate {
   std::string name;

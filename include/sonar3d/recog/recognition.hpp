@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/recog/descriptor.hpp"
@@ -43,6 +44,32 @@ struct Search4dConfig {
   int background_ring_cells = 1;
   void validate() const;
 };
+template <class V>
+void describe(Search4dConfig& c, V& v) {
+  using params::param;
+  v.field(c.yaw_step_deg,
+          param("yaw_step_deg", "deg",
+                "yaw step of the 4D search (with --method 3d, when given: of the yaw sweep)")
+              .range_open_low(0, 180)
+              .flag("--yaw-step-deg")
+              .equation("eq. 6.9"));
+  v.field(c.search_m, param("search_m", "m",
+                            "half-width of the searched shifts about the patch centre; 0: from "
+                            "T_NE and the model's radius")
+                          .non_negative());
+  v.field(c.search_radius_fraction,
+          param("search_radius_fraction", "", "the automatic half-width adds this × r_model")
+              .range(0, 2));
+  v.field(c.refine_cell_m,
+          param("refine_cell_m", "m", "second pass at this finer cell about the winner; 0: none")
+              .non_negative());
+  v.field(c.refine_yaw_step_deg,
+          param("refine_yaw_step_deg", "deg", "yaw step of the second pass").positive());
+  v.field(c.background_ring_cells,
+          param("background_ring_cells", "",
+                "cells of the model's base height compared around its footprint")
+              .range(0, 100));
+}
 
 struct Search4dResult {
   bool found = false;
@@ -138,6 +165,87 @@ struct RecognitionConfig {
   int num_threads = 0;  // 0 = all cores
   void validate() const;
 };
+// The 2D method's fields (the `two_d:` block of `recognize --print-config`, Python's
+// RecognitionConfig).
+template <class V>
+void describe(RecognitionConfig& c, V& v) {
+  using params::param;
+  v.field(c.map_cell_m, param("map_cell_m", "m", "fine elevation map cell (registration, support)")
+                            .positive()
+                            .flag("--map-cell"));
+  v.field(c.recog_cell_m, param("recog_cell_m", "m",
+                                "scan cell Δ_NE of the descriptors and the 4D search (the "
+                                "thesis' 8 cm)")
+                              .positive()
+                              .flag("--recog-cell")
+                              .equation("sec. 6.3.2.2"));
+  v.group("descriptor", c.descriptor);
+  v.group("scan", c.scan);
+  v.group("search", c.search);
+  v.group("icp", c.icp);
+  v.group("sampling", c.sampling);
+  v.field(c.run_icp, param("run_icp", "", "refine by trimmed ICP after the 4D search")
+                         .flag("--no-icp")
+                         .equation("Table 6.1"));
+  v.field(c.max_relative_score,
+          param("max_relative_score", "",
+                "accept patches scoring at most this times the model's height")
+              .positive()
+              .flag("--max-relative-score"));
+  v.field(c.max_residual_median_m,
+          param("max_residual_median_m", "m",
+                "accept placements whose residual median is at most this (with --method 3d, "
+                "when given: its threshold)")
+              .positive()
+              .flag("--max-residual"));
+  v.group("verification", c.verification);
+  v.group("scale", c.scale);
+  v.field(c.max_overlap, param("max_overlap", "",
+                               "a candidate lying more than this fraction on accepted "
+                               "placements is rejected")
+                             .range(0, 1));
+  v.field(c.compete_margin,
+          param("compete_margin", "",
+                "competing models within this fraction of each other's score are ranked by "
+                "residual")
+              .range(0, 1));
+  v.field(c.max_buried_fraction, param("max_buried_fraction", "",
+                                       "at most this fraction of the model's height below "
+                                       "the local seabed")
+                                     .range(0, 1));
+  v.field(c.max_tilt_deg,
+          param("max_tilt_deg", "deg", "an ICP result tilting the model more is refused")
+              .range(0, 180));
+  v.field(c.max_icp_shift_m,
+          param("max_icp_shift_m", "m", "an ICP result moving the model farther is refused")
+              .non_negative());
+  v.field(c.max_instances,
+          param("max_instances", "", "instances per model whose count the catalogue does not give")
+              .range(1, 1000));
+  v.field(c.max_rejections,
+          param("max_rejections", "", "rejected scan candidates per model before its scan gives up")
+              .range(1, 100)
+              .flag("--max-rejections"));
+  v.field(c.relief_window_m, param("relief_window_m", "m", "seabed window of the relief proposals")
+                                 .range_open_low(0, 50)
+                                 .flag("--relief-window"));
+  v.field(c.max_relief_proposals,
+          param("max_relief_proposals", "",
+                "then at most this many blobs of relief that fit the model are tried per model "
+                "(0: none)")
+              .range(0, 1000)
+              .flag("--max-relief-proposals"));
+  v.field(c.removal_margin_m,
+          param("removal_margin_m", "m", "area removed around a placed model's footprint")
+              .non_negative());
+  v.field(c.ground_clearance_m,
+          param("ground_clearance_m", "m",
+                "ICP and residuals use scene points higher than the local seabed plus this")
+              .non_negative());
+  v.field(c.num_threads, param("num_threads", "", "worker threads (0 = all cores; both methods)")
+                             .range(0, 4096)
+                             .flag("--threads"));
+}
 
 struct Placement {
   std::string model;

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
@@ -122,6 +123,131 @@ struct Recognition3dConfig {
   int num_threads = 0;  // 0 = all cores
   void validate() const;
 };
+// The 3D method's fields (the `three_d:` block of `recognize --print-config`, Python's
+// Recognition3dConfig). Not declared here: verification and num_threads (the recognition's, shared
+// by both methods).
+template <class V>
+void describe(Recognition3dConfig& c, V& v) {
+  using params::param;
+  v.field(c.voxel_m, param("voxel_m", "m", "model and scene subsampling voxel")
+                         .positive()
+                         .flag("--subsample")
+                         .equation("sec. 6.3.1.2"));
+  v.field(c.period_fraction,
+          param("period_fraction", "", "subspace grid period T as a fraction of r_model")
+              .range_open_low(0.05, 4)
+              .flag("--period-fraction")
+              .equation("eq. 6.3"));
+  v.field(c.max_subspaces,
+          param("max_subspaces", "",
+                "at most this many subspaces per model (T is raised until they fit)")
+              .range(1, 50'000'000)
+              .flag("--max-subspaces"));
+  v.field(c.alpha_fit, param("alpha_fit", "", "OBB fit margin")
+                           .range_open_low(0, 100)
+                           .flag("--alpha-fit")
+                           .equation("eq. 6.4"));
+  v.field(c.alpha_volume, param("alpha_volume", "", "volume margin")
+                              .range(0, 100)
+                              .flag("--alpha-volume")
+                              .equation("eq. 6.5"));
+  v.field(c.n_min, param("n_min", "", "minimum points per subspace")
+                       .at_least(3)
+                       .flag("--n-min")
+                       .equation("eq. 6.6"));
+  v.field(c.alpha_occupancy, param("alpha_occupancy", "", "occupancy margin")
+                                 .range(0, 100)
+                                 .flag("--alpha-occupancy")
+                                 .equation("eq. 6.7"));
+  v.field(c.occupancy_voxel_m, param("occupancy_voxel_m", "m", "occupancy voxel edge")
+                                   .positive()
+                                   .flag("--occupancy-voxel")
+                                   .equation("eq. 6.7"));
+  v.field(c.upright, param("upright", "",
+                           "structures stand upright: yaw sweep + ICP per subspace (else the "
+                           "global registration, slower)")
+                         .flag("--no-upright"));
+  v.field(c.yaw_step_deg, param("yaw_step_deg", "deg", "yaw sweep step").range_open_low(0, 180));
+  v.field(c.seabed_clearance_m,
+          param("seabed_clearance_m", "m",
+                "drop points lower than the local seabed plus this (0: keep the seabed)")
+              .non_negative()
+              .flag("--seabed-clearance"));
+  v.field(c.ground_cell_m, param("ground_cell_m", "m", "local seabed cell").positive());
+  v.field(c.ground_window_m,
+          param("ground_window_m", "m", "local seabed plane window").non_negative());
+  v.field(
+      c.ground_quantile,
+      param("ground_quantile", "", "seabed quantile where too few cells hold points").range(0, 1));
+  v.field(c.dedup_fraction, param("dedup_fraction", "",
+                                  "survivors this close (× r_model) to a fuller one are not "
+                                  "matched")
+                                .range(0, 10));
+  v.field(c.starts, param("starts", "", "ICP starts per subspace").range(1, 100).flag("--starts"));
+  v.field(c.coarse_gate_m,
+          param("coarse_gate_m", "m", "first ICP pass: correspondences within this").positive());
+  v.field(c.coarse_iterations,
+          param("coarse_iterations", "", "first ICP pass iterations").range(1, 10000));
+  v.field(c.max_points,
+          param("max_points", "", "scene points per subspace used in the matching").at_least(10));
+  v.field(c.max_start_score_m,
+          param("max_start_score_m", "m", "a start scoring worse is not refined").positive());
+  v.group("icp", c.icp);
+  v.field(c.max_residual_median_m,
+          param("max_residual_median_m", "m", "error to the CAD model after matching, at most")
+              .positive()
+              .equation("sec. 6.3.1.3"));
+  v.field(c.map_cell_m,
+          param("map_cell_m", "m", "elevation map cell of the verification").positive());
+  v.field(c.max_buried_fraction,
+          param("max_buried_fraction", "", "at most this fraction of the model below the seabed")
+              .range(0, 1));
+  v.field(c.max_overlap,
+          param("max_overlap", "", "at most this fraction of the footprint on accepted placements")
+              .range(0, 1));
+  v.field(c.min_net_explained,
+          param("min_net_explained", "", "net explanation over the model's relief, at least")
+              .range(-10, 1));
+  v.field(c.min_coverage,
+          param("min_coverage", "",
+                "a placement must have a scene point near at least this fraction of the model's "
+                "samples seen from above")
+              .range(0, 1)
+              .flag("--min-coverage"));
+  v.field(
+      c.coverage_tol_m,
+      param("coverage_tol_m", "m", "a sample is covered by a scene point this close").positive());
+  v.field(
+      c.relief_m,
+      param("relief_m", "m", "samples this far above the model's base are relief").non_negative());
+  v.field(c.view_tilt_deg, param("view_tilt_deg", "deg",
+                                 "samples visible from above along the vertical or this "
+                                 "off it")
+                               .range_open_high(0, 90));
+  v.field(c.context_min_m,
+          param("context_min_m", "m", "unexplained points counted in a ring at least this wide")
+              .non_negative());
+  v.field(c.context_fraction,
+          param("context_fraction", "", "else this fraction of the model's radius").range(0, 10));
+  v.field(c.unexplained_height_m,
+          param("unexplained_height_m", "m",
+                "scene points count as unexplained only this high above the seabed")
+              .non_negative());
+  v.field(
+      c.max_tilt_deg,
+      param("max_tilt_deg", "deg", "an upright placement tilted more is refused").range(0, 180));
+  v.field(c.nms_fraction, param("nms_fraction", "",
+                                "placements of one model closer than this × its radius are "
+                                "one instance")
+                              .range(0, 10));
+  v.field(c.removal_margin_m,
+          param("removal_margin_m", "m", "scene points this close to a placed model are removed")
+              .non_negative());
+  v.field(c.max_instances,
+          param("max_instances", "", "instances per model whose count the catalogue does not give")
+              .range(1, 1000));
+  v.group("sampling", c.sampling);
+}
 
 // Shape statistics of a point set (sec. 6.3.1.1): the side lengths of its oriented bounding box
 // (principal axes of the points' covariance, extent along each, sorted decreasing), its volume,

@@ -12,6 +12,7 @@
 #include <optional>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/recog/icp.hpp"
 #include "sonar3d/recog/model.hpp"
@@ -41,6 +42,24 @@ struct ScaleSearchConfig {
   double max_icp_shift_m = 0.2;
   void validate() const;
 };
+// max_tilt_deg and max_icp_shift_m are not declared: the 2D recognition sets them from its own.
+template <class V>
+void describe(ScaleSearchConfig& c, V& v) {
+  using params::param;
+  v.field(c.coarse_step,
+          param("coarse_step", "", "scales tried evenly across the range at this step first")
+              .range_open_low(0, 0.5));
+  v.field(c.tolerance, param("tolerance", "", "then a golden-section search about the best to this")
+                           .range_open_low(0, 0.5));
+  v.field(c.rounds, param("rounds", "", "rounds of (scale search, trimmed ICP of the scaled model)")
+                        .range(1, 10));
+  v.field(c.ring_min_m,
+          param("ring_min_m", "m", "seabed ring compared around the footprint, at least this")
+              .non_negative());
+  v.field(c.ring_fraction,
+          param("ring_fraction", "", "else this fraction of the model's radius").range(0, 2));
+  v.field(c.cap_m, param("cap_m", "m", "height differences are truncated at this").positive());
+}
 
 // `m` scaled by s about its model frame's origin: mesh, samples, centre, base, top, radius (the
 // samples are not drawn again: their spacing scales with s).

@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/recog/model.hpp"
 
@@ -59,6 +60,44 @@ struct VerificationConfig {
   double min_confidence = 0.5;  // a candidate is "found" at or above this confidence
   void validate() const;
 };
+template <class V>
+void describe(VerificationConfig& c, V& v) {
+  using params::param;
+  v.field(c.tol_m,
+          param("tol_m", "m", "vertical agreement between the scene's surface and the model's top")
+              .positive());
+  v.field(c.slip_m, param("slip_m", "m", "horizontal slip allowed when comparing").range(0, 1));
+  v.field(c.relief_m,
+          param("relief_m", "m", "cells this far above the local seabed are relief").positive());
+  v.field(c.ground_ring_m, param("ground_ring_m", "m",
+                                 "ring around the footprint through which the seabed plane "
+                                 "is fitted")
+                               .range_open_low(0, 10));
+  v.field(c.context_min_m,
+          param("context_min_m", "m", "ring in which scene relief must be explained, at least")
+              .range(0, 10));
+  v.field(c.context_fraction,
+          param("context_fraction", "", "else this fraction of the model's radius").range(0, 2));
+  v.field(c.spill_band_m, param("spill_band_m", "m",
+                                "width of the band outside the footprint "
+                                "for `spill`")
+                              .range_open_low(0, 10));
+  v.field(c.bias, param("bias", "", "confidence: logistic bias (fitted, docs/recognition.md)")
+                      .range(-1e6, 1e6));
+  v.field(c.w_seen, param("w_seen", "", "confidence: weight of `seen`").range(-1e6, 1e6));
+  v.field(c.w_explained,
+          param("w_explained", "", "confidence: weight of `explained`").range(-1e6, 1e6));
+  v.field(c.w_violation,
+          param("w_violation", "", "confidence: weight of `violation`").range(-1e6, 1e6));
+  v.field(c.w_unexplained,
+          param("w_unexplained", "", "confidence: weight of `unexplained`").range(-1e6, 1e6));
+  v.field(c.w_spill, param("w_spill", "", "confidence: weight of `spill`").range(-1e6, 1e6));
+  v.field(c.min_confidence,
+          param("min_confidence", "",
+                "a candidate is found at or above this calibrated confidence (both methods)")
+              .range(0, 1)
+              .flag("--min-confidence"));
+}
 
 struct Verification {
   // Local seabed height (world z) at the footprint's centre, NaN when unobserved; relief is

@@ -1,0 +1,195 @@
+#pragma once
+// One declaration per parameter (docs/design.md, "Parameters"). A component's config struct keeps
+// each field's default where the field is declared; beside the struct, one function
+//
+//   template <class V> void describe(RecognitionConfig& c, V& v) {
+//     v.field(c.map_cell_m, param("map_cell_m", "m", "fine elevation map cell").positive()
+//                               .flag("--map-cell"));
+//     v.group("verification", c.verification);
+//   }
+//
+// states, once, every field's name (the YAML key and the Python attribute), unit, help, bounds,
+// the thesis equation it implements and, when a command exposes it, its flag. Everything else is
+// derived from that one list by visitors: bounds checks (`check`, below), the effective
+// configuration as YAML and from YAML (io/params_yaml.hpp), command-line options
+// (apps/sonar3d/params_cli.hpp), Python classes (python/src/params_py.hpp) and the generated
+// reference (`reference_markdown`, docs/reference.md, kept current by a test).
+//
+// A visitor V has
+//   template <class T> void field(T& value, const Param& p);   T: double, int, std::size_t,
+//                                                              unsigned long long, bool, string
+//   template <class G> void group(const char* key, G& g);      recurses with describe(g, *this)
+// and `describe` is found by argument-dependent lookup.
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "sonar3d/core/error.hpp"
+
+namespace sonar3d::params {
+
+// One field's declaration. Built by param(...) and chained setters, all constexpr.
+struct Param {
+  const char* key = "";   // YAML key and Python attribute
+  const char* unit = "";  // "m", "deg", "s", "" (a count, a fraction, a switch)
+  const char* help = "";
+  const char* cli = nullptr;  // the command line's flag, when a command exposes the field
+  const char* eq = nullptr;   // the thesis' equation or section it implements
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false, hi_open = false;
+
+  constexpr Param flag(const char* f) const {
+    return with([&](Param& p) { p.cli = f; });
+  }
+  constexpr Param equation(const char* e) const {
+    return with([&](Param& p) { p.eq = e; });
+  }
+  // Bounds: [lo, hi], (0, inf), [0, inf), and the open variants.
+  constexpr Param range(double l, double h) const {
+    return with([&](Param& p) { p.lo = l, p.hi = h; });
+  }
+  constexpr Param range_open_low(double l, double h) const {
+    return with([&](Param& p) { p.lo = l, p.hi = h, p.lo_open = true; });
+  }
+  constexpr Param range_open_high(double l, double h) const {
+    return with([&](Param& p) { p.lo = l, p.hi = h, p.hi_open = true; });
+  }
+  constexpr Param positive() const {
+    return with([&](Param& p) { p.lo = 0, p.lo_open = true; });
+  }
+  constexpr Param non_negative() const {
+    return with([&](Param& p) { p.lo = 0; });
+  }
+  constexpr Param at_least(double l) const {
+    return with([&](Param& p) { p.lo = l; });
+  }
+  constexpr Param at_most(double h) const {
+    return with([&](Param& p) { p.hi = h; });
+  }
+  constexpr bool bounded() const {
+    return lo > -std::numeric_limits<double>::infinity() ||
+           hi < std::numeric_limits<double>::infinity();
+  }
+
+ private:
+  template <class F>
+  constexpr Param with(F&& f) const {
+    Param p = *this;
+    f(p);
+    return p;
+  }
+};
+
+constexpr Param param(const char* key, const char* unit, const char* help) {
+  Param p;
+  p.key = key;
+  p.unit = unit;
+  p.help = help;
+  return p;
+}
+
+// "(0, 180]", "> 0", ">= 1": the bounds in words.
+std::string bounds_text(const Param& p);
+// "must lie in (0, 180] deg", "must be a finite number > 0 m".
+std::string bounds_rule(const Param& p);
+inline bool in_bounds(const Param& p, double v) {
+  return std::isfinite(v) && (p.lo_open ? v > p.lo : v >= p.lo) &&
+         (p.hi_open ? v < p.hi : v <= p.hi);
+}
+// The value formatted as the YAML writer and the reference show it (shortest round-trip form).
+std::string format_number(double v);
+// A field's value as text: whole numbers exactly, reals by format_number.
+template <class T>
+std::string format_value(const T& value) {
+  if constexpr (std::is_same_v<T, bool>) {
+    return value ? "true" : "false";
+  } else if constexpr (std::is_integral_v<T>) {
+    return std::to_string(value);
+  } else if constexpr (std::is_arithmetic_v<T>) {
+    return format_number(static_cast<double>(value));
+  } else {
+    return value;
+  }
+}
+// The error for `value` outside p's bounds: "<where>: <path> (<flag>) must ..., got <value>".
+[[noreturn]] void throw_out_of_bounds(const std::string& where, const std::string& path,
+                                      const Param& p, double value);
+
+// Joins dotted paths: "" + "a" = "a", "a" + "b" = "a.b".
+inline std::string join(const std::string& prefix, const char* key) {
+  return prefix.empty() ? std::string(key) : prefix + "." + key;
+}
+
+// Visits every field with its dotted path ("verification.min_confidence"): the common base of the
+// visitors that need paths.
+template <class Derived>
+struct PathVisitor {
+  std::string prefix;
+  template <class G>
+  void group(const char* key, G& g) {
+    const std::string saved = prefix;
+    prefix = join(prefix, key);
+    describe(g, static_cast<Derived&>(*this));
+    prefix = saved;
+  }
+};
+
+// Bounds checks: every numeric field inside its declared bounds (finite when bounded).
+struct BoundsCheck : PathVisitor<BoundsCheck> {
+  std::string where;
+  template <class T>
+  void field(T& value, const Param& p) {
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      if (!p.bounded()) return;
+      const double v = static_cast<double>(value);
+      if (!in_bounds(p, v)) throw_out_of_bounds(where, join(prefix, p.key), p, v);
+    }
+  }
+};
+
+// Throws naming the field (its dotted path under `where`, and its flag) when a value lies outside
+// its declared bounds. Cross-field rules stay in the config's validate().
+template <class C>
+void check(const C& config, const std::string& where) {
+  C copy = config;
+  BoundsCheck v;
+  v.where = where;
+  describe(copy, v);
+}
+
+// One row per field of the reference: path, flag, default, unit, bounds, help.
+struct Row {
+  std::string path, flag, value, unit, bounds, help, eq;
+};
+struct RowCollector : PathVisitor<RowCollector> {
+  std::vector<Row> rows;
+  template <class T>
+  void field(T& value, const Param& p) {
+    Row r;
+    r.path = join(prefix, p.key);
+    r.flag = p.cli ? p.cli : "";
+    r.value = format_value(value);
+    r.unit = p.unit;
+    r.bounds = p.bounded() ? bounds_text(p) : "";
+    r.help = p.help;
+    r.eq = p.eq ? p.eq : "";
+    rows.push_back(r);
+  }
+};
+template <class C>
+std::vector<Row> rows(const C& config) {
+  C copy = config;
+  RowCollector v;
+  describe(copy, v);
+  return v.rows;
+}
+// A markdown table of a config's fields and their defaults (docs/reference.md).
+std::string reference_markdown(const std::string& title, const std::string& intro,
+                               const std::vector<Row>& rows);
+
+}  // namespace sonar3d::params

@@ -1,0 +1,119 @@
+#pragma once
+// The configurations declared with core/params.hpp, as YAML: the effective configuration printed
+// by `--print-config` and read back by `--config FILE` (a run from a printed configuration is the
+// run that printed it). Keys are the fields' names, groups nest; reading rejects unknown keys and
+// out-of-bounds or mistyped values naming the file, line and dotted key.
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <limits>
+#include <set>
+#include <string>
+#include <type_traits>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/params.hpp"
+#include "sonar3d/io/yaml_config.hpp"
+
+namespace sonar3d::params {
+
+// Writes the fields as a block map into an open YAML emitter (inside a map: call between
+// BeginMap/EndMap of the caller, after emitting the group's key).
+struct YamlWriter {
+  YAML::Emitter& out;
+  template <class T>
+  void field(T& value, const Param& p) {
+    out << YAML::Key << p.key << YAML::Value;
+    if constexpr (std::is_same_v<T, bool>) {
+      out << (value ? "true" : "false");
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      out << format_value(value);
+    } else {
+      out << YAML::DoubleQuoted << value;
+    }
+  }
+  template <class G>
+  void group(const char* key, G& g) {
+    out << YAML::Key << key << YAML::Value << YAML::BeginMap;
+    describe(g, *this);
+    out << YAML::EndMap;
+  }
+};
+template <class C>
+void emit_yaml(YAML::Emitter& out, const C& config) {
+  C copy = config;
+  YamlWriter w{out};
+  out << YAML::BeginMap;
+  describe(copy, w);
+  out << YAML::EndMap;
+}
+
+// Reads the keys present in a map node; absent keys keep their value. Unknown keys are an error.
+struct YamlReader : PathVisitor<YamlReader> {
+  const YAML::Node* node;
+  std::string file;
+  std::set<std::string> known;
+  template <class T>
+  void field(T& value, const Param& p) {
+    known.insert(p.key);
+    const YAML::Node n = (*node)[p.key];
+    if (!n) return;
+    const std::string path = join(prefix, p.key);
+    const std::string at = yaml::where(file, n, path);
+    if (!n.IsScalar()) throw Error(at + ": expected a single value");
+    if constexpr (std::is_same_v<T, bool>) {
+      bool b = false;
+      if (!YAML::convert<bool>::decode(n, b)) throw Error(at + ": expected true or false");
+      value = b;
+    } else if constexpr (std::is_integral_v<T>) {
+      T t{};
+      if (!YAML::convert<T>::decode(n, t)) {
+        throw Error(at + ": expected a whole number" +
+                    (std::is_unsigned_v<T> ? std::string(" >= 0") : std::string()) + ", got '" +
+                    printable(n.Scalar()) + "'");
+      }
+      if (p.bounded() && !in_bounds(p, static_cast<double>(t))) {
+        throw Error(at + ": " + bounds_rule(p) + ", got " + n.Scalar());
+      }
+      value = t;
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      double d = 0;
+      if (!YAML::convert<double>::decode(n, d) || !std::isfinite(d)) {
+        throw Error(at + ": expected a finite number, got '" + printable(n.Scalar()) + "'");
+      }
+      if (p.bounded() && !in_bounds(p, d)) {
+        throw Error(at + ": " + bounds_rule(p) + ", got " + n.Scalar());
+      }
+      value = static_cast<T>(d);
+    } else {
+      value = n.Scalar();
+    }
+  }
+  template <class G>
+  void group(const char* key, G& g) {
+    known.insert(key);
+    const YAML::Node n = (*node)[key];
+    if (!n) return;
+    const std::string path = join(prefix, key);
+    if (!n.IsMap()) throw Error(yaml::where(file, n, path) + ": expected a map of settings");
+    YamlReader inner;
+    inner.node = &n;
+    inner.file = file;
+    inner.prefix = path;
+    describe(g, inner);
+    yaml::check_keys(n, inner.known, file, path);
+  }
+};
+// `node` (a map) onto `config`; `ctx` the dotted path of the node in its file, for errors.
+template <class C>
+void read_yaml(const YAML::Node& node, const std::string& file, const std::string& ctx, C& config) {
+  if (!node.IsMap()) throw Error(yaml::where(file, node, ctx) + ": expected a map of settings");
+  YamlReader r;
+  r.node = &node;
+  r.file = file;
+  r.prefix = ctx;
+  describe(config, r);
+  yaml::check_keys(node, r.known, file, ctx);
+}
+
+}  // namespace sonar3d::params

@@ -1,0 +1,152 @@
+// One declaration per parameter (core/params.hpp, docs/design.md "Parameters"): the bounds, the
+// YAML round trip, the command line's --print-config/--config, and docs/reference.md generated
+// from the declarations (kept current here).
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/params.hpp"
+#include "sonar3d/io/params_yaml.hpp"
+#include "sonar3d/recog/recognize.hpp"
+#include "test_support.hpp"
+
+using namespace sonar3d;
+namespace fs = std::filesystem;
+using sonar3d::test::read_all;
+using sonar3d::test::run_cli_captured;
+
+namespace {
+
+std::string emit(const RecognizeConfig& c) {
+  YAML::Emitter out;
+  params::emit_yaml(out, c);
+  return out.c_str();
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+fs::path tmp_dir() {
+  const fs::path d = fs::temp_directory_path() /
+                     ("sonar3d_test_params_" +
+                      std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// The reference of every configuration declared with core/params.hpp.
+std::string reference() {
+  std::string out =
+      "# Configuration reference\n\n"
+      "Generated from the parameters' one declaration (core/params.hpp, docs/design.md "
+      "\"Parameters\"); `tests/test_params.cpp` fails when this file is not current (regenerate: "
+      "`SONAR3D_UPDATE_REFERENCE=1 build/tests/test_params`). Each key is the YAML key under the "
+      "command's block (as `--print-config` prints it) and the Python attribute; the flag, when "
+      "there is one, sets it on the command line.\n\n";
+  out += params::reference_markdown(
+      "recognize",
+      "`sonar3d recognize --print-config` prints these under `recognize:`; Python: "
+      "`sonar3d.RecognizeConfig` (groups as attributes: `cfg.two_d.verification.min_confidence`).",
+      params::rows(RecognizeConfig()));
+  return out;
+}
+
+}  // namespace
+
+TEST(Params, BoundsNameTheFieldAndItsFlag) {
+  RecognizeConfig c;
+  c.two_d.verification.min_confidence = 1.5;
+  const std::string e = error_of([&] { c.validate(); });
+  EXPECT_NE(e.find("verification.min_confidence"), std::string::npos) << e;
+  EXPECT_NE(e.find("--min-confidence"), std::string::npos) << e;
+  EXPECT_NE(e.find("[0, 1]"), std::string::npos) << e;
+  c = RecognizeConfig();
+  c.method = "3d";
+  c.three_d.period_fraction = 0.01;  // open lower bound 0.05
+  EXPECT_NE(error_of([&] { c.validate(); }).find("(0.05, 4]"), std::string::npos);
+  c.three_d.period_fraction = std::nan("");
+  EXPECT_NE(error_of([&] { c.validate(); }).find("period_fraction"), std::string::npos);
+}
+
+TEST(Params, YamlRoundTripIsExact) {
+  RecognizeConfig c;
+  c.method = "3d";
+  c.two_d.map_cell_m = 0.1 + 0.2;  // not a short decimal: the shortest exact form is written
+  c.two_d.run_icp = false;
+  c.three_d.max_subspaces = 12345;
+  c.two_d.sampling.seed = 18446744073709551615ull;
+  const std::string text = emit(c);
+  RecognizeConfig back;
+  params::read_yaml(YAML::Load(text), "mem.yaml", "", back);
+  EXPECT_EQ(back.two_d.map_cell_m, c.two_d.map_cell_m);
+  EXPECT_EQ(back.method, "3d");
+  EXPECT_FALSE(back.two_d.run_icp);
+  EXPECT_EQ(back.three_d.max_subspaces, 12345u);
+  EXPECT_EQ(emit(back), text);
+}
+
+TEST(Params, YamlErrorsNameFileLineAndKey) {
+  RecognizeConfig c;
+  const auto read = [&](const std::string& text) {
+    return error_of([&] { params::read_yaml(YAML::Load(text), "cfg.yaml", "recognize", c); });
+  };
+  EXPECT_NE(read("two_d: {map_cel_m: 1}").find("recognize.two_d.map_cel_m"), std::string::npos);
+  EXPECT_NE(read("two_d: {map_cell_m: abc}").find("expected a finite number"), std::string::npos);
+  EXPECT_NE(read("two_d: {map_cell_m: .nan}").find("expected a finite number"), std::string::npos);
+  EXPECT_NE(read("two_d: {max_rejections: 2.5}").find("whole number"), std::string::npos);
+  EXPECT_NE(read("two_d: {max_rejections: 0}").find("[1, 100]"), std::string::npos);
+  EXPECT_NE(read("two_d: {run_icp: maybe}").find("true or false"), std::string::npos);
+  EXPECT_NE(read("two_d: 3").find("expected a map"), std::string::npos);
+  EXPECT_NE(read("two_d:\n  verification: {min_confidence: 7}").find("cfg.yaml:2"),
+            std::string::npos);
+}
+
+TEST(Params, CliPrintConfigRunsBackByteForByte) {
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(dir,
+                                  "recognize --print-config --method 3d --min-confidence 0.7 "
+                                  "--no-icp --max-subspaces 5000");
+  ASSERT_EQ(a.code, 0) << a.err;
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "recognize --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);  // the file reproduces the configuration that printed it
+  EXPECT_NE(a.out.find("min_confidence: 0.7"), std::string::npos);
+  EXPECT_NE(a.out.find("max_subspaces: 5000"), std::string::npos);
+  // Flags override the file.
+  const auto c = run_cli_captured(
+      dir, "recognize --print-config --config " + (dir / "cfg.yaml").string() + " --method 2d");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("method: \"2d\""), std::string::npos);
+  EXPECT_NE(c.out.find("min_confidence: 0.7"), std::string::npos);
+  // A bad file: one line naming it.
+  std::ofstream(dir / "bad.yaml") << "recognize:\n  two_d: {min_confidence: 0.7}\n";
+  const auto d =
+      run_cli_captured(dir, "recognize --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("bad.yaml:2"), std::string::npos) << d.err;
+  EXPECT_NE(d.err.find("unknown key"), std::string::npos) << d.err;
+  fs::remove_all(dir);
+}
+
+TEST(Params, ReferenceIsCurrent) {
+  const fs::path path = fs::path(SONAR3D_SOURCE_DIR) / "docs/reference.md";
+  const std::string want = reference();
+  if (const char* u = std::getenv("SONAR3D_UPDATE_REFERENCE"); u && std::string(u) == "1") {
+    std::ofstream(path, std::ios::trunc) << want;
+  }
+  EXPECT_EQ(read_all(path), want)
+      << "docs/reference.md is not current: SONAR3D_UPDATE_REFERENCE=1 build/tests/test_params";
+}
