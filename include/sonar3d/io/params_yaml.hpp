@@ -94,7 +94,12 @@ struct YamlReader : PathVisitor<YamlReader> {
     known.insert(key);
     const YAML::Node n = (*node)[key];
     if (!n) return;
-    const std::string path = join(prefix, key);
+    read_map(n, file, join(prefix, key), g);
+  }
+  // A map node onto `g`: its fields read, any other key refused.
+  template <class G>
+  static void read_map(const YAML::Node& n, const std::string& file, const std::string& path,
+                       G& g) {
     if (!n.IsMap()) throw Error(yaml::where(file, n, path) + ": expected a map of settings");
     YamlReader inner;
     inner.node = &n;
@@ -107,13 +112,7 @@ struct YamlReader : PathVisitor<YamlReader> {
 // `node` (a map) onto `config`; `ctx` the dotted path of the node in its file, for errors.
 template <class C>
 void read_yaml(const YAML::Node& node, const std::string& file, const std::string& ctx, C& config) {
-  if (!node.IsMap()) throw Error(yaml::where(file, node, ctx) + ": expected a map of settings");
-  YamlReader r;
-  r.node = &node;
-  r.file = file;
-  r.prefix = ctx;
-  describe(config, r);
-  yaml::check_keys(node, r.known, file, ctx);
+  YamlReader::read_map(node, file, ctx, config);
 }
 
 }  // namespace sonar3d::params
