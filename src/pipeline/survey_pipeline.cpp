@@ -347,6 +347,10 @@ void Survey::write_summary(const std::string& failed_stage, const std::string& e
   auto abs = [](const fs::path& p) {
     return p.empty() ? std::string() : fs::absolute(p).lexically_normal().string();
   };
+  double peak = 0;  // over the stages that ran in this process
+  for (const SurveyStageReport& r : reports_) {
+    if (r.status == "ran") peak = std::max(peak, r.peak_memory_mb);
+  }
   json j{{"format", "sonar3d-survey"},
          {"version", 1},
          {"input", abs(o_.input)},
@@ -356,6 +360,7 @@ void Survey::write_summary(const std::string& failed_stage, const std::string& e
          {"config_file", abs(o_.config_file)},
          {"stages", stages},
          {"seconds", seconds_},
+         {"peak_memory_mb", peak},
          {"peak_memory_per_stage", peak_reset_ok_}};
   if (!failed_stage.empty()) {
     j["failed_stage"] = failed_stage;
@@ -401,9 +406,6 @@ void Survey::do_import(SurveyStageReport& r) {
     warnings = res.warnings;
     r.figures.emplace_back("dropped", static_cast<double>(res.dropped));
   } else if (kind_ == "rosbag") {
-    require(!c.sonar_topic.empty(),
-            "a ROS bag needs import.sonar_topic (and import.nav_topic, or import.static: true) "
-            "in the survey configuration (--config)");
     RosbagImportConfig b;
     b.sonar_topic = c.sonar_topic;
     b.nav_topic = c.nav_topic;
@@ -415,6 +417,8 @@ void Survey::do_import(SurveyStageReport& r) {
     b.vertical_aperture_rad = c.vertical_aperture_deg * M_PI / 180;
     b.time_offset = c.time_offset;
     b.drop_outside = c.drop_outside;
+    // Topics not named in the configuration are found by message type when unambiguous.
+    for (const std::string& line : choose_rosbag_topics(o_.input, b)) r.note += line + "; ";
     const RosbagImportResult res = import_rosbag(o_.input, dest.staging(), b, o_.progress);
     frames = res.frames;
     warnings = res.warnings;
@@ -456,7 +460,7 @@ void Survey::do_import(SurveyStageReport& r) {
   }
   dest.commit();
   for (const std::string& w : warnings) warn(o_.input.string() + ": " + w);
-  r.note = kind_ + " imported into " + dataset_.string();
+  r.note += kind_ + " imported into " + dataset_.string();
   r.figures.emplace_back("frames", static_cast<double>(frames));
 }
 
