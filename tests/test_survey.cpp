@@ -321,3 +321,63 @@ TEST(SurveyConfig, InputKindsAreRecognised) {
   sonar3d::test::expect_error([&] { sonar3d::survey_input_kind(dir); }, "Oculus ping stream");
   fs::remove_all(dir);
 }
+
+// A log with camera frames is textured on the corrected map; a ROS 1 bag is imported first (its
+// topics found by message type) into OUT/dataset, then resumed like any survey.
+TEST(SurveyCli, TexturesCameraFramesAndImportsABag) {
+  const fs::path dir = sonar3d::test::temp_dir("bag");
+  {
+    std::ofstream(dir / "field.yaml") << R"(seed: 3
+sensor:
+  fov_deg: 80
+  beams: 160
+  r_min: 1.0
+  r_max: 4.0
+  range_bins: 150
+  vertical_aperture_deg: 1
+  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3, kind: terrain, color: [0.8, 0.7, 0.5]}
+  - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}, reflectivity: 0.8, color: [0.9, 0.8, 0.1]}
+camera: {width: 160, height: 120, fx: 100, fy: 100, cx: 79.5, cy: 59.5, T_vehicle_camera: {translation: [0, 0, -0.2], rpy_deg: [180, 0, 90]}, rate_hz: 0.5, ambient: 1, attenuation_per_m: 0}
+trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5, spacing: 0.04, period: 0.1}
+)";
+  }
+  { std::ofstream(dir / "survey.yaml") << "map: {roi: [-1, -1, -0.6, 7, 6, 0.8], search: 0.3}\n"; }
+  CliRun r = run_cli(
+      dir, "simulate " + (dir / "field.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  ASSERT_TRUE(fs::is_directory(dir / "ds/camera"));
+  r = run_cli(dir, "survey " + (dir / "ds").string() + " -o " + (dir / "out").string() +
+                       " --config " + (dir / "survey.yaml").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  nlohmann::json s = read_json(dir / "out/summary.json");
+  EXPECT_EQ(statuses(s)["texture"], "ran") << s.dump(1);
+  EXPECT_GT(s["stages"][4]["figures"]["coloured"].get<double>(), 1000) << s.dump(1);
+  EXPECT_GT(s["stages"][4]["figures"]["frames"].get<double>(), 10) << s.dump(1);
+  EXPECT_TRUE(fs::is_regular_file(dir / "out/textured.ply"));
+
+  r = run_cli(dir, "export rosbag --ros1 " + (dir / "ds").string() + " -o " +
+                       (dir / "log.bag").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string bag = "survey " + (dir / "log.bag").string() + " -o " +
+                          (dir / "bag_out").string() + " --config " +
+                          (dir / "survey.yaml").string() + " -q";
+  r = run_cli(dir, bag);
+  ASSERT_EQ(r.code, 0) << r.out;
+  s = read_json(dir / "bag_out/summary.json");
+  EXPECT_EQ(s["input_kind"], "rosbag");
+  EXPECT_EQ(statuses(s)["import"], "ran");
+  EXPECT_EQ(s["stages"][0]["figures"]["frames"].get<int>(), 604) << s.dump(1);
+  EXPECT_NE(s["stages"][0]["note"].get<std::string>().find("sonar topic"), std::string::npos);
+  EXPECT_EQ(statuses(s)["texture"], "skipped");  // the bag carries no camera images
+  EXPECT_TRUE(fs::is_regular_file(dir / "bag_out/dataset/sonar.yaml"));
+  EXPECT_TRUE(fs::is_regular_file(dir / "bag_out/map/merged.ply"));
+  r = run_cli(dir, bag);
+  ASSERT_EQ(r.code, 0) << r.out;
+  s = read_json(dir / "bag_out/summary.json");
+  EXPECT_EQ(statuses(s)["import"], "unchanged");
+  EXPECT_EQ(statuses(s)["map"], "unchanged");
+  fs::remove_all(dir);
+}
