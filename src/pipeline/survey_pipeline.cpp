@@ -42,7 +42,8 @@
 namespace sonar3d {
 
 namespace fs = std::filesystem;
-using json = nlohmann::json;
+// Ordered: "format" stays first in summary.json, where is_sonar3d_output() looks for it.
+using json = nlohmann::ordered_json;
 
 namespace {
 
