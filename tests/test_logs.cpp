@@ -943,6 +943,25 @@ TEST_F(BagFixture, MissingAndWronglyTypedTopics) {
   EXPECT_EQ(import_rosbag(root / "bag", root / "static", c).frames, 3u);
 }
 
+// Topics left out are found by message type (sonar3d survey, import rosbag without
+// --sonar-topic/--nav-topic); named ones are kept.
+TEST_F(BagFixture, TopicsFoundByMessageType) {
+  for (const std::string bag : {"bag", "sim.bag"}) {
+    RosbagImportConfig c;
+    const std::vector<std::string> lines = choose_rosbag_topics(root / bag, c);
+    EXPECT_EQ(c.sonar_topic, "/sonar3d/image") << bag;
+    EXPECT_EQ(c.nav_topic, "/sonar3d/odom") << bag;
+    ASSERT_EQ(lines.size(), 2u);
+    EXPECT_NE(lines[0].find("sonar topic /sonar3d/image (by type"), std::string::npos) << lines[0];
+    EXPECT_EQ(import_rosbag(root / bag, root / ("by_type_" + bag), c).frames, 3u);
+  }
+  RosbagImportConfig c;
+  c.sonar_topic = "/mine";
+  c.static_sonar = true;
+  EXPECT_TRUE(choose_rosbag_topics(root / "bag", c).empty());
+  EXPECT_EQ(c.sonar_topic, "/mine");
+}
+
 TEST_F(BagFixture, TruncatedAndCorruptMessages) {
   const fs::path cut =
       mutated_ros2("cut", [](std::vector<std::uint8_t>& b) { b.resize(b.size() / 2); });

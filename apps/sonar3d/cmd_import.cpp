@@ -274,11 +274,12 @@ void add_import_rosbag(CLI::App& parent, const GlobalOptions& g, Runner& run) {
       ->required();
   add_overwrite_flag(cmd, *overwrite, "an existing sonar3d dataset at --output");
   cmd->add_option("--sonar-topic", cfg->sonar_topic,
-                  "topic of ProjectedSonarImage or sensor_msgs/Image messages")
-      ->required();
+                  "topic of ProjectedSonarImage or sensor_msgs/Image messages (default: the one "
+                  "topic of such a type)");
   cmd->add_option("--nav-topic", cfg->nav_topic,
                   "topic of nav_msgs/Odometry, geometry_msgs/PoseStamped or "
-                  "PoseWithCovarianceStamped (T_world_vehicle)");
+                  "PoseWithCovarianceStamped (T_world_vehicle; default: the one topic of such a "
+                  "type)");
   cmd->add_flag("--static", cfg->static_sonar, "a fixed sonar: no navigation, identity poses");
   cmd->add_option("--tf-topic", cfg->tf_topic, "static transforms (tf2_msgs/TFMessage)")
       ->capture_default_str();
@@ -310,6 +311,7 @@ void add_import_rosbag(CLI::App& parent, const GlobalOptions& g, Runner& run) {
       policy.sources = {*bag};
       if (!sonar->empty()) policy.sources.push_back(*sonar);
       OutputDirectory dest(*out, OutputKind::Dataset, policy);
+      for (const auto& line : choose_rosbag_topics(*bag, *cfg)) print_note(line);
       const RosbagImportResult r = import_rosbag(*bag, dest.staging(), *cfg, !g.quiet);
       dest.commit();
       for (const auto& w : r.warnings) fmt::print(stderr, "sonar3d: warning: {}: {}\n", *bag, w);

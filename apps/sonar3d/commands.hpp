@@ -75,5 +75,6 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_world(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_survey(CLI::App& app, const GlobalOptions& g, Runner& run);
 
 }  // namespace sonar3d::cli

@@ -74,12 +74,14 @@ const char* output_kind_name(OutputKind kind) {
       return "plan results (JSON)";
     case OutputKind::PlanResultsCsv:
       return "plan results (CSV)";
+    case OutputKind::Survey:
+      return "survey directory";
   }
   return "output";
 }
 
 bool is_directory_kind(OutputKind kind) {
-  return kind == OutputKind::Dataset || kind == OutputKind::Plan;
+  return kind == OutputKind::Dataset || kind == OutputKind::Plan || kind == OutputKind::Survey;
 }
 
 const char* json_format_marker(OutputKind kind) {
@@ -94,6 +96,8 @@ const char* json_format_marker(OutputKind kind) {
       return "sonar3d-placements";
     case OutputKind::PlanResultsJson:
       return "sonar3d-plan-results";
+    case OutputKind::Survey:
+      return "sonar3d-survey";
     default:
       return "";
   }
@@ -365,6 +369,8 @@ bool is_sonar3d_output(const fs::path& path, OutputKind kind) {
              read_head(path, 64).rfind("{\n  \"version\": 1,\n  \"rank_by\":", 0) == 0;
     case OutputKind::PlanResultsCsv:
       return read_head(path, 64).rfind("id,status,rank,", 0) == 0;
+    case OutputKind::Survey:  // summary.json, written when the survey starts
+      return fs::is_directory(path, ec) && has_json_marker(path / "summary.json", "sonar3d-survey");
   }
   return false;
 }
@@ -403,7 +409,8 @@ std::string other_sonar3d_kind(const fs::path& path, OutputKind wanted) {
        {OutputKind::Dataset, OutputKind::Plan, OutputKind::PointCloud, OutputKind::Mesh,
         OutputKind::GeoTiff, OutputKind::Png, OutputKind::Gltf, OutputKind::VoxelMap,
         OutputKind::ReconstructionJson, OutputKind::EvaluationJson, OutputKind::RegistrationJson,
-        OutputKind::PlacementsJson, OutputKind::PlanResultsJson, OutputKind::PlanResultsCsv}) {
+        OutputKind::PlacementsJson, OutputKind::PlanResultsJson, OutputKind::PlanResultsCsv,
+        OutputKind::Survey}) {
     if (k != wanted && is_sonar3d_output(path, k)) return output_kind_name(k);
   }
   return "";

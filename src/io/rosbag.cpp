@@ -278,6 +278,53 @@ SonarSpec sonar_spec_from_message(const RosSonarImage& m, const std::string& whe
   return s;
 }
 
+std::vector<std::string> choose_rosbag_topics(const fs::path& bag_path,
+                                              RosbagImportConfig& config) {
+  std::vector<std::string> chosen;
+  if (!config.sonar_topic.empty() && (config.static_sonar || !config.nav_topic.empty())) {
+    return chosen;
+  }
+  const std::unique_ptr<BagReader> bag = BagReader::open(bag_path);
+  const std::string src = bag_path.string();
+  auto of = [&](bool (*fits)(const std::string&)) {
+    std::vector<const BagTopic*> v;
+    for (const BagTopic& t : bag->topics()) {
+      if (fits(t.type)) v.push_back(&t);
+    }
+    return v;
+  };
+  auto names = [](const std::vector<const BagTopic*>& v) {
+    std::string s;
+    for (const BagTopic* t : v) s += (s.empty() ? "" : ", ") + t->name + " (" + t->type + ")";
+    return s;
+  };
+  if (config.sonar_topic.empty()) {
+    std::vector<const BagTopic*> c = of(is_sonar_image_type);
+    if (c.empty()) c = of(is_image_type);
+    if (c.size() != 1) {
+      throw Error(src +
+                  (c.empty() ? ": no sonar topic (ProjectedSonarImage or sensor_msgs/Image)"
+                             : ": several sonar topics: " + names(c)) +
+                  "; name one (--sonar-topic); the bag holds " + topic_list(*bag));
+    }
+    config.sonar_topic = c[0]->name;
+    chosen.push_back("sonar topic " + c[0]->name + " (by type " + c[0]->type + ")");
+  }
+  if (!config.static_sonar && config.nav_topic.empty()) {
+    const std::vector<const BagTopic*> c = of(is_nav_type);
+    if (c.size() != 1) {
+      throw Error(src +
+                  (c.empty() ? ": no navigation topic (nav_msgs/Odometry, "
+                               "geometry_msgs/PoseStamped or PoseWithCovarianceStamped)"
+                             : ": several navigation topics: " + names(c)) +
+                  "; name one (--nav-topic), or import a fixed sonar (--static)");
+    }
+    config.nav_topic = c[0]->name;
+    chosen.push_back("navigation topic " + c[0]->name + " (by type " + c[0]->type + ")");
+  }
+  return chosen;
+}
+
 RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
                                  const RosbagImportConfig& config, bool progress) {
   config.validate();

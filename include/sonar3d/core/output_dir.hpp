@@ -37,9 +37,10 @@ enum class OutputKind {
   PlacementsJson,      // "format": "sonar3d-placements"
   PlanResultsJson,     // a plan's results.json: "format": "sonar3d-plan-results"
   PlanResultsCsv,      // a plan's results.csv: its header line "id,status,rank,..."
+  Survey,  // a survey directory (sonar3d survey): summary.json "format": "sonar3d-survey"
 };
 const char* output_kind_name(OutputKind kind);
-// True for the kinds that are directories (Dataset, Plan).
+// True for the kinds that are directories (Dataset, Plan, Survey).
 bool is_directory_kind(OutputKind kind);
 // The "format" value of a JSON kind ("sonar3d-evaluation", ...); empty for other kinds.
 const char* json_format_marker(OutputKind kind);

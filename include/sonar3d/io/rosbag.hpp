@@ -77,6 +77,14 @@ struct RosbagImportResult {
 RosbagImportResult import_rosbag(const std::filesystem::path& bag, const std::filesystem::path& out,
                                  const RosbagImportConfig& config, bool progress = false);
 
+// Fills the empty sonar_topic (and nav_topic, unless static_sonar) of `config` from the bag's
+// topics by message type: the one ProjectedSonarImage topic (else the one sensor_msgs/Image
+// topic), the one nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped
+// topic. Several candidates, or none, are an Error naming the bag and listing them. Returns a line
+// per topic chosen ("sonar topic /oculus/image (by type sensor_msgs/Image)").
+std::vector<std::string> choose_rosbag_topics(const std::filesystem::path& bag,
+                                              RosbagImportConfig& config);
+
 // Our sensor description of a ProjectedSonarImage (bearings from beam_directions, range bins
 // from the uniformly spaced ranges, vertical aperture from tx_beamwidths, intensity encoding
 // from dtype). `reversed` is set when the beams come by decreasing bearing (columns are then

@@ -1,0 +1,182 @@
+#pragma once
+// A survey log, as recorded, to a map, placements, a world model and a report in one call
+// (`sonar3d survey`, `sonar3d.survey()`; docs/survey.md):
+//
+//   import → map → recognise → world model → texture → report
+//
+// Each stage is the library call its own command makes (`import`, `map`, `recognize`, `world`,
+// `texture`, `report`), with that command's options under the same names (flag names with '_'
+// for '-'). Outputs, under OUT:
+//   dataset/            the imported dataset (not when INPUT is already a dataset: used in place)
+//   map/                sonar3d map's directory (merged.ply, navigation_corrected.tum, ...)
+//   placements.json     with --catalogue: sonar3d recognize's placements, and placements.ply
+//   world/              sonar3d world's directory (world.glb, seabed_lod<k>.ply, graph.json)
+//   textured.ply        when the dataset has camera frames: the merged cloud in video colours
+//   report.html         sonar3d report of world/
+//   summary.json        "format": "sonar3d-survey"; per stage its status, wall time, peak memory
+//                       and key figures
+//   stamps/<stage>.yaml what a finished stage was made from (inputs' paths, sizes and mtimes,
+//                       its settings): a re-run skips a stage whose stamp matches
+//
+// Resume: a finished stage whose stamp matches is skipped; a stage whose inputs or settings
+// changed runs again, and so does every stage after it. A failing stage throws
+// Error("survey: stage NAME failed: ...") and leaves the finished stages in place. Each stage
+// writes into a staging directory inside OUT and renames its outputs into place when complete.
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace sonar3d {
+
+// Stage options (default-constructed: each as its command's defaults): the flags of the command
+// each stage runs, as YAML keys (flag name without the leading dashes, '-' written '_'). Units as
+// the flags have them.
+struct SurveyImportOptions {
+  // auto (by the input's content), dataset, aris, rosbag, holoocean or oculus.
+  std::string kind = "auto";
+  // Shared by aris, rosbag, oculus (as `sonar3d import <kind>`).
+  std::string nav;                     // navigation file (TUM or CSV)
+  std::string nav_format;              // tum or csv ("" = by extension)
+  std::string nav_convention = "enu";  // CSV: enu or ned
+  std::string angles = "deg";          // CSV roll/pitch/yaw: deg or rad
+  std::string mount;                   // T_vehicle_sonar "x,y,z,roll,pitch,yaw" (m, degrees)
+  double vertical_aperture_deg = 0;    // 0: the sensor's own
+  double time_offset = 0;              // s added to frame times to reach the navigation clock
+  bool drop_outside = false;           // drop frames outside the navigation span
+  bool static_sonar = false;           // `static`: a fixed sonar (rosbag, oculus)
+  // aris
+  std::string nav_source = "auto";  // auto, header, file, static
+  std::string clock;                // aris: pc (default) or sonar; oculus: ping (default) or rate
+  bool drop_partial = false;
+  // rosbag
+  std::string sonar_topic, nav_topic, tf_topic = "/tf_static", base_frame;
+  std::string sonar;  // sensor YAML (rosbag sensor_msgs/Image)
+  // oculus
+  double rate = 0;             // pings per second (clock rate); holoocean: frames per second
+  std::string gains = "keep";  // keep or divide
+  bool mirror = false;
+  // holoocean
+  std::string bins = "sample";  // sample or cell
+  std::string sensor, image_key, pose_key = "PoseSensor", python;
+};
+
+struct SurveyMapOptions {  // sonar3d map (defaults: MapSurveyConfig's)
+  SurveyMapOptions();
+  double resolution = 0.02;         // elevation map cell, m
+  double voxel_size = 0.02;         // carving voxel edge, m
+  std::vector<double> roi;          // xmin ymin zmin xmax ymax zmax, m; empty: all
+  double search = 0.5;              // half-width of the searched swath shifts, m
+  std::string method = "global";    // consecutive, global or drift
+  double piece = 10;                // drift: swath piece length, m
+  double turn_deg = 30;             // a new swath where the track turns more, degrees
+  std::vector<double> swath_times;  // explicit swaths t0 t1 [t0 t1 ...], s
+  int threads = 0;                  // 0: all cores
+  double max_memory = 0;            // GB; 0: the default limit
+};
+
+struct SurveyRecognizeOptions {  // sonar3d recognize (defaults: RecognitionConfig's)
+  SurveyRecognizeOptions();
+  std::string method = "2d";
+  double map_cell = 0.02, recog_cell = 0.08, period = 0, ring_width = 0, bin = 0;
+  double min_valid_fraction = 0;
+  std::optional<double> yaw_step_deg;  // default: 5 (2d) or 15 (3d)
+  double max_relative_score = 1.0;
+  std::optional<double> max_residual;  // default: 0.1 (2d) or 0.04 (3d), m
+  double min_confidence = 0;
+  int max_rejections = 3, max_relief_proposals = 0;
+  double relief_window = 2.0;
+  bool no_icp = false;
+  // 3d
+  double subsample = 0, period_fraction = 0, alpha_fit = 0, alpha_volume = 0;
+  int n_min = 0;
+  double alpha_occupancy = 0, occupancy_voxel = 0, seabed_clearance = 0, min_coverage = 0;
+  long long max_subspaces = 0;
+  int starts = 0;
+  bool no_upright = false;
+  int threads = 0;
+};
+
+struct SurveyWorldOptions {  // sonar3d world (defaults: WorldModelConfig's)
+  SurveyWorldOptions();
+  std::vector<double> lod_cells;
+  double margin = 0, min_valid_fraction = 0;
+  bool no_fill = false;
+  double min_ridge = 0, ridge_fraction = 0;
+  bool no_connections = false;
+  std::optional<double> min_confidence;  // default: the placements' settings.min_confidence
+  std::string connections;               // YAML of known connections
+  bool glb_all_lods = false;
+};
+
+struct SurveyTextureOptions {  // sonar3d texture --dataset (defaults: TextureConfig's)
+  SurveyTextureOptions();
+  double point_spacing = 0, depth_tolerance = 0, max_range = 0;
+  bool drop_uncoloured = false;
+};
+
+struct SurveyReportOptions {  // sonar3d report (defaults: ReportConfig's)
+  SurveyReportOptions();
+  long long max_points = 0, max_total_points = 0, max_mesh_triangles = 0;
+  std::string color = "error";
+  double error_max = 0;
+  std::string title, web_dir;
+  long long seed = 1;
+};
+
+struct SurveyConfig {
+  SurveyImportOptions import;
+  SurveyMapOptions map;
+  SurveyRecognizeOptions recognize;
+  SurveyWorldOptions world;
+  SurveyTextureOptions texture;
+  SurveyReportOptions report;
+};
+
+// Reads a survey YAML (stage keys import, map, recognize, world, texture, report; each optional):
+// unknown keys, wrong types and bad values are Errors naming file, line and key. Paths in it are
+// taken relative to the file's directory.
+SurveyConfig load_survey_config(const std::string& path);
+// The whole configuration as that YAML (every key, defaults included): load_survey_config() of
+// it gives the same configuration.
+std::string survey_config_yaml(const SurveyConfig& config);
+
+struct SurveyStageReport {
+  std::string name;    // import, map, recognize, world, texture, report
+  std::string status;  // ran, unchanged (skipped: its stamp matched), skipped (not applicable)
+  std::string note;    // why skipped, what was used
+  double seconds = 0;  // wall time when it ran (or when it last ran, when unchanged)
+  double peak_memory_mb = 0;  // peak resident memory of the process during the stage, MB
+  std::vector<std::pair<std::string, double>> figures;  // points, swaths, placements, ...
+};
+
+struct SurveyResult {
+  std::vector<SurveyStageReport> stages;
+  std::filesystem::path dataset;  // the dataset mapped (OUT/dataset or INPUT)
+  std::string summary_json;       // the text of OUT/summary.json
+  double seconds = 0;
+};
+
+struct SurveyOptions {
+  std::filesystem::path input;        // dataset, .aris, ROS 1/2 bag, HoloOcean dir, Oculus stream
+  std::filesystem::path output;       // OUT: new, empty, or a survey directory (resumed)
+  std::filesystem::path catalogue;    // empty: no recognition
+  std::filesystem::path config_file;  // recorded in summary.json only (config holds its values)
+  SurveyConfig config;
+  bool progress = true;  // the stages' progress bars on a terminal
+  // Called as each stage starts (k of n, 1-based) and ends (status: ran, unchanged, skipped).
+  std::function<void(int k, int n, const std::string& stage, const std::string& status)> on_stage;
+  std::function<void(const std::string&)> on_warning;
+};
+
+// Runs (or resumes) the survey. OUT that exists and is no survey directory (summary.json with
+// "format": "sonar3d-survey", or empty) is an Error naming it; so is an input inside OUT.
+SurveyResult run_survey(const SurveyOptions& options);
+
+// The kind of input run_survey would import ("dataset", "aris", "rosbag", "holoocean", "oculus");
+// an Error naming the path and the kinds accepted otherwise.
+std::string survey_input_kind(const std::filesystem::path& input);
+
+}  // namespace sonar3d

@@ -1,0 +1,89 @@
+// Whole workflows (pipeline/survey_pipeline.hpp): sonar3d.survey(), the same library call as
+// `sonar3d survey`.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "common.hpp"
+#include "sonar3d/pipeline/survey_pipeline.hpp"
+
+namespace sonar3d::python {
+
+using namespace pybind11::literals;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A configuration given as a dict: written as JSON (which is YAML) to a temporary file and read
+// by the same strict reader as a --config file, so its errors name the same keys.
+SurveyConfig config_from_object(const py::object& config, fs::path* file) {
+  if (config.is_none()) return {};
+  if (py::isinstance<py::dict>(config)) {
+    const std::string text = py::module_::import("json").attr("dumps")(config).cast<std::string>();
+    static int counter = 0;
+    const fs::path tmp =
+        fs::temp_directory_path() / ("sonar3d-survey-config-" + std::to_string(::getpid()) + "-" +
+                                     std::to_string(counter++) + ".yaml");
+    { std::ofstream(tmp) << text << "\n"; }
+    try {
+      SurveyConfig c = load_survey_config(tmp.string());
+      fs::remove(tmp);
+      return c;
+    } catch (...) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw;
+    }
+  }
+  *file = config.cast<fs::path>();
+  return load_survey_config(file->string());
+}
+
+}  // namespace
+
+void bind_pipeline(py::module_& m) {
+  m.def(
+      "survey",
+      [](const fs::path& input, const fs::path& output, const std::optional<fs::path>& catalogue,
+         const py::object& config, const py::object& progress) {
+        SurveyOptions o;
+        o.input = input;
+        o.output = output;
+        if (catalogue) o.catalogue = *catalogue;
+        o.config = config_from_object(config, &o.config_file);
+        ProgressArg p(progress);
+        o.progress = p.terminal();
+        std::vector<std::string> warnings;
+        o.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
+        const SurveyResult r = p.run([&] { return run_survey(o); });
+        py::dict summary = py::module_::import("json").attr("loads")(r.summary_json);
+        summary["warnings"] = warnings;
+        return summary;
+      },
+      "input"_a, "output"_a, "catalogue"_a = py::none(), "config"_a = py::none(),
+      "progress"_a = py::none(),
+      "Runs (or resumes) a whole survey, as `sonar3d survey` does: import (an ARIS file, ROS 1/2 "
+      "bag, HoloOcean recording or Oculus stream; a dataset directory is used in place) -> map -> "
+      "recognize (with `catalogue`, a catalogue YAML) -> world model -> texture (when the dataset "
+      "has camera frames) -> report, into the directory `output` (new, empty, or an earlier "
+      "survey's, which is resumed: unchanged stages are skipped). `config`: a survey YAML path, "
+      "or a dict of the same shape ({'map': {'resolution': 0.02}, 'recognize': {...}}; options "
+      "under their command's flag names, '-' written '_', units as the flags: metres, seconds, "
+      "degrees in *_deg; docs/survey.md). `progress`: None, True (terminal bars) or a callable "
+      "progress(done, total) called for each stage and each of its steps. Returns the summary as "
+      "a dict (output/summary.json: per stage its status, seconds, peak_memory_mb and figures) "
+      "plus 'warnings'. Raises sonar3d.Error('survey: stage NAME failed: ...') on failure, the "
+      "finished stages left in place.");
+  m.def(
+      "survey_config",
+      [](const py::object& config) {
+        fs::path file;
+        return survey_config_yaml(config_from_object(config, &file));
+      },
+      "config"_a = py::none(),
+      "The whole effective survey configuration as YAML text (`sonar3d survey --print-config`): "
+      "every option of every stage, defaults included; `config` as for survey().");
+}
+
+}  // namespace sonar3d::python

@@ -1,0 +1,244 @@
+// The survey's configuration: one declaration per option (survey_options.hpp's visit_*), from
+// which the YAML reading, the printed configuration and the stage stamps all derive.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/io/yaml_config.hpp"
+#include "sonar3d/mapping/survey.hpp"
+#include "sonar3d/pipeline/survey_pipeline.hpp"
+#include "sonar3d/recog/recognition.hpp"
+#include "sonar3d/recog/recognition_3d.hpp"
+#include "sonar3d/report/report.hpp"
+#include "sonar3d/video/texture.hpp"
+#include "sonar3d/world/world_model.hpp"
+#include "survey_options.hpp"
+
+namespace sonar3d {
+
+namespace fs = std::filesystem;
+
+// Defaults: the library configs' (what each command starts from).
+SurveyMapOptions::SurveyMapOptions() {
+  const MapSurveyConfig c;
+  resolution = c.cell_m;
+  voxel_size = c.carve.voxel_size;
+  search = c.registration.search_m;
+  method = to_string(c.method);
+  piece = c.piece_m;
+  turn_deg = std::round(c.split.turn_threshold_rad * 180 / M_PI * 1e9) / 1e9;  // 30, not 29.99…
+  threads = c.carve.num_threads;
+}
+
+SurveyRecognizeOptions::SurveyRecognizeOptions() {
+  const RecognitionConfig c;
+  const Recognition3dConfig c3;
+  map_cell = c.map_cell_m;
+  recog_cell = c.recog_cell_m;
+  period = c.scan.period_m;
+  ring_width = c.descriptor.ring_width_m;
+  bin = c.descriptor.bin_m;
+  min_valid_fraction = c.descriptor.min_valid_fraction;
+  max_relative_score = c.max_relative_score;
+  min_confidence = c.verification.min_confidence;
+  max_rejections = c.max_rejections;
+  max_relief_proposals = c.max_relief_proposals;
+  relief_window = c.relief_window_m;
+  subsample = c3.voxel_m;
+  period_fraction = c3.period_fraction;
+  alpha_fit = c3.alpha_fit;
+  alpha_volume = c3.alpha_volume;
+  n_min = c3.n_min;
+  alpha_occupancy = c3.alpha_occupancy;
+  occupancy_voxel = c3.occupancy_voxel_m;
+  seabed_clearance = c3.seabed_clearance_m;
+  min_coverage = c3.min_coverage;
+  max_subspaces = static_cast<long long>(c3.max_subspaces);
+  starts = c3.starts;
+  threads = c.num_threads;
+}
+
+SurveyWorldOptions::SurveyWorldOptions() {
+  const WorldModelConfig c;
+  lod_cells = c.seabed.lod_cells_m;
+  margin = c.seabed.margin_m;
+  min_valid_fraction = c.seabed.min_valid_fraction;
+  no_fill = !c.seabed.fill_footprints;
+  min_ridge = c.connections.min_ridge_m;
+  ridge_fraction = c.connections.min_fraction;
+  no_connections = !c.find_connections;
+}
+
+SurveyTextureOptions::SurveyTextureOptions() {
+  const TextureConfig c;
+  point_spacing = c.point_spacing_m;
+  depth_tolerance = c.depth_tolerance_m;
+  max_range = c.max_range_m;
+}
+
+SurveyReportOptions::SurveyReportOptions() {
+  const ReportConfig c;
+  max_points = static_cast<long long>(c.max_points_per_cloud);
+  max_total_points = static_cast<long long>(c.max_points_total);
+  max_mesh_triangles = static_cast<long long>(c.max_mesh_triangles);
+  error_max = c.error_color_max;
+  seed = static_cast<long long>(c.seed);
+}
+
+namespace survey_detail {
+
+namespace {
+
+// Reads each declared option present in a stage's mapping.
+struct Loader {
+  const YAML::Node& node;
+  const std::string& file;
+  std::string ctx;
+  fs::path base;  // relative paths are taken from the configuration file's directory
+  std::set<std::string> keys;
+
+  YAML::Node get(const char* k) {
+    keys.insert(k);
+    return node.IsMap() ? node[k] : YAML::Node();
+  }
+  void operator()(const char* k, double& x) {
+    if (get(k)) x = yaml::get_double(node, k, file, ctx);
+  }
+  void operator()(const char* k, int& x) {
+    if (get(k)) x = yaml::get_int(node, k, x, file, ctx);
+  }
+  void operator()(const char* k, long long& x) {
+    if (!get(k)) return;
+    const double v = yaml::get_double(node, k, file, ctx);
+    if (v != std::floor(v) || std::abs(v) > 9e15) {
+      throw Error(yaml::where(file, node[k], ctx + "." + k) + ": expected an integer");
+    }
+    x = static_cast<long long>(v);
+  }
+  void operator()(const char* k, bool& x) {
+    if (get(k)) x = yaml::get_bool(node, k, x, file, ctx);
+  }
+  void operator()(const char* k, std::string& x) {
+    const YAML::Node n = get(k);
+    if (!n) return;
+    x = n.IsNull() ? std::string() : yaml::get_string(node, k, x, file, ctx);
+  }
+  void operator()(const char* k, std::vector<double>& x) {
+    const YAML::Node n = get(k);
+    if (!n) return;
+    x = n.IsNull() ? std::vector<double>() : yaml::get_vector(node, k, 0, file, ctx);
+  }
+  void operator()(const char* k, std::optional<double>& x) {
+    const YAML::Node n = get(k);
+    if (!n) return;
+    if (n.IsNull()) {
+      x.reset();
+    } else {
+      x = yaml::get_double(node, k, file, ctx);
+    }
+  }
+  void path(const char* k, std::string& x) {
+    (*this)(k, x);
+    if (!x.empty() && fs::path(x).is_relative() && node[k]) x = (base / x).lexically_normal();
+  }
+};
+
+// The options as YAML lines ("  key: value"), every key, in declaration order.
+struct Emitter {
+  std::string out;
+  std::string indent = "  ";
+  static std::string quote(const std::string& s) {
+    std::string q = "\"";
+    for (char c : s) {
+      if (c == '"' || c == '\\') {
+        q += '\\';
+        q += c;
+      } else if (c == '\n') {
+        q += "\\n";
+      } else if (c == '\t') {
+        q += "\\t";
+      } else {
+        q += c;
+      }
+    }
+    return q + "\"";
+  }
+  void line(const char* k, const std::string& v) { out += indent + k + ": " + v + "\n"; }
+  void operator()(const char* k, const double& x) { line(k, fmt::format("{}", x)); }
+  void operator()(const char* k, const int& x) { line(k, std::to_string(x)); }
+  void operator()(const char* k, const long long& x) { line(k, std::to_string(x)); }
+  void operator()(const char* k, const bool& x) { line(k, x ? "true" : "false"); }
+  void operator()(const char* k, const std::string& x) { line(k, quote(x)); }
+  void operator()(const char* k, const std::vector<double>& x) {
+    std::string s = "[";
+    for (std::size_t i = 0; i < x.size(); ++i) s += (i ? ", " : "") + fmt::format("{}", x[i]);
+    line(k, s + "]");
+  }
+  void operator()(const char* k, const std::optional<double>& x) {
+    line(k, x ? fmt::format("{}", *x) : std::string("null"));
+  }
+  void path(const char* k, const std::string& x) { (*this)(k, x); }
+};
+
+template <class Opts>
+void load_stage(const YAML::Node& root, const char* stage, const std::string& file,
+                const fs::path& base, Opts& opts) {
+  const YAML::Node node = root[stage];
+  if (!node || node.IsNull()) return;
+  if (!node.IsMap()) throw Error(yaml::where(file, node, stage) + ": expected a mapping");
+  Loader l{node, file, stage, base, {}};
+  visit(opts, l);
+  yaml::check_keys(node, l.keys, file, stage);
+}
+
+}  // namespace
+
+template <class Opts>
+std::string stage_yaml(const Opts& opts) {
+  Emitter e;
+  visit(const_cast<Opts&>(opts), e);  // the emitter only reads
+  return e.out;
+}
+
+std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
+  if (stage == "import") return stage_yaml(c.import);
+  if (stage == "map") return stage_yaml(c.map);
+  if (stage == "recognize") return stage_yaml(c.recognize);
+  if (stage == "world") return stage_yaml(c.world);
+  if (stage == "texture") return stage_yaml(c.texture);
+  if (stage == "report") return stage_yaml(c.report);
+  throw Error("no survey stage '" + stage + "'");
+}
+
+}  // namespace survey_detail
+
+SurveyConfig load_survey_config(const std::string& path) {
+  using namespace survey_detail;
+  const YAML::Node root = yaml::load_file(path);
+  SurveyConfig c;
+  if (!root || root.IsNull()) return c;  // an empty file: every default
+  yaml::check_keys(root, {"import", "map", "recognize", "world", "texture", "report"}, path);
+  const fs::path base = fs::absolute(fs::path(path)).parent_path();
+  load_stage(root, "import", path, base, c.import);
+  load_stage(root, "map", path, base, c.map);
+  load_stage(root, "recognize", path, base, c.recognize);
+  load_stage(root, "world", path, base, c.world);
+  load_stage(root, "texture", path, base, c.texture);
+  load_stage(root, "report", path, base, c.report);
+  return c;
+}
+
+std::string survey_config_yaml(const SurveyConfig& c) {
+  using namespace survey_detail;
+  std::string s =
+      "# sonar3d survey configuration (docs/survey.md): each stage's options under the names of "
+      "its command's flags\n";
+  for (const char* stage : {"import", "map", "recognize", "world", "texture", "report"}) {
+    s += std::string(stage) + ":\n" + stage_settings(c, stage);
+  }
+  return s;
+}
+
+}  // namespace sonar3d

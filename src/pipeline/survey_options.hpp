@@ -1,0 +1,127 @@
+#pragma once
+// Each survey option declared once: its YAML key (the command's flag without the dashes, '-'
+// written '_'). The YAML reader, the printed configuration and the stage stamps all visit these
+// lists, so the names cannot drift apart. `v.path(...)` marks a file path (relative paths in a
+// configuration file are taken from the file's directory).
+#include <string>
+
+#include "sonar3d/pipeline/survey_pipeline.hpp"
+
+namespace sonar3d {
+
+template <class V>
+void visit(SurveyImportOptions& o, V& v) {
+  v("kind", o.kind);
+  v.path("nav", o.nav);
+  v("nav_format", o.nav_format);
+  v("nav_convention", o.nav_convention);
+  v("angles", o.angles);
+  v("mount", o.mount);
+  v("vertical_aperture_deg", o.vertical_aperture_deg);
+  v("time_offset", o.time_offset);
+  v("drop_outside", o.drop_outside);
+  v("static", o.static_sonar);
+  v("nav_source", o.nav_source);
+  v("clock", o.clock);
+  v("drop_partial", o.drop_partial);
+  v("sonar_topic", o.sonar_topic);
+  v("nav_topic", o.nav_topic);
+  v("tf_topic", o.tf_topic);
+  v("base_frame", o.base_frame);
+  v.path("sonar", o.sonar);
+  v("rate", o.rate);
+  v("gains", o.gains);
+  v("mirror", o.mirror);
+  v("bins", o.bins);
+  v("sensor", o.sensor);
+  v("image_key", o.image_key);
+  v("pose_key", o.pose_key);
+  v("python", o.python);
+}
+
+template <class V>
+void visit(SurveyMapOptions& o, V& v) {
+  v("resolution", o.resolution);
+  v("voxel_size", o.voxel_size);
+  v("roi", o.roi);
+  v("search", o.search);
+  v("method", o.method);
+  v("piece", o.piece);
+  v("turn_deg", o.turn_deg);
+  v("swath_times", o.swath_times);
+  v("threads", o.threads);
+  v("max_memory", o.max_memory);
+}
+
+template <class V>
+void visit(SurveyRecognizeOptions& o, V& v) {
+  v("method", o.method);
+  v("map_cell", o.map_cell);
+  v("recog_cell", o.recog_cell);
+  v("period", o.period);
+  v("ring_width", o.ring_width);
+  v("bin", o.bin);
+  v("min_valid_fraction", o.min_valid_fraction);
+  v("yaw_step_deg", o.yaw_step_deg);
+  v("max_relative_score", o.max_relative_score);
+  v("max_residual", o.max_residual);
+  v("min_confidence", o.min_confidence);
+  v("max_rejections", o.max_rejections);
+  v("max_relief_proposals", o.max_relief_proposals);
+  v("relief_window", o.relief_window);
+  v("no_icp", o.no_icp);
+  v("subsample", o.subsample);
+  v("period_fraction", o.period_fraction);
+  v("alpha_fit", o.alpha_fit);
+  v("alpha_volume", o.alpha_volume);
+  v("n_min", o.n_min);
+  v("alpha_occupancy", o.alpha_occupancy);
+  v("occupancy_voxel", o.occupancy_voxel);
+  v("seabed_clearance", o.seabed_clearance);
+  v("min_coverage", o.min_coverage);
+  v("max_subspaces", o.max_subspaces);
+  v("starts", o.starts);
+  v("no_upright", o.no_upright);
+  v("threads", o.threads);
+}
+
+template <class V>
+void visit(SurveyWorldOptions& o, V& v) {
+  v("lod_cells", o.lod_cells);
+  v("margin", o.margin);
+  v("min_valid_fraction", o.min_valid_fraction);
+  v("no_fill", o.no_fill);
+  v("min_ridge", o.min_ridge);
+  v("ridge_fraction", o.ridge_fraction);
+  v("no_connections", o.no_connections);
+  v("min_confidence", o.min_confidence);
+  v.path("connections", o.connections);
+  v("glb_all_lods", o.glb_all_lods);
+}
+
+template <class V>
+void visit(SurveyTextureOptions& o, V& v) {
+  v("point_spacing", o.point_spacing);
+  v("depth_tolerance", o.depth_tolerance);
+  v("max_range", o.max_range);
+  v("drop_uncoloured", o.drop_uncoloured);
+}
+
+template <class V>
+void visit(SurveyReportOptions& o, V& v) {
+  v("max_points", o.max_points);
+  v("max_total_points", o.max_total_points);
+  v("max_mesh_triangles", o.max_mesh_triangles);
+  v("color", o.color);
+  v("error_max", o.error_max);
+  v("title", o.title);
+  v.path("web_dir", o.web_dir);
+  v("seed", o.seed);
+}
+
+namespace survey_detail {
+// The stage's options as YAML lines (its part of the printed configuration and of its stamp).
+std::string stage_settings(const SurveyConfig& config, const std::string& stage);
+}  // namespace survey_detail
+
+}  // namespace sonar3d
