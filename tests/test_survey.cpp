@@ -150,8 +150,9 @@ TEST(SurveyCli, EndToEndResumesRerunsChangedStagesAndNamesFailures) {
 
   // 3. A recognize setting changed: recognize and the stages after it run again, map does not.
   {
-    std::ofstream(dir / "survey2.yaml") << "map: {roi: [-5, -4, -1, 5, 4, 1.5], search: 0.3}\n"
-                                           "recognize: {min_confidence: 0.45}\n";
+    std::ofstream(dir / "survey2.yaml")
+        << "map: {roi: [-5, -4, -1, 5, 4, 1.5], search: 0.3}\n"
+           "recognize: {two_d: {verification: {min_confidence: 0.45}}}\n";
   }
   r = run_cli(dir, base + " --config " + (dir / "survey2.yaml").string());
   ASSERT_EQ(r.code, 0) << r.out;
@@ -261,13 +262,14 @@ TEST(SurveyCli, ForeignOutputAndBadInputsAreOneLineErrors) {
 TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   const fs::path dir = sonar3d::test::temp_dir("config");
   {
-    std::ofstream(dir / "c.yaml") << "import: {nav: nav.tum, mount: '0,0,0,0,90,0', static: true}\n"
-                                     "map: {resolution: 0.05, method: drift, swath_times: [0, 10, "
-                                     "12, 20]}\n"
-                                     "recognize: {method: 3d, yaw_step_deg: 7.5, no_icp: true}\n"
-                                     "world: {lod_cells: [0.1, 0.5], min_confidence: 0.3}\n"
-                                     "texture: {max_range: 12}\n"
-                                     "report: {title: 'a \"quoted\" title', seed: 7}\n";
+    std::ofstream(dir / "c.yaml")
+        << "import: {nav: nav.tum, mount: '0,0,0,0,90,0', static: true}\n"
+           "map: {resolution: 0.05, method: drift, swath_times: [0, 10, "
+           "12, 20]}\n"
+           "recognize: {method: 3d, three_d: {yaw_step_deg: 7.5}, two_d: {run_icp: false}}\n"
+           "world: {lod_cells: [0.1, 0.5], min_confidence: 0.3}\n"
+           "texture: {max_range: 12}\n"
+           "report: {title: 'a \"quoted\" title', seed: 7}\n";
   }
   const sonar3d::SurveyConfig c = sonar3d::load_survey_config((dir / "c.yaml").string());
   EXPECT_EQ(c.import.nav, (dir / "nav.tum").string());
@@ -275,9 +277,11 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   EXPECT_EQ(c.map.resolution, 0.05);
   EXPECT_EQ(c.map.voxel_size, sonar3d::SurveyMapOptions().voxel_size);  // default kept
   EXPECT_EQ(c.map.swath_times.size(), 4u);
-  ASSERT_TRUE(c.recognize.yaw_step_deg.has_value());
-  EXPECT_EQ(*c.recognize.yaw_step_deg, 7.5);
-  EXPECT_FALSE(c.recognize.max_residual.has_value());
+  EXPECT_EQ(c.recognize.method, "3d");
+  EXPECT_EQ(c.recognize.three_d.yaw_step_deg, 7.5);
+  EXPECT_FALSE(c.recognize.two_d.run_icp);
+  EXPECT_EQ(c.recognize.three_d.max_residual_median_m,
+            sonar3d::Recognition3dConfig().max_residual_median_m);  // default kept
   EXPECT_EQ(c.world.lod_cells, (std::vector<double>{0.1, 0.5}));
   EXPECT_EQ(c.report.title, "a \"quoted\" title");
   const std::string printed = sonar3d::survey_config_yaml(c);

@@ -4,13 +4,14 @@
 
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/io/yaml_config.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/pipeline/survey_pipeline.hpp"
-#include "sonar3d/recog/recognition.hpp"
-#include "sonar3d/recog/recognition_3d.hpp"
+#include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/report/report.hpp"
 #include "sonar3d/video/texture.hpp"
 #include "sonar3d/world/world_model.hpp"
@@ -30,34 +31,6 @@ SurveyMapOptions::SurveyMapOptions() {
   piece = c.piece_m;
   turn_deg = std::round(c.split.turn_threshold_rad * 180 / M_PI * 1e9) / 1e9;  // 30, not 29.99…
   threads = c.carve.num_threads;
-}
-
-SurveyRecognizeOptions::SurveyRecognizeOptions() {
-  const RecognitionConfig c;
-  const Recognition3dConfig c3;
-  map_cell = c.map_cell_m;
-  recog_cell = c.recog_cell_m;
-  period = c.scan.period_m;
-  ring_width = c.descriptor.ring_width_m;
-  bin = c.descriptor.bin_m;
-  min_valid_fraction = c.descriptor.min_valid_fraction;
-  max_relative_score = c.max_relative_score;
-  min_confidence = c.verification.min_confidence;
-  max_rejections = c.max_rejections;
-  max_relief_proposals = c.max_relief_proposals;
-  relief_window = c.relief_window_m;
-  subsample = c3.voxel_m;
-  period_fraction = c3.period_fraction;
-  alpha_fit = c3.alpha_fit;
-  alpha_volume = c3.alpha_volume;
-  n_min = c3.n_min;
-  alpha_occupancy = c3.alpha_occupancy;
-  occupancy_voxel = c3.occupancy_voxel_m;
-  seabed_clearance = c3.seabed_clearance_m;
-  min_coverage = c3.min_coverage;
-  max_subspaces = static_cast<long long>(c3.max_subspaces);
-  starts = c3.starts;
-  threads = c.num_threads;
 }
 
 SurveyWorldOptions::SurveyWorldOptions() {
@@ -205,7 +178,15 @@ std::string stage_yaml(const Opts& opts) {
 std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
   if (stage == "import") return stage_yaml(c.import);
   if (stage == "map") return stage_yaml(c.map);
-  if (stage == "recognize") return stage_yaml(c.recognize);
+  if (stage == "recognize") {
+    // The recognition's own declaration (core/params.hpp): the keys of recognize --print-config.
+    YAML::Emitter e;
+    params::emit_yaml(e, c.recognize);
+    std::string out;
+    std::istringstream lines(e.c_str());
+    for (std::string line; std::getline(lines, line);) out += "  " + line + "\n";
+    return out;
+  }
   if (stage == "world") return stage_yaml(c.world);
   if (stage == "texture") return stage_yaml(c.texture);
   if (stage == "report") return stage_yaml(c.report);
@@ -223,7 +204,9 @@ SurveyConfig load_survey_config(const std::string& path) {
   const fs::path base = fs::absolute(fs::path(path)).parent_path();
   load_stage(root, "import", path, base, c.import);
   load_stage(root, "map", path, base, c.map);
-  load_stage(root, "recognize", path, base, c.recognize);
+  if (const YAML::Node n = root["recognize"]; n && !n.IsNull()) {
+    params::read_yaml(n, path, "recognize", c.recognize);
+  }
   load_stage(root, "world", path, base, c.world);
   load_stage(root, "texture", path, base, c.texture);
   load_stage(root, "report", path, base, c.report);

@@ -54,38 +54,6 @@ void visit(SurveyMapOptions& o, V& v) {
 }
 
 template <class V>
-void visit(SurveyRecognizeOptions& o, V& v) {
-  v("method", o.method);
-  v("map_cell", o.map_cell);
-  v("recog_cell", o.recog_cell);
-  v("period", o.period);
-  v("ring_width", o.ring_width);
-  v("bin", o.bin);
-  v("min_valid_fraction", o.min_valid_fraction);
-  v("yaw_step_deg", o.yaw_step_deg);
-  v("max_relative_score", o.max_relative_score);
-  v("max_residual", o.max_residual);
-  v("min_confidence", o.min_confidence);
-  v("max_rejections", o.max_rejections);
-  v("max_relief_proposals", o.max_relief_proposals);
-  v("relief_window", o.relief_window);
-  v("no_icp", o.no_icp);
-  v("subsample", o.subsample);
-  v("period_fraction", o.period_fraction);
-  v("alpha_fit", o.alpha_fit);
-  v("alpha_volume", o.alpha_volume);
-  v("n_min", o.n_min);
-  v("alpha_occupancy", o.alpha_occupancy);
-  v("occupancy_voxel", o.occupancy_voxel);
-  v("seabed_clearance", o.seabed_clearance);
-  v("min_coverage", o.min_coverage);
-  v("max_subspaces", o.max_subspaces);
-  v("starts", o.starts);
-  v("no_upright", o.no_upright);
-  v("threads", o.threads);
-}
-
-template <class V>
 void visit(SurveyWorldOptions& o, V& v) {
   v("lod_cells", o.lod_cells);
   v("margin", o.margin);

@@ -515,64 +515,20 @@ void Survey::do_map(SurveyStageReport& r) {
 // ---- recognise ---------------------------------------------------------------------------------
 
 void Survey::do_recognize(SurveyStageReport& r) {
-  const SurveyRecognizeOptions& c = o_.config.recognize;
-  require(c.method == "2d" || c.method == "3d",
-          "recognize.method must be 2d or 3d, not '" + c.method + "'");
-  RecognitionConfig cfg;
-  cfg.map_cell_m = c.map_cell;
-  cfg.recog_cell_m = c.recog_cell;
-  cfg.scan.period_m = c.period;
-  cfg.descriptor.ring_width_m = c.ring_width;
-  cfg.descriptor.bin_m = c.bin;
-  cfg.descriptor.min_valid_fraction = c.min_valid_fraction;
-  if (c.yaw_step_deg) cfg.search.yaw_step_deg = *c.yaw_step_deg;
-  cfg.max_relative_score = c.max_relative_score;
-  if (c.max_residual) cfg.max_residual_median_m = *c.max_residual;
-  cfg.verification.min_confidence = c.min_confidence;
-  cfg.max_rejections = c.max_rejections;
-  cfg.max_relief_proposals = c.max_relief_proposals;
-  cfg.relief_window_m = c.relief_window;
-  cfg.run_icp = !c.no_icp;
-  cfg.num_threads = c.threads;
-  cfg.scan.num_threads = c.threads;
-  Recognition3dConfig cfg3;
-  cfg3.voxel_m = c.subsample;
-  cfg3.period_fraction = c.period_fraction;
-  cfg3.alpha_fit = c.alpha_fit;
-  cfg3.alpha_volume = c.alpha_volume;
-  cfg3.n_min = c.n_min;
-  cfg3.alpha_occupancy = c.alpha_occupancy;
-  cfg3.occupancy_voxel_m = c.occupancy_voxel;
-  cfg3.seabed_clearance_m = c.seabed_clearance;
-  cfg3.min_coverage = c.min_coverage;
-  require(c.max_subspaces > 0, "recognize.max_subspaces must be > 0");
-  cfg3.max_subspaces = static_cast<std::size_t>(c.max_subspaces);
-  cfg3.starts = c.starts;
-  cfg3.upright = !c.no_upright;
-  cfg3.num_threads = c.threads;
-  cfg3.verification = cfg.verification;
-  if (c.yaw_step_deg) cfg3.yaw_step_deg = *c.yaw_step_deg;
-  if (c.max_residual) cfg3.max_residual_median_m = *c.max_residual;
-  const bool three_d = c.method == "3d";
-  if (three_d) {
-    cfg3.validate();
-  } else {
-    cfg.validate();
-  }
+  const RecognizeConfig& c = o_.config.recognize;  // as sonar3d recognize runs it
+  c.validate();
   const Catalogue cat = read_catalogue(o_.catalogue.string());
   std::vector<ModelTemplate> models;
-  for (const auto& m : cat.models) models.push_back(make_catalogue_template(cat, m, cfg.sampling));
+  const ModelSamplingConfig& sampling = c.method == "3d" ? c.three_d.sampling : c.two_d.sampling;
+  for (const auto& m : cat.models) models.push_back(make_catalogue_template(cat, m, sampling));
   const fs::path map_dir = out_ / "map";
   const PointCloud scene = read_ply((map_dir / "merged.ply").string());
   std::vector<Search3dRecord> searches3;
-  const RecognitionResult res = three_d ? recognize_3d(scene, models, cfg3, &searches3, o_.progress)
-                                        : recognize_2d(scene, models, cfg, o_.progress);
+  const RecognitionResult res = recognize(scene, models, c, &searches3, o_.progress);
   const fs::path s = staging("recognize");
   save_mesh((s / "placements.ply").string(), placed_models_mesh(models, res.placements));
-  write_text_file(
-      (s / "placements.json").string(),
-      three_d ? placements_json_3d(res, searches3, map_dir.string(), o_.catalogue.string(), cfg3)
-              : placements_json(res, map_dir.string(), o_.catalogue.string(), cfg));
+  write_text_file((s / "placements.json").string(),
+                  recognize_json(res, searches3, map_dir.string(), o_.catalogue.string(), c));
   // The mesh first: placements.json names a complete set.
   install(s / "placements.ply", out_ / "placements.ply");
   install(s / "placements.json", out_ / "placements.json");

@@ -29,6 +29,8 @@
 #include <utility>
 #include <vector>
 
+#include "sonar3d/recog/recognize.hpp"
+
 namespace sonar3d {
 
 // Stage options (default-constructed: each as its command's defaults): the flags of the command
@@ -77,28 +79,6 @@ struct SurveyMapOptions {  // sonar3d map (defaults: MapSurveyConfig's)
   double max_memory = 0;            // GB; 0: the default limit
 };
 
-struct SurveyRecognizeOptions {  // sonar3d recognize (defaults: RecognitionConfig's)
-  SurveyRecognizeOptions();
-  std::string method = "2d";
-  double map_cell = 0.02, recog_cell = 0.08, period = 0, ring_width = 0, bin = 0;
-  double min_valid_fraction = 0;
-  std::optional<double> yaw_step_deg;  // default: 5 (2d) or 15 (3d)
-  double max_relative_score = 1.0;
-  std::optional<double> max_residual;  // default: 0.1 (2d) or 0.04 (3d), m
-  double min_confidence = 0;
-  int max_rejections = 3, max_relief_proposals = 0;
-  double relief_window = 2.0;
-  bool no_icp = false;
-  // 3d
-  double subsample = 0, period_fraction = 0, alpha_fit = 0, alpha_volume = 0;
-  int n_min = 0;
-  double alpha_occupancy = 0, occupancy_voxel = 0, seabed_clearance = 0, min_coverage = 0;
-  long long max_subspaces = 0;
-  int starts = 0;
-  bool no_upright = false;
-  int threads = 0;
-};
-
 struct SurveyWorldOptions {  // sonar3d world (defaults: WorldModelConfig's)
   SurveyWorldOptions();
   std::vector<double> lod_cells;
@@ -129,7 +109,8 @@ struct SurveyReportOptions {  // sonar3d report (defaults: ReportConfig's)
 struct SurveyConfig {
   SurveyImportOptions import;
   SurveyMapOptions map;
-  SurveyRecognizeOptions recognize;
+  // sonar3d recognize's configuration, as its --print-config prints it (docs/reference.md).
+  RecognizeConfig recognize;
   SurveyWorldOptions world;
   SurveyTextureOptions texture;
   SurveyReportOptions report;
