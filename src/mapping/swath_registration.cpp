@@ -199,6 +199,10 @@ void AbsoluteConstraints::validate() const {
   require(std::isfinite(gate_sigma) && gate_sigma > 0, "fixes: gate_sigma must be > 0");
   require(std::isfinite(loss_sigma) && loss_sigma > 0, "fixes: loss_sigma must be > 0");
   require(max_rounds >= 1, "fixes: max_rounds must be >= 1");
+  require(std::isfinite(scale_prior_sigma) && scale_prior_sigma > 0 && scale_prior_sigma < 0.5,
+          "fixes: scale_prior_sigma must lie in (0, 0.5)");
+  require(std::isfinite(heading_prior_sigma_rad) && heading_prior_sigma_rad > 0,
+          "fixes: heading_prior_sigma must be > 0");
   require(pivot.allFinite(), "fixes: the pivot is not finite");
   for (const AbsoluteFix& f : fixes) {
     require(std::isfinite(f.time) && f.p_world.allFinite() && f.p_logged.allFinite() &&
@@ -469,6 +473,17 @@ double gate_radius(double gate, int dof) {
   return 0.5 * (lo + hi);
 }
 
+// The navigation model's plausibility prior: (s/σ_s, β/σ_β).
+struct NavModelPrior {
+  double sigma_s, sigma_b;
+  template <typename T>
+  bool operator()(const T* nav, T* res) const {
+    res[0] = nav[0] / T(sigma_s);
+    res[1] = nav[1] / T(sigma_b);
+    return true;
+  }
+};
+
 Eigen::Vector2d nav_linear_d(const Eigen::Vector2d& nav, const Eigen::Vector2d& d) {
   Eigen::Vector2d out;
   nav_linear(nav.data(), d.x(), d.y(), out.data());
@@ -542,6 +557,9 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
     for (Eigen::Vector3d& o : out.offsets) o += shift;
   }
   problem.AddParameterBlock(out.nav_model.data(), 2);
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NavModelPrior, 2, 2>(new NavModelPrior{
+                               abs.scale_prior_sigma, abs.heading_prior_sigma_rad}),
+                           nullptr, out.nav_model.data());
   // Without a fix's height, the heights keep the ties' gauge: swath 0's held.
   if (!any_z) problem.SetManifold(out.offsets[0].data(), new ceres::SubsetManifold(3, {2}));
 

@@ -111,6 +111,12 @@ struct AbsoluteConstraints {
   // rejected.
   double loss_sigma = 2.0;
   int max_rounds = 10;
+  // Plausibility priors on the navigation model, centred on 0: they only keep it bounded where
+  // the fixes hardly constrain it (a few fixes close together); informative fixes give σ far
+  // below them (the field: 0.3–0.7 %, 0.2–0.4°). A DVL's scale error is about 1 %, a compass's
+  // bias under a degree or two.
+  double scale_prior_sigma = 0.05;
+  double heading_prior_sigma_rad = 5.0 * 3.14159265358979323846 / 180.0;
 
   void validate() const;
 };
