@@ -151,6 +151,13 @@ w('navcsv', 'enu_deg', b'\x00' + b"time,x,y,z,roll,pitch,yaw\n# c\n0,0,0,-1,0,0,
 w('navcsv', 'ned_rad_extra', b'\x03' + b"t, north, east, depth, roll, pitch, yaw, speed\n0,0,0,1,0,0,1.57,1\n1,1,1,1,0.01,0,1.6,1\n")
 w('navcsv', 'tum', b'\x04' + b"# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071068 0.7071068\n")
 
+# Position fixes (fuzz_fixes): first byte bit 0 = TUM (else CSV), bit 1 = a σ for TUM fixes.
+w('fixes', 'csv', b'\x00' + b"# USBL\ntime_s,x_m,y_m,sigma_m\n10,1.5,-2,1\n20,2.5,-2.1,1.5\n")
+w('fixes', 'csv_z_any_order', b'\x00' + b"sigma_m, q, time_s, z_m, y_m, x_m\n0.5,3,1,-10,2,1\n0.5,3,2,-10,2,1.4\n")
+w('fixes', 'tum', b'\x03' + b"# t x y z qx qy qz qw\n0 0 0 -5 0 0 0 1\n10 4 0 -5 0 0 0 1\n")
+w('fixes', 'tum_no_sigma', b'\x01' + b"0 0 0 -5 0 0 0 1\n")
+w('fixes', 'unsorted', b'\x00' + b"time_s,x_m,y_m,sigma_m\n2,0,0,1\n1,0,0,1\n")
+
 # ARIS recordings (fuzz_aris): first byte = options, then the file (published ARIS layout:
 # 1024-byte file header, frames of a 1024-byte header + samples × beams bytes).
 def aris(frames=2, samples=4, ping=1, nav=True, cut=0):

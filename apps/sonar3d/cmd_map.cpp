@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/position_fixes.hpp"
 #include "sonar3d/mapping/survey.hpp"
 
 namespace sonar3d::cli {
@@ -22,6 +23,9 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
     std::vector<double> roi, swath_times;
     double turn_deg = 30;
     double max_memory_gb = 0;
+    std::string fixes;
+    double fix_sigma = 0;
+    bool fixes_shift_only = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
@@ -53,6 +57,24 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--swath-times", o->swath_times,
                   "explicit swaths instead of turns: t0 t1 [t0 t1 ...] (seconds)");
+  cmd->add_option("--fixes", o->fixes,
+                  "absolute position fixes (USBL/GNSS) of the navigation's reference point, in "
+                  "its world frame (ENU, metres) and clock (seconds): a CSV with the header "
+                  "time_s,x_m,y_m[,z_m],sigma_m (sigma_m: standard deviation per axis, metres) "
+                  "or a TUM file (.tum/.txt, with --fix-sigma). They place the map in the world "
+                  "in the global or drift adjustment, which then also estimates the navigation's "
+                  "scale error and heading bias; outliers are rejected and reported "
+                  "(docs/mapping.md)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--fix-sigma", o->fix_sigma,
+                  "standard deviation of every fix of a TUM fixes file, metres");
+  cmd->add_option("--fix-gate", o->cfg.fix_gate_sigma,
+                  "a fix whose residual after the adjustment exceeds this many standard "
+                  "deviations (1-D equivalent probability) is rejected and reported")
+      ->capture_default_str();
+  cmd->add_flag("--fixes-shift-only", o->fixes_shift_only,
+                "with --fixes: place the map by a shift only, no scale error or heading bias "
+                "estimated");
   cmd->add_option("--threads", o->cfg.carve.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
   add_max_memory_option(cmd, o->max_memory_gb);
@@ -64,7 +86,8 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                                    {"registration.search_m", "--search"},
                                    {"piece_m", "--piece"},
                                    {"carve.num_threads", "--threads"},
-                                   {"num_threads", "--threads"}};
+                                   {"num_threads", "--threads"},
+                                   {"fix_gate_sigma", "--fix-gate"}};
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
       return with_flag_names(kFlags, [&] {
@@ -85,6 +108,15 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "--swath-times: give pairs of times (t0 t1 per swath)");
         for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
           cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
+        }
+        require(o->fixes.empty() || cfg.method != SwathAdjustMethod::Consecutive,
+                "--fixes needs --method global or drift (the consecutive method has no "
+                "adjustment to put them in)");
+        require(o->fix_sigma == 0 || !o->fixes.empty(), "--fix-sigma: give --fixes as well");
+        if (!o->fixes.empty()) {
+          cfg.fixes = read_position_fixes(o->fixes, FixFormat::Auto, o->fix_sigma);
+          cfg.fixes_source = o->fixes;
+          cfg.fix_scale_heading = !o->fixes_shift_only;
         }
         MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
         const Dataset ds = read_dataset(o->dataset);
@@ -130,13 +162,47 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
           }
           fmt::print("\n");
         }
+        if (!cfg.fixes.empty()) {  // the absolute references
+          const SwathAdjustment& adj = r.adjustment;
+          std::vector<const FixReport*> rejected;
+          for (const FixReport& f : adj.fixes) {
+            if (f.rejected) rejected.push_back(&f);
+          }
+          fmt::print(
+              "  fixes: {} given, {} outside the survey's time span (ignored), {} used, {} "
+              "rejected (gate {:g} σ, {} solve(s))\n",
+              r.fixes_given, r.fixes_outside, adj.fixes.size() - rejected.size(), rejected.size(),
+              cfg.fix_gate_sigma, adj.fix_rounds);
+          for (std::size_t k = 0; k < rejected.size(); ++k) {
+            if (k == 10) {
+              fmt::print("    ... {} more in summary.json\n", rejected.size() - k);
+              break;
+            }
+            fmt::print("    rejected: t = {:.3f} s ({}:{}), residual {:.3f} m = {:.1f} σ\n",
+                       rejected[k]->time, o->fixes, rejected[k]->line, rejected[k]->residual_m,
+                       rejected[k]->normalized);
+          }
+          if (adj.estimated_scale_heading) {
+            fmt::print(
+                "  navigation model: scale error {:+.4f} % ± {:.4f} %, heading bias {:+.4f}° ± "
+                "{:.4f}°; placement σ E {:.3f} N {:.3f} m\n",
+                100 * adj.scale_error(), 100 * adj.scale_error_sigma,
+                adj.heading_bias_rad() * 180 / M_PI, adj.heading_bias_sigma_rad * 180 / M_PI,
+                adj.placement_sigma_m.x(), adj.placement_sigma_m.y());
+          } else {
+            fmt::print("  navigation model: shift only; placement σ E {:.3f} N {:.3f} m\n",
+                       adj.placement_sigma_m.x(), adj.placement_sigma_m.y());
+          }
+        }
         if (r.has_alignment) {  // simulated navigation: the whole map against the truth
           const NavigationError &b = r.navigation_before, &a = r.navigation_after;
           fmt::print(
               "  navigation error (median over frames, horizontal, as logged → corrected): "
-              "absolute {:.3f} → {:.3f} m; within the map (after a rigid placement) {:.3f} → "
+              "in the world frame {:.3f} → {:.3f} m; absolute{} {:.3f} → {:.3f} m; within the map "
+              "(after a rigid placement) {:.3f} → "
               "{:.3f} m; after an affine placement {:.3f} → {:.3f} m, which hides a scale of "
               "{:.4f} → {:.4f} (docs/mapping.md)\n",
+              b.world_m, a.world_m, cfg.fixes.empty() ? " (from where the first swath starts)" : "",
               b.absolute_m, a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
               r.alignment_before.scale(), r.alignment_after.scale());
         }

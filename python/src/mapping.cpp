@@ -1,6 +1,7 @@
 // Field mapping (thesis sec. 6.2): elevation maps, swath registration, survey mapping.
 #include "common.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/position_fixes.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
@@ -106,8 +107,15 @@ void bind_mapping(py::module_& m) {
       "map_survey",
       [](const Dataset& dataset, const std::string& output, double cell_m, double voxel_size,
          const SwathRegistrationConfig& registration, const std::string& method, double piece_m,
-         const py::object& region, const py::object& progress) {
+         const py::object& region, const py::object& progress, const py::object& fixes,
+         double fix_sigma, double fix_gate_sigma, bool fix_scale_heading) {
         MapSurveyConfig cfg;
+        if (!fixes.is_none()) {
+          cfg.fixes_source = fixes.cast<std::string>();
+          cfg.fixes = read_position_fixes(cfg.fixes_source, FixFormat::Auto, fix_sigma);
+        }
+        cfg.fix_gate_sigma = fix_gate_sigma;
+        cfg.fix_scale_heading = fix_scale_heading;
         cfg.cell_m = cell_m;
         cfg.piece_m = piece_m;
         cfg.carve.voxel_size = voxel_size;
@@ -144,18 +152,52 @@ void bind_mapping(py::module_& m) {
           structures.append(s);
         }
         d["structures"] = structures;
+        if (!cfg.fixes.empty()) {  // the absolute references and the navigation model
+          const SwathAdjustment& adj = r.adjustment;
+          py::list rejected;
+          for (const FixReport& f : adj.fixes) {
+            if (!f.rejected) continue;
+            py::dict e;
+            e["time_s"] = f.time;
+            e["line"] = f.line;
+            e["residual_m"] = f.residual_m;
+            e["residual_sigma"] = f.normalized;
+            rejected.append(e);
+          }
+          py::dict fx;
+          fx["given"] = r.fixes_given;
+          fx["outside_time_span"] = r.fixes_outside;
+          fx["used"] = adj.fixes.size() - py::len(rejected);
+          fx["rejected"] = rejected;
+          d["fixes"] = fx;
+          py::dict nm;
+          nm["estimated"] = adj.estimated_scale_heading;
+          nm["scale_error"] = adj.scale_error();
+          nm["scale_error_sigma"] = adj.scale_error_sigma;
+          nm["heading_bias_rad"] = adj.heading_bias_rad();
+          nm["heading_bias_sigma_rad"] = adj.heading_bias_sigma_rad;
+          d["navigation_model"] = nm;
+        }
         return d;
       },
       "dataset"_a, "output"_a, "cell_m"_a = MapSurveyConfig().cell_m,
       "voxel_size"_a = MapSurveyConfig().carve.voxel_size,
       "registration"_a = SwathRegistrationConfig(), "method"_a = "global",
       "piece_m"_a = MapSurveyConfig().piece_m, "region"_a = py::none(), "progress"_a = py::none(),
+      "fixes"_a = py::none(), "fix_sigma"_a = 0.0,
+      "fix_gate_sigma"_a = MapSurveyConfig().fix_gate_sigma,
+      "fix_scale_heading"_a = MapSurveyConfig().fix_scale_heading,
       "Field mapping (sec. 6.2; `sonar3d map`): writes `output` (swath maps, ties, corrected "
       "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz) at the "
       "swath's "
       "start, rates: per-swath horizontal drift rates (m/s, method 'drift'), ties, "
       "merged_points, seconds, structures: simulated sites' structures and pipelines scored "
-      "against their CAD as logged (before) and corrected (after)}.");
+      "against their CAD as logged (before) and corrected (after)}. `fixes`: a position fixes file "
+      "(`sonar3d map --fixes`: CSV time_s,x_m,y_m[,z_m],sigma_m, or TUM with `fix_sigma` in "
+      "metres) placing the map in the world; then the dict also holds fixes {given, "
+      "outside_time_span, used, rejected: [{time_s, line, residual_m, residual_sigma}]} and "
+      "navigation_model {estimated, scale_error, scale_error_sigma, heading_bias_rad, "
+      "heading_bias_sigma_rad}.");
 }
 
 }  // namespace sonar3d::python

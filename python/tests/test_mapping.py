@@ -85,3 +85,33 @@ def test_map_survey_with_the_drift_method(tmp_path):
     assert (tmp_path / "map" / "summary.json").exists()
     with pytest.raises(sonar3d.Error, match="consecutive, global, drift"):
         sonar3d.map_survey(ds, str(tmp_path / "map2"), method="sideways")
+
+
+def test_map_survey_with_fixes(tmp_path):
+    # Absolute fixes (issue 26): fixes of 10 cm every 2 s from the true navigation, one 3 m off,
+    # place the map and the outlier is reported. (Fixes of 2 cm would be rejected by the dozen
+    # here: the fast bias walk leaves the navigation off the global method's model by more.)
+    (tmp_path / "field.yaml").write_text(FIELD)
+    sonar3d.simulate(str(tmp_path / "field.yaml"), str(tmp_path / "ds"))
+    ds = sonar3d.read_dataset(str(tmp_path / "ds"))
+    truth = np.loadtxt(str(tmp_path / "ds" / "truth" / "navigation.tum"))
+    rng = np.random.default_rng(4)
+    times = np.arange(1.0, truth[-1, 0], 2.0)
+    lines = ["time_s,x_m,y_m,sigma_m"]
+    for k, t in enumerate(times):
+        x = np.interp(t, truth[:, 0], truth[:, 1]) + rng.normal(0, 0.1)
+        y = np.interp(t, truth[:, 0], truth[:, 2]) + rng.normal(0, 0.1)
+        lines.append(f"{t},{x + (3.0 if k == 10 else 0.0)},{y},0.1")
+    (tmp_path / "fixes.csv").write_text("\n".join(lines) + "\n")
+    reg = sonar3d.SwathRegistrationConfig()
+    reg.search_m = 0.3
+    r = sonar3d.map_survey(ds, str(tmp_path / "map"), registration=reg,
+                           region=((-1, -1, -0.6), (7, 6, 0.8)),
+                           fixes=str(tmp_path / "fixes.csv"))
+    assert r["fixes"]["given"] == len(times)
+    assert [f["time_s"] for f in r["fixes"]["rejected"]] == [times[10]]
+    assert r["navigation_model"]["estimated"]
+    assert r["navigation_model"]["scale_error_sigma"] > 0
+    with pytest.raises(sonar3d.Error, match="bad.csv:2"):
+        (tmp_path / "bad.csv").write_text("time_s,x_m,y_m,sigma_m\n1,2,3,nan\n")
+        sonar3d.map_survey(ds, str(tmp_path / "map3"), fixes=str(tmp_path / "bad.csv"))

@@ -282,6 +282,10 @@ void MapSurveyConfig::validate() const {
   require_positive(piece_m, "piece_m", "m");
   registration.validate();
   adjustment.validate();
+  require(std::isfinite(fix_gate_sigma) && fix_gate_sigma > 0, "fix_gate_sigma must be > 0");
+  require(fixes.empty() || method != SwathAdjustMethod::Consecutive,
+          "field mapping: fixes need the global or drift method (the consecutive one has no "
+          "adjustment to put them in)");
 }
 
 std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
@@ -567,6 +571,64 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       result.ties.push_back(tie);
     }
   }
+  // Absolute fixes (issue 26): each tied to the swath correction at its time as the corrected
+  // navigation interpolates it (step 3 below): the swath's own within it, the two swaths' across
+  // a turn, the first's before and the last's after.
+  AbsoluteConstraints absolute;
+  const bool with_fixes = !config.fixes.empty();
+  if (with_fixes) {
+    result.fixes_given = config.fixes.size();
+    const double t_first = dataset.frames.front().timestamp;
+    const double t_last = dataset.frames.back().timestamp;
+    absolute.pivot = dataset.navigation.poses.front().translation();
+    absolute.estimate_scale_heading = config.fix_scale_heading;
+    absolute.gate_sigma = config.fix_gate_sigma;
+    const auto& sw = result.swaths;
+    for (const PositionFix& f : config.fixes) {
+      if (f.time < t_first || f.time > t_last) {
+        ++result.fixes_outside;
+        continue;
+      }
+      AbsoluteFix a;
+      a.time = f.time;
+      a.p_world = f.p;
+      a.has_z = f.has_z;
+      a.sigma_m = f.sigma_m;
+      a.line = f.line;
+      a.p_logged = dataset.navigation.interpolate(f.time).translation();
+      const double t = f.time;
+      a.swath_a = a.swath_b = num_swaths - 1;
+      a.time_a = a.time_b = std::min(t, sw.back().t1);
+      if (t <= sw.front().t0) {
+        a.swath_a = a.swath_b = 0;
+        a.time_a = a.time_b = sw.front().t0;
+      } else {
+        for (int s = 0; s + 1 < num_swaths; ++s) {
+          if (t <= sw[s].t1) {
+            a.swath_a = a.swath_b = s;
+            a.time_a = a.time_b = t;
+            break;
+          }
+          if (t < sw[s + 1].t0) {
+            a.swath_a = s;
+            a.swath_b = s + 1;
+            a.time_a = sw[s].t1;
+            a.time_b = sw[s + 1].t0;
+            a.weight_b = (t - sw[s].t1) / std::max(1e-12, sw[s + 1].t0 - sw[s].t1);
+            break;
+          }
+        }
+      }
+      absolute.fixes.push_back(a);
+    }
+    require(!absolute.fixes.empty(),
+            fmt::format("field mapping: all {} fixes{} lie outside the survey's time span [{}, "
+                        "{}] s: are they on the navigation's clock?",
+                        config.fixes.size(),
+                        config.fixes_source.empty() ? "" : " of '" + config.fixes_source + "'",
+                        t_first, t_last));
+  }
+  const AbsoluteConstraints* abs_ptr = with_fixes ? &absolute : nullptr;
   if (config.method == SwathAdjustMethod::Drift) {
     std::vector<SwathTiming> timing;
     for (int s = 0; s < num_swaths; ++s) {
@@ -584,14 +646,21 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       }
       timing.push_back(w);
     }
-    result.adjustment = adjust_swaths_drift(timing, result.ties, config.adjustment);
+    result.adjustment = adjust_swaths_drift(timing, result.ties, config.adjustment, abs_ptr);
   } else if (config.method == SwathAdjustMethod::Consecutive) {
     result.adjustment = accumulate_consecutive(num_swaths, result.ties);
   } else {
-    result.adjustment = adjust_swaths(num_swaths, result.ties, config.adjustment);
+    result.adjustment = adjust_swaths(num_swaths, result.ties, config.adjustment, 0, abs_ptr);
   }
   result.seconds_registration = seconds_since(t_reg);
   const SwathAdjustment& adj = result.adjustment;
+  // What the correction adds to the logged navigation of swath s at time t: the swath correction
+  // and, with fixes, the navigation model (scale error, heading bias).
+  auto nav_delta = [&](int s, double t) -> Eigen::Vector3d {
+    if (!adj.has_fixes) return adj.correction(s, t);
+    const Eigen::Vector3d p = dataset.navigation.interpolate(t).translation();
+    return adj.corrected(s, t, p) - p;
+  };
   for (int s = 0; s < num_swaths; ++s) {
     result.swaths[s].offset = adj.correction(s, result.swaths[s].t0);
     if (static_cast<std::size_t>(s) < adj.rates.size()) result.swaths[s].rate = adj.rates[s];
@@ -613,18 +682,21 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     }
     // Per frame: the navigation's error before and after correction, relative to the error
     // where swath 0 starts (the gauge every method shares).
+    // With fixes the world frame is the gauge: nothing is taken out.
     const double t_gauge = result.swaths[0].t0;
-    const Eigen::Vector3d e0 = truth.interpolate(t_gauge).translation() -
-                               dataset.navigation.interpolate(t_gauge).translation();
+    const Eigen::Vector3d e0 =
+        adj.has_fixes ? Eigen::Vector3d::Zero()
+                      : Eigen::Vector3d(truth.interpolate(t_gauge).translation() -
+                                        dataset.navigation.interpolate(t_gauge).translation());
     for (int s = 0; s < num_swaths; ++s) {
       SwathInfo& w = result.swaths[s];
       w.has_truth = true;
-      w.true_offset = err[s] - err[0];
+      w.true_offset = adj.has_fixes ? err[s] : Eigen::Vector3d(err[s] - err[0]);
       for (int i = w.first_frame; i <= w.last_frame; ++i) {
         const double t = dataset.frames[i].timestamp;
         const Eigen::Vector3d e = truth.interpolate(t).translation() -
                                   dataset.navigation.interpolate(t).translation() - e0;
-        const Eigen::Vector3d left = e - adj.correction(s, t);
+        const Eigen::Vector3d left = e - nav_delta(s, t);
         w.error_before += Eigen::Vector2d(e.head<2>().norm(), std::abs(e.z()));
         w.error_after += Eigen::Vector2d(left.head<2>().norm(), std::abs(left.z()));
       }
@@ -637,7 +709,7 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       for (int i = result.swaths[s].first_frame; i <= result.swaths[s].last_frame; ++i) {
         const double t = dataset.frames[i].timestamp;
         logged_p.push_back(dataset.navigation.interpolate(t).translation());
-        corrected_p.push_back(logged_p.back() + adj.correction(s, t));
+        corrected_p.push_back(logged_p.back() + nav_delta(s, t));
         true_p.push_back(truth.interpolate(t).translation());
       }
     }
@@ -646,7 +718,7 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     result.alignment_after = fit_alignment(corrected_p, true_p);
     result.rigid_before = fit_rigid_alignment(logged_p, true_p);
     result.rigid_after = fit_rigid_alignment(corrected_p, true_p);
-    std::vector<double> abs_b, abs_a, rigid_b, rigid_a, affine_b, affine_a;
+    std::vector<double> abs_b, abs_a, rigid_b, rigid_a, affine_b, affine_a, world_b, world_a;
     std::size_t k = 0;
     for (int s = 0; s < num_swaths; ++s) {
       SwathInfo& w = result.swaths[s];
@@ -666,7 +738,9 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
         const double t = dataset.frames[i].timestamp;
         const Eigen::Vector3d e = true_p[k] - logged_p[k] - e0;
         abs_b.push_back(e.head<2>().norm());
-        abs_a.push_back((e - adj.correction(s, t)).head<2>().norm());
+        abs_a.push_back((e - nav_delta(s, t)).head<2>().norm());
+        world_b.push_back((true_p[k] - logged_p[k]).head<2>().norm());
+        world_a.push_back((true_p[k] - corrected_p[k]).head<2>().norm());
       }
       const double n = static_cast<double>(w.last_frame - w.first_frame + 1);
       w.rigid_error_before /= n;
@@ -674,8 +748,10 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       w.affine_error_before /= n;
       w.affine_error_after /= n;
     }
-    result.navigation_before = {median_of(abs_b), median_of(rigid_b), median_of(affine_b)};
-    result.navigation_after = {median_of(abs_a), median_of(rigid_a), median_of(affine_a)};
+    result.navigation_before = {median_of(abs_b), median_of(rigid_b), median_of(affine_b),
+                                median_of(world_b)};
+    result.navigation_after = {median_of(abs_a), median_of(rigid_a), median_of(affine_a),
+                               median_of(world_a)};
   }
 
   // 3. Corrected navigation: a swath's offset over its time span, linear across the turns
@@ -692,9 +768,15 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     }
     return adj.correction(num_swaths - 1, std::min(t, sw.back().t1));
   };
+  // With fixes, the navigation model first: positions scaled and turned about the pivot, the
+  // attitude turned by the heading bias's correction.
+  const Eigen::Matrix3d R_heading =
+      Eigen::AngleAxisd(-adj.heading_bias_rad(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   Trajectory corrected = dataset.navigation;
   for (std::size_t k = 0; k < corrected.size(); ++k) {
-    corrected.poses[k].translation() += offset_at(corrected.times[k]);
+    Eigen::Isometry3d& T = corrected.poses[k];
+    T.translation() = adj.apply_navigation_model(T.translation()) + offset_at(corrected.times[k]);
+    if (adj.has_fixes) T.linear() = R_heading * T.linear();
   }
   write_tum((tmp / "navigation_corrected.tum").string(), corrected);
 
@@ -707,7 +789,15 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       // The correction at the time the vehicle passed over the point (constant but for drift).
       const double t = tracks[s].time_at(tracks[s].along(p.head<2>().cast<double>()));
       logged.points.push_back(p);
-      merged.points.push_back(p + adj.correction(s, t).cast<float>());
+      if (!adj.has_fixes) {
+        merged.points.push_back(p + adj.correction(s, t).cast<float>());
+        continue;
+      }
+      // The vehicle's corrected position, and the ray from it turned by the heading correction
+      // (the sonar's ranges carry no DVL scale).
+      const Eigen::Vector3d n = dataset.navigation.interpolate(t).translation();
+      merged.points.push_back(
+          (adj.corrected(s, t, n) + R_heading * (p.cast<double>() - n)).cast<float>());
     }
   }
   result.merged_points = merged.size();
@@ -834,12 +924,55 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                                   {"after", alignment(result.rigid_after)}};
     auto nav = [](const NavigationError& e) {
       return nlohmann::json{{"absolute_m", e.absolute_m},
+                            {"world_m", e.world_m},
                             {"within_map_m", e.rigid_m},
                             {"after_affine_m", e.affine_m}};
     };
     summary["navigation_error"] = {{"before", nav(result.navigation_before)},
                                    {"after", nav(result.navigation_after)},
                                    {"statistic", "median over frames, horizontal"}};
+  }
+  if (with_fixes) {
+    // The absolute references: what was used, what was rejected (and why: its residual in σ),
+    // and the navigation model they made observable.
+    nlohmann::json rejected = nlohmann::json::array();
+    std::size_t n_rejected = 0;
+    double sum_sq = 0;
+    for (const FixReport& f : adj.fixes) {
+      if (f.rejected) {
+        ++n_rejected;
+        rejected.push_back({{"time_s", f.time},
+                            {"line", f.line},
+                            {"residual_m", f.residual_m},
+                            {"residual_sigma", f.normalized}});
+      } else {
+        sum_sq += f.normalized * f.normalized;
+      }
+    }
+    const std::size_t used = adj.fixes.size() - n_rejected;
+    auto num_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; };
+    summary["fixes"] = {
+        {"file", config.fixes_source},
+        {"given", result.fixes_given},
+        {"outside_time_span", result.fixes_outside},
+        {"used", used},
+        {"rejected", n_rejected},
+        {"gate_sigma", config.fix_gate_sigma},
+        {"rounds", adj.fix_rounds},
+        {"rms_residual_sigma", used ? std::sqrt(sum_sq / static_cast<double>(used)) : 0.0},
+        {"rejected_fixes", rejected}};
+    summary["navigation_model"] = {
+        {"estimated", adj.estimated_scale_heading},
+        {"scale_error", adj.scale_error()},
+        {"scale_error_sigma", num_or_null(adj.scale_error_sigma)},
+        {"heading_bias_deg", adj.heading_bias_rad() * 180 / M_PI},
+        {"heading_bias_sigma_deg", num_or_null(adj.heading_bias_sigma_rad * 180 / M_PI)},
+        {"placement_sigma_m",
+         {num_or_null(adj.placement_sigma_m.x()), num_or_null(adj.placement_sigma_m.y())}},
+        {"pivot_m", vec3(adj.pivot)},
+        {"model",
+         "p_logged - pivot = (1 + scale_error) R(heading_bias) (p_true - pivot), horizontal; "
+         "heading_bias counter-clockwise about z (ENU)"}};
   }
   if (!result.structures.empty()) {
     summary["structures"] = structures;

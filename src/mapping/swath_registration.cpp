@@ -3,6 +3,7 @@
 #include "sonar3d/mapping/swath_registration.hpp"
 
 #include <ceres/ceres.h>
+#include <fmt/core.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -184,6 +185,33 @@ Eigen::Vector3d SwathAdjustment::correction(int s, double t) const {
   return c;
 }
 
+Eigen::Vector3d SwathAdjustment::apply_navigation_model(const Eigen::Vector3d& p) const {
+  if (nav_model.isZero()) return p;
+  // p_logged − pivot = (1 + s)·R(β)·(p_true − pivot): undone by R(−β)/(1 + s).
+  const double c = std::cos(nav_model.y()), sn = std::sin(nav_model.y());
+  const double inv = 1.0 / (1.0 + nav_model.x());
+  const Eigen::Vector2d d = (p - pivot).head<2>();
+  return {pivot.x() + inv * (c * d.x() + sn * d.y()), pivot.y() + inv * (-sn * d.x() + c * d.y()),
+          p.z()};
+}
+
+void AbsoluteConstraints::validate() const {
+  require(std::isfinite(gate_sigma) && gate_sigma > 0, "fixes: gate_sigma must be > 0");
+  require(std::isfinite(loss_sigma) && loss_sigma > 0, "fixes: loss_sigma must be > 0");
+  require(max_rounds >= 1, "fixes: max_rounds must be >= 1");
+  require(std::isfinite(scale_prior_sigma) && scale_prior_sigma > 0 && scale_prior_sigma < 0.5,
+          "fixes: scale_prior_sigma must lie in (0, 0.5)");
+  require(std::isfinite(heading_prior_sigma_rad) && heading_prior_sigma_rad > 0,
+          "fixes: heading_prior_sigma must be > 0");
+  require(pivot.allFinite(), "fixes: the pivot is not finite");
+  for (const AbsoluteFix& f : fixes) {
+    require(std::isfinite(f.time) && f.p_world.allFinite() && f.p_logged.allFinite() &&
+                std::isfinite(f.sigma_m) && f.sigma_m > 0 && std::isfinite(f.time_a) &&
+                std::isfinite(f.time_b) && f.weight_b >= 0 && f.weight_b <= 1,
+            "fixes: the fix at t = " + std::to_string(f.time) + " s is not finite or has σ <= 0");
+  }
+}
+
 bool maps_may_overlap(const ElevationMap& a, const ElevationMap& b, double search_m) {
   const double ax1 = a.origin_xy.x() + a.cols * a.cell_m, ay0 = a.origin_xy.y() - a.rows * a.cell_m;
   const double bx1 = b.origin_xy.x() + b.cols * b.cell_m, by0 = b.origin_xy.y() - b.rows * b.cell_m;
@@ -339,6 +367,8 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
 
 namespace {
 
+constexpr double kTieSigma = 0.02;  // m: a tie's residual is measured in map cells of 2 cm
+
 // √w · (o_B − o_A − t): the tie's translation between the two swaths' offsets.
 struct TieResidual {
   Eigen::Vector3d t;
@@ -349,6 +379,116 @@ struct TieResidual {
     return true;
   }
 };
+
+// The navigation model's linear part R(−β)/(1 + s) applied to (dx, dy); nav = (s, β).
+template <typename T>
+void nav_linear(const T* nav, const T& dx, const T& dy, T* out) {
+  using std::cos;
+  using std::sin;
+  const T c = cos(nav[1]), sn = sin(nav[1]), inv = T(1) / (T(1) + nav[0]);
+  out[0] = inv * (c * dx + sn * dy);
+  out[1] = inv * (-sn * dx + c * dy);
+}
+
+// With fixes, a tie between pieces at (t_A, t_B) in the corrected frame:
+// √w · (c_B(t_B) − c_A(t_A) − R(−β)·t/(1 + s)) / σ. Both methods (the global one's rates are held
+// at zero).
+struct NavTieResidual {
+  Eigen::Vector3d t;
+  double sqrt_w, dt_a, dt_b;
+  template <typename T>
+  bool operator()(const T* o_a, const T* r_a, const T* o_b, const T* r_b, const T* nav,
+                  T* res) const {
+    T lt[2];
+    nav_linear(nav, T(t.x()), T(t.y()), lt);
+    const T w(sqrt_w / kTieSigma);
+    for (int k = 0; k < 2; ++k) {
+      res[k] = w * (o_b[k] + r_b[k] * T(dt_b) - o_a[k] - r_a[k] * T(dt_a) - lt[k]);
+    }
+    res[2] = w * (o_b[2] - o_a[2] - T(t.z()));
+    return true;
+  }
+};
+
+// A fix: (corrected navigation at its time − fix) / σ; the corrected navigation is the
+// navigation model applied to the logged position plus the swath correction there (one swath, or
+// two across a turn).
+struct FixResidual {
+  AbsoluteFix f;
+  Eigen::Vector3d pivot;
+  double dt_a, dt_b;  // from each swath's rate_t0
+  template <typename T>
+  void predict(const T* nav, T* p) const {
+    T d[2];
+    nav_linear(nav, T(f.p_logged.x() - pivot.x()), T(f.p_logged.y() - pivot.y()), d);
+    p[0] = T(pivot.x()) + d[0];
+    p[1] = T(pivot.y()) + d[1];
+    p[2] = T(f.p_logged.z());
+  }
+  template <typename T>
+  void finish(const T* p, T* res) const {
+    for (int k = 0; k < 3; ++k) res[k] = (p[k] - T(f.p_world[k])) / T(f.sigma_m);
+    if (!f.has_z) res[2] = T(0);
+  }
+  template <typename T>
+  bool operator()(const T* o, const T* r, const T* nav, T* res) const {
+    T p[3];
+    predict(nav, p);
+    for (int k = 0; k < 3; ++k) p[k] += o[k] + (k < 2 ? r[k] * T(dt_a) : T(0));
+    finish(p, res);
+    return true;
+  }
+  template <typename T>
+  bool operator()(const T* o_a, const T* r_a, const T* o_b, const T* r_b, const T* nav,
+                  T* res) const {
+    T p[3];
+    predict(nav, p);
+    const double w = f.weight_b;
+    for (int k = 0; k < 3; ++k) {
+      const T ca = o_a[k] + (k < 2 ? r_a[k] * T(dt_a) : T(0));
+      const T cb = o_b[k] + (k < 2 ? r_b[k] * T(dt_b) : T(0));
+      p[k] += T(1 - w) * ca + T(w) * cb;
+    }
+    finish(p, res);
+    return true;
+  }
+};
+
+// The radius a 2-D or 3-D standard normal residual exceeds with the probability a 1-D one
+// exceeds `gate` σ (erfc(gate/√2)): the tails of the χ distribution with `dof` degrees,
+// Q2(x) = exp(−x²/2), Q3(x) = erfc(x/√2) + √(2/π)·x·exp(−x²/2).
+double gate_radius(double gate, int dof) {
+  const double q = std::erfc(gate / std::sqrt(2.0));
+  if (dof <= 1) return gate;
+  if (q <= 0) return gate * 2;  // beyond double precision: any gate that large is "never"
+  if (dof == 2) return std::sqrt(-2.0 * std::log(q));
+  auto tail = [](double x) {
+    return std::erfc(x / std::sqrt(2.0)) + std::sqrt(2.0 / M_PI) * x * std::exp(-0.5 * x * x);
+  };
+  double lo = 0, hi = gate + 10;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (tail(mid) > q ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// The navigation model's plausibility prior: (s/σ_s, β/σ_β).
+struct NavModelPrior {
+  double sigma_s, sigma_b;
+  template <typename T>
+  bool operator()(const T* nav, T* res) const {
+    res[0] = nav[0] / T(sigma_s);
+    res[1] = nav[1] / T(sigma_b);
+    return true;
+  }
+};
+
+Eigen::Vector2d nav_linear_d(const Eigen::Vector2d& nav, const Eigen::Vector2d& d) {
+  Eigen::Vector2d out;
+  nav_linear(nav.data(), d.x(), d.y(), out.data());
+  return out;
+}
 
 }  // namespace
 
@@ -374,10 +514,146 @@ void solve(ceres::Problem& problem, const SwathAdjustmentConfig& config, int num
   out.final_cost = summary.final_cost;
 }
 
+// The solve with absolute fixes, shared by both methods. `out` holds the initial offsets (from
+// the ties, swath 0 at 0), the rates (held at zero for the global method) and rate_t0; `problem`
+// holds every offset and rate block (the gauge not held) and the tie and prior residuals.
+// Adds the navigation model and the fixes, places the survey by the fixes' median, then solves
+// and gates until the rejected set settles; the navigation model's and placement's σ from the
+// covariance at the solution.
+void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
+                      const SwathAdjustmentConfig& config, int num_swaths, SwathAdjustment& out) {
+  abs.validate();
+  require(!abs.fixes.empty(), "fixes: none to adjust with");
+  const std::size_t nf = abs.fixes.size();
+  for (const AbsoluteFix& f : abs.fixes) {
+    require(f.swath_a >= 0 && f.swath_a < num_swaths && f.swath_b >= 0 && f.swath_b < num_swaths,
+            "fixes: the fix at t = " + std::to_string(f.time) + " s names a swath out of range");
+  }
+  out.has_fixes = true;
+  out.pivot = abs.pivot;
+  out.nav_model.setZero();
+  auto swath_corr = [&](const AbsoluteFix& f) {
+    return Eigen::Vector3d((1 - f.weight_b) * out.correction(f.swath_a, f.time_a) +
+                           f.weight_b * out.correction(f.swath_b, f.time_b));
+  };
+  // The survey placed where the fixes' median puts it (a common shift leaves ties, continuity
+  // and rate priors as they are): the robust losses start near the answer however far the
+  // navigation's origin is from the fixes'.
+  bool any_z = false;
+  {
+    std::vector<double> dx, dy, dz;
+    for (const AbsoluteFix& f : abs.fixes) {
+      const Eigen::Vector3d d = f.p_world - f.p_logged - swath_corr(f);
+      dx.push_back(d.x());
+      dy.push_back(d.y());
+      if (f.has_z) dz.push_back(d.z());
+    }
+    auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    const Eigen::Vector3d shift(median(dx), median(dy), dz.empty() ? 0.0 : median(dz));
+    any_z = !dz.empty();
+    for (Eigen::Vector3d& o : out.offsets) o += shift;
+  }
+  problem.AddParameterBlock(out.nav_model.data(), 2);
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NavModelPrior, 2, 2>(new NavModelPrior{
+                               abs.scale_prior_sigma, abs.heading_prior_sigma_rad}),
+                           nullptr, out.nav_model.data());
+  // Without a fix's height, the heights keep the ties' gauge: swath 0's held.
+  if (!any_z) problem.SetManifold(out.offsets[0].data(), new ceres::SubsetManifold(3, {2}));
+
+  std::vector<bool> rejected(nf, false);
+  std::vector<ceres::ResidualBlockId> ids;
+  out.fixes.assign(nf, FixReport{});
+  bool estimate = false;
+  for (int round = 1; round <= abs.max_rounds; ++round) {
+    for (ceres::ResidualBlockId id : ids) problem.RemoveResidualBlock(id);
+    ids.clear();
+    const std::size_t used =
+        static_cast<std::size_t>(std::count(rejected.begin(), rejected.end(), false));
+    if (used == 0) {
+      throw Error(fmt::format(
+          "fixes: all {} fixes disagree with the navigation and the swath ties by more than "
+          "{:g} σ: are they in the navigation's world frame (ENU, metres) and on its clock?",
+          nf, abs.gate_sigma));
+    }
+    estimate = abs.estimate_scale_heading && used >= 3;
+    if (!estimate) out.nav_model.setZero();
+    if (estimate) {
+      problem.SetParameterBlockVariable(out.nav_model.data());
+    } else {
+      problem.SetParameterBlockConstant(out.nav_model.data());
+    }
+    for (std::size_t k = 0; k < nf; ++k) {
+      if (rejected[k]) continue;
+      const AbsoluteFix& f = abs.fixes[k];
+      const double dt_a = f.time_a - out.rate_t0[f.swath_a];
+      const double dt_b = f.time_b - out.rate_t0[f.swath_b];
+      auto* loss = new ceres::CauchyLoss(abs.loss_sigma);
+      if (f.weight_b == 0 || f.swath_a == f.swath_b) {
+        AbsoluteFix one = f;
+        one.weight_b = 0;
+        ids.push_back(
+            problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FixResidual, 3, 3, 2, 2>(
+                                         new FixResidual{one, abs.pivot, dt_a, dt_b}),
+                                     loss, out.offsets[f.swath_a].data(),
+                                     out.rates[f.swath_a].data(), out.nav_model.data()));
+      } else {
+        ids.push_back(problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<FixResidual, 3, 3, 2, 3, 2, 2>(
+                new FixResidual{f, abs.pivot, dt_a, dt_b}),
+            loss, out.offsets[f.swath_a].data(), out.rates[f.swath_a].data(),
+            out.offsets[f.swath_b].data(), out.rates[f.swath_b].data(), out.nav_model.data()));
+      }
+    }
+    solve(problem, config, num_swaths, out);
+    out.fix_rounds = round;
+    std::vector<bool> now(nf, false);
+    for (std::size_t k = 0; k < nf; ++k) {
+      const AbsoluteFix& f = abs.fixes[k];
+      Eigen::Vector3d r = out.apply_navigation_model(f.p_logged) + swath_corr(f) - f.p_world;
+      if (!f.has_z) r.z() = 0;
+      FixReport& rep = out.fixes[k];
+      rep.time = f.time;
+      rep.line = f.line;
+      rep.residual_m = r.norm();
+      rep.normalized = rep.residual_m / f.sigma_m;
+      now[k] = rep.normalized > gate_radius(abs.gate_sigma, f.has_z ? 3 : 2);
+    }
+    const bool settled = now == rejected;
+    rejected = now;
+    if (settled) break;
+  }
+  for (std::size_t k = 0; k < nf; ++k) out.fixes[k].rejected = rejected[k];
+  out.estimated_scale_heading = estimate;
+  // σ from the covariance of the solution (Ceres; the residuals are in units of their σ, the
+  // ties' 2 cm a cell's worth).
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  co.null_space_rank = -1;
+  ceres::Covariance cov(co);
+  std::vector<std::pair<const double*, const double*>> blocks = {
+      {out.offsets[0].data(), out.offsets[0].data()}};
+  if (estimate) blocks.emplace_back(out.nav_model.data(), out.nav_model.data());
+  if (cov.Compute(blocks, &problem)) {
+    double c0[9];
+    if (cov.GetCovarianceBlock(out.offsets[0].data(), out.offsets[0].data(), c0)) {
+      out.placement_sigma_m = {std::sqrt(std::max(0.0, c0[0])), std::sqrt(std::max(0.0, c0[4]))};
+    }
+    double cn[4];
+    if (estimate && cov.GetCovarianceBlock(out.nav_model.data(), out.nav_model.data(), cn)) {
+      out.scale_error_sigma = std::sqrt(std::max(0.0, cn[0]));
+      out.heading_bias_sigma_rad = std::sqrt(std::max(0.0, cn[3]));
+    }
+  }
+}
+
 }  // namespace
 
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
-                              const SwathAdjustmentConfig& config, int fixed_swath) {
+                              const SwathAdjustmentConfig& config, int fixed_swath,
+                              const AbsoluteConstraints* absolute) {
   config.validate();
   require(num_swaths >= 1, "swath adjustment: no swaths");
   require(fixed_swath >= 0 && fixed_swath < num_swaths,
@@ -430,6 +706,38 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
               std::to_string(config.min_confidence) + ") linking them to swath " +
               std::to_string(fixed_swath) + ": widen search_m, or the overlaps are featureless");
 
+  if (absolute) {
+    // Offsets relative to swath 0 (the fixes place it), rates held at zero, ties carried
+    // into the corrected frame.
+    const Eigen::Vector3d o0 = out.offsets[0];
+    for (Eigen::Vector3d& o : out.offsets) o -= o0;
+    out.rates.assign(static_cast<std::size_t>(num_swaths), Eigen::Vector2d::Zero());
+    out.rate_t0.assign(static_cast<std::size_t>(num_swaths), 0.0);
+    ceres::Problem problem;
+    for (int i = 0; i < num_swaths; ++i) {
+      problem.AddParameterBlock(out.offsets[i].data(), 3);
+      problem.AddParameterBlock(out.rates[i].data(), 2);
+      problem.SetParameterBlockConstant(out.rates[i].data());
+    }
+    problem.AddParameterBlock(out.nav_model.data(), 2);
+    for (std::size_t k = 0; k < ties.size(); ++k) {
+      if (!out.tie_used[k]) continue;
+      const SwathTie& t = ties[k];
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(
+                                   new NavTieResidual{t.t, std::sqrt(t.confidence), 0.0, 0.0}),
+                               new ceres::CauchyLoss(config.loss_scale_m / kTieSigma),
+                               out.offsets[t.reference].data(), out.rates[t.reference].data(),
+                               out.offsets[t.moving].data(), out.rates[t.moving].data(),
+                               out.nav_model.data());
+    }
+    solve_with_fixes(problem, *absolute, config, num_swaths, out);
+    for (const SwathTie& t : ties) {
+      Eigen::Vector3d lt = t.t;
+      lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
+      out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - lt).norm());
+    }
+    return out;
+  }
   ceres::Problem problem;
   for (int i = 0; i < num_swaths; ++i) problem.AddParameterBlock(out.offsets[i].data(), 3);
   problem.SetParameterBlockConstant(out.offsets[fixed_swath].data());
@@ -449,8 +757,6 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
 }
 
 namespace {
-
-constexpr double kTieSigma = 0.02;  // m: a tie's residual is measured in map cells of 2 cm
 
 // √w · (c_B(t_B) − c_A(t_A) − t) / σ, c(t) = o + (r, 0)·dt.
 struct DriftTieResidual {
@@ -499,7 +805,8 @@ struct RatePrior {
 
 SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
                                     const std::vector<SwathTie>& ties,
-                                    const SwathAdjustmentConfig& config) {
+                                    const SwathAdjustmentConfig& config,
+                                    const AbsoluteConstraints* absolute) {
   config.validate();
   const int n = static_cast<int>(swaths.size());
   for (int i = 0; i < n; ++i) {
@@ -531,10 +838,21 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
         new ceres::AutoDiffCostFunction<RatePrior, 2, 2>(new RatePrior{sigma_rate}), nullptr,
         out.rates[i].data());
   }
-  problem.SetParameterBlockConstant(out.offsets[0].data());  // the gauge: c_0(t0_0) = 0
+  // The gauge: c_0(t0_0) = 0, unless fixes place the survey.
+  if (!absolute) problem.SetParameterBlockConstant(out.offsets[0].data());
   for (std::size_t k = 0; k < ties.size(); ++k) {
     if (!out.tie_used[k]) continue;
     const SwathTie& t = ties[k];
+    if (absolute) {
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(new NavTieResidual{
+              t.t, std::sqrt(t.confidence), t.time_reference - swaths[t.reference].t0,
+              t.time_moving - swaths[t.moving].t0}),
+          new ceres::CauchyLoss(config.loss_scale_m / kTieSigma), out.offsets[t.reference].data(),
+          out.rates[t.reference].data(), out.offsets[t.moving].data(), out.rates[t.moving].data(),
+          out.nav_model.data());
+      continue;
+    }
     auto* cost =
         new ceres::AutoDiffCostFunction<DriftTieResidual, 3, 3, 2, 3, 2>(new DriftTieResidual{
             t.t, std::sqrt(t.confidence), t.time_reference - swaths[t.reference].t0,
@@ -550,11 +868,17 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
     problem.AddResidualBlock(cost, nullptr, out.offsets[i].data(), out.rates[i].data(),
                              out.offsets[i + 1].data());
   }
-  solve(problem, config, n, out);
+  if (absolute) {
+    solve_with_fixes(problem, *absolute, config, n, out);
+  } else {
+    solve(problem, config, n, out);
+  }
   out.tie_residual_m.clear();
   for (const SwathTie& t : ties) {
+    Eigen::Vector3d lt = t.t;
+    lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
     out.tie_residual_m.push_back((out.correction(t.moving, t.time_moving) -
-                                  out.correction(t.reference, t.time_reference) - t.t)
+                                  out.correction(t.reference, t.time_reference) - lt)
                                      .norm());
   }
   return out;

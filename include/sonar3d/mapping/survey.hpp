@@ -18,6 +18,7 @@
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/position_fixes.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recon/carve.hpp"
 
@@ -64,6 +65,15 @@ struct MapSurveyConfig {
   // The drift method registers each swath in pieces of this length along its track against the
   // swaths it overlaps, m.
   double piece_m = 10.0;
+  // Absolute references (issue 26, io/position_fixes.hpp): USBL/GNSS fixes of the navigation's
+  // reference point, in its world frame and clock. With them the global or drift adjustment places
+  // the map in the world, estimates the navigation's scale error and heading bias
+  // (fix_scale_heading) and rejects fixes beyond fix_gate_sigma. Fixes outside the frames' time
+  // span are ignored and counted.
+  std::vector<PositionFix> fixes;
+  std::string fixes_source;  // where they came from, for the record
+  bool fix_scale_heading = true;
+  double fix_gate_sigma = 3.0;
 
   void validate() const;
 };
@@ -118,8 +128,12 @@ struct MapAlignment {
 // the horizontal error, absolute (relative to the error where the first swath starts), after the
 // best rigid placement (turn + shift: the map's error in metres) and after the best affine
 // placement (local shape only), as logged or corrected.
+//
+// world_m: the horizontal error in the world frame itself, no gauge taken out — what absolute
+// fixes are for. With fixes, absolute_m is measured the same way (the fixes, not swath 0's start,
+// are the gauge).
 struct NavigationError {
-  double absolute_m = 0, rigid_m = 0, affine_m = 0;
+  double absolute_m = 0, rigid_m = 0, affine_m = 0, world_m = 0;
 };
 
 // Simulated datasets with truth/scene.yaml: a structure or pipeline scored against its CAD in
@@ -142,6 +156,9 @@ struct MapSurveyResult {
   std::vector<SwathTie> ties;
   SwathAdjustment adjustment;
   std::size_t merged_points = 0;
+  // With fixes: how many were given, and how many fell outside the frames' time span (ignored);
+  // the others are in adjustment.fixes (rejected ones flagged).
+  std::size_t fixes_given = 0, fixes_outside = 0;
   double seconds_carving = 0, seconds_registration = 0, seconds_total = 0;
 };
 

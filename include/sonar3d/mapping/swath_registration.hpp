@@ -80,6 +80,55 @@ struct SwathAdjustmentConfig {
   void validate() const;
 };
 
+// Absolute references (issue 26): a position fix as the adjustment sees it. mapping/survey.cpp
+// builds these from io's PositionFix and the navigation.
+struct AbsoluteFix {
+  double time = 0;                                     // s
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();   // the fix, world (ENU), m
+  Eigen::Vector3d p_logged = Eigen::Vector3d::Zero();  // the navigation's position then, m
+  bool has_z = false;                                  // else only x, y constrain
+  double sigma_m = 1;                                  // per axis, m
+  int line = 0;                                        // in its file, for reports
+  // The swath correction at `time`: (1 − w)·c_a(t_a) + w·c_b(t_b) (w = 0: swath a alone; a
+  // fix in a turn is tied to both swaths, as the corrected navigation interpolates there).
+  int swath_a = 0, swath_b = 0;
+  double time_a = 0, time_b = 0, weight_b = 0;
+};
+
+struct AbsoluteConstraints {
+  std::vector<AbsoluteFix> fixes;
+  // Where dead reckoning started (the navigation's first position): the navigation model's
+  // scale and turn act about it.
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
+  // Estimate the navigation's scale error and heading bias as well (with at least 3 fixes in
+  // use); else only the absolute placement (a shift).
+  bool estimate_scale_heading = true;
+  // A fix whose residual after the solve exceeds this many σ (as the 1-D gate: the same
+  // probability, 99.73 % at 3, for the 2-D or 3-D residual) is rejected; solve and gate repeat
+  // until the rejected set no longer changes (at most max_rounds solves).
+  double gate_sigma = 3.0;
+  // Cauchy loss scale on a fix's residual in σ: a gross outlier pulls little even before it is
+  // rejected.
+  double loss_sigma = 2.0;
+  int max_rounds = 10;
+  // Plausibility priors on the navigation model, centred on 0: they only keep it bounded where
+  // the fixes hardly constrain it (a few fixes close together); informative fixes give σ far
+  // below them (the field: 0.3–0.7 %, 0.2–0.4°). A DVL's scale error is about 1 %, a compass's
+  // bias under a degree or two.
+  double scale_prior_sigma = 0.05;
+  double heading_prior_sigma_rad = 5.0 * 3.14159265358979323846 / 180.0;
+
+  void validate() const;
+};
+
+struct FixReport {
+  double time = 0;
+  int line = 0;
+  double residual_m = 0;  // |corrected navigation − fix| at the solution (horizontal without z)
+  double normalized = 0;  // residual_m / σ
+  bool rejected = false;
+};
+
 struct SwathAdjustment {
   std::vector<Eigen::Vector3d> offsets;  // per swath (dx, dy, dz) to add to its positions, m
   // The drift method: per swath a horizontal drift rate r (m/s) from the time rate_t0: the
@@ -91,8 +140,34 @@ struct SwathAdjustment {
   int iterations = 0;
   double final_cost = 0;
 
-  // The correction of swath s at time t (s), m.
+  // With absolute fixes: the navigation model. Dead reckoning logs displacements turned by the
+  // heading bias β (counter-clockwise about z) and scaled by 1 + s (a DVL scale error):
+  //   p_logged − pivot = (1 + s)·R(β)·(p_true − pivot)  (horizontal),
+  // so the corrected position is pivot + R(−β)·(p_logged − pivot)/(1 + s) plus the swath
+  // correction. nav_model = (s, β); zero and held without fixes. σ from the solution's
+  // covariance (NaN when not estimated).
+  bool has_fixes = false;
+  bool estimated_scale_heading = false;
+  Eigen::Vector2d nav_model = Eigen::Vector2d::Zero();
+  double scale_error_sigma = std::numeric_limits<double>::quiet_NaN();
+  double heading_bias_sigma_rad = std::numeric_limits<double>::quiet_NaN();
+  // σ of the absolute horizontal placement (swath 0's correction), m.
+  Eigen::Vector2d placement_sigma_m =
+      Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
+  std::vector<FixReport> fixes;  // per fix given, in order
+  int fix_rounds = 0;            // solves of the rejection loop
+
+  double scale_error() const { return nav_model.x(); }
+  double heading_bias_rad() const { return nav_model.y(); }
+  // The correction of swath s at time t (s), m (the navigation model not included).
   Eigen::Vector3d correction(int s, double t) const;
+  // The navigation model applied to a logged position (identity without fixes).
+  Eigen::Vector3d apply_navigation_model(const Eigen::Vector3d& p_logged) const;
+  // The corrected position of swath s's navigation at time t, logged at p_logged.
+  Eigen::Vector3d corrected(int s, double t, const Eigen::Vector3d& p_logged) const {
+    return apply_navigation_model(p_logged) + correction(s, t);
+  }
 };
 
 // The thesis' method: each swath registered to the previous one, offsets accumulated along the
@@ -103,8 +178,17 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
 // 0, the gauge); each tie (A, B, t, confidence w) contributes the residual
 // √w · (o_B − o_A − t) under a Cauchy loss; solved by Ceres. Swaths that no usable tie connects to
 // the fixed one are an error naming them.
+//
+// With `absolute` fixes (issue 26): each fix adds (corrected navigation at its time − fix) / σ
+// under a Cauchy loss (AbsoluteConstraints::loss_sigma), the gauge is released (swath 0 is placed
+// by the fixes; its height stays held when no fix has z), the navigation model (scale error,
+// heading bias) is estimated, ties then read c_B − c_A = R(−β)·t/(1 + s) (a tie measured in the
+// logged frame, carried into the corrected one) with residuals in units of 2 cm, and fixes
+// beyond the gate are rejected and reported (SwathAdjustment::fixes). An error when every fix is
+// rejected.
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
-                              const SwathAdjustmentConfig& config, int fixed_swath = 0);
+                              const SwathAdjustmentConfig& config, int fixed_swath = 0,
+                              const AbsoluteConstraints* absolute = nullptr);
 
 // Beyond the thesis and its consecutive registration: the drift of dead reckoning within each
 // swath. A swath's correction varies linearly in time, c_s(t) = o_s + (r_s, 0)·(t − t0_s), and
@@ -119,9 +203,12 @@ struct SwathTiming {
   double speed_mps = 0;      // its mean speed over ground, m/s
   double gap_to_next_m = 0;  // track length of the turn to the next swath, m
 };
+// With `absolute` fixes: as adjust_swaths (the gauge released, the navigation model estimated,
+// outliers rejected).
 SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
                                     const std::vector<SwathTie>& ties,
-                                    const SwathAdjustmentConfig& config);
+                                    const SwathAdjustmentConfig& config,
+                                    const AbsoluteConstraints* absolute = nullptr);
 
 // A copy of `map` with its origin moved by (dx, dy) and heights by dz.
 ElevationMap shifted(const ElevationMap& map, const Eigen::Vector3d& t);
