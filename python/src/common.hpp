@@ -236,5 +236,6 @@ void bind_recog(py::module_& m);
 void bind_video(py::module_& m);
 void bind_world(py::module_& m);
 void bind_change(py::module_& m);
+void bind_online(py::module_& m);
 
 }  // namespace sonar3d::python

@@ -2,8 +2,8 @@
 // core.cpp (sensor, poses, clouds, meshes), io.cpp (datasets, imports), sim.cpp (simulation),
 // recon.cpp (denoise, carve, deconvolve), eval.cpp (metrics), mapping.cpp (elevation maps, swath
 // registration, field surveys), recog.cpp (CAD-model recognition), video.cpp (cameras,
-// video mapping), world.cpp (world models), change.cpp (change detection between surveys). No
-// algorithm lives here.
+// video mapping), world.cpp (world models), change.cpp (change detection between surveys),
+// online.cpp (online maps). No algorithm lives here.
 #include "common.hpp"
 #include "sonar3d/version.hpp"
 
@@ -27,4 +27,5 @@ PYBIND11_MODULE(_sonar3d, m) {
   sonar3d::python::bind_video(m);
   sonar3d::python::bind_world(m);
   sonar3d::python::bind_change(m);
+  sonar3d::python::bind_online(m);
 }
