@@ -28,6 +28,17 @@ std::optional<NoiseImages> online_noise(const py::object& mean, const py::object
                      array_to_image(std.cast<carray<float>>(), "noise_std")};
 }
 
+// A 4×4 pose as given, NaN and all: the mapper counts bad poses instead of raising (a live
+// stream must not stop on one bad navigation message).
+Eigen::Isometry3d raw_pose(const carray<double>& a, const std::string& what) {
+  if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
+    throw Error(what + " must be a 4×4 matrix");
+  Eigen::Isometry3d T;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) T.matrix()(i, j) = a.at(i, j);
+  return T;
+}
+
 }  // namespace
 
 void bind_online(py::module_& m) {
@@ -68,7 +79,7 @@ void bind_online(py::module_& m) {
           "push_frame",
           [](OnlineMapper& o, double t, const carray<float>& image, const carray<double>& T) {
             const SonarImage img = array_to_image(image);
-            const Eigen::Isometry3d pose = array_to_pose(T, "T_world_sonar");
+            const Eigen::Isometry3d pose = raw_pose(T, "T_world_sonar");
             FrameDrop d;
             {
               py::gil_scoped_release release;
@@ -80,7 +91,7 @@ void bind_online(py::module_& m) {
       .def(
           "push_navigation",
           [](OnlineMapper& o, double t, const carray<double>& T) {
-            const Eigen::Isometry3d pose = array_to_pose(T, "T_world_vehicle");
+            const Eigen::Isometry3d pose = raw_pose(T, "T_world_vehicle");
             py::gil_scoped_release release;
             return o.push_navigation(t, pose);
           },
