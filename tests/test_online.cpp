@@ -301,6 +301,18 @@ TEST(Online, BadInputIsCountedNotThrown) {
   EXPECT_EQ(st.navigation_rejected, 3u);
   EXPECT_EQ(st.dropped(), 2u + 2u + 1u + 1u + 1u + 1u);
   EXPECT_NO_THROW(map.cloud());
+  // A memory limit: once the map is above it, frames are dropped and counted.
+  OnlineMapConfig capped_cfg = oc;
+  {
+    OnlineMapper probe(s.spec, oc);
+    for (std::size_t k = 0; k < 5; ++k) probe.push_frame(s.times[k], s.images[k], s.poses[k]);
+    capped_cfg.max_memory_bytes = static_cast<double>(probe.carver().memory_bytes());
+  }
+  OnlineMapper capped(s.spec, capped_cfg);
+  for (std::size_t k = 0; k < 20; ++k) capped.push_frame(s.times[k], s.images[k], s.poses[k]);
+  EXPECT_GE(capped.stats().frames_used, 5u);
+  EXPECT_GE(capped.stats().dropped_memory, 10u);
+  EXPECT_EQ(capped.stats().frames_used + capped.stats().dropped_memory, 20u);
   // Config errors do throw, naming the field.
   OnlineMapConfig small = oc;
   small.window_m = 1.0;  // below r_max
