@@ -118,7 +118,8 @@ std::string OnlineMapStats::to_json() const {
                        {"blocks", last_resolve.blocks},
                        {"context", last_resolve.context},
                        {"frames", last_resolve.frames},
-                       {"cached", last_resolve.cached}};
+                       {"cached", last_resolve.cached},
+                       {"seconds", last_resolve.seconds}};
   return j.dump(2);
 }
 
