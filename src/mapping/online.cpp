@@ -114,12 +114,9 @@ std::string OnlineMapStats::to_json() const {
                   {"p95", push_ms_p95},
                   {"max", push_ms_max}};
   j["resolve_ms_last"] = resolve_ms_last;
-  j["last_resolve"] = {{"full", last_resolve.full},
-                       {"blocks", last_resolve.blocks},
-                       {"context", last_resolve.context},
-                       {"frames", last_resolve.frames},
-                       {"cached", last_resolve.cached},
-                       {"seconds", last_resolve.seconds}};
+  j["last_resolve"] = {{"full", last_resolve.full},       {"blocks", last_resolve.blocks},
+                       {"context", last_resolve.context}, {"frames", last_resolve.frames},
+                       {"cached", last_resolve.cached},   {"seconds", last_resolve.seconds}};
   return j.dump(2);
 }
 
