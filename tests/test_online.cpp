@@ -393,10 +393,8 @@ TEST(Online, RollingWindowBoundsMemory) {
   for (const auto& p : first.points) near_bed += std::abs(p.z()) < 0.15;
   EXPECT_GT(near_bed, first.size() * 8 / 10);
   const PointCloud rest = map.flush();
-  // Written blocks + the rest against batch. In general they can differ near the window's
-  // trailing edge, where a block can be finished after an occluder in front of it left
-  // (docs/online.md); a flat seabed has no such occluder, and the track never comes back: the
-  // same points.
+  // Written blocks + the rest against batch: the track never comes back, so the same points
+  // (docs/online.md).
   std::set<std::tuple<float, float, float>> online_set, batch_set;
   for (const auto& e : fs::directory_iterator(oc.output_dir))
     for (const auto& p : read_ply(e.path().string()).points)

@@ -541,6 +541,10 @@ struct Carver::Impl {
     detail::BlockMask kept{};      // those kept by occlusion resolution
   };
   std::unordered_map<Coord, Cached, CoordHash> cache;  // leaves holding candidates
+  // Candidates of leaves evict_outside() took out, kept as occluders (never output again) while
+  // a kept frame's box reaches them: a block left in the map that such a frame sees behind them
+  // is still shadowed by them when it is resolved again, as in batch.
+  std::unordered_map<Coord, detail::CandidateBlock, CoordHash> occluders;
   bool cache_valid = false;
   int cache_min_obs = 0;
   Carver::ResolveStats last_resolve;
@@ -981,6 +985,13 @@ void Carver::Impl::update_cache(int min_obs, Progress* progress) {
       target.push_back(full || dbox.hasOverlap(lb) ? &c : nullptr);
     }
   }
+  for (const auto& [o, b] : occluders) {
+    if (cache.count(o)) continue;  // mapped again (a revisit): the live block counts
+    if (full || (!ebox.empty() && ebox.hasOverlap(leaf_box(o)))) {
+      blocks.push_back(b);
+      target.push_back(nullptr);
+    }
+  }
   std::size_t redo = 0;
   for (Cached* t : target) {
     if (t) {
@@ -1092,6 +1103,7 @@ PointCloud Carver::evict_outside(const Eigen::AlignedBox3d& keep, std::size_t* f
     if (kbox.hasOverlap(leaf_box(it->first))) {
       ++it;
     } else {
+      m.occluders.emplace(it->first, it->second.block);
       it = m.cache.erase(it);
     }
   }
@@ -1119,6 +1131,23 @@ PointCloud Carver::evict_outside(const Eigen::AlignedBox3d& keep, std::size_t* f
   m.frames.resize(w);
   m.frame_boxes.resize(w);
   m.n_new = kept_new;
+  // Occluders no kept frame can see any more.
+  CoordBBox reach;
+  for (const CoordBBox& fb : m.frame_boxes) {
+    if (fb.empty()) continue;
+    if (reach.empty()) {
+      reach = fb;
+    } else {
+      reach.expand(fb);
+    }
+  }
+  for (auto it = m.occluders.begin(); it != m.occluders.end();) {
+    if (!reach.empty() && reach.hasOverlap(leaf_box(it->first))) {
+      ++it;
+    } else {
+      it = m.occluders.erase(it);
+    }
+  }
   return out;
 }
 
@@ -1172,6 +1201,8 @@ std::size_t Carver::memory_bytes() const {
   for (const auto& f : m.frames) b += f.memory_bytes() - sizeof(FrameReturns);
   b += m.cache.size() * (sizeof(Impl::Cached) + sizeof(Coord) + 2 * sizeof(void*)) +
        m.cache.bucket_count() * sizeof(void*);
+  b += m.occluders.size() * (sizeof(detail::CandidateBlock) + sizeof(Coord) + 2 * sizeof(void*)) +
+       m.occluders.bucket_count() * sizeof(void*);
   return b;
 }
 
