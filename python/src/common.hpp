@@ -237,5 +237,6 @@ void bind_video(py::module_& m);
 void bind_world(py::module_& m);
 void bind_change(py::module_& m);
 void bind_pipeline(py::module_& m);
+void bind_online(py::module_& m);
 
 }  // namespace sonar3d::python

@@ -3,7 +3,7 @@
 // recon.cpp (denoise, carve, deconvolve), eval.cpp (metrics), mapping.cpp (elevation maps, swath
 // registration, field surveys), recog.cpp (CAD-model recognition), video.cpp (cameras,
 // video mapping), world.cpp (world models), change.cpp (change detection between surveys),
-// pipeline.cpp (whole workflows: survey). No algorithm lives here.
+// pipeline.cpp (whole workflows: survey), online.cpp (online maps). No algorithm lives here.
 #include "common.hpp"
 #include "sonar3d/version.hpp"
 
@@ -28,4 +28,5 @@ PYBIND11_MODULE(_sonar3d, m) {
   sonar3d::python::bind_world(m);
   sonar3d::python::bind_change(m);
   sonar3d::python::bind_pipeline(m);
+  sonar3d::python::bind_online(m);
 }

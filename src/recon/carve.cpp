@@ -17,6 +17,7 @@
 #include <limits>
 #include <mutex>
 #include <sstream>
+#include <unordered_map>
 
 #include "carve_footprint.hpp"
 #include "sonar3d/core/atomic_file.hpp"
@@ -398,6 +399,60 @@ class FrameCarver {
   double r_min2_, r_max2_;
 };
 
+// The candidates of one map leaf as an occlusion block (sec. 4.4.5): voxels with a finite bound
+// above `thr` that pass the observation filter (count >= min_obs, elevation span >= min_span)
+// when observations are tracked (`span_tracked`). Returns false when the leaf holds none.
+bool extract_block(const LeafT& leaf, const SpanLeafT* sl, bool span_tracked, float thr,
+                   int min_obs, int min_span, double vs, detail::CandidateBlock& b) {
+  Eigen::AlignedBox3i box;
+  for (auto it = leaf.cbeginValueOn(); it; ++it) {
+    const float v = *it;
+    if (!(v > 0.0f && v > thr && std::isfinite(v))) continue;
+    if (span_tracked) {
+      if (!sl || !sl->isValueOn(it.pos())) continue;
+      const Observations o = unpack_obs(sl->getValue(it.pos()));
+      if (o.count < min_obs || o.hi - o.lo < min_span) continue;
+    }
+    const openvdb::Index n = it.pos();
+    b.mask[n >> 6] |= std::uint64_t{1} << (n & 63);
+    box.extend(Eigen::Vector3i(static_cast<int>(n >> 6), static_cast<int>((n >> 3) & 7),
+                               static_cast<int>(n & 7)));
+  }
+  if (box.isEmpty()) return false;
+  const Coord o = leaf.origin();
+  b.origin_index = {o.x(), o.y(), o.z()};
+  b.centre_world =
+      (Eigen::Vector3d(o.x(), o.y(), o.z()) + 0.5 * (box.min() + box.max()).cast<double>()) * vs;
+  b.radius = 0.5 * (box.max() - box.min()).cast<double>().norm() * vs + 1e-5;
+  return true;
+}
+
+struct CoordHash {
+  std::size_t operator()(const Coord& c) const {
+    return (static_cast<std::size_t>(static_cast<std::uint32_t>(c.x())) * 73856093u) ^
+           (static_cast<std::size_t>(static_cast<std::uint32_t>(c.y())) * 19349663u) ^
+           (static_cast<std::size_t>(static_cast<std::uint32_t>(c.z())) * 83492791u);
+  }
+};
+
+// A leaf's box of voxel indices.
+CoordBBox leaf_box(const Coord& o) { return CoordBBox(o, o.offsetBy(kLeafDim - 1)); }
+
+// The world points (voxel centres, float as snapshot() gives them) and bounds of a leaf's kept
+// candidates, appended to `out`.
+void emit_kept(const LeafT& leaf, const detail::BlockMask& kept, double vs, PointCloud& out) {
+  const Coord o = leaf.origin();
+  for (int w = 0; w < 8; ++w) {
+    for (std::uint64_t bits = kept[w]; bits; bits &= bits - 1) {
+      const auto n = static_cast<openvdb::Index>(w * 64 + __builtin_ctzll(bits));
+      out.points.emplace_back(static_cast<float>((o.x() + static_cast<int>(n >> 6)) * vs),
+                              static_cast<float>((o.y() + static_cast<int>((n >> 3) & 7)) * vs),
+                              static_cast<float>((o.z() + static_cast<int>(n & 7)) * vs));
+      out.intensity.push_back(leaf.getValue(n));
+    }
+  }
+}
+
 }  // namespace
 
 void validate_region(const Eigen::AlignedBox3d& region, const std::string& name) {
@@ -474,13 +529,46 @@ struct Carver::Impl {
   mutable CarveStats stats;
   CoordBBox roi;  // voxel index box of the region of interest (or everything)
 
+  // Incremental occlusion resolution (resolve()): per frame, the voxel box its footprint covers
+  // (padded by a voxel); the last n_new frames are not resolved yet; `pending` bounds the voxels
+  // they changed and `removed` lists the leaves they collapsed to free tiles.
+  std::vector<CoordBBox> frame_boxes;
+  std::size_t n_new = 0;
+  CoordBBox pending;
+  std::vector<Coord> removed;
+  struct Cached {
+    detail::CandidateBlock block;  // the leaf's candidates (the filter as last resolved)
+    detail::BlockMask kept{};      // those kept by occlusion resolution
+  };
+  std::unordered_map<Coord, Cached, CoordHash> cache;  // leaves holding candidates
+  // Candidates of leaves evict_outside() took out, kept as occluders (never output again) while
+  // a kept frame's box reaches them: a block left in the map that such a frame sees behind them
+  // is still shadowed by them when it is resolved again, as in batch.
+  std::unordered_map<Coord, detail::CandidateBlock, CoordHash> occluders;
+  bool cache_valid = false;
+  int cache_min_obs = 0;
+  Carver::ResolveStats last_resolve;
+
+  OcclusionConfig occlusion_config() const {
+    OcclusionConfig occ = cfg.occlusion;
+    occ.voxel_size = cfg.voxel_size;
+    occ.num_threads = cfg.num_threads;
+    occ.min_intensity = std::max(occ.min_intensity, cfg.static_threshold);
+    return occ;
+  }
+  int min_span() const {
+    return static_cast<int>(std::ceil(cfg.min_elevation_span * 2 * kObsScale));
+  }
+  void update_cache(int min_obs, Progress* progress);
+
   Impl(const SonarSpec& s, const CarveConfig& c, std::optional<NoiseImages> n)
       : spec(s),
         cfg(c),
         noise(std::move(n)),
         arena(c.num_threads > 0 ? c.num_threads : static_cast<int>(tbb::task_arena::automatic)) {}
 
-  void carve(const SonarImage& denoised, const FrameReturns& fr) {
+  // Carves one frame; returns the voxel box it can have changed (empty when none).
+  CoordBBox carve(const SonarImage& denoised, const FrameReturns& fr) {
     const detail::FrameFootprint fp(*geom, fr, &denoised);
     const double vs = cfg.voxel_size;
     const Eigen::AlignedBox3d wb = detail::footprint_bounds_world(*geom, fr.T_world_sonar);
@@ -494,7 +582,7 @@ struct Carver::Impl {
     CoordBBox box(Coord(lo_idx(wb.min().x()), lo_idx(wb.min().y()), lo_idx(wb.min().z())),
                   Coord(hi_idx(wb.max().x()), hi_idx(wb.max().y()), hi_idx(wb.max().z())));
     box.intersect(roi);
-    if (box.empty()) return;
+    if (box.empty()) return box;
     // The footprint's 32³ cubes are counted before one task (~100 bytes) is allocated for each:
     // a tiny voxel size without a region would ask for billions.
     double cubes = 1.0;
@@ -539,6 +627,11 @@ struct Carver::Impl {
       for (LeafT* leaf : out.new_leaves) tree.addLeaf(leaf);
       for (SpanLeafT* leaf : out.new_span_leaves) span_tree.addLeaf(leaf);
       for (const auto& [o, s] : out.free_cubes) {
+        // Leaves the tile replaces (their candidates are gone: resolve() must know).
+        for (int x = 0; x < s; x += kLeafDim)
+          for (int y = 0; y < s; y += kLeafDim)
+            for (int z = 0; z < s; z += kLeafDim)
+              if (tree.probeConstLeaf(o.offsetBy(x, y, z))) removed.push_back(o.offsetBy(x, y, z));
         if (s == kNodeDim) {
           tree.addTile(2, o, 0.0f, true);
         } else if (s == kLeafDim) {
@@ -553,6 +646,7 @@ struct Carver::Impl {
       }
       stats.leaf_voxels_visited += out.voxels;
     }
+    return box;
   }
 };
 
@@ -621,7 +715,17 @@ void Carver::integrate(const SonarImage& image, const Eigen::Isometry3d& T_world
   SonarImage denoised = image;
   denoise(denoised, m.noise, m.cfg.denoise);
   FrameReturns fr = summarize_frame(denoised, T_world_sonar, m.spec);
-  m.carve(denoised, fr);
+  CoordBBox box = m.carve(denoised, fr);
+  if (!box.empty()) {
+    box.expand(1);  // the float rounding of voxel positions (resolve())
+    if (m.pending.empty()) {
+      m.pending = box;
+    } else {
+      m.pending.expand(box);
+    }
+  }
+  m.frame_boxes.push_back(box);
+  ++m.n_new;
   m.frames.push_back(std::move(fr));
   m.stats.frames = m.frames.size();
   m.stats.integrate_seconds +=
@@ -719,30 +823,8 @@ PointCloud Carver::finalize(Progress* progress) {
     tbb::parallel_for(std::size_t{0}, leaves.leafCount(), [&](std::size_t l) {
       const LeafT& leaf = leaves.leaf(l);
       const SpanLeafT* sl = m.span ? m.span->probeConstLeaf(leaf.origin()) : nullptr;
-      detail::CandidateBlock b;
-      Eigen::AlignedBox3i box;
-      for (auto it = leaf.cbeginValueOn(); it; ++it) {
-        const float v = *it;
-        if (!(v > 0.0f && v > thr && std::isfinite(v))) continue;
-        if (m.span) {
-          if (!sl || !sl->isValueOn(it.pos())) continue;
-          const Observations o = unpack_obs(sl->getValue(it.pos()));
-          if (o.count < min_obs || o.hi - o.lo < min_span) continue;
-        }
-        const openvdb::Index n = it.pos();
-        b.mask[n >> 6] |= std::uint64_t{1} << (n & 63);
-        box.extend(Eigen::Vector3i(static_cast<int>(n >> 6), static_cast<int>((n >> 3) & 7),
-                                   static_cast<int>(n & 7)));
-      }
-      if (box.isEmpty()) return;
-      const Coord o = leaf.origin();
-      b.origin_index = {o.x(), o.y(), o.z()};
-      b.centre_world =
-          (Eigen::Vector3d(o.x(), o.y(), o.z()) + 0.5 * (box.min() + box.max()).cast<double>()) *
-          vs;
-      b.radius = 0.5 * (box.max() - box.min()).cast<double>().norm() * vs + 1e-5;
-      all[l] = b;
-      used[l] = 1;
+      if (extract_block(leaf, sl, m.span != nullptr, thr, min_obs, min_span, vs, all[l]))
+        used[l] = 1;
     });
   });
   std::vector<detail::CandidateBlock> blocks;
@@ -779,6 +861,293 @@ PointCloud Carver::finalize(Progress* progress) {
   m.stats.occlusion_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   m.stats.points = out.size();
+  return out;
+}
+
+void Carver::Impl::update_cache(int min_obs, Progress* progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const OcclusionConfig occ = occlusion_config();
+  const float thr = static_cast<float>(occ.min_intensity);
+  const int mspan = min_span();
+  const double vs = cfg.voxel_size;
+  const TreeT& tree = grid->tree();
+  const bool full = !cache_valid || min_obs != cache_min_obs;
+  last_resolve = Carver::ResolveStats{};
+  last_resolve.full = full;
+  if (!full && n_new == 0 && pending.empty() && removed.empty()) {
+    last_resolve.cached = cache.size();
+    return;  // nothing changed since the last resolution
+  }
+  // 1. The candidates of the leaves the new frames can have changed (all, when full), compared
+  // with the cached ones: `changed` lists the leaves whose candidate set differs.
+  openvdb::tree::LeafManager<const TreeT> leaves(tree);
+  std::vector<detail::CandidateBlock> fresh(leaves.leafCount());
+  std::vector<std::uint8_t> state(leaves.leafCount(), 0);  // 1 = in the changed box, 2 = + has
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, leaves.leafCount(), [&](std::size_t l) {
+      const LeafT& leaf = leaves.leaf(l);
+      if (!full && !pending.hasOverlap(leaf_box(leaf.origin()))) return;
+      const SpanLeafT* sl = span ? span->probeConstLeaf(leaf.origin()) : nullptr;
+      state[l] =
+          extract_block(leaf, sl, span != nullptr, thr, min_obs, mspan, vs, fresh[l]) ? 2 : 1;
+    });
+  });
+  std::vector<Coord> changed;
+  if (full) cache.clear();
+  for (const Coord& o : removed) {
+    if (cache.erase(o)) changed.push_back(o);
+  }
+  for (std::size_t l = 0; l < leaves.leafCount(); ++l) {
+    if (!state[l]) continue;
+    const Coord o = leaves.leaf(l).origin();
+    auto it = cache.find(o);
+    if (state[l] == 1) {  // no candidate left here
+      if (it != cache.end()) {
+        cache.erase(it);
+        changed.push_back(o);
+      }
+      continue;
+    }
+    if (it == cache.end()) {
+      cache.emplace(o, Cached{fresh[l], {}});
+      changed.push_back(o);
+    } else if (it->second.block.mask != fresh[l].mask) {
+      it->second.block = fresh[l];
+      changed.push_back(o);
+    } else {
+      it->second.block = fresh[l];
+    }
+  }
+  fresh = {};
+  state = {};
+  removed.clear();
+  const std::size_t nf = frames.size();
+  const std::size_t first_new = nf - std::min(n_new, nf);
+  // 2. The frames whose results can change: the new ones, and the old ones that see a changed
+  // leaf (their depth grids changed). The blocks to redo, D, lie in their footprints (or are
+  // changed leaves). 3. Every frame that sees D tests it; all the candidates in those frames'
+  // footprints are occluders (E).
+  std::vector<const FrameReturns*> use;
+  CoordBBox dbox, ebox;
+  if (full) {
+    use = detail::frame_pointers(frames);
+  } else {
+    CoordBBox cbox;
+    // Changed leaves bucketed in 128³ cells for the frame tests.
+    std::unordered_map<Coord, CoordBBox, CoordHash> cells;
+    for (const Coord& o : changed) {
+      const CoordBBox lb = leaf_box(o);
+      cbox.expand(lb);
+      const Coord cell(static_cast<int>(floor_div(o.x(), kNodeDim)),
+                       static_cast<int>(floor_div(o.y(), kNodeDim)),
+                       static_cast<int>(floor_div(o.z(), kNodeDim)));
+      auto [it, fresh_cell] = cells.emplace(cell, lb);
+      if (!fresh_cell) it->second.expand(lb);
+    }
+    if (!changed.empty()) dbox = cbox;
+    auto sees_changed = [&](const CoordBBox& fb) {
+      if (changed.empty() || fb.empty() || !cbox.hasOverlap(fb)) return false;
+      for (const auto& [cell, cb] : cells)
+        if (cb.hasOverlap(fb)) return true;
+      return false;
+    };
+    for (std::size_t f = 0; f < nf; ++f) {
+      const CoordBBox& fb = frame_boxes[f];
+      if (fb.empty()) continue;
+      if (f >= first_new || sees_changed(fb)) {
+        if (dbox.empty()) {
+          dbox = fb;
+        } else {
+          dbox.expand(fb);
+        }
+      }
+    }
+    if (!dbox.empty()) {
+      for (std::size_t f = 0; f < nf; ++f) {
+        const CoordBBox& fb = frame_boxes[f];
+        if (fb.empty() || !fb.hasOverlap(dbox)) continue;
+        use.push_back(&frames[f]);
+        if (ebox.empty()) {
+          ebox = fb;
+        } else {
+          ebox.expand(fb);
+        }
+      }
+    }
+  }
+  // 4. Resolve D against those frames with E as occluders; keep D's results.
+  std::vector<detail::CandidateBlock> blocks;
+  std::vector<Cached*> target;  // per block: the cache entry to update (null: context only)
+  for (auto& [o, c] : cache) {
+    const CoordBBox lb = leaf_box(o);
+    if (full || (!ebox.empty() && ebox.hasOverlap(lb))) {
+      blocks.push_back(c.block);
+      target.push_back(full || dbox.hasOverlap(lb) ? &c : nullptr);
+    }
+  }
+  for (const auto& [o, b] : occluders) {
+    if (cache.count(o)) continue;  // mapped again (a revisit): the live block counts
+    if (full || (!ebox.empty() && ebox.hasOverlap(leaf_box(o)))) {
+      blocks.push_back(b);
+      target.push_back(nullptr);
+    }
+  }
+  std::size_t redo = 0;
+  for (Cached* t : target) {
+    if (t) {
+      t->kept = {};
+      ++redo;
+    }
+  }
+  if (!blocks.empty() && !use.empty()) {
+    const std::vector<detail::BlockMask> kept =
+        detail::resolve_occlusion_blocks(blocks, use, spec, occ, progress);
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+      if (target[b]) target[b]->kept = kept[b];
+  }
+  cache_valid = true;
+  cache_min_obs = min_obs;
+  n_new = 0;
+  pending = CoordBBox();
+  last_resolve.blocks = redo;
+  last_resolve.context = blocks.size();
+  last_resolve.frames = use.size();
+  last_resolve.cached = cache.size();
+  last_resolve.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+PointCloud Carver::resolve(Progress* progress) {
+  Impl& m = *impl_;
+  if (m.frames.empty()) throw Error("carve: nothing to resolve: no frame was integrated");
+  if (!m.cfg.resolve_occlusions) {
+    PointCloud candidates = snapshot();
+    m.stats.points = candidates.size();
+    return candidates;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const int min_obs = min_observations_used();
+  m.stats.min_observations_used = min_obs;
+  m.update_cache(min_obs, progress);
+  // The cloud in finalize()'s order: the map's leaves in tree order, bits ascending.
+  const TreeT& tree = m.grid->tree();
+  openvdb::tree::LeafManager<const TreeT> leaves(tree);
+  std::vector<const Impl::Cached*> entry(leaves.leafCount(), nullptr);
+  std::size_t candidates = 0;
+  for (std::size_t l = 0; l < leaves.leafCount(); ++l) {
+    auto it = m.cache.find(leaves.leaf(l).origin());
+    if (it == m.cache.end()) continue;
+    entry[l] = &it->second;
+    for (auto w : it->second.block.mask)
+      candidates += static_cast<std::size_t>(__builtin_popcountll(w));
+  }
+  PointCloud out;
+  for (std::size_t l = 0; l < leaves.leafCount(); ++l)
+    if (entry[l]) emit_kept(leaves.leaf(l), entry[l]->kept, m.cfg.voxel_size, out);
+  const OcclusionConfig occ = m.occlusion_config();
+  if (occ.explain_returns) out = drop_unexplained(out, m.frames, m.spec, occ, &m.stats.ghosts);
+  m.stats.candidates = candidates;
+  m.stats.occlusion_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  m.stats.points = out.size();
+  return out;
+}
+
+const Carver::ResolveStats& Carver::last_resolve() const { return impl_->last_resolve; }
+
+PointCloud Carver::evict_outside(const Eigen::AlignedBox3d& keep, std::size_t* frames_dropped) {
+  validate_region(keep, "keep");
+  Impl& m = *impl_;
+  if (frames_dropped) *frames_dropped = 0;
+  PointCloud out;
+  if (m.frames.empty()) return out;
+  const double vs = m.cfg.voxel_size;
+  // The kept voxels, grown to whole leaves: a leaf partly inside stays whole.
+  auto lo = [&](double x) {
+    const auto i = static_cast<std::int64_t>(std::floor(std::clamp(x / vs, -1e9, 1e9)));
+    return static_cast<int>(floor_div(i, kLeafDim) * kLeafDim);
+  };
+  auto hi = [&](double x) {
+    const auto i = static_cast<std::int64_t>(std::ceil(std::clamp(x / vs, -1e9, 1e9)));
+    return static_cast<int>(floor_div(i, kLeafDim) * kLeafDim + kLeafDim - 1);
+  };
+  const CoordBBox kbox(Coord(lo(keep.min().x()), lo(keep.min().y()), lo(keep.min().z())),
+                       Coord(hi(keep.max().x()), hi(keep.max().y()), hi(keep.max().z())));
+  if (m.cfg.resolve_occlusions) {
+    const int min_obs = min_observations_used();
+    m.stats.min_observations_used = min_obs;
+    m.update_cache(min_obs, nullptr);
+  }
+  TreeT& tree = m.grid->tree();
+  {
+    // Finished leaves, in tree order.
+    openvdb::tree::LeafManager<const TreeT> leaves(tree);
+    const float thr = static_cast<float>(m.occlusion_config().min_intensity);
+    const int min_obs = m.cfg.resolve_occlusions ? m.cache_min_obs : min_observations_used();
+    for (std::size_t l = 0; l < leaves.leafCount(); ++l) {
+      const LeafT& leaf = leaves.leaf(l);
+      if (kbox.hasOverlap(leaf_box(leaf.origin()))) continue;
+      if (m.cfg.resolve_occlusions) {
+        auto it = m.cache.find(leaf.origin());
+        if (it == m.cache.end()) continue;
+        emit_kept(leaf, it->second.kept, vs, out);
+      } else {
+        detail::CandidateBlock b;
+        const SpanLeafT* sl = m.span ? m.span->probeConstLeaf(leaf.origin()) : nullptr;
+        if (extract_block(leaf, sl, m.span != nullptr, thr, min_obs, m.min_span(), vs, b))
+          emit_kept(leaf, b.mask, vs, out);
+      }
+    }
+  }
+  for (auto it = m.cache.begin(); it != m.cache.end();) {
+    if (kbox.hasOverlap(leaf_box(it->first))) {
+      ++it;
+    } else {
+      m.occluders.emplace(it->first, it->second.block);
+      it = m.cache.erase(it);
+    }
+  }
+  tree.clip(kbox);
+  if (m.span) m.span->clip(kbox);
+  m.removed.erase(std::remove_if(m.removed.begin(), m.removed.end(),
+                                 [&](const Coord& o) { return !kbox.hasOverlap(leaf_box(o)); }),
+                  m.removed.end());
+  if (!m.pending.empty()) m.pending.intersect(kbox);
+  // Frames that see nothing left. The unresolved (newest) frames stay in order at the end.
+  std::size_t w = 0;
+  const std::size_t nf = m.frames.size(), first_new = nf - std::min(m.n_new, nf);
+  std::size_t kept_new = 0;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const bool keep_frame = !m.frame_boxes[f].empty() && m.frame_boxes[f].hasOverlap(kbox);
+    if (!keep_frame) continue;
+    if (f >= first_new) ++kept_new;
+    if (w != f) {
+      m.frames[w] = std::move(m.frames[f]);
+      m.frame_boxes[w] = m.frame_boxes[f];
+    }
+    ++w;
+  }
+  if (frames_dropped) *frames_dropped = nf - w;
+  m.frames.resize(w);
+  m.frame_boxes.resize(w);
+  m.n_new = kept_new;
+  // Occluders no kept frame can see any more.
+  CoordBBox reach;
+  for (const CoordBBox& fb : m.frame_boxes) {
+    if (fb.empty()) continue;
+    if (reach.empty()) {
+      reach = fb;
+    } else {
+      reach.expand(fb);
+    }
+  }
+  for (auto it = m.occluders.begin(); it != m.occluders.end();) {
+    if (!reach.empty() && reach.hasOverlap(leaf_box(it->first))) {
+      ++it;
+    } else {
+      it = m.occluders.erase(it);
+    }
+  }
   return out;
 }
 
@@ -823,6 +1192,19 @@ void Carver::write_vdb(const std::string& path, const PointCloud* surface) const
 }
 
 std::size_t Carver::frames() const { return impl_->frames.size(); }
+
+std::size_t Carver::memory_bytes() const {
+  const Impl& m = *impl_;
+  std::size_t b = static_cast<std::size_t>(m.grid->memUsage()) +
+                  (m.span ? static_cast<std::size_t>(m.span->memUsage()) : 0);
+  b += m.frames.capacity() * sizeof(FrameReturns) + m.frame_boxes.capacity() * sizeof(CoordBBox);
+  for (const auto& f : m.frames) b += f.memory_bytes() - sizeof(FrameReturns);
+  b += m.cache.size() * (sizeof(Impl::Cached) + sizeof(Coord) + 2 * sizeof(void*)) +
+       m.cache.bucket_count() * sizeof(void*);
+  b += m.occluders.size() * (sizeof(detail::CandidateBlock) + sizeof(Coord) + 2 * sizeof(void*)) +
+       m.occluders.bucket_count() * sizeof(void*);
+  return b;
+}
 
 int Carver::min_observations_used() const {
   // The number of frames that see a scatterer: for up to 256 frames spread over the sequence,

@@ -328,11 +328,18 @@ struct CandidateBlock {
   double radius = 0;                                       // m
   BlockMask mask{};                                        // the candidates
 };
+// Pointers to the frames, in order (the resolutions below take a subset of a carver's frames).
+std::vector<const FrameReturns*> frame_pointers(const std::vector<FrameReturns>& frames);
 // Occlusion resolution of blocks whose candidates lie at (origin_index + (x, y, z))·voxel_size
 // (config.voxel_size); returns per block the mask of the candidates kept (observed in a frame
 // and, with refute_free, never seen as free space). The same rule as resolve_occlusions().
 std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
                                                 const std::vector<FrameReturns>& frames,
+                                                const SonarSpec& spec,
+                                                const OcclusionConfig& config,
+                                                Progress* progress = nullptr);
+std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
+                                                const std::vector<const FrameReturns*>& frames,
                                                 const SonarSpec& spec,
                                                 const OcclusionConfig& config,
                                                 Progress* progress = nullptr);

@@ -122,9 +122,9 @@ struct Hit {
   std::int32_t bin;     // range bin
 };
 
-void check_frames(const std::vector<FrameReturns>& frames, const SonarSpec& spec) {
+void check_frames(const std::vector<const FrameReturns*>& frames, const SonarSpec& spec) {
   for (std::size_t f = 0; f < frames.size(); ++f) {
-    const auto& fr = frames[f];
+    const auto& fr = *frames[f];
     if (fr.range_bins != spec.range_bins || fr.beams != spec.beams() ||
         static_cast<int>(fr.first_return_bin.size()) != spec.beams()) {
       throw Error("resolve_occlusions: frame " + std::to_string(f) +
@@ -144,7 +144,7 @@ void check_frames(const std::vector<FrameReturns>& frames, const SonarSpec& spec
 template <typename Position>
 std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::CandidateBlock>& blocks,
                                               Position&& position,
-                                              const std::vector<FrameReturns>& frames,
+                                              const std::vector<const FrameReturns*>& frames,
                                               const SonarSpec& spec, const OcclusionConfig& config,
                                               Progress* progress, bool solid_refute = false) {
   const detail::SonarGeometry g(spec);
@@ -291,7 +291,7 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frames.size(), 1),
                       [&](const tbb::blocked_range<std::size_t>& rg) {
                         for (std::size_t f = rg.begin(); f < rg.end(); ++f)
-                          process_frame(frames[f]);
+                          process_frame(*frames[f]);
                       });
   });
   std::vector<detail::BlockMask> kept(nb);
@@ -311,6 +311,19 @@ namespace detail {
 
 std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
                                                 const std::vector<FrameReturns>& frames,
+                                                const SonarSpec& spec,
+                                                const OcclusionConfig& config, Progress* progress) {
+  return resolve_occlusion_blocks(blocks, frame_pointers(frames), spec, config, progress);
+}
+
+std::vector<const FrameReturns*> frame_pointers(const std::vector<FrameReturns>& frames) {
+  std::vector<const FrameReturns*> p(frames.size());
+  for (std::size_t f = 0; f < frames.size(); ++f) p[f] = &frames[f];
+  return p;
+}
+
+std::vector<BlockMask> resolve_occlusion_blocks(const std::vector<CandidateBlock>& blocks,
+                                                const std::vector<const FrameReturns*>& frames,
                                                 const SonarSpec& spec,
                                                 const OcclusionConfig& config, Progress* progress) {
   config.validate();
@@ -335,10 +348,11 @@ namespace {
 
 // resolve_occlusions() without the explanation, and detail::resolve_occlusions_solid().
 PointCloud resolve_cloud(const PointCloud& candidates_world,
-                         const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                         const std::vector<FrameReturns>& frame_list, const SonarSpec& spec,
                          const OcclusionConfig& config, Progress* progress, bool solid_refute) {
   config.validate();
   spec.validate();
+  const std::vector<const FrameReturns*> frames = detail::frame_pointers(frame_list);
   check_frames(frames, spec);
   const bool has_i = candidates_world.has_intensity();
   if (has_i && candidates_world.intensity.size() != candidates_world.size()) {

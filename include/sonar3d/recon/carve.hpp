@@ -129,12 +129,45 @@ class Carver {
   // frame was integrated.
   PointCloud finalize(Progress* progress = nullptr);
 
+  // Incremental occlusion resolution (issue 25, online maps): the same cloud as finalize(), in
+  // the same order, but only the 8³ blocks whose result can have changed since the last call are
+  // resolved again. A block's result (sec. 4.4.5: observed in some frame, refuted in none) depends
+  // on the frames whose footprint holds it and, through their depth grids, on the candidates
+  // nearer along those frames' lines of sight; so after new frames the blocks redone are those in
+  // the footprints of the new frames and of the old frames that see a block whose candidates
+  // changed, tested against every frame that sees them, with every candidate in those frames'
+  // footprints as occluders (docs/online.md). The first call, and any call after the observation
+  // filter (min_observations_used()) changed, resolves everything. With
+  // config.occlusion.explain_returns the explanation then runs over the whole cloud, as in
+  // finalize(). Throws Error when no frame was integrated.
+  PointCloud resolve(Progress* progress = nullptr);
+  struct ResolveStats {
+    bool full = false;        // everything resolved (first call, filter changed)
+    std::size_t blocks = 0;   // 8³ blocks whose result was recomputed
+    std::size_t context = 0;  // blocks projected as occluders (including those)
+    std::size_t frames = 0;   // frames the recomputation tested them against
+    std::size_t cached = 0;   // blocks holding candidates, all told
+    double seconds = 0;       // wall time of the resolution (assembly excluded)
+  };
+  const ResolveStats& last_resolve() const;
+
+  // Rolling window (issue 25): resolves (incrementally), then removes from the map every 8³ block
+  // that lies wholly outside `keep` (world frame) and returns the points those blocks kept, with
+  // their bounds: they are finished. Frames whose footprint lies wholly outside `keep` are
+  // dropped too (`frames_dropped` receives how many): no block left can lie in them. A block
+  // finished here is final only if no later frame sees it: a map that comes back to it starts
+  // again from unknown (docs/online.md).
+  PointCloud evict_outside(const Eigen::AlignedBox3d& keep, std::size_t* frames_dropped = nullptr);
+
   // Writes an OpenVDB file (atomically) with the grid "carve_map" (the map: active 0 = free,
   // active v > 0 = bound, inactive = unknown) and, when `surface` is given, a grid "surface" with
   // one active voxel per point holding its intensity.
   void write_vdb(const std::string& path, const PointCloud* surface = nullptr) const;
 
   std::size_t frames() const;
+  // Memory of the map grids, the frame summaries and the incremental resolution's cache (bytes),
+  // without the full statistics pass of stats(): cheap enough to check after every frame.
+  std::size_t memory_bytes() const;
   const std::vector<FrameReturns>& frame_returns() const;
   const CarveStats& stats() const;
   // The observation filter that applies to the frames integrated so far: config.min_observations,

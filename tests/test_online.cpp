@@ -1,0 +1,415 @@
+// Online maps (issue 25): frames pushed one by one give the batch reconstruction's cloud, the
+// incremental occlusion resolution redoes only what changed, a rolling window bounds memory, and
+// bad input is counted, never thrown.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <set>
+#include <string>
+#include <tuple>
+
+#include "sonar3d/core/error.hpp"
+#include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/reference_objects.hpp"
+#include "sonar3d/core/scene.hpp"
+#include "sonar3d/io/dataset.hpp"
+#include "sonar3d/mapping/online.hpp"
+#include "sonar3d/recon/carve.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/sim/simulator.hpp"
+
+namespace fs = std::filesystem;
+using namespace sonar3d;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+// A reduced sensor: 30° × 10°, 60 beams (0.5°), 1–4 m in 2 cm bins.
+SonarSpec small_spec() {
+  SonarSpec s;
+  s.name = "test-online";
+  s.set_uniform_bearings(30 * kDeg, 60);
+  s.r_min = 1.0;
+  s.r_max = 4.0;
+  s.range_bins = 150;
+  s.vertical_aperture_rad = 10 * kDeg;
+  return s;
+}
+
+SceneObject sphere(double radius, const Eigen::Vector3d& centre) {
+  SceneObject obj;
+  obj.name = "sphere";
+  obj.mesh_world = make_sphere(radius, 32);
+  obj.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(centre)));
+  obj.reflectivity = 0.8;
+  return obj;
+}
+
+SimulatorConfig sim_config() {
+  SimulatorConfig c;
+  c.elevation_step_rad = 0.05 * kDeg;
+  c.jitter = true;
+  c.gain = 2.0;
+  return c;
+}
+
+Eigen::Isometry3d sonar_at(double x, double y, double z, double yaw = 0) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
+// Two spheres 6 m apart along y; the sonar looks along +x from x = -2.5 and travels along y with
+// a vertical zig-zag (so the elevation arcs are bracketed): frames far apart see different
+// spheres, so an incremental resolution has blocks it need not redo.
+struct Survey {
+  SonarSpec spec = small_spec();
+  std::vector<double> times;
+  std::vector<SonarImage> images;
+  std::vector<Eigen::Isometry3d> poses;  // T_world_sonar (= T_world_vehicle: no mounting)
+  Survey() {
+    Scene scene;
+    scene.objects.push_back(sphere(0.3, {0, 0, 1.0}));
+    scene.objects.push_back(sphere(0.3, {0, 6, 1.0}));
+    const Simulator sim(scene, spec, sim_config());
+    const int n = 160;
+    for (int k = 0; k < n; ++k) {
+      const double y = -1.0 + 8.0 * k / (n - 1);
+      const double z = 1.0 + 0.5 * std::sin(k * 0.35);
+      times.push_back(0.1 * k);
+      poses.push_back(sonar_at(-2.5, y, z));
+      images.push_back(sim.render(poses.back(), 500 + k));
+      images.back().timestamp = times.back();
+    }
+  }
+  static const Survey& get() {
+    static const Survey s;
+    return s;
+  }
+};
+
+CarveConfig carve_config() {
+  CarveConfig c;
+  c.voxel_size = 0.02;
+  c.region = Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -1.0, 0.2), Eigen::Vector3d(0.6, 7.0, 1.8));
+  return c;
+}
+
+// Points and bounds, in order, bit for bit.
+void expect_same_cloud(const PointCloud& a, const PointCloud& b, const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  ASSERT_EQ(a.intensity.size(), b.intensity.size()) << what;
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    differ += a.points[i] != b.points[i] || a.intensity[i] != b.intensity[i];
+  EXPECT_EQ(differ, 0u) << what;
+}
+
+PointCloud batch_of(const Survey& s, const CarveConfig& cfg, std::size_t n) {
+  Carver carver(s.spec, cfg);
+  for (std::size_t k = 0; k < n; ++k) carver.integrate(s.images[k], s.poses[k]);
+  return carver.finalize();
+}
+
+}  // namespace
+
+// The same frames pushed online give, after every query, exactly the cloud a batch carving of
+// the frames pushed so far gives (same points, bounds and order), while the queries after the
+// first redo only part of the map.
+TEST(Online, SameCloudAsBatchAtEveryQuery) {
+  const Survey& s = Survey::get();
+  for (int min_obs : {1, 2}) {
+    CarveConfig cfg = carve_config();
+    cfg.min_observations = min_obs;
+    OnlineMapConfig oc;
+    oc.carve = cfg;
+    OnlineMapper map(s.spec, oc);
+    std::size_t partial = 0, redone = 0, cached = 0;
+    for (std::size_t k = 0; k < s.images.size(); ++k) {
+      ASSERT_EQ(map.push_frame(s.times[k], s.images[k], s.poses[k]), FrameDrop::None);
+      if (k % 20 != 19 && k + 1 != s.images.size()) continue;
+      const PointCloud online = map.cloud();
+      const OnlineMapStats st = map.stats();
+      if (!st.last_resolve.full) {
+        ++partial;
+        redone += st.last_resolve.blocks;
+        cached += st.last_resolve.cached;
+      }
+      expect_same_cloud(online, batch_of(s, cfg, k + 1),
+                        "min_observations " + std::to_string(min_obs) + ", after " +
+                            std::to_string(k + 1) + " frames");
+    }
+    EXPECT_EQ(map.stats().frames_used, s.images.size());
+    EXPECT_GT(map.stats().points, 500u);
+    // Incremental: some queries resolved only part of the blocks.
+    EXPECT_GT(partial, 2u) << "min_observations " << min_obs;
+    EXPECT_LT(redone, cached) << "min_observations " << min_obs;
+  }
+}
+
+// Navigation and images pushed separately (the pose interpolated as import does) give the cloud
+// of `reconstruct` on the dataset written from the same frames and navigation.
+TEST(Online, NavigationAndImagesMatchReconstructDataset) {
+  const Survey& s = Survey::get();
+  const fs::path dir = fs::temp_directory_path() / "sonar3d_test_online_ds";
+  fs::remove_all(dir);
+  SonarSpec spec = s.spec;
+  spec.T_vehicle_sonar = sonar_at(0.1, 0.0, -0.05);
+  {
+    DatasetWriter w(dir, spec, DatasetWriter::ImageFormat::Tiff);
+    for (const auto& im : s.images) w.add_frame(im);
+    // Navigation at twice the frame rate, offset by a quarter frame: every frame interpolates.
+    Trajectory nav;
+    for (std::size_t k = 0; k < s.poses.size(); ++k) {
+      const std::size_t next = std::min(k + 1, s.poses.size() - 1);
+      for (double a : {0.0, 0.5}) {
+        const Eigen::Vector3d p =
+            (1 - a) * s.poses[k].translation() + a * s.poses[next].translation();
+        nav.push_back(s.times[k] - 0.025 + a * 0.1,
+                      sonar_at(p.x(), p.y(), p.z(), 0.01 * std::sin(0.3 * k + a)) *
+                          spec.T_vehicle_sonar.inverse());
+      }
+    }
+    w.set_navigation(nav);
+    w.commit();
+  }
+  const Dataset ds = read_dataset(dir);
+  ReconstructOptions ro;
+  ro.carve = carve_config();
+  const ReconstructResult batch = reconstruct_dataset(ds, ro);
+
+  OnlineMapConfig oc;
+  oc.carve = carve_config();
+  OnlineMapper map(ds.spec, oc);
+  // As a live system sees it: each frame arrives a little before the navigation that brackets
+  // it (it waits in the queue), interleaved with the navigation samples.
+  std::size_t nav_i = 0;
+  for (std::size_t k = 0; k < ds.size(); ++k) {
+    const double t = ds.frames[k].timestamp;
+    while (nav_i < ds.navigation.size() && ds.navigation.times[nav_i] < t - 0.03) {
+      map.push_navigation(ds.navigation.times[nav_i], ds.navigation.poses[nav_i]);
+      ++nav_i;
+    }
+    map.push_image(t, ds.load_frame(k));
+  }
+  for (; nav_i < ds.navigation.size(); ++nav_i)
+    map.push_navigation(ds.navigation.times[nav_i], ds.navigation.poses[nav_i]);
+  const OnlineMapStats st = map.stats();
+  // Frames outside the navigation span would be dropped (never extrapolated); here the
+  // navigation brackets them all.
+  std::size_t placeable = 0;
+  for (std::size_t k = 0; k < ds.size(); ++k) {
+    const double t = ds.frames[k].timestamp;
+    placeable += t >= ds.navigation.times.front() && t <= ds.navigation.times.back();
+  }
+  EXPECT_EQ(st.frames_used, placeable);
+  EXPECT_EQ(st.dropped_no_pose + st.frames_pending, ds.size() - placeable);
+  // Batch on the frames the navigation brackets.
+  Carver carver(ds.spec, carve_config());
+  for (std::size_t k = 0; k < ds.size(); ++k) {
+    const double t = ds.frames[k].timestamp;
+    if (t < ds.navigation.times.front() || t > ds.navigation.times.back()) continue;
+    carver.integrate(ds.load_frame(k), ds.T_world_sonar(k));
+  }
+  expect_same_cloud(map.cloud(), carver.finalize(), "online vs batch on the dataset's frames");
+  EXPECT_EQ(placeable, ds.size());
+  expect_same_cloud(map.cloud(), batch.cloud, "online vs reconstruct_dataset");
+  const ElevationMap em = map.elevation();
+  EXPECT_GT(em.num_valid(), 0u);
+  fs::remove_all(dir);
+}
+
+// A query without new frames redoes nothing and returns the same cloud; queries between pushes
+// stay consistent with batch (checked above) and with each other.
+TEST(Online, QueriesBetweenPushesAreConsistent) {
+  const Survey& s = Survey::get();
+  OnlineMapConfig oc;
+  oc.carve = carve_config();
+  OnlineMapper map(s.spec, oc);
+  EXPECT_TRUE(map.cloud().empty());
+  EXPECT_TRUE(map.elevation().empty());
+  for (std::size_t k = 0; k < 40; ++k) map.push_frame(s.times[k], s.images[k], s.poses[k]);
+  const PointCloud a = map.cloud();
+  const PointCloud b = map.cloud();
+  expect_same_cloud(a, b, "two queries");
+  EXPECT_EQ(map.stats().last_resolve.blocks, 0u);
+  EXPECT_EQ(map.stats().last_resolve.frames, 0u);
+  map.push_frame(s.times[40], s.images[40], s.poses[40]);
+  const PointCloud c = map.cloud();
+  EXPECT_GT(map.stats().last_resolve.blocks, 0u);
+  expect_same_cloud(c, batch_of(s, oc.carve, 41), "after one more frame");
+  const OnlineMapStats st = map.stats();
+  EXPECT_EQ(st.points, c.size());
+  EXPECT_GT(st.active_voxels, 0u);
+  EXPECT_GT(st.map_bytes, 0u);
+  EXPECT_GT(st.push_ms_median, 0.0);
+  EXPECT_NE(st.to_json().find("\"frames_used\": 41"), std::string::npos);
+}
+
+// Late, out-of-order, NaN, wrong-size and unplaceable frames and bad navigation are counted and
+// skipped; nothing throws, and the map holds only the good frames.
+TEST(Online, BadInputIsCountedNotThrown) {
+  const Survey& s = Survey::get();
+  OnlineMapConfig oc;
+  oc.carve = carve_config();
+  oc.max_lateness_s = 0.5;
+  oc.max_pending_images = 3;
+  OnlineMapper map(s.spec, oc);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  // Wrong size, NaN pose, NaN time.
+  EXPECT_EQ(map.push_frame(0.0, SonarImage(10, 10), s.poses[0]), FrameDrop::WrongSize);
+  Eigen::Isometry3d bad = s.poses[0];
+  bad.translation().x() = nan;
+  EXPECT_EQ(map.push_frame(0.0, s.images[0], bad), FrameDrop::BadPose);
+  Eigen::Isometry3d skew = s.poses[0];
+  skew.linear() *= 2.0;
+  EXPECT_EQ(map.push_frame(0.0, s.images[0], skew), FrameDrop::BadPose);
+  EXPECT_EQ(map.push_frame(nan, s.images[0], s.poses[0]), FrameDrop::BadTime);
+  // Good frames, one out of order (carved: the min-filter does not care), one late (dropped).
+  EXPECT_EQ(map.push_frame(s.times[5], s.images[5], s.poses[5]), FrameDrop::None);
+  EXPECT_EQ(map.push_frame(s.times[6], s.images[6], s.poses[6]), FrameDrop::None);
+  EXPECT_EQ(map.push_frame(s.times[4], s.images[4], s.poses[4]), FrameDrop::None);  // 0.2 s old
+  EXPECT_EQ(map.push_frame(s.times[0], s.images[0], s.poses[0]), FrameDrop::Late);  // 0.6 s old
+  // Images with navigation: before it (never extrapolated), after it (queued), queue overflow.
+  map.push_navigation(1.0, s.poses[10]);
+  map.push_navigation(1.2, s.poses[12]);
+  EXPECT_FALSE(map.push_navigation(1.1, s.poses[11]));  // out of order
+  EXPECT_FALSE(map.push_navigation(nan, s.poses[11]));
+  EXPECT_FALSE(map.push_navigation(1.3, bad));
+  EXPECT_EQ(map.push_image(0.95, s.images[9]), FrameDrop::NoPose);
+  EXPECT_EQ(map.push_image(1.1, s.images[11]), FrameDrop::None);  // carved now
+  EXPECT_EQ(map.push_image(1.1, SonarImage(3, 4)), FrameDrop::WrongSize);
+  for (int k = 13; k <= 16; ++k) EXPECT_EQ(map.push_image(0.1 * k, s.images[k]), FrameDrop::None);
+  OnlineMapStats st = map.stats();
+  EXPECT_EQ(st.frames_pending, 3u);
+  EXPECT_EQ(st.dropped_queue_full, 1u);   // 1.3 was pushed out
+  map.push_navigation(1.6, s.poses[16]);  // brackets 1.4, 1.5, 1.6
+  st = map.stats();
+  EXPECT_EQ(st.frames_pending, 0u);
+  EXPECT_EQ(st.frames_received, 4u + 4u + 3u + 4u);
+  EXPECT_EQ(st.dropped_wrong_size, 2u);
+  EXPECT_EQ(st.dropped_bad_pose, 2u);
+  EXPECT_EQ(st.dropped_bad_time, 1u);
+  EXPECT_EQ(st.dropped_late, 1u);
+  EXPECT_EQ(st.dropped_no_pose, 1u);
+  EXPECT_EQ(st.out_of_order, 1u);
+  EXPECT_EQ(st.frames_used, 3u + 1u + 3u);
+  EXPECT_EQ(st.navigation_received, 6u);
+  EXPECT_EQ(st.navigation_rejected, 3u);
+  EXPECT_EQ(st.dropped(), 2u + 2u + 1u + 1u + 1u + 1u);
+  EXPECT_NO_THROW(map.cloud());
+  // A memory limit: once the map is above it, frames are dropped and counted.
+  OnlineMapConfig capped_cfg = oc;
+  {
+    OnlineMapper probe(s.spec, oc);
+    for (std::size_t k = 0; k < 5; ++k) probe.push_frame(s.times[k], s.images[k], s.poses[k]);
+    capped_cfg.max_memory_bytes = static_cast<double>(probe.carver().memory_bytes());
+  }
+  OnlineMapper capped(s.spec, capped_cfg);
+  for (std::size_t k = 0; k < 20; ++k) capped.push_frame(s.times[k], s.images[k], s.poses[k]);
+  EXPECT_GE(capped.stats().frames_used, 5u);
+  EXPECT_GE(capped.stats().dropped_memory, 10u);
+  EXPECT_EQ(capped.stats().frames_used + capped.stats().dropped_memory, 20u);
+  // Config errors do throw, naming the field.
+  OnlineMapConfig small = oc;
+  small.window_m = 1.0;  // below r_max
+  EXPECT_THROW(OnlineMapper(s.spec, small), Error);
+  small.window_m = -1;
+  EXPECT_THROW(OnlineMapper(s.spec, small), Error);
+}
+
+// A long stream over a flat seabed with a rolling window: the map in memory stays bounded while
+// finished blocks go to disk, and what is written plus what is left is the surveyed seabed.
+TEST(Online, RollingWindowBoundsMemory) {
+  SonarSpec spec = small_spec();
+  // A seabed strip 2 m below the sonar, 200 m long.
+  Scene scene;
+  SceneObject bed;
+  bed.name = "seabed";
+  bed.mesh_world.vertices = {{-5, -10, 0}, {205, -10, 0}, {205, 10, 0}, {-5, 10, 0}};
+  bed.mesh_world.triangles = {{0, 1, 2}, {0, 2, 3}};
+  bed.reflectivity = 0.5;
+  scene.objects.push_back(bed);
+  SimulatorConfig sc = sim_config();
+  sc.elevation_step_rad = 0.1 * kDeg;
+  const Simulator sim(scene, spec, sc);
+  OnlineMapConfig oc;
+  oc.carve.voxel_size = 0.05;
+  oc.carve.min_observations = 1;
+  oc.window_m = 5.0;
+  oc.output_dir = (fs::temp_directory_path() / "sonar3d_test_online_blocks").string();
+  fs::remove_all(oc.output_dir);
+  OnlineMapper map(spec, oc);
+  Carver batch(spec, oc.carve);  // the whole stream at once, for comparison
+  // Looking down 40° along +x; 0.1 m per frame over 150 m: 1500 frames.
+  const Eigen::Matrix3d down = Eigen::AngleAxisd(40 * kDeg, Eigen::Vector3d::UnitY()).matrix();
+  std::size_t max_leaves_first = 0, max_leaves_last = 0, max_frames = 0;
+  const int n = 1500;
+  for (int k = 0; k < n; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = down;
+    T.translation() = Eigen::Vector3d(0.1 * k, 0.3 * std::sin(0.05 * k), 2.0);
+    const SonarImage image = sim.render(T, k);
+    ASSERT_EQ(map.push_frame(0.1 * k, image, T), FrameDrop::None);
+    batch.integrate(image, T);
+    if (k % 50 == 49) {
+      const OnlineMapStats st = map.stats();
+      (k < n / 3 ? max_leaves_first : max_leaves_last) =
+          std::max(k < n / 3 ? max_leaves_first : max_leaves_last, st.leaves);
+      max_frames = std::max(max_frames, st.frames_kept);
+      if (k % 250 == 249) map.cloud();  // queries in between
+    }
+  }
+  const OnlineMapStats st = map.stats();
+  std::printf(
+      "rolling window: %zu moves, %zu blocks written, %zu points finished, leaves %zu "
+      "(first third max %zu, last max %zu), frames kept %zu (max %zu), evicted %zu\n",
+      st.window_moves, st.blocks_written, st.points_finished, st.leaves, max_leaves_first,
+      max_leaves_last, st.frames_kept, max_frames, st.frames_evicted);
+  EXPECT_GT(st.blocks_written, 10u);
+  EXPECT_GT(st.points_finished, 1000u);
+  // Bounded: the map of the last two thirds is no larger than a window's worth (measured in the
+  // first third, once the window filled) — it does not grow with the 150 m travelled.
+  EXPECT_GT(max_leaves_first, 0u);
+  EXPECT_LE(max_leaves_last, max_leaves_first * 5 / 4);
+  // A window of ±5 m at 0.1 m per frame keeps at most ~ (2·5 + r_max + step) / 0.1 frames.
+  EXPECT_LT(max_frames, 200u);
+  EXPECT_GT(st.frames_evicted, 1000u);
+  std::size_t files = 0, written = 0;
+  for (const auto& e : fs::directory_iterator(oc.output_dir)) {
+    ++files;
+    written += read_ply(e.path().string()).size();
+  }
+  EXPECT_EQ(files, st.blocks_written);
+  EXPECT_EQ(written, st.points_finished);
+  // The finished seabed lies on z = 0 (within a voxel and the elevation arc's carving).
+  const PointCloud first = read_ply((fs::path(oc.output_dir) / "block_000000.ply").string());
+  std::size_t near_bed = 0;
+  for (const auto& p : first.points) near_bed += std::abs(p.z()) < 0.15;
+  EXPECT_GT(near_bed, first.size() * 8 / 10);
+  const PointCloud rest = map.flush();
+  // Written blocks + the rest against batch: the track never comes back, so the same points
+  // (docs/online.md).
+  std::set<std::tuple<float, float, float>> online_set, batch_set;
+  for (const auto& e : fs::directory_iterator(oc.output_dir))
+    for (const auto& p : read_ply(e.path().string()).points)
+      online_set.emplace(p.x(), p.y(), p.z());
+  for (const auto& p : rest.points) online_set.emplace(p.x(), p.y(), p.z());
+  for (const auto& p : batch.finalize().points) batch_set.emplace(p.x(), p.y(), p.z());
+  std::size_t common = 0;
+  for (const auto& q : online_set) common += batch_set.count(q);
+  std::printf("rolling window vs batch: %zu online points, %zu batch, %zu in common\n",
+              online_set.size(), batch_set.size(), common);
+  EXPECT_EQ(common, batch_set.size());
+  EXPECT_EQ(common, online_set.size());
+  EXPECT_EQ(map.stats().frames_kept, 0u);
+  const ElevationMap em = map.elevation();  // the finished cells
+  EXPECT_GT(em.num_valid(), 1000u);
+  EXPECT_GT(em.cols, 140 / 0.02 / 2);
+  fs::remove_all(oc.output_dir);
+}
