@@ -18,10 +18,10 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
+#include "sonar3d/io/gltf.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
 #include "sonar3d/video/texture_files.hpp"
-#include "sonar3d/io/gltf.hpp"
 #include "sonar3d/world/world_model.hpp"
 #include "test_support.hpp"
 

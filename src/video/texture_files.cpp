@@ -42,8 +42,8 @@ void check_output(const TextureFilesJob& job) {
   require(!job.output.empty(), "texture: no output file given");
   OutputPolicy policy;
   policy.overwrite = job.overwrite;
-  policy.sources = {job.cloud,       job.colmap_dir,      job.neus_file,
-                    job.images_dir,  job.dataset_dir,     job.navigation_file};
+  policy.sources = {job.cloud,      job.colmap_dir,  job.neus_file,
+                    job.images_dir, job.dataset_dir, job.navigation_file};
   policy.sources.insert(policy.sources.end(), job.occluders.begin(), job.occluders.end());
   const OutputKind kind = is_glb_path(job.output) ? OutputKind::Gltf
                           : job.is_mesh           ? OutputKind::Mesh

@@ -13,11 +13,11 @@ namespace sonar3d {
 
 struct SimulatorConfig {
   double elevation_step_rad = 0.01 * M_PI / 180.0;  // θ_res: ray spacing across the aperture
-  int rays_per_beam = 1;       // bearing sub-rays per beam (φ_res = beam width / rays_per_beam)
-  bool jitter = true;          // eq. 2.14–2.15; false = regular grid (shows aliasing, Fig. 2.20)
-  double gain = 2.0;           // linear intensity scale applied before quantisation
-  int num_threads = 0;         // 0 = all cores (TBB)
-  void validate() const;       // throws Error naming the field
+  int rays_per_beam = 1;  // bearing sub-rays per beam (φ_res = beam width / rays_per_beam)
+  bool jitter = true;     // eq. 2.14–2.15; false = regular grid (shows aliasing, Fig. 2.20)
+  double gain = 2.0;      // linear intensity scale applied before quantisation
+  int num_threads = 0;    // 0 = all cores (TBB)
+  void validate() const;  // throws Error naming the field
 };
 
 // Builds the Embree scene once; render() is then called per pose, possibly from several threads
