@@ -2,6 +2,7 @@
 // incremental occlusion resolution redoes only what changed, a rolling window bounds memory, and
 // bad input is counted, never thrown.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -156,7 +157,8 @@ TEST(Online, SameCloudAsBatchAtEveryQuery) {
 // of `reconstruct` on the dataset written from the same frames and navigation.
 TEST(Online, NavigationAndImagesMatchReconstructDataset) {
   const Survey& s = Survey::get();
-  const fs::path dir = fs::temp_directory_path() / "sonar3d_test_online_ds";
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_ds_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   SonarSpec spec = s.spec;
   spec.T_vehicle_sonar = sonar_at(0.1, 0.0, -0.05);
@@ -342,7 +344,9 @@ TEST(Online, RollingWindowBoundsMemory) {
   oc.carve.voxel_size = 0.05;
   oc.carve.min_observations = 1;
   oc.window_m = 5.0;
-  oc.output_dir = (fs::temp_directory_path() / "sonar3d_test_online_blocks").string();
+  oc.output_dir =
+      (fs::temp_directory_path() / ("sonar3d_test_online_blocks_" + std::to_string(::getpid())))
+          .string();
   fs::remove_all(oc.output_dir);
   OnlineMapper map(spec, oc);
   Carver batch(spec, oc.carve);  // the whole stream at once, for comparison
