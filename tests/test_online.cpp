@@ -182,7 +182,7 @@ TEST(Online, NavigationAndImagesMatchReconstructDataset) {
   }
   const Dataset ds = read_dataset(dir);
   ReconstructOptions ro;
-  ro.carve = carve_config();
+  ro = ReconstructConfig::from_carve(carve_config());
   const ReconstructResult batch = reconstruct_dataset(ds, ro);
 
   OnlineMapConfig oc;

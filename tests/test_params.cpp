@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/recog/recognize.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
 #include "test_support.hpp"
 
 using namespace sonar3d;
@@ -59,6 +61,15 @@ std::string reference() {
       "`sonar3d recognize --print-config` prints these under `recognize:`; Python: "
       "`sonar3d.RecognizeConfig` (groups as attributes: `cfg.two_d.verification.min_confidence`).",
       params::rows(RecognizeConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "reconstruct",
+      "`sonar3d reconstruct --print-config` prints these under `reconstruct:`; Python: "
+      "`sonar3d.ReconstructConfig` (`cfg.deconv.mode = \"voxel\"`) and "
+      "`sonar3d.reconstruct(dataset, config=cfg)`. The settings every method shares (voxel size, "
+      "region, denoising, observation filter, occlusion resolution, threads) are declared once "
+      "at the top; `carve`, `deconv` and `bracket` hold what only that step has.",
+      params::rows(ReconstructConfig()));
   return out;
 }
 
@@ -139,6 +150,64 @@ TEST(Params, CliPrintConfigRunsBackByteForByte) {
   EXPECT_NE(d.err.find("bad.yaml:2"), std::string::npos) << d.err;
   EXPECT_NE(d.err.find("unknown key"), std::string::npos) << d.err;
   fs::remove_all(dir);
+}
+
+TEST(Params, ReconstructPrintConfigRunsBackByteForByte) {
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(dir,
+                                  "reconstruct --print-config --method deconv --deconv-mode voxel "
+                                  "--voxel-size 0.02 --roi -1 -2 -3 1 2 3 --no-dering --beam flat "
+                                  "--explain-returns --min-bracket 0.25 --threads 1");
+  ASSERT_EQ(a.code, 0) << a.err;
+  for (const char* want :
+       {"method: \"deconv\"", "voxel_size: 0.02", "region: [-1, -2, -3, 1, 2, 3]", "mode: voxel",
+        "dering: false", "beam: flat", "explain_returns: true", "min_bracket: 0.25"}) {
+    EXPECT_NE(a.out.find(want), std::string::npos) << want << "\n" << a.out;
+  }
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "reconstruct --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);
+  // The library reads the same file into the same configuration.
+  ReconstructConfig lib;
+  params::read_yaml(YAML::LoadFile((dir / "cfg.yaml").string())["reconstruct"], "cfg.yaml",
+                    "reconstruct", lib);
+  EXPECT_EQ(lib.method, "deconv");
+  EXPECT_EQ(lib.deconv.mode, DeconvConfig::Mode::Voxel);
+  EXPECT_EQ(lib.effective_deconv().voxel.voxel_size, 0.02);  // the one voxel size
+  EXPECT_FALSE(lib.deconv.dering);
+  ASSERT_TRUE(lib.region.has_value());
+  EXPECT_EQ(lib.region->max().z(), 3.0);
+  // A choice outside the declared ones: one line naming the file, line and the choices.
+  std::ofstream(dir / "bad.yaml") << "reconstruct:\n  deconv:\n    mode: orbit\n";
+  const auto c =
+      run_cli_captured(dir, "reconstruct --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(c.code, 0);
+  EXPECT_NE(c.err.find("bad.yaml:3"), std::string::npos) << c.err;
+  EXPECT_NE(c.err.find("passes, voxel or auto"), std::string::npos) << c.err;
+  // A shared setting is not a method's: deconv.voxel.voxel_size is no key.
+  std::ofstream(dir / "dup.yaml")
+      << "reconstruct:\n  deconv:\n    voxel:\n      voxel_size: 0.05\n";
+  const auto d =
+      run_cli_captured(dir, "reconstruct --print-config --config " + (dir / "dup.yaml").string());
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("unknown key"), std::string::npos) << d.err;
+  // Out-of-bounds flags name the flag.
+  const auto e = run_cli_captured(dir, "reconstruct --print-config --voxel-size 0");
+  EXPECT_NE(e.code, 0);
+  fs::remove_all(dir);
+}
+
+TEST(Params, ReconstructSettingsAsJson) {
+  ReconstructConfig c;
+  c.region = Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 2, 3));
+  c.deconv.kernel = DeconvConfig::Kernel::NormalOcclusion;
+  const std::string j = params::to_json(c);
+  EXPECT_NE(j.find("\"region\": [0, 0, 0, 1, 2, 3]"), std::string::npos) << j;
+  EXPECT_NE(j.find("\"kernel\": \"normal+occlusion\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"carve\": {\"occlusion\": {"), std::string::npos) << j;
+  EXPECT_EQ(std::count(j.begin(), j.end(), '{'), std::count(j.begin(), j.end(), '}'));
 }
 
 TEST(Params, ReferenceIsCurrent) {

@@ -119,7 +119,7 @@ trajectory: {period: 0.1, type: straight, start: [-2, 0, -0.7], end: [-2, 0, 0.7
     Recorder rec;
     ReconstructOptions o;
     o.method = method;
-    o.carve.voxel_size = 0.02;
+    o.voxel_size = 0.02;
     o.region = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1));
     ReconstructResult r;
     {

@@ -37,7 +37,7 @@ PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, std
     const Dataset ds = read_dataset(map);
     ReconstructOptions o;
     o.progress = progress;
-    o.carve.voxel_size = voxel_size;
+    o.voxel_size = voxel_size;
     return reconstruct_dataset(ds, o).cloud;
   }
   throw Error("'" + map.string() +

@@ -27,6 +27,19 @@
 
 namespace sonar3d::cli {
 
+// Each field's dotted path -> its flag.
+struct FlagCollector : params::PathVisitor<FlagCollector> {
+  std::vector<std::pair<std::string, std::string>> names;
+  template <class T>
+  void field(T&, const params::Param& p) {
+    if (!p.cli) return;
+    const std::string path = params::join(prefix, p.key);
+    // The bounds check says "path (flag) must ..."; the user reads "flag must ...".
+    names.emplace_back(path + " (" + p.cli + ")", p.cli);
+    names.emplace_back(path, p.cli);
+  }
+};
+
 template <class C>
 class ConfigOptions {
  public:
@@ -64,6 +77,15 @@ class ConfigOptions {
     return c;
   }
 
+  // Each field's dotted path -> its flag, for with_flag_names(): errors of the library name the
+  // user's flag, not the field.
+  std::vector<std::pair<std::string, std::string>> flag_names() const {
+    FlagCollector v;
+    C copy = root_;
+    describe(copy, v);
+    return v.names;
+  }
+
   // `config` as YAML under `key` (as --config reads it).
   static std::string yaml(const C& config, const std::string& key, const std::string& title) {
     YAML::Emitter out;
@@ -86,13 +108,44 @@ class ConfigOptions {
     std::vector<Applier>* appliers;
     template <class T>
     void field(T& value, const params::Param& p) {
-      if (p.cli == nullptr) return;
+      // A flag sets the first field declared with it: a nested config that declares the same
+      // flag as its parent (the deconvolution's own occlusion settings, say) keeps its field
+      // for YAML and Python only.
+      if (p.cli == nullptr || cmd->get_option_no_throw(p.cli) != nullptr) return;
       const std::ptrdiff_t offset = reinterpret_cast<const char*>(&value) - base;
       std::string help = p.help;
       if (*p.unit) help += ", " + std::string(p.unit);
+      if (p.n_names > 0) help += "; " + params::choices_text(p);
       if (p.bounded()) help += "; " + params::bounds_text(p);
       if (p.eq) help += " (" + std::string(p.eq) + ")";
-      if constexpr (std::is_same_v<T, bool>) {
+      if constexpr (std::is_enum_v<T>) {
+        // An enum: its name (the declared choices) on the command line.
+        auto holder = std::make_shared<std::string>(params::field_text(value, p));
+        CLI::Option* opt = cmd->add_option(p.cli, *holder, help);
+        opt->default_str(*holder);
+        opt->check(CLI::IsMember(std::vector<std::string>(p.names, p.names + p.n_names)));
+        const params::Param spec = p;
+        appliers->push_back([holder, opt, offset, spec](char* c) {
+          if (opt->count() > 0) {
+            *reinterpret_cast<T*>(c + offset) =
+                params::parse_choice<T>(spec, *holder, std::string(spec.cli));
+          }
+        });
+      } else if constexpr (std::is_same_v<T, params::Box>) {
+        // A box: six numbers, xmin ymin zmin xmax ymax zmax.
+        auto holder = std::make_shared<std::vector<double>>();
+        CLI::Option* opt =
+            cmd->add_option(p.cli, *holder, help + "; xmin ymin zmin xmax ymax zmax");
+        opt->expected(6);
+        opt->default_str(params::field_text(value, p));
+        appliers->push_back([holder, opt, offset](char* c) {
+          if (opt->count() > 0) {
+            const auto& v = *holder;
+            *reinterpret_cast<T*>(c + offset) = Eigen::AlignedBox3d(
+                Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
+          }
+        });
+      } else if constexpr (std::is_same_v<T, bool>) {
         // A switch: its flag turns the default around ("--no-icp" sets run_icp false).
         auto given = std::make_shared<bool>(false);
         const bool to = !value;
@@ -106,6 +159,11 @@ class ConfigOptions {
         auto holder = std::make_shared<T>(value);
         CLI::Option* opt = cmd->add_option(p.cli, *holder, help);
         opt->default_str(params::format_value(value));
+        if constexpr (std::is_same_v<T, std::string>) {
+          if (p.n_names > 0) {
+            opt->check(CLI::IsMember(std::vector<std::string>(p.names, p.names + p.n_names)));
+          }
+        }
         appliers->push_back([holder, opt, offset](char* c) {
           if (opt->count() > 0) *reinterpret_cast<T*>(c + offset) = *holder;
         });

@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
@@ -55,38 +56,38 @@ struct Reconstruction {
   std::string notes;
 };
 
-Reconstruction run_reconstruct(const Dataset& dataset, ReconstructOptions options,
+Reconstruction run_reconstruct(const Dataset& dataset, ReconstructConfig options,
                                const py::object& progress) {
   ProgressArg p(progress);
   options.progress = p.terminal();
   return Reconstruction(p.run([&] { return reconstruct_dataset(dataset, options); }));
 }
 
-// A world-frame box as Python sees it: (min xyz, max xyz) or None.
-py::object region_to_py(const std::optional<Eigen::AlignedBox3d>& r) {
-  if (!r) return py::none();
-  return py::make_tuple(Eigen::Vector3d(r->min()), Eigen::Vector3d(r->max()));
-}
-std::optional<Eigen::AlignedBox3d> region_from_py(const py::object& r) {
-  if (r.is_none()) return std::nullopt;
-  const auto t = r.cast<py::sequence>();
-  if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
-  return Eigen::AlignedBox3d(t[0].cast<Eigen::Vector3d>(), t[1].cast<Eigen::Vector3d>());
-}
-
 }  // namespace
 
 void bind_recon(py::module_& m) {
-  py::class_<DenoiseConfig>(m, "DenoiseConfig",
-                            "Denoising (sec. 4.4.7): z_test (eq. 4.8, with noise statistics), "
-                            "z_threshold T, subtract_mean, static_threshold.")
-      .def(py::init(&from_kwargs<DenoiseConfig>))
-      .def_readwrite("z_test", &DenoiseConfig::z_test)
-      .def_readwrite("z_threshold", &DenoiseConfig::z_threshold)
-      .def_readwrite("subtract_mean", &DenoiseConfig::subtract_mean)
-      .def_readwrite("static_threshold", &DenoiseConfig::static_threshold)
-      .def("__repr__", &fields_repr)
+  // The configs, from their one declaration each (core/params.hpp; docs/reference.md). A *Part
+  // class is a view of the part of a config that a larger one leaves to it (ReconstructConfig
+  // declares the voxel size, region, denoising, observation filter, occlusion switch and threads
+  // once for every method).
+  bind_config<DenoiseConfig>(m, "DenoiseConfig",
+                             "Denoising (sec. 4.4.7): z_test (eq. 4.8, with noise statistics), "
+                             "z_threshold T, subtract_mean, static_threshold.")
       .def("validate", &DenoiseConfig::validate);
+  bind_config<OcclusionConfig>(m, "OcclusionConfig", "Occlusion resolution (sec. 4.4.5).")
+      .def("validate", &OcclusionConfig::validate);
+  bind_config<params::Nested<OcclusionConfig>>(
+      m, "OcclusionPart",
+      "Carving's occlusion resolution (its voxel size and threads: carving's).");
+  bind_config<params::Nested<CarveConfig>>(
+      m, "CarvePart", "The settings of a ReconstructConfig that only carving has (a view).");
+  bind_config<params::Nested<BracketConfig>>(
+      m, "BracketPart", "The bracketing settings of a ReconstructConfig (a view).");
+  bind_config<params::Nested<VoxelDeconvConfig>>(
+      m, "VoxelDeconvPart", "The voxel mode's settings in a ReconstructConfig (a view).");
+  bind_config<NnlsOptions>(m, "NnlsConfig", "The NNLS solver (eq. 5.28).");
+  bind_config<params::Nested<DeconvConfig>>(
+      m, "DeconvPart", "The settings of a ReconstructConfig that only deconvolution has (a view).");
 
   m.def(
       "denoise",
@@ -130,49 +131,20 @@ void bind_recon(py::module_& m) {
                ", notes=" + py::repr(py::str(r.notes)).cast<std::string>() + ")";
       });
 
-  py::class_<CarveConfig>(
+  bind_config<CarveConfig>(
       m, "CarveConfig",
       "Space carving (ch. 4): voxel_size (m), region ((min xyz, max xyz) or None), denoise "
-      "(DenoiseConfig), resolve_occlusions, static_threshold, carve_margin, explain_returns, "
-      "explain_pin_fraction, min_elevation_span, min_observations, num_threads (0 = all cores).")
-      .def(py::init(&from_kwargs<CarveConfig>))
-      .def_readwrite("voxel_size", &CarveConfig::voxel_size)
-      .def_property(
-          "region", [](const CarveConfig& c) { return region_to_py(c.region); },
-          [](CarveConfig& c, const py::object& r) { c.region = region_from_py(r); })
-      .def_readwrite("denoise", &CarveConfig::denoise)
-      .def_readwrite("resolve_occlusions", &CarveConfig::resolve_occlusions)
-      .def_readwrite("static_threshold", &CarveConfig::static_threshold)
-      .def_readwrite("carve_margin", &CarveConfig::carve_margin)
-      .def_readwrite("pose_sigma_position", &CarveConfig::pose_sigma_position)
-      .def_readwrite("pose_sigma_attitude_deg", &CarveConfig::pose_sigma_attitude_deg)
-      .def_readwrite("pose_sigma_k", &CarveConfig::pose_sigma_k)
-      .def_property(
-          "explain_returns", [](const CarveConfig& c) { return c.occlusion.explain_returns; },
-          [](CarveConfig& c, bool v) { c.occlusion.explain_returns = v; })
-      .def_property(
-          "explain_pin_fraction",
-          [](const CarveConfig& c) { return c.occlusion.explain_pin_fraction; },
-          [](CarveConfig& c, double v) { c.occlusion.explain_pin_fraction = v; })
-      .def_readwrite("min_elevation_span", &CarveConfig::min_elevation_span)
-      .def_readwrite("min_observations", &CarveConfig::min_observations)
-      .def_readwrite("num_threads", &CarveConfig::num_threads)
-      .def("__repr__", &fields_repr)
+      "(DenoiseConfig), resolve_occlusions, occlusion (explain_returns, explain_pin_fraction, "
+      "...), static_threshold, carve_margin, pose sigmas, min_elevation_span, min_observations, "
+      "num_threads (0 = all cores).")
       .def("validate", &CarveConfig::validate);
 
-  py::class_<BracketConfig>(m, "BracketConfig",
-                            "Elevation bracketing of every method's output (recon/bracketing.hpp): "
-                            "min_bracket (drop points bracketed less, 0 = keep all), "
-                            "bracketed_level, end_view_fraction, end_tolerance, region_samples, "
-                            "num_threads.")
-      .def(py::init(&from_kwargs<BracketConfig>))
-      .def_readwrite("min_bracket", &BracketConfig::min_bracket)
-      .def_readwrite("bracketed_level", &BracketConfig::bracketed_level)
-      .def_readwrite("end_view_fraction", &BracketConfig::end_view_fraction)
-      .def_readwrite("end_tolerance", &BracketConfig::end_tolerance)
-      .def_readwrite("region_samples", &BracketConfig::region_samples)
-      .def_readwrite("num_threads", &BracketConfig::num_threads)
-      .def("__repr__", &fields_repr)
+  bind_config<BracketConfig>(
+      m, "BracketConfig",
+      "Elevation bracketing of every method's output (recon/bracketing.hpp): "
+      "min_bracket (drop points bracketed less, 0 = keep all), "
+      "bracketed_level, end_view_fraction, end_tolerance, region_samples, "
+      "num_threads.")
       .def("validate", &BracketConfig::validate);
 
   py::class_<Carver>(m, "Carver",
@@ -231,88 +203,39 @@ void bind_recon(py::module_& m) {
   m.def(
       "carve",
       [](const Dataset& dataset, const CarveConfig& config, const py::object& progress) {
-        ReconstructOptions o;
-        o.method = "carve";
-        o.carve = config;
-        return run_reconstruct(dataset, o, progress);
+        return run_reconstruct(dataset, ReconstructConfig::from_carve(config), progress);
       },
       "dataset"_a, "config"_a = CarveConfig(), "progress"_a = py::none(),
       "Space-carves every frame of a dataset (with its noise statistics) and resolves occlusions. "
       "Returns a Reconstruction: points (N, 3) world frame, intensity = reflectivity bounds (N,), "
       "report = the carving statistics. progress: True (terminal bars) or progress(done, total).");
 
-  py::class_<VoxelDeconvConfig>(
+  bind_config<VoxelDeconvConfig>(
       m, "VoxelDeconvConfig",
-      "Voxel-mode deconvolution (any trajectory): voxel_size, "
-      "max_iterations, tolerance, min_relative, min_relative_bracketed and bracketed (faint voxels "
-      "kept when bracketed in elevation), min_observations, occlusion_aware, "
-      "support_min_bracket (leave never-bracketed candidates out, 0 = keep), support_refute")
-      .def(py::init(&from_kwargs<VoxelDeconvConfig>))
-      .def_readwrite("voxel_size", &VoxelDeconvConfig::voxel_size)
-      .def_readwrite("max_iterations", &VoxelDeconvConfig::max_iterations)
-      .def_readwrite("tolerance", &VoxelDeconvConfig::tolerance)
-      .def_readwrite("min_relative", &VoxelDeconvConfig::min_relative)
-      .def_readwrite("min_relative_bracketed", &VoxelDeconvConfig::min_relative_bracketed)
-      .def_readwrite("bracketed", &VoxelDeconvConfig::bracketed)
-      .def_readwrite("min_observations", &VoxelDeconvConfig::min_observations)
-      .def_readwrite("occlusion_aware", &VoxelDeconvConfig::occlusion_aware)
-      .def_readwrite("support_min_bracket", &VoxelDeconvConfig::support_min_bracket)
-      .def_readwrite("support_refute", &VoxelDeconvConfig::support_refute)
-      .def("__repr__", &fields_repr)
+      "Voxel-mode deconvolution (any trajectory): voxel_size, min_observations, max_iterations, "
+      "tolerance, min_relative, min_relative_bracketed and bracketed, occlusion_aware, "
+      "support_min_bracket, support_refute.")
       .def("validate", &VoxelDeconvConfig::validate);
-
-  py::class_<DeconvConfig>(m, "DeconvConfig",
-                           "Deconvolution (ch. 5): mode ('auto', the default: passes "
-                           "when the frames form regular passes, else voxel; 'passes'; 'voxel': "
-                           "any trajectory), voxel (VoxelDeconvConfig), beam ('sinc', 'flat', 'sensor'), "
-                           "lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, dering, "
-                           "resolve_occlusions, kernel ('plain', 'normal', 'occlusion', "
-                           "'normal+occlusion'), max_range, num_threads ...")
-      .def(py::init(&from_kwargs<DeconvConfig>))
-      .def_property(
-          "beam",
-          [](const DeconvConfig& c) { return std::string(DeconvConfig::beam_name(c.beam)); },
-          [](DeconvConfig& c, const std::string& s) { c.beam = DeconvConfig::parse_beam(s); })
-      .def_property(
-          "mode",
-          [](const DeconvConfig& c) { return std::string(DeconvConfig::mode_name(c.mode)); },
-          [](DeconvConfig& c, const std::string& s) { c.mode = DeconvConfig::parse_mode(s); })
-      .def_readwrite("voxel", &DeconvConfig::voxel)
-      .def_property(
-          "kernel",
-          [](const DeconvConfig& c) { return std::string(DeconvConfig::kernel_name(c.kernel)); },
-          [](DeconvConfig& c, const std::string& s) { c.kernel = DeconvConfig::parse_kernel(s); })
-      .def_readwrite("lambda_fraction", &DeconvConfig::lambda_fraction)
-      .def_readwrite("exact", &DeconvConfig::exact)
-      .def_readwrite("exact_lambertian", &DeconvConfig::exact_lambertian)
-      .def_readwrite("exact_block_tolerance", &DeconvConfig::exact_block_tolerance)
-      .def_readwrite("exact_range_subsamples", &DeconvConfig::exact_range_subsamples)
-      .def_readwrite("max_axis_angle_deg", &DeconvConfig::max_axis_angle_deg)
-      .def_readwrite("max_rotation_deg", &DeconvConfig::max_rotation_deg)
-      .def_readwrite("max_lateral_deviation", &DeconvConfig::max_lateral_deviation)
-      .def_readwrite("max_spacing_deviation", &DeconvConfig::max_spacing_deviation)
-      .def_readwrite("layer_spacing", &DeconvConfig::layer_spacing)
-      .def_readwrite("use_measured_heights", &DeconvConfig::use_measured_heights)
-      .def_readwrite("split_passes", &DeconvConfig::split_passes)
-      .def_readwrite("min_pass_frames", &DeconvConfig::min_pass_frames)
-      .def_readwrite("max_range", &DeconvConfig::max_range)
-      .def_readwrite("denoise", &DeconvConfig::denoise)
-      .def_readwrite("dering", &DeconvConfig::dering)
-      .def_readwrite("resolve_occlusions", &DeconvConfig::resolve_occlusions)
-      .def_readwrite("subsamples", &DeconvConfig::subsamples)
-      .def_readwrite("min_intensity", &DeconvConfig::min_intensity)
-      .def_readwrite("min_relative_intensity", &DeconvConfig::min_relative_intensity)
-      .def_readwrite("num_threads", &DeconvConfig::num_threads)
-      .def("__repr__", &fields_repr)
+  bind_config<DeconvConfig>(
+      m, "DeconvConfig",
+      "Deconvolution (ch. 5): mode ('auto', the default: passes when the frames form regular "
+      "passes, else voxel; 'passes'; 'voxel': any trajectory), voxel (VoxelDeconvConfig), beam "
+      "('sinc', 'flat', 'sensor'), lambda_fraction (eq. 5.28), exact, pass tolerances, denoise, "
+      "dering, resolve_occlusions, occlusion, kernel ('plain', 'normal', 'occlusion', "
+      "'normal+occlusion'), nnls, num_threads ...")
       .def("validate", &DeconvConfig::validate);
+  bind_config<ReconstructConfig>(
+      m, "ReconstructConfig",
+      "A dataset's reconstruction, whatever the method (sonar3d reconstruct's settings, "
+      "docs/reference.md): method, and once for every method voxel_size, region, denoise, "
+      "min_observations, resolve_occlusions, num_threads; then carve, deconv and bracket, the "
+      "settings only that step has.")
+      .def("validate", &ReconstructConfig::validate);
 
   m.def(
       "deconvolve",
       [](const Dataset& dataset, const DeconvConfig& config, const py::object& progress) {
-        ReconstructOptions o;
-        o.method = "deconv";
-        o.deconv = config;
-        return run_reconstruct(dataset, o, progress);
+        return run_reconstruct(dataset, ReconstructConfig::from_deconv(config), progress);
       },
       "dataset"_a, "config"_a = DeconvConfig(), "progress"_a = py::none(),
       "Deconvolves the vertical passes of a dataset (eq. 5.28). Returns a Reconstruction: points, "
@@ -354,27 +277,32 @@ void bind_recon(py::module_& m) {
   m.def("reconstruction_methods", &reconstruction_methods, "Names reconstruct() accepts.");
   m.def(
       "reconstruct",
-      [](const Dataset& dataset, const std::string& method, const py::object& carve,
-         const py::object& deconv, const py::object& region, int num_threads,
-         const py::object& progress, const py::object& bracket) {
-        ReconstructOptions o;
-        o.method = method;
-        o.region = region_from_py(region);
-        if (!carve.is_none()) o.carve = carve.cast<CarveConfig>();
-        if (!deconv.is_none()) o.deconv = deconv.cast<DeconvConfig>();
-        if (!bracket.is_none()) o.bracket = bracket.cast<BracketConfig>();
-        o.num_threads = num_threads;
-        return run_reconstruct(dataset, o, progress);
+      [](const Dataset& dataset, const py::object& method, const py::object& config,
+         const py::object& progress, const py::kwargs& settings) {
+        ReconstructConfig c =
+            config.is_none() ? ReconstructConfig() : config.cast<ReconstructConfig>();
+        py::object view = py::cast(&c, py::return_value_policy::reference);
+        if (!method.is_none()) view.attr("method") = method;  // checked by the property
+        for (auto item : settings) {
+          const std::string key = py::str(item.first);
+          if (!py::hasattr(view, item.first)) {
+            throw Error("reconstruct: unknown setting '" + key +
+                        "' (a ReconstructConfig field: method, voxel_size, region, denoise, "
+                        "min_observations, resolve_occlusions, num_threads, carve, deconv, "
+                        "bracket)");
+          }
+          py::setattr(view, item.first, item.second);
+        }
+        return run_reconstruct(dataset, c, progress);
       },
-      "dataset"_a, "method"_a = "carve", "carve"_a = py::none(), "deconv"_a = py::none(),
-      "region"_a = py::none(), "num_threads"_a = 0, "progress"_a = py::none(),
-      "bracket"_a = py::none(),
-      "Reconstructs a dataset with one of reconstruction_methods() ('carve', 'deconv', ...) and "
-      "the given CarveConfig / DeconvConfig (default: the library's). region: (min xyz, max xyz) "
-      "in the world frame (m) or None; carving maps only inside it, the other methods keep the "
-      "points inside it. num_threads > 0 overrides the configs'. Returns a Reconstruction, as "
-      "carve() and deconvolve() do. progress: True (terminal bars) or progress(done, total). "
-      "bracket: BracketConfig (e.g. min_bracket to drop unbracketed ghosts).");
+      "dataset"_a, "method"_a = py::none(), "config"_a = py::none(), "progress"_a = py::none(),
+      "Reconstructs a dataset with the library's one pipeline, the one `sonar3d reconstruct` "
+      "runs: the same settings give the same cloud. config: a ReconstructConfig (default: the "
+      "library's; its fields are the command's flags and --print-config keys, "
+      "docs/reference.md); method ('carve', 'deconv', 'deconv-l1', 'deconv-exact') and any other "
+      "ReconstructConfig field given as a keyword (region=((min xyz), (max xyz)), voxel_size=...) "
+      "override it. Returns a Reconstruction. progress: True (terminal bars) or "
+      "progress(done, total).");
 }
 
 }  // namespace sonar3d::python

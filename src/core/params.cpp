@@ -50,6 +50,49 @@ void throw_out_of_bounds(const std::string& where, const std::string& path, cons
   throw Error(what + " " + bounds_rule(p) + ", got " + format_number(value));
 }
 
+std::string choices_text(const Param& p) {
+  std::string out;
+  for (int k = 0; k < p.n_names; ++k) {
+    if (k > 0) out += k + 1 == p.n_names ? " or " : ", ";
+    out += p.names[k];
+  }
+  return out;
+}
+
+int choice_index(const Param& p, const std::string& s) {
+  for (int k = 0; k < p.n_names; ++k) {
+    if (s == p.names[k]) return k;
+  }
+  return -1;
+}
+
+std::string box_text(const Box& b) {
+  if (!b) return "none";
+  std::string out = "[";
+  for (int k = 0; k < 6; ++k) {
+    out += (k ? ", " : "") + format_number(k < 3 ? b->min()[k] : b->max()[k - 3]);
+  }
+  return out + "]";
+}
+
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
 std::string reference_markdown(const std::string& title, const std::string& intro,
                                const std::vector<Row>& rows) {
   std::string out = "## " + title + "\n\n" + intro + "\n\n";

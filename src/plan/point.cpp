@@ -163,7 +163,7 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
     const Dataset ds = read_dataset(ds_dir);
     ReconstructOptions ro;
     ro.method = std::get<std::string>(params.at("method"));
-    ro.carve.voxel_size = std::get<double>(params.at("voxel_m"));
+    ro.voxel_size = std::get<double>(params.at("voxel_m"));
     // The object and a 0.3 m margin, but nothing more than 3 cm below its base: the reference
     // objects stand on the seabed, which the simulated scene leaves out. Without this seabed
     // prior the lowest frames of a pass (which start below the base to bracket it) see the

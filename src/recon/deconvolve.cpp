@@ -119,66 +119,38 @@ void VoxelDeconvConfig::validate() const {
           fmt(support_min_bracket, 4));
 }
 
+namespace {
+
+// The one enum <-> string convention: an enum's value k is names[k] (core/params.hpp).
+template <class E, std::size_t N>
+E parse_named(const char* const (&names)[N], const std::string& s, const std::string& what) {
+  std::string list;
+  for (std::size_t k = 0; k < N; ++k) {
+    if (s == names[k]) return static_cast<E>(k);
+    list += std::string(k == 0 ? "" : k + 1 == N ? " or " : ", ") + names[k];
+  }
+  throw Error("unknown deconvolution " + what + " '" + s + "' (expected " + list + ")");
+}
+template <class E, std::size_t N>
+const char* named(const char* const (&names)[N], E e) {
+  const auto k = static_cast<std::size_t>(e);
+  return k < N ? names[k] : names[0];
+}
+
+}  // namespace
+
 DeconvConfig::Mode DeconvConfig::parse_mode(const std::string& s) {
-  if (s == "passes") return Mode::Passes;
-  if (s == "voxel") return Mode::Voxel;
-  if (s == "auto") return Mode::Auto;
-  throw Error("unknown deconvolution mode '" + s + "' (expected passes, voxel or auto)");
+  return parse_named<Mode>(kModeNames, s, "mode");
 }
-
-const char* DeconvConfig::mode_name(Mode m) {
-  switch (m) {
-    case Mode::Voxel:
-      return "voxel";
-    case Mode::Auto:
-      return "auto";
-    case Mode::Passes:
-    default:
-      return "passes";
-  }
-}
-
+const char* DeconvConfig::mode_name(Mode m) { return named(kModeNames, m); }
 DeconvConfig::Beam DeconvConfig::parse_beam(const std::string& s) {
-  if (s == "sinc") return Beam::Sinc;
-  if (s == "flat") return Beam::Flat;
-  if (s == "sensor") return Beam::Sensor;
-  throw Error("unknown deconvolution beam pattern '" + s + "' (expected sinc, flat or sensor)");
+  return parse_named<Beam>(kBeamNames, s, "beam pattern");
 }
-
-const char* DeconvConfig::beam_name(Beam b) {
-  switch (b) {
-    case Beam::Flat:
-      return "flat";
-    case Beam::Sensor:
-      return "sensor";
-    case Beam::Sinc:
-    default:
-      return "sinc";
-  }
-}
-
+const char* DeconvConfig::beam_name(Beam b) { return named(kBeamNames, b); }
 DeconvConfig::Kernel DeconvConfig::parse_kernel(const std::string& s) {
-  if (s == "plain") return Kernel::Plain;
-  if (s == "normal") return Kernel::Normal;
-  if (s == "occlusion") return Kernel::Occlusion;
-  if (s == "normal+occlusion") return Kernel::NormalOcclusion;
-  throw Error("unknown deconvolution kernel '" + s +
-              "' (expected plain, normal, occlusion or normal+occlusion)");
+  return parse_named<Kernel>(kKernelNames, s, "kernel");
 }
-
-const char* DeconvConfig::kernel_name(Kernel k) {
-  switch (k) {
-    case Kernel::Normal:
-      return "normal";
-    case Kernel::Occlusion:
-      return "occlusion";
-    case Kernel::NormalOcclusion:
-      return "normal+occlusion";
-    case Kernel::Plain:
-    default:
-      return "plain";
-  }
-}
+const char* DeconvConfig::kernel_name(Kernel k) { return named(kKernelNames, k); }
 
 // ---------------------------------------------------------------------------------------------
 // Geometry helpers

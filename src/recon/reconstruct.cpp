@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/recon/bracketing.hpp"
 
@@ -28,68 +29,161 @@ const std::vector<std::string>& reconstruction_methods() {
   return m;
 }
 
-ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  ReconstructResult out;
-  if (options.region) validate_region(*options.region, "region");
-  options.bracket.validate();
-  std::vector<Eigen::Isometry3d> poses;  // the frames' poses, for the bracketing assessment
-  if (options.method == "carve") {
-    CarveConfig cfg = options.carve;
-    if (options.num_threads > 0) cfg.num_threads = options.num_threads;
-    if (options.region) cfg.region = options.region;
-    Carver carver(dataset.spec, cfg, dataset.noise);
-    integrate_dataset(carver, dataset, options.progress);
-    if (cfg.resolve_occlusions) {
-      Progress bar("occlusions", dataset.size(), options.progress);
-      out.cloud = carver.finalize(&bar);
-    } else {
-      out.cloud = carver.finalize();
-    }
-    for (const auto& f : carver.frame_returns()) poses.push_back(f.T_world_sonar);
-    const CarveStats& st = carver.stats();
-    nlohmann::ordered_json j;
-    j["frames"] = st.frames;
-    j["candidates"] = st.candidates;
-    j["points"] = st.points;
-    j["integrate_seconds"] = st.integrate_seconds;
-    j["occlusion_seconds"] = st.occlusion_seconds;
-    if (cfg.occlusion.explain_returns) j["ghosts_explained"] = st.ghosts;
-    j["map_bytes"] = st.map_bytes;
-    j["frame_bytes"] = st.frame_bytes;
-    j["min_observations_used"] = st.min_observations_used;
-    j["views_per_scatterer"] = st.views_per_scatterer;
-    out.report = j.dump(2);
-  } else if (options.method.rfind("deconv", 0) == 0 &&
-             (options.method == "deconv" || options.method == "deconv-l1" ||
-              options.method == "deconv-exact")) {
-    DeconvConfig cfg = options.deconv;
-    if (options.num_threads > 0) cfg.num_threads = options.num_threads;
-    if (options.method == "deconv-l1") cfg.lambda_fraction = 0.5;  // Table 5.1
-    if (options.method == "deconv-exact") cfg.exact = true;
-    DeconvReport report;
-    out.cloud = deconvolve_dataset(dataset, cfg, options.progress, &report);
-    if (options.region) out.cloud = crop_to_region(out.cloud, *options.region);
-    out.notes = report.mode_note;  // mode auto chose the voxel mode, and why
-    for (const auto& w : summarize_pass_warnings(report.warnings))
-      out.notes += (out.notes.empty() ? "" : "; ") + w;
-    out.report = report.to_json();
-    poses.reserve(dataset.size());
-    for (std::size_t i = 0; i < dataset.size(); ++i) poses.push_back(dataset.T_world_sonar(i));
+CarveConfig ReconstructConfig::effective_carve() const {
+  CarveConfig c = carve;
+  c.voxel_size = voxel_size;
+  c.region = region;
+  c.denoise = denoise;
+  c.min_observations = min_observations;
+  c.resolve_occlusions = resolve_occlusions;
+  c.num_threads = num_threads;
+  return c;
+}
+
+DeconvConfig ReconstructConfig::effective_deconv() const {
+  DeconvConfig d = deconv;
+  d.voxel.voxel_size = voxel_size;  // the voxel mode's candidates are a carving of the same map
+  d.voxel.min_observations = min_observations;
+  d.denoise = denoise;
+  d.resolve_occlusions = resolve_occlusions;
+  d.num_threads = num_threads;
+  if (method == "deconv-l1") d.lambda_fraction = 0.5;  // Table 5.1
+  if (method == "deconv-exact") d.exact = true;
+  if (d.exact_lambertian) d.exact = true;  // the Lambertian term is the exact mode's
+  return d;
+}
+
+BracketConfig ReconstructConfig::effective_bracket() const {
+  BracketConfig b = bracket;
+  b.num_threads = num_threads;
+  return b;
+}
+
+ReconstructConfig ReconstructConfig::from_carve(const CarveConfig& c) {
+  ReconstructConfig r;
+  r.method = "carve";
+  r.carve = c;
+  r.voxel_size = c.voxel_size;
+  r.region = c.region;
+  r.denoise = c.denoise;
+  r.min_observations = c.min_observations;
+  r.resolve_occlusions = c.resolve_occlusions;
+  r.num_threads = c.num_threads;
+  return r;
+}
+
+ReconstructConfig ReconstructConfig::from_deconv(const DeconvConfig& d, const std::string& method) {
+  ReconstructConfig r;
+  r.method = method;
+  r.deconv = d;
+  r.voxel_size = d.voxel.voxel_size;
+  r.min_observations = d.voxel.min_observations;
+  r.denoise = d.denoise;
+  r.resolve_occlusions = d.resolve_occlusions;
+  r.num_threads = d.num_threads;
+  return r;
+}
+
+void ReconstructConfig::validate() const {
+  params::check(*this, "");
+  if (method == "carve") {
+    effective_carve().validate();
   } else {
-    std::string list;
-    for (const auto& m : reconstruction_methods()) list += (list.empty() ? "" : ", ") + m;
-    throw Error("unknown reconstruction method '" + options.method + "' (available: " + list + ")");
+    effective_deconv().validate();
+  }
+  effective_bracket().validate();
+}
+
+namespace {
+
+std::vector<Eigen::Isometry3d> dataset_poses(const Dataset& ds) {
+  std::vector<Eigen::Isometry3d> poses;
+  poses.reserve(ds.size());
+  for (std::size_t i = 0; i < ds.size(); ++i) poses.push_back(ds.T_world_sonar(i));
+  return poses;
+}
+
+// The carving's statistics as the report's JSON (the one serialisation of CarveStats).
+nlohmann::ordered_json carve_json(const CarveStats& st, const CarveConfig& cfg,
+                                  std::size_t integrate_peak) {
+  const double n = st.frames > 0 ? static_cast<double>(st.frames) : 1.0;
+  nlohmann::ordered_json j;
+  j["frames"] = st.frames;
+  j["candidates"] = st.candidates;
+  j["points"] = st.points;
+  j["integrate_seconds"] = st.integrate_seconds;
+  j["occlusion_seconds"] = st.occlusion_seconds;
+  j["integrate_ms_per_frame"] = 1e3 * st.integrate_seconds / n;
+  j["occlusion_ms_per_frame"] = 1e3 * st.occlusion_seconds / n;
+  if (cfg.occlusion.explain_returns) j["ghosts_explained"] = st.ghosts;
+  j["map_bytes"] = st.map_bytes;
+  j["frame_bytes"] = st.frame_bytes;
+  j["leaves"] = st.leaves;
+  j["candidate_voxels"] = st.candidate_voxels;
+  j["occlusion_bytes"] = st.occlusion_bytes;
+  j["min_observations_used"] = st.min_observations_used;
+  j["views_per_scatterer"] = st.views_per_scatterer;
+  j["integrate_peak_rss_bytes"] = integrate_peak;
+  j["voxel_size"] = cfg.voxel_size;
+  return j;
+}
+
+}  // namespace
+
+std::string check_reconstruct_memory(const Dataset& dataset, const ReconstructConfig& config,
+                                     double limit_bytes, const std::string& voxel_flag) {
+  if (config.method != "carve" && config.effective_deconv().mode == DeconvConfig::Mode::Passes) {
+    return "";
+  }
+  const CarveConfig cc = config.effective_carve();
+  const std::string warning =
+      implausible_voxel_size(dataset.spec, cc.voxel_size, cc.region, voxel_flag);
+  check_memory(estimate_carve_memory(dataset.spec, dataset_poses(dataset), cc, limit_bytes),
+               limit_bytes, "reconstruct");
+  return warning;
+}
+
+ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructConfig& config,
+                                      const ReconstructRun& run) {
+  const auto t0 = std::chrono::steady_clock::now();
+  config.validate();
+  ReconstructResult out;
+  nlohmann::ordered_json report;
+  std::vector<Eigen::Isometry3d> poses;  // the frames' poses, for the bracketing assessment
+  if (config.method == "carve") {
+    const CarveConfig cfg = config.effective_carve();
+    auto carver = std::make_shared<Carver>(dataset.spec, cfg, dataset.noise);
+    integrate_dataset(*carver, dataset, config.progress);
+    out.integrate_peak_rss = peak_rss_bytes();  // before the occlusion resolution
+    {
+      Progress bar("occlusions", dataset.size(), cfg.resolve_occlusions && config.progress);
+      out.cloud = carver->finalize(&bar);
+    }
+    for (const auto& f : carver->frame_returns()) poses.push_back(f.T_world_sonar);
+    out.carve_stats = carver->stats();
+    report = carve_json(*out.carve_stats, cfg, out.integrate_peak_rss);
+    if (run.keep_carver) out.carver = std::move(carver);
+  } else {
+    const DeconvConfig cfg = config.effective_deconv();
+    DeconvReport dr;
+    out.cloud = deconvolve_dataset(dataset, cfg, config.progress, &dr);
+    out.points_before_region = out.cloud.size();
+    if (config.region) out.cloud = crop_to_region(out.cloud, *config.region);
+    out.notes = dr.mode_note;  // mode auto chose the voxel mode, and why
+    for (const auto& w : summarize_pass_warnings(dr.warnings))
+      out.notes += (out.notes.empty() ? "" : "; ") + w;
+    report = nlohmann::ordered_json::parse(dr.to_json());
+    out.deconv_report = std::move(dr);
+    poses = dataset_poses(dataset);
   }
   // How well each point's elevation is known, the never-bracketed share, short passes.
-  BracketConfig bc = options.bracket;
-  if (options.num_threads > 0) bc.num_threads = options.num_threads;
-  const BracketReport br = assess_bracketing(out.cloud, poses, dataset.spec, bc, options.region);
-  for (const auto& w : br.warnings()) out.notes += (out.notes.empty() ? "" : "; ") + w;
-  nlohmann::ordered_json rj = nlohmann::ordered_json::parse(out.report);
-  rj["bracketing"] = nlohmann::ordered_json::parse(br.to_json());
-  out.report = rj.dump(2);
-  out.method = options.method;
+  out.points_before_bracket = out.cloud.size();
+  out.bracketing =
+      assess_bracketing(out.cloud, poses, dataset.spec, config.effective_bracket(), config.region);
+  for (const auto& w : out.bracketing.warnings()) out.notes += (out.notes.empty() ? "" : "; ") + w;
+  report["bracketing"] = nlohmann::ordered_json::parse(out.bracketing.to_json());
+  out.report = report.dump(2);
+  out.method = config.method;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -17,12 +17,23 @@
 //
 // A visitor V has
 //   template <class T> void field(T& value, const Param& p);   T: double, int, std::size_t,
-//                                                              unsigned long long, bool, string
+//                                                              unsigned long long, bool, string,
+//                                                              an enum (with .choices), or
+//                                                              Box (an optional world box)
 //   template <class G> void group(const char* key, G& g);      recurses with describe(g, *this)
 // and `describe` is found by argument-dependent lookup.
+//
+// Enums and strings with a fixed set of values declare `.choices(names)`: an enum's value k is
+// names[k] everywhere outside C++ (YAML, flags, Python, the reference), the one enum <-> string
+// convention. A config nested in a larger one that sets some of its fields itself (the
+// reconstruction's shared voxel size, say) is described there as `Nested<C>` (below), whose
+// `describe` lists only the fields the larger config leaves to it.
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <type_traits>
@@ -37,14 +48,20 @@ struct Param {
   const char* key = "";   // YAML key and Python attribute
   const char* unit = "";  // "m", "deg", "s", "" (a count, a fraction, a switch)
   const char* help = "";
-  const char* cli = nullptr;  // the command line's flag, when a command exposes the field
-  const char* eq = nullptr;   // the thesis' equation or section it implements
+  const char* cli = nullptr;           // the command line's flag, when a command exposes the field
+  const char* eq = nullptr;            // the thesis' equation or section it implements
+  const char* const* names = nullptr;  // .choices: the allowed values (an enum's, by index)
+  int n_names = 0;
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
   bool lo_open = false, hi_open = false;
 
   constexpr Param flag(const char* f) const {
     return with([&](Param& p) { p.cli = f; });
+  }
+  template <std::size_t N>
+  constexpr Param choices(const char* const (&n)[N]) const {
+    return with([&](Param& p) { p.names = n, p.n_names = static_cast<int>(N); });
   }
   constexpr Param equation(const char* e) const {
     return with([&](Param& p) { p.eq = e; });
@@ -93,7 +110,23 @@ constexpr Param param(const char* key, const char* unit, const char* help) {
   return p;
 }
 
-// "(0, 180]", "> 0", ">= 1": the bounds in words.
+// An optional world-frame box (a region of interest): absent = unbounded.
+using Box = std::optional<Eigen::AlignedBox3d>;
+
+// A config C nested in a larger one that sets some of C's fields itself: `describe(Nested<C>&,
+// V&)` (declared beside C's own describe) lists only the fields the larger config leaves to C.
+// Visitors see the fields of `c` (a reference into the larger config), so offsets, paths and
+// values are those of the larger config.
+template <class C>
+struct Nested {
+  C& c;
+};
+template <class G>
+struct is_nested : std::false_type {};
+template <class C>
+struct is_nested<Nested<C>> : std::true_type {};
+
+// "(0, 180]", "> 0", ">= 1": the bounds in words; "a | b | c" for choices.
 std::string bounds_text(const Param& p);
 // "must lie in (0, 180] deg", "must be a finite number > 0 m".
 std::string bounds_rule(const Param& p);
@@ -116,6 +149,35 @@ std::string format_value(const T& value) {
     return value;
   }
 }
+// "passes, voxel or auto".
+std::string choices_text(const Param& p);
+// The index of `s` among p's choices, -1 when it is none of them.
+int choice_index(const Param& p, const std::string& s);
+// The name of choice k (an enum's value), "?" when out of range.
+inline const char* choice_name(const Param& p, int k) {
+  return k >= 0 && k < p.n_names ? p.names[k] : "?";
+}
+// `s` as a value of the enum E declared with p's choices; throws "<what> must be one of ...".
+template <class E>
+E parse_choice(const Param& p, const std::string& s, const std::string& what) {
+  const int k = choice_index(p, s);
+  if (k < 0) throw Error(what + " must be one of " + choices_text(p) + ", got '" + s + "'");
+  return static_cast<E>(k);
+}
+// "[xmin, ymin, zmin, xmax, ymax, zmax]" or "none".
+std::string box_text(const Box& b);
+// A field's value as text, as the YAML writer and the reference show it.
+template <class T>
+std::string field_text(const T& value, const Param& p) {
+  if constexpr (std::is_enum_v<T>) {
+    return choice_name(p, static_cast<int>(value));
+  } else if constexpr (std::is_same_v<T, Box>) {
+    return box_text(value);
+  } else {
+    return format_value(value);
+  }
+}
+
 // The error for `value` outside p's bounds: "<where>: <path> (<flag>) must ..., got <value>".
 [[noreturn]] void throw_out_of_bounds(const std::string& where, const std::string& path,
                                       const Param& p, double value);
@@ -144,7 +206,21 @@ struct BoundsCheck : PathVisitor<BoundsCheck> {
   std::string where;
   template <class T>
   void field(T& value, const Param& p) {
-    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+    if constexpr (std::is_same_v<T, std::string>) {
+      if (p.n_names > 0 && choice_index(p, value) < 0) {
+        throw Error((where.empty() ? std::string() : where + " ") + join(prefix, p.key) +
+                    (p.cli ? std::string(" (") + p.cli + ")" : std::string()) + " must be one of " +
+                    choices_text(p) + ", got '" + value + "'");
+      }
+    } else if constexpr (std::is_same_v<T, Box>) {
+      if (value && !(value->min().allFinite() && value->max().allFinite() &&
+                     (value->max().array() > value->min().array()).all())) {
+        throw Error((where.empty() ? std::string() : where + " ") + join(prefix, p.key) +
+                    (p.cli ? std::string(" (") + p.cli + ")" : std::string()) +
+                    " must have finite corners and max > min on every axis, got " +
+                    box_text(value));
+      }
+    } else if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
       if (!p.bounded()) return;
       const double v = static_cast<double>(value);
       if (!in_bounds(p, v)) throw_out_of_bounds(where, join(prefix, p.key), p, v);
@@ -173,9 +249,9 @@ struct RowCollector : PathVisitor<RowCollector> {
     Row r;
     r.path = join(prefix, p.key);
     r.flag = p.cli ? p.cli : "";
-    r.value = format_value(value);
+    r.value = field_text(value, p);
     r.unit = p.unit;
-    r.bounds = p.bounded() ? bounds_text(p) : "";
+    r.bounds = p.n_names > 0 ? choices_text(p) : p.bounded() ? bounds_text(p) : "";
     r.help = p.help;
     r.eq = p.eq ? p.eq : "";
     rows.push_back(r);
@@ -191,5 +267,44 @@ std::vector<Row> rows(const C& config) {
 // A markdown table of a config's fields and their defaults (docs/reference.md).
 std::string reference_markdown(const std::string& title, const std::string& intro,
                                const std::vector<Row>& rows);
+
+// The configuration as one JSON object (groups nest): the "settings" block of a command's JSON
+// output. Numbers as the YAML shows them, enums by name, a box as six numbers or null.
+std::string json_string(const std::string& s);  // a JSON string literal
+struct JsonWriter {
+  std::string out = "{";
+  bool first = true;
+  void key(const char* k) {
+    out += (first ? "" : ", ") + json_string(k) + ": ";
+    first = false;
+  }
+  template <class T>
+  void field(T& value, const Param& p) {
+    key(p.key);
+    if constexpr (std::is_same_v<T, std::string>) {
+      out += json_string(value);
+    } else if constexpr (std::is_enum_v<T>) {
+      out += json_string(field_text(value, p));
+    } else if constexpr (std::is_same_v<T, Box>) {
+      out += value ? field_text(value, p) : std::string("null");
+    } else {
+      out += format_value(value);
+    }
+  }
+  template <class G>
+  void group(const char* k, G& g) {
+    key(k);
+    JsonWriter inner;
+    describe(g, inner);
+    out += inner.out + "}";
+  }
+};
+template <class C>
+std::string to_json(const C& config) {
+  C copy = config;
+  JsonWriter w;
+  describe(copy, w);
+  return w.out + "}";
+}
 
 }  // namespace sonar3d::params

@@ -24,7 +24,19 @@ struct YamlWriter {
   template <class T>
   void field(T& value, const Param& p) {
     out << YAML::Key << p.key << YAML::Value;
-    if constexpr (std::is_same_v<T, bool>) {
+    if constexpr (std::is_enum_v<T>) {
+      out << field_text(value, p);
+    } else if constexpr (std::is_same_v<T, Box>) {
+      if (!value) {
+        out << YAML::Null;
+      } else {
+        out << YAML::Flow << YAML::BeginSeq;
+        for (int k = 0; k < 6; ++k) {
+          out << format_number(k < 3 ? value->min()[k] : value->max()[k - 3]);
+        }
+        out << YAML::EndSeq;
+      }
+    } else if constexpr (std::is_same_v<T, bool>) {
       out << (value ? "true" : "false");
     } else if constexpr (std::is_arithmetic_v<T>) {
       out << format_value(value);
@@ -60,8 +72,38 @@ struct YamlReader : PathVisitor<YamlReader> {
     if (!n) return;
     const std::string path = join(prefix, p.key);
     const std::string at = yaml::where(file, n, path);
+    if constexpr (std::is_same_v<T, Box>) {
+      // [xmin, ymin, zmin, xmax, ymax, zmax], or null / none for no region
+      if (n.IsNull() || (n.IsScalar() && n.Scalar() == "none")) {
+        value.reset();
+        return;
+      }
+      if (!n.IsSequence() || n.size() != 6) {
+        throw Error(at + ": expected [xmin, ymin, zmin, xmax, ymax, zmax] (m) or none");
+      }
+      double v[6];
+      for (int k = 0; k < 6; ++k) {
+        if (!n[k].IsScalar() || !YAML::convert<double>::decode(n[k], v[k]) ||
+            !std::isfinite(v[k])) {
+          throw Error(at + ": expected a finite number at position " + std::to_string(k + 1));
+        }
+      }
+      const Eigen::AlignedBox3d b(Eigen::Vector3d(v[0], v[1], v[2]),
+                                  Eigen::Vector3d(v[3], v[4], v[5]));
+      if (!(b.max().array() > b.min().array()).all()) {
+        throw Error(at + ": max must exceed min on every axis, got " + box_text(b));
+      }
+      value = b;
+    } else {
+      read_scalar(value, p, n, at);
+    }
+  }
+  template <class T>
+  void read_scalar(T& value, const Param& p, const YAML::Node& n, const std::string& at) {
     if (!n.IsScalar()) throw Error(at + ": expected a single value");
-    if constexpr (std::is_same_v<T, bool>) {
+    if constexpr (std::is_enum_v<T>) {
+      value = parse_choice<T>(p, n.Scalar(), at);
+    } else if constexpr (std::is_same_v<T, bool>) {
       bool b = false;
       if (!YAML::convert<bool>::decode(n, b)) throw Error(at + ": expected true or false");
       value = b;
@@ -86,6 +128,10 @@ struct YamlReader : PathVisitor<YamlReader> {
       }
       value = static_cast<T>(d);
     } else {
+      if (p.n_names > 0 && choice_index(p, n.Scalar()) < 0) {
+        throw Error(at + ": must be one of " + choices_text(p) + ", got '" + printable(n.Scalar()) +
+                    "'");
+      }
       value = n.Scalar();
     }
   }

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 
@@ -49,6 +50,44 @@ struct BracketConfig {
   int num_threads = 0;    // 0 = all cores
   void validate() const;  // throws Error naming the field
 };
+
+// The one declaration of BracketConfig's fields (core/params.hpp); as part of a reconstruction
+// (Nested<BracketConfig>) the thread count is the reconstruction's.
+template <class V>
+void describe_bracket_own(BracketConfig& c, V& v) {
+  using params::param;
+  v.field(c.min_bracket,
+          param("min_bracket", "",
+                "drop points whose elevation was bracketed less than this (1 = seen at both edges "
+                "of the vertical aperture, 0 = from one side only; 0 = keep all)")
+              .range(0, 1)
+              .flag("--min-bracket"));
+  v.field(c.bracketed_level,
+          param("bracketed_level", "", "a point counts as bracketed from this bracket on")
+              .range_open_low(0, 1));
+  v.field(c.end_view_fraction,
+          param("end_view_fraction", "",
+                "pass-end rule: the extreme surface is the farthest point a frame saw at this "
+                "fraction of the aperture on the other side")
+              .range_open_low(0, 1));
+  v.field(c.end_tolerance, param("end_tolerance", "",
+                                 "warn when a pass stops short by more than this fraction of "
+                                 "2 r tan(A_v/2)")
+                               .range_open_high(0, 1));
+  v.field(
+      c.region_samples,
+      param("region_samples", "", "region samples for the never-bracketed share").range(0, 1e8));
+}
+template <class V>
+void describe(BracketConfig& c, V& v) {
+  describe_bracket_own(c, v);
+  v.field(c.num_threads,
+          params::param("num_threads", "", "worker threads (0 = all cores)").non_negative());
+}
+template <class V>
+void describe(params::Nested<BracketConfig>& n, V& v) {
+  describe_bracket_own(n.c, v);
+}
 
 // One end of one elevation-sweeping pass that stops short of the rule.
 struct PassExtension {

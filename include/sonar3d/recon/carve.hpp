@@ -83,6 +83,67 @@ struct CarveConfig {
   void validate() const;  // throws Error naming the field
 };
 
+// The one declaration of CarveConfig's fields (core/params.hpp). describe_carve_own lists those
+// that only carving has; a reconstruction (recon/reconstruct.hpp) declares the others once for
+// every method and describes its carving as Nested<CarveConfig>.
+template <class V>
+void describe_carve_own(CarveConfig& c, V& v) {
+  using params::param;
+  params::Nested<OcclusionConfig> occlusion{c.occlusion};
+  v.group("occlusion", occlusion);
+  v.field(c.static_threshold,
+          param("static_threshold", "", "keep map points whose carved bound is > this")
+              .range(-1e30, 1e30)
+              .equation("sec. 4.4.7")
+              .flag("--static-threshold"));
+  v.field(c.carve_margin,
+          param("carve_margin", "",
+                "carve a voxel only when this fraction of its half-diagonal around its centre "
+                "is free (0 = centre only, 1 = whole voxel)")
+              .range(0, 1)
+              .flag("--carve-margin"));
+  v.field(c.pose_sigma_position,
+          param("pose_sigma_position", "m",
+                "standard deviation of each frame's position: a voxel is carved only when free "
+                "for every pose within pose_sigma_k standard deviations (0 = exact poses)")
+              .range(0, 10)
+              .flag("--pose-sigma"));
+  v.field(c.pose_sigma_attitude_deg,
+          param("pose_sigma_attitude_deg", "deg",
+                "standard deviation of each frame's attitude, as pose_sigma_position")
+              .range(0, 30)
+              .flag("--attitude-sigma-deg"));
+  v.field(c.pose_sigma_k,
+          param("pose_sigma_k", "", "margin of the pose uncertainty, in standard deviations")
+              .range_open_low(0, 10)
+              .flag("--pose-sigma-k"));
+  v.field(c.min_elevation_span,
+          param("min_elevation_span", "",
+                "keep candidates observed over at least this fraction of the vertical aperture "
+                "(drops the unbracketed arcs at the ends of a pass; 0 = off)")
+              .range(0, 1)
+              .flag("--min-elevation-span"));
+}
+template <class V>
+void describe(CarveConfig& c, V& v) {
+  using params::param;
+  v.field(c.voxel_size, param("voxel_size", "m", "edge of a map voxel").range(1e-5, 1e3));
+  v.field(c.region, param("region", "m", "world-frame region of interest (none = all in view)"));
+  v.group("denoise", c.denoise);
+  v.field(c.resolve_occlusions,
+          param("resolve_occlusions", "", "keep the front surfaces").equation("sec. 4.4.5"));
+  v.field(c.min_observations,
+          param("min_observations", "",
+                "keep candidates bounded by at least this many frames (1 = off)")
+              .range(1, 255));
+  v.field(c.num_threads, param("num_threads", "", "worker threads (0 = all cores)").non_negative());
+  describe_carve_own(c, v);
+}
+template <class V>
+void describe(params::Nested<CarveConfig>& n, V& v) {
+  describe_carve_own(n.c, v);
+}
+
 struct CarveStats {
   std::size_t frames = 0;
   double integrate_seconds = 0;  // total wall time in integrate() (denoise included)

@@ -99,6 +99,67 @@ struct VoxelDeconvConfig {
   void validate() const;  // throws Error naming the field
 };
 
+// The one declaration of VoxelDeconvConfig's fields (core/params.hpp). In a reconstruction
+// (recon/reconstruct.hpp, Nested<VoxelDeconvConfig>) the voxel size and the observation filter
+// are the reconstruction's: the voxel mode's candidates are a carving of the same map.
+template <class V>
+void describe_voxel_deconv_own(VoxelDeconvConfig& c, V& v) {
+  using params::param;
+  v.field(c.max_iterations, param("max_iterations", "", "projected-gradient iterations at most")
+                                .range(1, 100000)
+                                .flag("--voxel-iterations"));
+  v.field(c.tolerance, param("tolerance", "",
+                             "stop when an iteration changes rho by less than this fraction of "
+                             "its norm")
+                           .range_open_low(0, 1)
+                           .range_open_high(0, 1));
+  v.field(c.min_relative,
+          param("min_relative", "",
+                "keep voxels whose reflectivity is at least this fraction of the largest "
+                "(0 = every non-zero voxel)")
+              .range_open_high(0, 1)
+              .flag("--voxel-min-relative"));
+  v.field(c.min_relative_bracketed,
+          param("min_relative_bracketed", "",
+                "the same fraction for voxels bracketed at least `bracketed` (0 = off; keeps "
+                "faint grazing surfaces, and the ghosts in a structure's voids)")
+              .range_open_high(0, 1)
+              .flag("--voxel-min-relative-bracketed"));
+  v.field(c.bracketed, param("bracketed", "",
+                             "bracket from which a voxel is kept down to min_relative_bracketed")
+                           .range(0, 1)
+                           .flag("--voxel-bracketed"));
+  v.field(c.occlusion_aware,
+          param("occlusion_aware", "",
+                "leave a candidate out of a frame's pixel when another candidate lies nearer on "
+                "its ray (sound does not cross a surface)")
+              .equation("sec. 5.6.7.2")
+              .flag("--no-voxel-occlusion"));
+  v.field(c.support_min_bracket,
+          param("support_min_bracket", "",
+                "leave out of the unknowns the candidates bracketed less than this (0 = keep all)")
+              .range(0, 1)
+              .flag("--voxel-support-bracket"));
+  v.field(c.support_refute,
+          param("support_refute", "",
+                "leave out of the unknowns the front candidates a frame saw as free space")
+              .flag("--no-voxel-refute"));
+}
+template <class V>
+void describe(VoxelDeconvConfig& c, V& v) {
+  using params::param;
+  v.field(c.voxel_size,
+          param("voxel_size", "m", "edge of the voxels (carving's map)").range(1e-4, 10));
+  v.field(c.min_observations,
+          param("min_observations", "", "candidates bounded by at least this many frames")
+              .range(1, 255));
+  describe_voxel_deconv_own(c, v);
+}
+template <class V>
+void describe(params::Nested<VoxelDeconvConfig>& n, V& v) {
+  describe_voxel_deconv_own(n.c, v);
+}
+
 struct DeconvConfig {
   // passes: the thesis' per-column deconvolution of straight passes along the sonar z axis (each
   // pass checked, sec. 5.6.3.1); voxel: voxel-domain NNLS over carving's candidates, for any
@@ -108,11 +169,13 @@ struct DeconvConfig {
   // (auto_mode_reason), or a pass the passes mode refuses or skips. DeconvReport::mode says which
   // ran, DeconvReport::mode_note why the voxel mode did.
   enum class Mode { Passes, Voxel, Auto };
+  static constexpr const char* kModeNames[] = {"passes", "voxel", "auto"};  // by Mode
   Mode mode = Mode::Auto;
   VoxelDeconvConfig voxel;
   // Beam pattern of the kernel A*: sinc (eq. 2.8), flat (sec. 5.6.6: β = C inside the aperture)
   // or the sensor's own pattern (sonar.yaml beam_pattern, e.g. a measured table).
   enum class Beam { Sinc, Flat, Sensor };
+  static constexpr const char* kBeamNames[] = {"sinc", "flat", "sensor"};  // by Beam
   Beam beam = Beam::Sinc;
   // λ / λ_max in [0, 1] (eq. 5.28); 0 = plain NNLS, the thesis' default; 0.5 = Table 5.1.
   double lambda_fraction = 0.0;
@@ -170,6 +233,8 @@ struct DeconvConfig {
   // first cloud occludes the view (Occlusion), or both. Approximate mode and voxel mode (there the
   // normal kernel only: its own occlusion model, VoxelDeconvConfig::occlusion_aware, is on).
   enum class Kernel { Plain, Normal, Occlusion, NormalOcclusion };
+  static constexpr const char* kKernelNames[] = {"plain", "normal", "occlusion",
+                                                 "normal+occlusion"};  // by Kernel
   Kernel kernel = Kernel::Plain;
   double normal_radius = 0.05;                 // m: SVD neighbourhood for normals (thesis: 5 cm)
   double occlusion_elevation_step_deg = 0.25;  // elevation resolution of the occlusion test
@@ -217,6 +282,154 @@ struct DeconvConfig {
   static Mode parse_mode(const std::string& s);  // passes | voxel | auto
   static const char* mode_name(Mode m);
 };
+
+// The one declaration of DeconvConfig's fields (core/params.hpp). describe_deconv_own lists those
+// only deconvolution has; a reconstruction declares denoising, occlusion resolution and threads
+// once for every method and describes its deconvolution as Nested<DeconvConfig>.
+template <class V>
+void describe_deconv_own(DeconvConfig& c, V& v) {
+  using params::param;
+  v.field(c.mode, param("mode", "",
+                        "passes: straight passes along the sonar z axis (the thesis); voxel: any "
+                        "trajectory (NNLS over carving's candidate voxels); auto: passes when the "
+                        "frames form regular passes, voxel otherwise (a note says why)")
+                      .choices(DeconvConfig::kModeNames)
+                      .flag("--deconv-mode"));
+  params::Nested<VoxelDeconvConfig> voxel{c.voxel};
+  v.group("voxel", voxel);
+  v.field(c.beam, param("beam", "",
+                        "kernel beam pattern: sinc (eq. 2.8), flat (sec. 5.6.6) or sensor (the "
+                        "sonar.yaml's pattern)")
+                      .choices(DeconvConfig::kBeamNames)
+                      .flag("--beam"));
+  v.field(c.lambda_fraction,
+          param("lambda_fraction", "", "L1 weight as a fraction of lambda_max (0.5 = Table 5.1)")
+              .range(0, 1)
+              .equation("eq. 5.28")
+              .flag("--lambda"));
+  v.field(c.exact, param("exact", "",
+                         "exact slant-range geometry on a (horizontal distance x height) grid per "
+                         "bearing plane, for wide apertures")
+                       .flag("--exact"));
+  v.field(c.max_axis_angle_deg,
+          param("max_axis_angle_deg", "deg",
+                "refuse passes whose motion is farther than this from the sonar z axis")
+              .range_open_low(0, 90)
+              .range_open_high(0, 90)
+              .equation("sec. 5.6.3.1")
+              .flag("--max-axis-angle-deg"));
+  v.field(c.max_rotation_deg,
+          param("max_rotation_deg", "deg",
+                "refuse passes whose frames turn farther than this from the pass mean")
+              .range_open_low(0, 180)
+              .range_open_high(0, 180));
+  v.field(c.max_lateral_deviation,
+          param("max_lateral_deviation", "m",
+                "refuse passes whose frames lie farther than this from a straight line")
+              .positive()
+              .flag("--max-lateral"));
+  v.field(c.max_spacing_deviation,
+          param("max_spacing_deviation", "",
+                "refuse passes whose heights deviate from a uniform grid by more than this "
+                "fraction of the spacing")
+              .positive());
+  v.field(
+      c.layer_spacing,
+      param("layer_spacing", "m", "layer height (0 = the fitted frame spacing)").non_negative());
+  v.field(c.use_measured_heights,
+          param("use_measured_heights", "",
+                "kernel rows use each frame's measured height (false: the uniform grid)"));
+  v.field(c.split_passes,
+          param("split_passes", "", "split the frames into passes where the motion jumps"));
+  v.field(c.split_jump_factor,
+          param("split_jump_factor", "", "a jump larger than this many median steps ends a pass")
+              .range_open_low(1, 1e9));
+  v.field(c.min_pass_frames,
+          param("min_pass_frames", "", "passes with fewer frames are skipped").range(2, 1e9));
+  v.field(c.max_range,
+          param("max_range", "m", "reconstruct only ranges up to this (0 = the sensor's r_max)")
+              .non_negative());
+  v.field(c.rectilinear_warn_bins,
+          param("rectilinear_warn_bins", "bins",
+                "warn when the arc-versus-line mismatch exceeds this fraction of a range bin")
+              .positive()
+              .equation("eq. 5.21"));
+  v.field(c.ignore_shadowed_zeros,
+          param("ignore_shadowed_zeros", "",
+                "leave zero pixels behind a beam's first return out of the fit (they may be "
+                "shadow)"));
+  v.field(c.dering, param("dering", "", "zero the layers seen as free space")
+                        .equation("sec. 5.5.4")
+                        .flag("--no-dering"));
+  v.group("occlusion", c.occlusion);
+  v.field(
+      c.occlusion_auto_voxel,
+      param("occlusion_auto_voxel", "",
+            "the occlusion voxel is min(range bin, layer height) (false: occlusion.voxel_size)"));
+  v.field(c.kernel, param("kernel", "",
+                          "a second solve whose kernel is scaled by Lambert's cosine at the "
+                          "normals of the first (normal), zeroed where the first occludes the "
+                          "view (occlusion), both, or none (plain)")
+                        .choices(DeconvConfig::kKernelNames)
+                        .equation("sec. 5.6.7")
+                        .flag("--kernel"));
+  v.field(c.normal_radius,
+          param("normal_radius", "m", "neighbourhood of the normals' SVD").positive());
+  v.field(c.occlusion_elevation_step_deg,
+          param("occlusion_elevation_step_deg", "deg", "elevation resolution of the occlusion test")
+              .positive());
+  v.field(c.subsamples,
+          param("subsamples", "", "integration points per layer for the mean of B(theta)^2")
+              .range(1, 64)
+              .equation("eq. 5.22"));
+  v.field(c.min_intensity,
+          param("min_intensity", "", "drop reconstructed layers with b <= this").non_negative());
+  v.field(c.min_relative_intensity,
+          param("min_relative_intensity", "",
+                "drop a layer whose largest predicted return is below this fraction of its "
+                "column's largest measurement (0 = keep all)")
+              .range_open_high(0, 1));
+  v.field(c.max_extrapolation,
+          param("max_extrapolation", "m",
+                "keep only layers within this distance beyond the lowest and highest frames "
+                "(< 0 = all)")
+              .range(-1e9, 1e9));
+  v.group("nnls", c.nnls);
+  v.field(
+      c.exact_max_sweeps,
+      param("exact_max_sweeps", "", "exact mode: block Gauss-Seidel sweeps at most").range(1, 1e9));
+  v.field(c.exact_tolerance,
+          param("exact_tolerance", "", "exact mode: stop when the KKT violation is below this")
+              .range_open_low(0, 1)
+              .range_open_high(0, 1));
+  v.field(c.exact_block_tolerance,
+          param("exact_block_tolerance", "",
+                "exact mode: measure each range block's KKT violation against its own data")
+              .flag("--exact-block-tolerance"));
+  v.field(c.exact_range_subsamples,
+          param("exact_range_subsamples", "", "exact mode: integration points per cell")
+              .range(1, 16)
+              .flag("--exact-range-subsamples"));
+  v.field(c.exact_lambertian,
+          param("exact_lambertian", "",
+                "exact mode with the Lambertian term: three normal classes per cell (implies "
+                "exact in a reconstruction)")
+              .flag("--exact-lambertian"));
+}
+template <class V>
+void describe(DeconvConfig& c, V& v) {
+  using params::param;
+  v.group("denoise", c.denoise);
+  v.field(c.resolve_occlusions,
+          param("resolve_occlusions", "", "post-reconstruction occlusion resolution")
+              .equation("sec. 5.6.7.3"));
+  v.field(c.num_threads, param("num_threads", "", "worker threads (0 = all cores)").non_negative());
+  describe_deconv_own(c, v);
+}
+template <class V>
+void describe(params::Nested<DeconvConfig>& n, V& v) {
+  describe_deconv_own(n.c, v);
+}
 
 // The straight pass a set of frames is approximated by (sec. 5.4, 5.6.3.1).
 struct PassGeometry {

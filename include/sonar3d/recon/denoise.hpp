@@ -5,6 +5,7 @@
 // when `subtract_mean` is set.
 #include <optional>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/io/dataset.hpp"
 
@@ -17,6 +18,27 @@ struct DenoiseConfig {
   double static_threshold = 0.0;  // keep a pixel only when its (denoised) intensity > this
   void validate() const;          // throws Error naming the field
 };
+
+// The one declaration of DenoiseConfig's fields (core/params.hpp).
+template <class V>
+void describe(DenoiseConfig& c, V& v) {
+  using params::param;
+  v.field(c.z_test, param("z_test", "", "apply the Z-test when the dataset has noise statistics")
+                        .equation("eq. 4.8")
+                        .flag("--no-z-test"));
+  v.field(c.z_threshold,
+          param("z_threshold", "", "T: keep a pixel when (I - m)/sigma > T, with noise statistics")
+              .range(-1e6, 1e6)
+              .equation("eq. 4.8")
+              .flag("--z-threshold"));
+  v.field(c.subtract_mean, param("subtract_mean", "",
+                                 "kept pixels become I - m (the return above the noise floor)"));
+  v.field(c.static_threshold,
+          param("static_threshold", "", "keep a pixel only when its denoised intensity is > this")
+              .non_negative()
+              .equation("sec. 4.4.7")
+              .flag("--image-threshold"));
+}
 
 // Denoises `image` in place. `noise` may be empty: then only the static threshold applies.
 // Throws Error when noise images and the image differ in size.

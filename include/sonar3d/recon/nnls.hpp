@@ -19,6 +19,8 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
+
 namespace sonar3d {
 
 // A sparse design matrix stored by columns (CSC); row indices increase within a column.
@@ -75,6 +77,23 @@ struct NnlsOptions {
   double dependency_tolerance = 1e-12;
   void validate() const;
 };
+
+// The one declaration of NnlsOptions' fields (core/params.hpp).
+template <class V>
+void describe(NnlsOptions& c, V& v) {
+  using params::param;
+  v.field(c.tolerance, param("tolerance", "", "KKT tolerance relative to max |c_j|")
+                           .range_open_low(0, 1)
+                           .range_open_high(0, 1)
+                           .equation("eq. 5.28"));
+  v.field(c.max_iterations,
+          param("max_iterations", "", "outer iterations at most (0 = 3 n + 30)").non_negative());
+  v.field(c.dependency_tolerance,
+          param("dependency_tolerance", "",
+                "a variable whose Cholesky pivot is below this fraction of Q_jj is not admitted")
+              .range_open_low(0, 1)
+              .range_open_high(0, 1));
+}
 
 struct NnlsStats {
   int iterations = 0;     // outer iterations (variables entered)

@@ -2,9 +2,11 @@
 // One entry point for every reconstruction method, used by the planner and the bindings:
 // dataset in, world-frame point cloud out.
 #include <Eigen/Geometry>
+#include <memory>
 #include <optional>
 #include <string>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/bracketing.hpp"
@@ -13,24 +15,85 @@
 
 namespace sonar3d {
 
-struct ReconstructOptions {
+// The reconstruction of a dataset, whatever the method: the one configuration the command line
+// (`sonar3d reconstruct`), YAML (--print-config / --config), Python (ReconstructConfig) and the
+// planner read. What every method shares (voxel size, region, denoising, observation filter,
+// occlusion resolution, threads) is declared here once; the method groups hold the rest, and
+// reconstruct_dataset() gives each method the shared values (the deconvolution's voxel mode
+// carves its candidates on the same map as carving would).
+struct ReconstructConfig {
   // "carve" (ch. 4), "deconv" (ch. 5 with the DeconvConfig defaults, see docs/deconvolution.md),
-  // "deconv-l1" (L1 with
-  // λ = 0.5·λ_max, Table 5.1), "deconv-exact" (exact slant-range geometry).
+  // "deconv-l1" (L1 with λ = 0.5·λ_max, Table 5.1), "deconv-exact" (exact slant-range geometry).
+  static constexpr const char* kMethods[] = {"carve", "deconv", "deconv-l1", "deconv-exact"};
   std::string method = "carve";
-  CarveConfig carve;
-  DeconvConfig deconv;  // "deconv-l1" and "deconv-exact" set lambda_fraction / exact on a copy
+  double voxel_size = 0.01;  // m: carving's map, the voxel mode's candidates
   // World-frame region of interest for every method (e.g. a seabed prior: nothing below the
-  // seabed). Carving maps only the voxels inside it (it replaces CarveConfig::region); the other
-  // methods reconstruct as usual and keep the points inside it.
+  // seabed). Carving maps only the voxels inside it; the other methods reconstruct as usual and
+  // keep the points inside it.
   std::optional<Eigen::AlignedBox3d> region;
+  DenoiseConfig denoise;
+  int min_observations = 2;        // carving's observation filter (CarveConfig)
+  bool resolve_occlusions = true;  // sec. 4.4.5 / 5.6.7.3
+  int num_threads = 0;             // 0 = all cores; every step
+  CarveConfig carve;               // its shared fields are replaced by the above
+  DeconvConfig deconv;             // likewise; "deconv-l1"/"deconv-exact" set lambda / exact
   // Every method's points get the properties "bracket" and "views" (recon/bracketing.hpp); the
   // report gains "bracketing" (never-bracketed share of the region, passes that stop short) and
   // the notes a warning per short pass. bracket.min_bracket > 0 drops unbracketed points.
   BracketConfig bracket;
-  bool progress = false;  // terminal bars (and a ScopedProgressCallback, core/progress.hpp)
-  int num_threads = 0;    // 0 = all cores; overrides the method configs' thread counts
+  bool progress = false;  // terminal bars (not a setting: how the caller shows work)
+
+  // The configs each step runs with: the method group with the shared fields filled in.
+  CarveConfig effective_carve() const;
+  DeconvConfig effective_deconv() const;
+  BracketConfig effective_bracket() const;
+  // The configuration a carving config alone stands for (Python's carve(), the planner).
+  static ReconstructConfig from_carve(const CarveConfig& c);
+  static ReconstructConfig from_deconv(const DeconvConfig& c, const std::string& method = "deconv");
+  void validate() const;  // throws Error naming the dotted key
 };
+using ReconstructOptions = ReconstructConfig;  // the former name
+
+// The one declaration of ReconstructConfig's fields (core/params.hpp).
+template <class V>
+void describe(ReconstructConfig& c, V& v) {
+  using params::param;
+  v.field(c.method, param("method", "",
+                          "carve: space carving (ch. 4); deconv: deconvolution (ch. 5); "
+                          "deconv-l1: with lambda = 0.5 lambda_max (Table 5.1); deconv-exact: "
+                          "exact slant-range geometry")
+                        .choices(ReconstructConfig::kMethods)
+                        .flag("--method"));
+  v.field(c.voxel_size,
+          param("voxel_size", "m",
+                "edge of a map voxel (carving's map; the deconvolution's voxel-mode candidates)")
+              .range(1e-5, 1e3)
+              .flag("--voxel-size"));
+  v.field(c.region, param("region", "m",
+                          "world-frame region of interest: carving maps only inside it, "
+                          "deconvolution keeps the points inside it (none = everything in view)")
+                        .flag("--roi"));
+  v.group("denoise", c.denoise);
+  v.field(c.min_observations,
+          param("min_observations", "",
+                "keep candidates bounded by at least this many frames (1 = off; lowered "
+                "automatically when the trajectory is sparser)")
+              .range(1, 255)
+              .flag("--min-observations"));
+  v.field(c.resolve_occlusions,
+          param("resolve_occlusions", "", "occlusion resolution: keep the front surfaces")
+              .equation("sec. 4.4.5, 5.6.7.3")
+              .flag("--no-occlusion"));
+  v.field(
+      c.num_threads,
+      param("num_threads", "", "worker threads (0 = all cores)").non_negative().flag("--threads"));
+  params::Nested<CarveConfig> carve{c.carve};
+  v.group("carve", carve);
+  params::Nested<DeconvConfig> deconv{c.deconv};
+  v.group("deconv", deconv);
+  params::Nested<BracketConfig> bracket{c.bracket};
+  v.group("bracket", bracket);
+}
 
 // The same result whatever the method (the Python carve(), deconvolve() and reconstruct() all
 // return it).
@@ -45,10 +108,32 @@ struct ReconstructResult {
   // candidates, points, timings, map memory, min_observations_used, views_per_scatterer), for
   // deconvolution DeconvReport::to_json() (passes, geometry, timings, warnings).
   std::string report = "{}";
+  // The same, typed (for printing): the carving's statistics (method carve), the
+  // deconvolution's report (deconv methods), and the bracketing assessment (every method).
+  std::optional<CarveStats> carve_stats;
+  std::optional<DeconvReport> deconv_report;
+  BracketReport bracketing;
+  std::size_t points_before_bracket = 0;  // before bracket.min_bracket
+  std::size_t points_before_region = 0;   // deconvolution: before cropping to the region
+  std::size_t integrate_peak_rss = 0;     // carving: peak RSS before occlusion resolution
+  std::shared_ptr<Carver> carver;         // carving, when asked for (keep_carver): the map
+};
+
+// Options of a run that are not settings of the method (how the caller uses the result).
+struct ReconstructRun {
+  bool keep_carver = false;  // ReconstructResult::carver holds the carving's map (e.g. --vdb)
 };
 
 // Throws Error on an unknown method or when the method cannot run on the dataset.
-ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructOptions& options);
+ReconstructResult reconstruct_dataset(const Dataset& dataset, const ReconstructConfig& config,
+                                      const ReconstructRun& run = {});
+
+// Refuses, before anything is allocated, a reconstruction whose carving (carving's map, or the
+// voxel mode's candidates) would exceed `limit_bytes` (core/memory.hpp: the error gives the
+// estimate and the voxel size that fits); returns the warning for an implausible voxel size
+// ("" when plausible), naming `voxel_flag`. The passes mode allocates per column: nothing to check.
+std::string check_reconstruct_memory(const Dataset& dataset, const ReconstructConfig& config,
+                                     double limit_bytes, const std::string& voxel_flag);
 
 // The points of `cloud` (world frame) inside `region`, with their intensities.
 PointCloud crop_to_region(const PointCloud& cloud, const Eigen::AlignedBox3d& region);

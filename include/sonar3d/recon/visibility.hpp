@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
@@ -88,6 +89,57 @@ struct OcclusionConfig {
   int num_threads = 0;    // 0 = all cores
   void validate() const;  // throws Error naming the field
 };
+
+// The one declaration of OcclusionConfig's fields (core/params.hpp). As part of carving
+// (Nested<OcclusionConfig>), the voxel size and thread count are carving's.
+template <class V>
+void describe_occlusion_own(OcclusionConfig& c, V& v) {
+  using params::param;
+  v.field(c.elevation_resolution_rad,
+          param("elevation_resolution_rad", "rad", "interval size along the vertical aperture")
+              .positive()
+              .equation("sec. 4.4.5"));
+  v.field(c.min_intensity,
+          param("min_intensity", "", "keep candidates whose bound (intensity) is > this")
+              .range(-1e30, 1e30));
+  v.field(c.footprint_radius, param("footprint_radius", "voxels",
+                                    "angular footprint of a candidate that shadows others")
+                                  .non_negative()
+                                  .flag("--footprint-radius"));
+  v.field(c.range_tolerance_bins,
+          param("range_tolerance_bins", "bins",
+                "a candidate is shadowed only by one more than this many range bins nearer")
+              .non_negative()
+              .flag("--range-tolerance"));
+  v.field(c.refute_free,
+          param("refute_free", "",
+                "beyond the thesis: drop candidates a frame saw in an empty pixel with nothing "
+                "mapped nearer on their own line of sight (free space, not shadow)")
+              .flag("--no-refute-free"));
+  v.field(c.explain_returns,
+          param("explain_returns", "",
+                "beyond the thesis: drop the points whose every return another surface explains "
+                "(interior ghosts of open structures, docs/carving.md)")
+              .flag("--explain-returns"));
+  v.field(c.explain_pin_fraction,
+          param("explain_pin_fraction", "",
+                "with explain_returns: a point alone in its pixel in at least this fraction of "
+                "its return frames is pinned (kept, explains others)")
+              .range_open_low(0, 1)
+              .flag("--explain-pin-fraction"));
+}
+template <class V>
+void describe(OcclusionConfig& c, V& v) {
+  using params::param;
+  v.field(c.voxel_size,
+          param("voxel_size", "m", "the final map keeps one point per voxel").positive());
+  describe_occlusion_own(c, v);
+  v.field(c.num_threads, param("num_threads", "", "worker threads (0 = all cores)").non_negative());
+}
+template <class V>
+void describe(params::Nested<OcclusionConfig>& n, V& v) {
+  describe_occlusion_own(n.c, v);
+}
 
 // Occlusion resolution (sec. 4.4.5): for every frame, walks each beam from short to long range,
 // labels map points (candidates, world frame, intensity = carved bound) as observed or shadowed
