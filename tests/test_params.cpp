@@ -12,6 +12,7 @@
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/recog/recognize.hpp"
+#include "sonar3d/world/relocalize.hpp"
 #include "test_support.hpp"
 
 using namespace sonar3d;
@@ -59,6 +60,12 @@ std::string reference() {
       "`sonar3d recognize --print-config` prints these under `recognize:`; Python: "
       "`sonar3d.RecognizeConfig` (groups as attributes: `cfg.two_d.verification.min_confidence`).",
       params::rows(RecognizeConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "relocalize",
+      "`sonar3d relocalize --print-config` prints these under `relocalize:`; Python: "
+      "`sonar3d.RelocalizeConfig` (docs/mapping.md \"Relocalisation\").",
+      params::rows(RelocalizeConfig()));
   return out;
 }
 

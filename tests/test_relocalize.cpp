@@ -6,12 +6,14 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/reference_objects.hpp"
@@ -118,15 +120,24 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
   const sonar3d::Trajectory corrected = sonar3d::read_tum((dir / "rb/navigation.tum").string());
   ASSERT_EQ(corrected.size(), truth.size());
   double worst = 0, worst_yaw = 0;
+  std::vector<double> horizontal;
   for (std::size_t k = 0; k < truth.size(); ++k) {
-    worst =
-        std::max(worst, (corrected.poses[k].translation() - truth.poses[k].translation()).norm());
+    const Eigen::Vector3d e = corrected.poses[k].translation() - truth.poses[k].translation();
+    worst = std::max(worst, e.norm());
+    horizontal.push_back(e.head<2>().norm());
     const Eigen::Matrix3d dR = corrected.poses[k].linear() * truth.poses[k].linear().transpose();
     worst_yaw = std::max(worst_yaw, Eigen::AngleAxisd(dR).angle());
   }
-  EXPECT_LT(worst, 0.03) << r.out;  // every pose within 3 cm of the truth
-  EXPECT_LT(worst_yaw, 0.2 * kDeg) << r.out;
-  std::cout << "worst position error " << worst << " m, yaw " << worst_yaw / kDeg << " deg\n";
+  std::nth_element(horizontal.begin(), horizontal.begin() + horizontal.size() / 2,
+                   horizontal.end());
+  const double median = horizontal[horizontal.size() / 2];
+  // 5 cm voxels, 10 cm registration cells: every pose within 5 cm, half within 2 cm, the heading
+  // within 0.3° (the logged one was 3° and 0.5 m off).
+  EXPECT_LT(worst, 0.05) << r.out;
+  EXPECT_LT(median, 0.02) << r.out;
+  EXPECT_LT(worst_yaw, 0.3 * kDeg) << r.out;
+  std::cout << "position error: worst " << worst << " m, horizontal median " << median
+            << " m; heading " << worst_yaw / kDeg << " deg\n";
   std::ifstream f(dir / "rb/relocalization.json");
   const nlohmann::json j = nlohmann::json::parse(f);
   EXPECT_EQ(j["format"], "sonar3d-relocalization");
@@ -135,7 +146,7 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
   const auto& s = j["swaths"][0];
   std::cout << "drift " << s["drift"].dump() << ", sigma " << s["sigma_hessian_m"] << " (Hessian) "
             << s["sigma_pieces_m"] << " (pieces)\n";
-  EXPECT_NEAR(s["yaw_deg"].get<double>(), -3.0, 0.2);
+  EXPECT_NEAR(s["yaw_deg"].get<double>(), -3.0, 0.3);
   EXPECT_GT(s["overlap_fraction"].get<double>(), 0.8);
   // σ is stated and plausible: finite, not above a few cm.
   ASSERT_TRUE(s["sigma_horizontal_m"].is_number());

@@ -30,16 +30,27 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Points on a triangle's surface about `spacing` apart (a barycentric grid, deterministic).
+// Points on a triangle: its edges every `spacing`, and inside about one per spacing² of area, a
+// deterministic low-discrepancy set (the R2 sequence) warped uniformly onto the triangle.
 void sample_triangle(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
                      double spacing, std::vector<Eigen::Vector3f>& out) {
-  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-  const int n = std::clamp(static_cast<int>(std::ceil(longest / spacing)), 1, 2000);
-  for (int i = 0; i <= n; ++i) {
-    for (int j = 0; i + j <= n; ++j) {
-      const float u = static_cast<float>(i) / n, v = static_cast<float>(j) / n;
-      out.push_back(a + u * (b - a) + v * (c - a));
-    }
+  // The edges every `spacing` (a structure's outline must fill the elevation map's cells at its
+  // border, as the carved swath's does), then the inside.
+  for (const auto& [p, q] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
+    const int m = std::clamp(static_cast<int>(std::ceil((q - p).norm() / spacing)), 1, 100000);
+    for (int k = 0; k < m; ++k) out.push_back(p + (static_cast<float>(k) / m) * (q - p));
+  }
+  const double area = 0.5 * (b - a).cross(c - a).norm();
+  const long n =
+      std::min<long>(1'000'000, static_cast<long>(std::ceil(area / (spacing * spacing))));
+  constexpr double g1 = 0.7548776662466927, g2 = 0.5698402909980532;  // R2: 1/φ₂, 1/φ₂²
+  for (long k = 0; k < n; ++k) {
+    const double r1 = std::fmod(0.5 + g1 * static_cast<double>(k), 1.0);
+    const double r2 = std::fmod(0.5 + g2 * static_cast<double>(k), 1.0);
+    const double su = std::sqrt(r1);
+    const float wa = static_cast<float>(1 - su), wb = static_cast<float>(su * (1 - r2)),
+                wc = static_cast<float>(su * r2);
+    out.push_back(wa * a + wb * b + wc * c);
   }
 }
 
@@ -163,8 +174,7 @@ WorldModelCloud read_world_model_cloud(const fs::path& world_dir, double spacing
   const fs::path seabed_path = world_dir / (*finest)["file"].get<std::string>();
   require(fs::is_regular_file(seabed_path),
           where + ": its seabed '" + seabed_path.filename().string() + "' is missing");
-  std::vector<std::vector<uint32_t>> faces;
-  w.cloud = read_ply_faces(seabed_path.string(), &faces);
+  w.cloud = read_ply(seabed_path.string());  // the vertices only: the faces are not needed
   w.cloud.intensity.clear();
   w.cloud.color.clear();
   w.cloud.properties.clear();
@@ -274,7 +284,9 @@ void fit_pieces(const Dataset& dataset, const PointCloud& model, const Elevation
   for (const PieceFit& f : fits) a += f.d / m;
   double stt = 0;
   for (const PieceFit& f : fits) stt += (f.t - t_mid) * (f.t - t_mid);
-  if (fits.size() >= 2 && stt > 0) {
+  // A rate from 3 pieces or more: through 2 it would follow their noise alone (nothing left to
+  // check it against), on lines short enough for the drift to stay under a cell.
+  if (fits.size() >= 3 && stt > 0) {
     for (const PieceFit& f : fits) b += (f.t - t_mid) * (f.d - a) / stt;
   }
   sw.drift_offset = a;
@@ -376,7 +388,7 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
       require(!near.empty(), "no model point near the swath");
       r = register_surveys(near, cloud, reg);
       // Refinement: the same registration again from the coarse solution, in a window of a
-      // few cells and a yaw window of two coarse steps searched ten times finer (a 9 m swath's
+      // few cells and a yaw window of two coarse steps searched five times finer (a 9 m swath's
       // ends move 4 cm for 0.25°, under the coarse maps' cell); its Gauss-Newton gives σ.
       ChangeRegistrationConfig fine = reg;
       fine.search_m = 2 * config.cell_m;

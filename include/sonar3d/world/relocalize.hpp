@@ -25,7 +25,7 @@
 // piece_m along its track, each piece registered again from the swath's solution (shift and
 // height; yaw within a few tenths of a degree), and the pieces' displacements fitted by least
 // squares as a correction linear in time, d(t) = a + b·(t − t_mid) — the drift of a steady
-// scale error or heading bias on a straight line.
+// scale error or heading bias on a straight line (b from 3 pieces or more, else 0).
 //
 // σ: from the Gauss-Newton's Hessian at the solution, cov = s²·(JᵀJ)⁻¹ (s² the residual variance
 // over the inliers), its residuals counted once per registration cell (cell_m) — adjacent finer
