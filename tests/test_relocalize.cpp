@@ -170,7 +170,8 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
     const double worst_a = *std::max_element(e.begin(), e.end());
     std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
     // Each 10 m swath carved alone fits the five lines' model about 2.5 cm along its track and
-    // turned by up to 0.25° (docs/mapping.md "Relocalisation": not understood yet): centimetres.
+    // turned by up to 0.25° (docs/mapping.md "Relocalisation": the model's own error, as on the
+    // field): centimetres.
     EXPECT_LT(e[e.size() / 2], 0.03) << r.out;
     EXPECT_LT(worst_a, 0.07) << r.out;
     std::cout << r.out << "survey A against its own model: horizontal median " << e[e.size() / 2]
