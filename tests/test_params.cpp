@@ -14,6 +14,7 @@
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/world/relocalize.hpp"
 #include "test_support.hpp"
 
 using namespace sonar3d;
@@ -70,6 +71,12 @@ std::string reference() {
       "region, denoising, observation filter, occlusion resolution, threads) are declared once "
       "at the top; `carve`, `deconv` and `bracket` hold what only that step has.",
       params::rows(ReconstructConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "relocalize",
+      "`sonar3d relocalize --print-config` prints these under `relocalize:`; Python: "
+      "`sonar3d.RelocalizeConfig` (docs/mapping.md \"Relocalisation\").",
+      params::rows(RelocalizeConfig()));
   return out;
 }
 

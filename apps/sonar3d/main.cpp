@@ -128,6 +128,7 @@ int main(int argc, char** argv) {
   add_world(app, g, run);
   add_diff(app, g, run);
   add_survey(app, g, run);
+  add_relocalize(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

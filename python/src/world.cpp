@@ -1,7 +1,11 @@
 // World models (thesis sec. 6.3.3, docs/world.md): seabed levels of detail, placed models, graph.
 #include "common.hpp"
+#include "params_py.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/world/relocalize.hpp"
 #include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d::python {
@@ -9,6 +13,64 @@ namespace sonar3d::python {
 using namespace pybind11::literals;
 
 void bind_world(py::module_& m) {
+  bind_config<RelocalizeConfig>(m, "RelocalizeConfig",
+                                "Relocalisation against a world model, as `sonar3d relocalize` "
+                                "runs it (docs/mapping.md \"Relocalisation\").")
+      .def("validate", &RelocalizeConfig::validate);
+  m.def(
+      "relocalize",
+      [](const std::string& dataset, const std::string& world,
+         const std::optional<RelocalizeConfig>& config, const std::string& output, bool overwrite,
+         const py::object& progress) {
+        const RelocalizeConfig cfg = config ? *config : RelocalizeConfig();
+        cfg.validate();
+        std::unique_ptr<OutputDirectory> out;
+        if (!output.empty()) {  // as the CLI: the output rule, inputs never the destination
+          OutputPolicy policy;
+          policy.overwrite = overwrite;
+          policy.sources = {dataset, world};
+          out = std::make_unique<OutputDirectory>(output, OutputKind::Relocalization, policy);
+        }
+        ProgressArg p(progress);
+        RelocalizeResult r = p.run([&] {
+          const WorldModelCloud w = read_world_model_cloud(world, cfg.model_spacing_m);
+          const Dataset ds = read_dataset(dataset);
+          RelocalizeResult res = relocalize(ds, w, cfg, p.terminal());
+          res.dataset = dataset;
+          if (out) {
+            write_relocalization(out->staging(), res, cfg);
+            out->commit();
+          }
+          return res;
+        });
+        py::list swaths;
+        for (const RelocalizedSwath& s : r.swaths) {
+          swaths.append(py::dict(
+              "frames"_a = py::make_tuple(s.first_frame, s.last_frame), "found"_a = s.found,
+              "reason"_a = s.reason, "borrowed"_a = s.borrowed,
+              "T_model_survey"_a = pose_to_array(s.T_model_survey), "yaw_deg"_a = s.yaw_deg,
+              "sigma_horizontal_m"_a = s.sigma_horizontal_m,
+              "sigma_hessian_m"_a = s.sigma_hessian_m, "sigma_pieces_m"_a = s.sigma_pieces_m,
+              "overlap_fraction"_a = s.overlap_fraction, "residual_m"_a = s.residual_m,
+              "alternative_m"_a = s.alternative_m, "distinctiveness"_a = s.distinctiveness,
+              "pieces_used"_a = s.pieces_used));
+        }
+        std::vector<double> times = r.navigation.times;
+        const py::ssize_t n = static_cast<py::ssize_t>(times.size());
+        return py::dict(
+            "found"_a = r.found, "swaths"_a = swaths, "times"_a = adopt(std::move(times), {n}),
+            "poses"_a = poses_to_array(r.navigation.poses),
+            "sigma_horizontal_m"_a = r.sigma_horizontal_m, "seconds"_a = r.seconds_total);
+      },
+      "dataset"_a, "world"_a, "config"_a = py::none(), "output"_a = "", "overwrite"_a = false,
+      "progress"_a = py::none(),
+      "Relocalise a dataset (a new survey, down to one line) against a world model directory of "
+      "`sonar3d world`, as `sonar3d relocalize` does: config a RelocalizeConfig; output (optional) "
+      "a relocalisation directory to write (relocalization.json, navigation.tum). Returns found, "
+      "per swath its correction T_model_survey (4×4), yaw_deg, sigma_horizontal_m, "
+      "overlap_fraction, residual_m, distinctiveness, found and why not (reason); times and poses "
+      "(N×4×4 T_world_vehicle in the world model's frame; empty when not found), "
+      "sigma_horizontal_m, seconds.");
   m.def(
       "world_model",
       [](const carray<float>& points, const std::string& placements, const std::string& catalogue,

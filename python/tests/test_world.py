@@ -137,3 +137,19 @@ def test_world_model_confidence_threshold(tmp_path):
     assert len(w["connections"]) == 1
     with pytest.raises(sonar3d.Error, match="min_confidence: 1.5 is not a confidence"):
         sonar3d.world_model(pts, str(placements), str(cat), min_confidence=1.5)
+
+
+def test_relocalize_config_and_bad_worlds(tmp_path):
+    # The configuration is the command's (one declaration): bounds name the field.
+    c = sonar3d.RelocalizeConfig(search_m=0.8, piece_m=0)
+    assert c.search_m == 0.8 and c.to_dict()["piece_m"] == 0
+    with pytest.raises(Exception, match="min_overlap_fraction"):
+        sonar3d.RelocalizeConfig(min_overlap_fraction=1.5).validate()
+    # A world directory that is missing, or has no seabed: one clear error each.
+    with pytest.raises(Exception, match="does not exist"):
+        sonar3d.relocalize(str(tmp_path / "ds"), str(tmp_path / "nowhere"))
+    w = tmp_path / "w"
+    w.mkdir()
+    (w / "graph.json").write_text('{"format": "sonar3d-world", "version": 1, "seabed": []}')
+    with pytest.raises(Exception, match="has no seabed"):
+        sonar3d.relocalize(str(tmp_path / "ds"), str(w))

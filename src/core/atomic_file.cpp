@@ -170,9 +170,11 @@ std::string finish_interrupted_group(const fs::path& journal) {
            "' of an interrupted sonar3d run (nothing had been renamed yet)";
   }
   bool all_in = true;  // every new file got its final name: complete the set
-  for (const auto& e : members) all_in = all_in && !exists_no_follow(e.temp) && exists_no_follow(e.final_path);
+  for (const auto& e : members)
+    all_in = all_in && !exists_no_follow(e.temp) && exists_no_follow(e.final_path);
   std::string names;
-  for (const auto& e : members) names += (names.empty() ? "'" : ", '") + e.final_path.string() + "'";
+  for (const auto& e : members)
+    names += (names.empty() ? "'" : ", '") + e.final_path.string() + "'";
   std::string problems;
   for (const auto& e : members) {
     if (!all_in) {
@@ -183,8 +185,9 @@ std::string finish_interrupted_group(const fs::path& journal) {
       }
       if (!e.backup.empty() && exists_no_follow(e.backup)) {
         fs::rename(e.backup, e.final_path, ec);
-        if (ec) problems += "; could not restore '" + e.final_path.string() + "' from '" +
-                            e.backup.string() + "': " + ec.message();
+        if (ec)
+          problems += "; could not restore '" + e.final_path.string() + "' from '" +
+                      e.backup.string() + "': " + ec.message();
       }
     } else if (!e.backup.empty()) {
       fs::remove(e.backup, ec);
@@ -278,11 +281,15 @@ void AtomicPath::commit() {
     // OutputDirectory): only an empty directory or a sonar3d output of the same kind is replaced.
     std::error_code e2;
     const bool empty = fs::is_directory(final_, e2) && fs::is_empty(final_, e2) && !e2;
-    if (!empty && !(is_sonar3d_output(temp_, OutputKind::Dataset) &&
-                    is_sonar3d_output(final_, OutputKind::Dataset))) {
+    bool same_kind = false;
+    for (const OutputKind k : {OutputKind::Dataset, OutputKind::Relocalization}) {
+      same_kind = same_kind || (is_sonar3d_output(temp_, k) && is_sonar3d_output(final_, k));
+    }
+    if (!empty && !same_kind) {
       throw Error("'" + final_.string() +
-                  "' exists and is not a sonar3d dataset: sonar3d will not replace it; choose "
-                  "another output or remove it yourself");
+                  "' exists and is not a sonar3d output of the same kind (a dataset, a "
+                  "relocalization directory): sonar3d will not replace it; choose another output "
+                  "or remove it yourself");
     }
     // rename() cannot replace a non-empty directory: move the old one to a backup name first.
     const fs::path backup =

@@ -76,12 +76,15 @@ const char* output_kind_name(OutputKind kind) {
       return "plan results (CSV)";
     case OutputKind::Survey:
       return "survey directory";
+    case OutputKind::Relocalization:
+      return "relocalization directory";
   }
   return "output";
 }
 
 bool is_directory_kind(OutputKind kind) {
-  return kind == OutputKind::Dataset || kind == OutputKind::Plan || kind == OutputKind::Survey;
+  return kind == OutputKind::Dataset || kind == OutputKind::Plan || kind == OutputKind::Survey ||
+         kind == OutputKind::Relocalization;
 }
 
 const char* json_format_marker(OutputKind kind) {
@@ -98,6 +101,8 @@ const char* json_format_marker(OutputKind kind) {
       return "sonar3d-plan-results";
     case OutputKind::Survey:
       return "sonar3d-survey";
+    case OutputKind::Relocalization:
+      return "sonar3d-relocalization";
     default:
       return "";
   }
@@ -371,6 +376,9 @@ bool is_sonar3d_output(const fs::path& path, OutputKind kind) {
       return read_head(path, 64).rfind("id,status,rank,", 0) == 0;
     case OutputKind::Survey:  // summary.json, written when the survey starts
       return fs::is_directory(path, ec) && has_json_marker(path / "summary.json", "sonar3d-survey");
+    case OutputKind::Relocalization:
+      return fs::is_directory(path, ec) &&
+             has_json_marker(path / "relocalization.json", "sonar3d-relocalization");
   }
   return false;
 }
@@ -410,7 +418,7 @@ std::string other_sonar3d_kind(const fs::path& path, OutputKind wanted) {
         OutputKind::GeoTiff, OutputKind::Png, OutputKind::Gltf, OutputKind::VoxelMap,
         OutputKind::ReconstructionJson, OutputKind::EvaluationJson, OutputKind::RegistrationJson,
         OutputKind::PlacementsJson, OutputKind::PlanResultsJson, OutputKind::PlanResultsCsv,
-        OutputKind::Survey}) {
+        OutputKind::Survey, OutputKind::Relocalization}) {
     if (k != wanted && is_sonar3d_output(path, k)) return output_kind_name(k);
   }
   return "";

@@ -375,6 +375,7 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   std::vector<double> absr;
   double gn_cost = best.cost;
   std::size_t gn_used = 0;
+  Eigen::Matrix4d gn_cov = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
   for (int it = 0; it < 30; ++it) {
     const double cs = std::cos(yaw), sn = std::sin(yaw);
     struct Row {
@@ -404,17 +405,23 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
     const double cut = absr[keep - 1];
     Eigen::Matrix4d H = Eigen::Matrix4d::Zero();
     Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
-    double sum = 0;
+    double sum = 0, sum2 = 0;
     std::size_t used = 0;
     for (const Row& row : rows) {
       if (std::abs(row.r) > cut) continue;
       H += row.j * row.j.transpose();
       rhs -= row.j * row.r;
       sum += std::abs(row.r);
+      sum2 += row.r * row.r;
       ++used;
     }
     gn_cost = sum / static_cast<double>(used);
     gn_used = used;
+    // The covariance at this iterate, s²·H⁻¹ (the last one is kept: at convergence, the
+    // solution's).
+    if (used > 4 && H.fullPivLu().rank() == 4) {
+      gn_cov = (sum2 / static_cast<double>(used - 4)) * H.inverse();
+    }
     H.diagonal() += Eigen::Vector4d::Constant(1e-9 * H.trace() + 1e-12);  // a flat seabed
     const Eigen::Vector4d delta = H.ldlt().solve(rhs);
     if (!delta.allFinite()) break;
@@ -451,8 +458,51 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   out.yaw_deg = (refined ? yaw : best.yaw) / kDeg;
   out.rms_m = refined ? gn_cost : best.cost;
   out.overlap_cells = refined ? gn_used : best.overlap;
+  out.covariance = gn_cov;
+  out.covariance_cells = gn_used;
+  out.pivot = pivot;
   out.seconds = seconds_since(t0);
   return out;
+}
+
+RegistrationFit registration_fit(const ElevationMap& a, const PointCloud& b_world,
+                                 const Eigen::Isometry3d& T_a_b, double inlier_fraction) {
+  RegistrationFit fit;
+  if (b_world.empty() || a.empty()) return fit;
+  // B's map on A's cell grid (its own extent), compared cell by cell.
+  const PointCloud b = transformed(b_world, T_a_b);
+  ElevationMapConfig cfg;
+  cfg.cell_m = a.cell_m;
+  const ElevationMap bm = elevation_map_from_points(b, cfg);
+  const double c = a.cell_m;
+  std::vector<float> d;
+  d.reserve(bm.z.size());
+  for (int r = 0; r < bm.rows; ++r) {
+    for (int col = 0; col < bm.cols; ++col) {
+      const float zb = bm.at(r, col);
+      if (!(zb == zb)) continue;
+      ++fit.b_cells;
+      const Eigen::Vector2d p = bm.cell_center_xy(r, col);
+      const int ac = static_cast<int>(std::floor((p.x() - a.origin_xy.x()) / c));
+      const int ar = static_cast<int>(std::floor((a.origin_xy.y() - p.y()) / c));
+      if (ac < 0 || ar < 0 || ac >= a.cols || ar >= a.rows) continue;
+      const float za = a.at(ar, ac);
+      if (!(za == za)) continue;
+      d.push_back(za - zb);
+    }
+  }
+  fit.overlap = d.size();
+  if (d.empty()) return fit;
+  std::vector<float> s = d;
+  fit.dz = quantile(s, 0.5);  // eq. 6.1: the depth distributions aligned by their median
+  for (float& x : d) x = std::abs(x - static_cast<float>(fit.dz));
+  const std::size_t k =
+      std::max<std::size_t>(1, static_cast<std::size_t>(inlier_fraction * d.size()));
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k - 1), d.end());
+  double sum = 0;
+  for (std::size_t i = 0; i < k; ++i) sum += d[i];
+  fit.cost_m = sum / static_cast<double>(k);
+  return fit;
 }
 
 std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,

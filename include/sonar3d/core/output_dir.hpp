@@ -38,9 +38,12 @@ enum class OutputKind {
   PlanResultsJson,     // a plan's results.json: "format": "sonar3d-plan-results"
   PlanResultsCsv,      // a plan's results.csv: its header line "id,status,rank,..."
   Survey,  // a survey directory (sonar3d survey): summary.json "format": "sonar3d-survey"
+  // a relocalisation directory (sonar3d relocalize): relocalization.json "format":
+  // "sonar3d-relocalization"
+  Relocalization,
 };
 const char* output_kind_name(OutputKind kind);
-// True for the kinds that are directories (Dataset, Plan, Survey).
+// True for the kinds that are directories (Dataset, Plan, Survey, Relocalization).
 bool is_directory_kind(OutputKind kind);
 // The "format" value of a JSON kind ("sonar3d-evaluation", ...); empty for other kinds.
 const char* json_format_marker(OutputKind kind);

@@ -65,6 +65,13 @@ struct ChangeRegistration {
   double rms_m = 0;
   std::size_t overlap_cells = 0;  // cells observed in both surveys (change map)
   double seconds = 0;
+  // The Gauss-Newton stage's covariance of (yaw rad, x m, y m, z m) at its last iteration,
+  // s²·(JᵀJ)⁻¹ with s² the residual variance over its inliers (each a cell of cell_m / 2, taken
+  // as independent); B turns about `pivot` (the centre of its extent). NaN when that stage had
+  // too few cells. Relocalisation (world/relocalize.hpp) reads its σ from it.
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+  std::size_t covariance_cells = 0;  // the inliers it was computed over
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
 };
 
 // Survey B registered onto survey A (both clouds in their own worlds) on elevation maps: (1) for
@@ -77,6 +84,18 @@ struct ChangeRegistration {
 // it lowers (1)'s cost at cell_m. Throws Error when the maps do not overlap.
 ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
                                     const ChangeRegistrationConfig& config);
+
+// How well B moved by T_a_b fits A on maps of cell `cell_m` (A's grid): the mean |A − B − ζ| over
+// the smallest `inlier_fraction` of the overlap, ζ the signed median of A − B there (eq. 6.1–6.2's
+// alignment of the heights, then the change detection's trimmed mean); `overlap` the cells
+// observed in both, `b_cells` the cells B observes. Infinity without overlap.
+struct RegistrationFit {
+  double cost_m = std::numeric_limits<double>::infinity();
+  double dz = 0;
+  std::size_t overlap = 0, b_cells = 0;
+};
+RegistrationFit registration_fit(const ElevationMap& a, const PointCloud& b_world,
+                                 const Eigen::Isometry3d& T_a_b, double inlier_fraction);
 
 // The space colours are compared in (docs/change.md "Colour change" measures both):
 // chromaticity — r = R/(R+G+B), g = G/(R+G+B) of linear RGB, in percentage points — ignores
