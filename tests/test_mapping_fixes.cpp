@@ -228,7 +228,7 @@ TEST(MappingFixes, FixesFilesReadOrRefusedWithOneLine) {
 
   const std::string h = "time_s,x_m,y_m,sigma_m\n";
   const std::vector<std::pair<std::string, std::string>> bad = {
-      {h + "1,2,3,abc\n", "f.csv:2: column 'sigma_m' (field 4): 'abc' is not a number"},
+      {h + "1,2,3,abc\n", "f.csv:2: column 'sigma_m' (field 4) 'abc' is not a number"},
       {h + "1,nan,3,1\n", "f.csv:2: column 'x_m' (field 2) is not finite"},
       {h + "1,2,3,-1\n", "f.csv:2: column 'sigma_m' (field 4): σ -1 m must lie in (0,"},
       {h + "1,2,3,0\n", "f.csv:2: column 'sigma_m' (field 4): σ 0 m must lie in (0,"},

@@ -12,6 +12,7 @@
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/yaml_config.hpp"
+#include "text_fields.hpp"
 
 namespace fs = std::filesystem;
 
@@ -20,47 +21,11 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-std::string trim(const std::string& s) {
-  const auto a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  const auto b = s.find_last_not_of(" \t\r");
-  return s.substr(a, b - a + 1);
-}
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
-
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  std::istringstream is(line);
-  while (std::getline(is, cell, ',')) out.push_back(trim(cell));
-  if (!line.empty() && line.back() == ',') out.push_back("");
-  return out;
-}
-
-bool skip_line(const std::string& line) {
-  const std::string t = trim(line);
-  return t.empty() || t[0] == '#';
-}
-
-double parse_number(const std::string& cell, const std::string& where, const std::string& what) {
-  double v = 0;
-  std::size_t used = 0;
-  try {
-    v = std::stod(cell, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (cell.empty() || used != cell.size()) {
-    throw Error(where + ": " + what + " '" + printable(cell) + "' is not a number");
-  }
-  if (!std::isfinite(v)) throw Error(where + ": " + what + " is not finite");
-  return v;
-}
+using text::lower;
+using text::parse_number;
+using text::skip_line;
+using text::split_csv;
+using text::trim;
 
 // Column index of the first header name in `names`, or -1.
 int column(const std::vector<std::string>& header, std::initializer_list<const char*> names) {

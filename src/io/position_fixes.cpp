@@ -11,24 +11,15 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "text_fields.hpp"
 
 namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
 
-std::string trim(const std::string& s) {
-  const auto a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  const auto b = s.find_last_not_of(" \t\r");
-  return s.substr(a, b - a + 1);
-}
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
+using text::lower;
+using text::trim;
 
 std::string fmt_num(double v) {
   std::ostringstream os;
@@ -36,22 +27,11 @@ std::string fmt_num(double v) {
   return os.str();
 }
 
-// One field: a finite number, else "<where>: column '<what>' (field k): ...".
+// One field: a finite number, else "<where>: column '<what>' (field k) '...' is not a number".
 double number(const std::string& cell, const std::string& where, const std::string& what,
               int field) {
-  const std::string col = "column '" + what + "' (field " + std::to_string(field) + ")";
-  double v = 0;
-  std::size_t used = 0;
-  try {
-    v = std::stod(cell, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (cell.empty() || used != cell.size()) {
-    throw Error(where + ": " + col + ": '" + printable(cell) + "' is not a number");
-  }
-  if (!std::isfinite(v)) throw Error(where + ": " + col + " is not finite");
-  return v;
+  return text::parse_number(cell, where,
+                            "column '" + what + "' (field " + std::to_string(field) + ")");
 }
 
 void check_fix(const PositionFix& f, const std::vector<PositionFix>& out, const std::string& where,
