@@ -81,6 +81,45 @@ TEST(Sweep, BadFilesNameTheProblem) {
   check("axes: {aperture_deg: [10]}\nconstraints: [\"object >= 2\"]\n", "not a numeric");
   check("axes: {aperture_deg: [10]}\nrank_by: beauty\n", "unknown metric");
   check("fixed: {aperture_deg: 10}\n", "'axes' must map");
+  // Any reconstruction setting by its dotted path, checked as a configuration file's would be.
+  check("axes: {reconstruct.carve.bogus: [1]}\n", "unknown key");
+  check("axes: {reconstruct.deconv.mode: [orbit]}\n", "passes, voxel or auto");
+  check("axes: {reconstruct.bracket.min_bracket: [0, 2]}\n", "s.yaml:1");
+  check("axes: {reconstruct.bracket.min_bracket: [0, 2]}\n", "must lie in [0, 1]");
+}
+
+// The planner varies any setting of the reconstruction by its dotted path (ReconstructConfig's one
+// declaration, docs/reference.md), and the point runs with it.
+TEST(Plan, SweepsAnyReconstructionSettingByItsPath) {
+  const fs::path dir = temp_dir("dotted");
+  write(dir / "s.yaml", R"(
+seed: 3
+workers: 1
+elevation_step_deg: 0.1
+axes:
+  reconstruct.bracket.min_bracket: [0, 0.9]
+fixed: {aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04, voxel_m: 0.04,
+        spacing_m: 0.1, standoff_m: 2.0, reconstruct.carve.occlusion.explain_returns: true}
+constraints: ["reconstruct.bracket.min_bracket <= 0.9"]
+)");
+  const Sweep s = load_sweep((dir / "s.yaml").string());
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_EQ(to_string(s.point(1).at("reconstruct.bracket.min_bracket")), "0.9");
+  EXPECT_EQ(to_string(s.point(0).at("reconstruct.carve.occlusion.explain_returns")), "true");
+  const fs::path out = dir / "out";
+  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " +
+                          out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << read_text_file((dir / "log.txt").string());
+  const auto results = read_json(out / "results.json");
+  ASSERT_EQ(results["points"].size(), 2u);
+  double kept[2] = {0, 0};
+  for (const auto& p : results["points"]) {
+    ASSERT_EQ(p["status"], "ok") << p.dump();
+    const int k = p["params"]["reconstruct.bracket.min_bracket"].get<double>() > 0 ? 1 : 0;
+    kept[k] = p["metrics"]["num_points"].get<double>();
+  }
+  EXPECT_GT(kept[0], 100);
+  EXPECT_LT(kept[1], kept[0]);  // the setting reached the reconstruction: fewer points kept
 }
 
 TEST(Plan, RunsRanksResumesAndRecordsFailures) {

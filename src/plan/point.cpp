@@ -11,6 +11,7 @@
 #include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/plan/sweep.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulation.hpp"
@@ -164,6 +165,12 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
     ReconstructOptions ro;
     ro.method = std::get<std::string>(params.at("method"));
     ro.voxel_size = std::get<double>(params.at("voxel_m"));
+    // Any other setting of the reconstruction, by its dotted path (checked when the sweep was
+    // loaded): reconstruct.bracket.min_bracket, reconstruct.deconv.mode, ...
+    for (const auto& [name, value] : params) {
+      if (name.rfind("reconstruct.", 0) != 0) continue;
+      params::set_dotted(ro, name.substr(12), YAML::Node(to_string(value)), "sweep", "reconstruct");
+    }
     // The object and a 0.3 m margin, but nothing more than 3 cm below its base: the reference
     // objects stand on the seabed, which the simulated scene leaves out. Without this seabed
     // prior the lowest frames of a pass (which start below the base to bracket it) see the

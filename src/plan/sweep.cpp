@@ -5,7 +5,9 @@
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/io/yaml_config.hpp"
+#include "sonar3d/recon/reconstruct.hpp"
 
 namespace sonar3d {
 namespace {
@@ -20,9 +22,23 @@ const std::map<std::string, SweepValue>& defaults() {
                                                       {"spacing_m", 0.01},
                                                       {"standoff_m", 3.0},
                                                       {"path", std::string("vertical")},
-                                                      {"method", std::string("carve")},
-                                                      {"voxel_m", 0.01}};
+                                                      // the reconstruction's own defaults
+                                                      {"method", ReconstructConfig().method},
+                                                      {"voxel_m", ReconstructConfig().voxel_size}};
   return d;
+}
+
+// "reconstruct.<dotted path>": any setting of the reconstruction (ReconstructConfig's one
+// declaration, docs/reference.md), e.g. reconstruct.bracket.min_bracket.
+constexpr const char* kReconstructPrefix = "reconstruct.";
+bool is_reconstruct_path(const std::string& p) { return p.rfind(kReconstructPrefix, 0) == 0; }
+
+// Checks a reconstruct.* value as a configuration file's would be (key, type, bounds, choices).
+void check_reconstruct_value(const YAML::Node& n, const std::string& param,
+                             const std::string& file) {
+  ReconstructConfig scratch;
+  params::set_dotted(scratch, param.substr(std::string(kReconstructPrefix).size()), n, file,
+                     "reconstruct");
 }
 
 bool is_string_parameter(const std::string& p) {
@@ -33,6 +49,12 @@ SweepValue parse_value(const YAML::Node& n, const std::string& param, const std:
                        const std::string& ctx) {
   if (!n.IsScalar()) throw Error(yaml::where(file, n, ctx) + ": expected a single value");
   const std::string s = n.Scalar();
+  if (is_reconstruct_path(param)) {
+    check_reconstruct_value(n, param, file);
+    double v = 0;
+    if (YAML::convert<double>::decode(n, v) && std::isfinite(v)) return v;
+    return s;
+  }
   if (param == "snr_db" && (s == "none" || s == "null" || s == "~" || s.empty())) {
     return std::monostate{};
   }
@@ -132,7 +154,15 @@ Sweep load_sweep(const std::string& path) {
   if (!axes || !axes.IsMap() || axes.size() == 0) {
     throw Error(path + ": 'axes' must map at least one parameter to a list of values");
   }
-  yaml::check_keys(axes, known, path, "axes");
+  auto with_reconstruct_paths = [&](const YAML::Node& block) {
+    std::set<std::string> k = known;
+    for (const auto& kv : block) {
+      const std::string name = kv.first.as<std::string>();
+      if (is_reconstruct_path(name)) k.insert(name);
+    }
+    return k;
+  };
+  yaml::check_keys(axes, with_reconstruct_paths(axes), path, "axes");
   for (const auto& kv : axes) {
     const std::string name = kv.first.as<std::string>();
     const std::string ctx = "axes." + name;
@@ -147,7 +177,7 @@ Sweep load_sweep(const std::string& path) {
     s.axes.emplace_back(name, std::move(values));
   }
   if (const YAML::Node f = root["fixed"]) {
-    yaml::check_keys(f, known, path, "fixed");
+    yaml::check_keys(f, with_reconstruct_paths(f), path, "fixed");
     for (const auto& kv : f) {
       const std::string name = kv.first.as<std::string>();
       s.fixed[name] = parse_value(kv.second, name, path, "fixed." + name);
@@ -167,7 +197,8 @@ Sweep load_sweep(const std::string& path) {
         throw Error(yaml::where(path, c[i], ctx) +
                     ": expected 'parameter op number' with op one of >= <= > < == !=");
       }
-      if (!known.count(k.parameter) || is_string_parameter(k.parameter)) {
+      if ((!known.count(k.parameter) && !is_reconstruct_path(k.parameter)) ||
+          is_string_parameter(k.parameter)) {
         throw Error(yaml::where(path, c[i], ctx) + ": '" + k.parameter +
                     "' is not a numeric sweep parameter");
       }

@@ -5,11 +5,13 @@
 // out-of-bounds or mistyped values naming the file, line and dotted key.
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/params.hpp"
@@ -159,6 +161,30 @@ struct YamlReader : PathVisitor<YamlReader> {
 template <class C>
 void read_yaml(const YAML::Node& node, const std::string& file, const std::string& ctx, C& config) {
   YamlReader::read_map(node, file, ctx, config);
+}
+
+// One field given by its dotted path ("carve.occlusion.explain_returns") and a YAML value onto
+// `config`, checked as a configuration file's (unknown keys, bounds, choices; errors name `file`,
+// the value's line and `ctx` + the path). The planner's sweep varies any setting this way.
+inline YAML::Node nest_dotted(const std::vector<std::string>& parts, std::size_t i,
+                              const YAML::Node& leaf) {
+  if (i == parts.size()) return leaf;
+  YAML::Node m(YAML::NodeType::Map);
+  m[parts[i]] = nest_dotted(parts, i + 1, leaf);
+  return m;
+}
+template <class C>
+void set_dotted(C& config, const std::string& dotted, const YAML::Node& value,
+                const std::string& file, const std::string& ctx) {
+  std::vector<std::string> parts;
+  std::size_t a = 0;
+  while (a <= dotted.size()) {
+    const std::size_t b = std::min(dotted.find('.', a), dotted.size());
+    if (b == a) throw Error(file + ": '" + ctx + dotted + "': an empty key in the dotted path");
+    parts.push_back(dotted.substr(a, b - a));
+    a = b + 1;
+  }
+  read_yaml(nest_dotted(parts, 0, value), file, ctx, config);
 }
 
 }  // namespace sonar3d::params
