@@ -475,17 +475,9 @@ namespace {
 
 // A small field: seabed, a box, a half-buried pipe and a rock, surveyed by a downward-looking
 // 1° × 80° sonar (MB2250-like) on four East–West lines 3 m above the seabed.
-constexpr const char* kFieldScene = R"(seed: 3
-sensor:
-  fov_deg: 80
-  beams: 160
-  r_min: 1.0
-  r_max: 4.0
-  range_bins: 150
-  vertical_aperture_deg: 1
-  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
-simulation: {elevation_step_deg: 0.1}
-objects:
+const std::string kFieldScene = std::string(R"(seed: 3
+)") + sonar3d::test::kDownwardSonarYaml +
+                                R"(objects:
   - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3, kind: terrain}
   - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}, reflectivity: 0.8}
   - {name: pipe, primitive: {type: cylinder, radius: 0.15, height: 5}, pose: {translation: [3, 2.0, 0.05], rpy_deg: [0, 90, 20]}, reflectivity: 0.8}

@@ -41,17 +41,9 @@ fs::path temp_dir() {
 
 // A 40 × 40 m seabed with relief and rocks, a box on it; a downward-looking 1° × 80° sonar 3 m
 // above. TRAJECTORY is replaced per survey.
-constexpr const char* kScene = R"(seed: 4
-sensor:
-  fov_deg: 80
-  beams: 160
-  r_min: 1.0
-  r_max: 4.0
-  range_bins: 150
-  vertical_aperture_deg: 1
-  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
-simulation: {elevation_step_deg: 0.1}
-objects:
+const std::string kScene = std::string(R"(seed: 4
+)") + sonar3d::test::kDownwardSonarYaml +
+                           R"(objects:
   - {name: seabed, primitive: {type: terrain, size: [40, 40], cell: 0.05, relief: 0.3, wavelength: 4, rocks: 60, seed: 4}, reflectivity: 0.3}
   - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [1.5, -1.0, 0.1], rpy_deg: [0, 0, 30]}, reflectivity: 0.8}
 trajectory: TRAJECTORY

@@ -59,6 +59,19 @@ inline CliRunSplit run_cli_captured(const std::filesystem::path& dir, const std:
 
 // A 30 cm sphere (48 segments) centred at (0, 0, 0.5), reflectivity 0.8: the small object of the
 // deconvolution tests.
+// The downward-looking sonar of the small field scenes (MB2250-like: 1° × 80°, 1–4 m), with the
+// simulation's ray spacing: the scene files' "sensor:" and "simulation:" blocks.
+inline const std::string kDownwardSonarYaml = R"(sensor:
+  fov_deg: 80
+  beams: 160
+  r_min: 1.0
+  r_max: 4.0
+  range_bins: 150
+  vertical_aperture_deg: 1
+  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
+simulation: {elevation_step_deg: 0.1}
+)";
+
 inline Scene sphere_scene() {
   Scene scene;
   SceneObject o;

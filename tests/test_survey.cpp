@@ -332,16 +332,7 @@ TEST(SurveyCli, TexturesCameraFramesAndImportsABag) {
   const fs::path dir = sonar3d::test::temp_dir("bag");
   {
     std::ofstream(dir / "field.yaml") << R"(seed: 3
-sensor:
-  fov_deg: 80
-  beams: 160
-  r_min: 1.0
-  r_max: 4.0
-  range_bins: 150
-  vertical_aperture_deg: 1
-  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
-simulation: {elevation_step_deg: 0.1}
-objects:
+)" + sonar3d::test::kDownwardSonarYaml + R"(objects:
   - {name: seabed, primitive: {type: plane, size: [20, 20]}, pose: {translation: [0, 0, 0.013]}, reflectivity: 0.3, kind: terrain, color: [0.8, 0.7, 0.5]}
   - {name: box, primitive: {type: box, size: [1.0, 0.6, 0.4]}, pose: {translation: [2.0, 1.5, 0], rpy_deg: [0, 0, 30]}, reflectivity: 0.8, color: [0.9, 0.8, 0.1]}
 camera: {width: 160, height: 120, fx: 100, fy: 100, cx: 79.5, cy: 59.5, T_vehicle_camera: {translation: [0, 0, -0.2], rpy_deg: [180, 0, 90]}, rate_hz: 0.5, ambient: 1, attenuation_per_m: 0}
