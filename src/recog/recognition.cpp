@@ -308,6 +308,15 @@ YawTrial best_yaw(const ModelTemplate& model, const ElevationMap& scene,
           }
         }
       }
+      // The seabed's median needs no more than a few hundred cells spread around the model (the
+      // ring holds thousands on the fine map): every k-th, in raster order.
+      constexpr std::size_t kGroundCells = 256;
+      if (ground.size() > kGroundCells) {
+        const std::size_t step = (ground.size() + kGroundCells - 1) / kGroundCells;
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < ground.size(); i += step) ground[kept++] = ground[i];
+        ground.resize(kept);
+      }
       const int S = static_cast<int>(std::floor(search_m / c + 1e-9));
       const double h = model.height();
       const std::optional<BoundedShift> t = bounded_shift_search(
