@@ -730,7 +730,10 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                 cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
       isolated = cv::countNonZero(core) == 0;
     }
-    if (!blobs.empty() && isolated) {
+    // A model standing less than relief_m cannot have raised a blob (relief_m above the seabed),
+    // and the verification sees no relief of it: no proposals (the 6 cm hot stab was placed on
+    // a blob of rock with 0.002 m³ of relief explained, confidence 0.78).
+    if (!blobs.empty() && isolated && s.m->height() >= config.verification.relief_m) {
       const double hm = s.m->height();
       const double h_lo = 0.5 * (1 - config.max_buried_fraction) * hm, h_hi = 1.5 * hm + 0.1;
       std::vector<std::pair<double, std::size_t>> fits;

@@ -190,8 +190,9 @@ struct RecognitionConfig {
   // max_buried_fraction leaves standing and at most 1.5 × the model's plus 0.1 m, its area
   // 0.25–3 × the model's footprint) is proposed to it, best-fitting first, at most
   // max_relief_proposals of them; each is registered and verified like a scan candidate. Models
-  // whose footprint holds a square of the window are left to the scan (the opening cannot lift
-  // them off the seabed).
+  // whose footprint holds a square of the window, or that stand lower than verification.relief_m
+  // (they cannot raise a blob), are left to the scan (the opening cannot lift the former off the
+  // seabed).
   double relief_window_m = 2.0;
   // Per model; 0: none. On by default since the 4D search's height is bounded by the seabed
   // (Search4dConfig::seabed_ring_m): on the seven benchmark fields they then found the buried
