@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
     std::fprintf(
         stderr,
         "usage: %s SCENE.yaml MAP CATALOGUE.yaml [--no-icp] [--method 2d|3d] [--no-upright] "
-        "[--label TEXT] [--match-m M]\n",
+        "[--max-relief-proposals N] [--label TEXT] [--match-m M]\n",
         argv[0]);
     return 2;
   }
@@ -82,6 +82,9 @@ int main(int argc, char** argv) {
       }
       if (!std::strcmp(argv[i], "--min-coverage") && i + 1 < argc) {
         cfg3.min_coverage = std::atof(argv[++i]);
+      }
+      if (!std::strcmp(argv[i], "--max-relief-proposals") && i + 1 < argc) {
+        cfg.max_relief_proposals = std::atoi(argv[++i]);
       }
       if (!std::strcmp(argv[i], "--label") && i + 1 < argc) label = argv[++i];
       if (!std::strcmp(argv[i], "--match-m") && i + 1 < argc) match_m = std::atof(argv[++i]);

@@ -18,7 +18,9 @@
 #
 # Environment: RUNS (default runs: the recognition outputs' folder under WORK, e.g. runs_before),
 # TIMEOUT (s per recognition run, default 300), METHODS (default "2d 3d"), MESHES (the public
-# meshes, default ../shared/data/meshes beside the repository), RECOG_ARGS (extra flags for both).
+# meshes, default ../shared/data/meshes beside the repository), RECOG_ARGS (extra flags for both
+# methods of `sonar3d recognize`), BENCH_ARGS (extra flags for bench_recognition, e.g.
+# --max-relief-proposals 4: its table's figures).
 # The binaries are copied from BUILD to BIN (default WORK/bin) on the first run, so that a rebuild
 # does not change them mid-run; another BIN (e.g. BIN=WORK/bin_after RUNS=runs_after) measures
 # another build on the same datasets.
@@ -105,7 +107,7 @@ recog() {  # field, method
     > "$out.txt" 2>&1 || echo "   (exit $?: see $out.txt, $out.time.txt)" >&2
   echo "== $f: bench_recognition --method $m" >&2
   $T -o "$out.bench.time.txt" timeout "$TIMEOUT" nice -n 5 "$BENCH" "$WORK/$f.yaml" "$(map_of "$f")" \
-    "$WORK/${f}_catalogue.yaml" --method "$m" --label "$f, $m" > "$out.bench.txt" 2>&1 \
+    "$WORK/${f}_catalogue.yaml" --method "$m" --label "$f, $m" ${BENCH_ARGS:-} > "$out.bench.txt" 2>&1 \
     || echo "   (exit $?: see $out.bench.txt)" >&2
 }
 
