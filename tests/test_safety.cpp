@@ -231,7 +231,7 @@ TEST_F(Safety, InterruptedReplacementIsRestoredAndStaleTemporariesRemoved) {
         write(p.temp() / "sonar.yaml", "format: sonar3d-dataset\nversion: 1\n");
         p.commit();
       },
-      "is not a sonar3d dataset");
+      "is not a sonar3d output of the same kind");
   EXPECT_EQ(read_text_file((dir / "user/keep").string()), "mine");
   expect_no_left_overs(dir);
 }

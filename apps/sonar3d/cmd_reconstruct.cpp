@@ -251,6 +251,11 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   add_overwrite_flag(cmd, o->overwrite, "a cloud, --json and --vdb sonar3d wrote earlier");
   add_max_memory_option(cmd, o->max_memory_gb);
   cmd->callback([&g, &run, o] {
+    // The dataset and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->dataset.empty()) throw CLI::RequiredError("dataset");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     const FlagNames flags = reconstruct_flags(*o->config);
     run = [&g, o, flags]() -> int {
       return with_flag_names(flags, [&] {
@@ -261,8 +266,6 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
                                cfg, "reconstruct", "sonar3d reconstruct: effective configuration"));
           return 0;
         }
-        require(!o->dataset.empty(), "reconstruct: give the dataset directory");
-        require(!o->output.empty(), "reconstruct: give the cloud to write (-o)");
         return run_reconstruct(*o, cfg, g, flags);
       });
     };
