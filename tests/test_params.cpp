@@ -14,7 +14,9 @@
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/world/change.hpp"
 #include "sonar3d/world/relocalize.hpp"
+#include "sonar3d/world/world_model.hpp"
 #include "test_support.hpp"
 
 using namespace sonar3d;
@@ -77,6 +79,19 @@ std::string reference() {
       "`sonar3d relocalize --print-config` prints these under `relocalize:`; Python: "
       "`sonar3d.RelocalizeConfig` (docs/mapping.md \"Relocalisation\").",
       params::rows(RelocalizeConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "diff",
+      "`sonar3d diff --print-config` prints these under `diff:`; Python: `sonar3d.ChangeConfig` "
+      "and `sonar3d.diff_surveys(a, b, config=cfg)` (docs/change.md).",
+      params::rows(ChangeConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "world",
+      "`sonar3d world --print-config` prints these under `world:` (the survey's `world:` block "
+      "takes them too); Python: `sonar3d.WorldModelConfig` and `sonar3d.world_model(points, "
+      "placements, catalogue, config=cfg)` (docs/world.md).",
+      params::rows(WorldModelConfig()));
   return out;
 }
 
@@ -203,6 +218,76 @@ TEST(Params, ReconstructPrintConfigRunsBackByteForByte) {
   // Out-of-bounds flags name the flag.
   const auto e = run_cli_captured(dir, "reconstruct --print-config --voxel-size 0");
   EXPECT_NE(e.code, 0);
+  fs::remove_all(dir);
+}
+
+TEST(Params, DiffPrintConfigRunsBackByteForByte) {
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(dir,
+                                  "diff --print-config --colour-space lab --cell 0.05 --search 0.8 "
+                                  "--threads 1 --turn-tol-deg 5");
+  ASSERT_EQ(a.code, 0) << a.err;
+  for (const char* want :
+       {"space: lab", "cell_m: 0.05", "search_m: 0.8", "num_threads: 1", "turn_tol_deg: 5"}) {
+    EXPECT_NE(a.out.find(want), std::string::npos) << want << "\n" << a.out;
+  }
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "diff --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);
+  ChangeConfig lib;
+  params::read_yaml(YAML::LoadFile((dir / "cfg.yaml").string())["diff"], "cfg.yaml", "diff", lib);
+  EXPECT_EQ(lib.colour.space, ColourSpace::Lab);
+  EXPECT_EQ(lib.registration.search_m, 0.8);
+  // A cross-field rule names the field; an out-of-bounds flag names the flag.
+  const auto c =
+      run_cli_captured(dir, "diff --print-config --registration-cell 0.5 --yaw-cell 0.2");
+  EXPECT_NE(c.code, 0);
+  EXPECT_NE(c.err.find("yaw_cell_m"), std::string::npos) << c.err;
+  const auto d = run_cli_captured(dir, "diff --print-config --k-sigma -1");
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("--k-sigma"), std::string::npos) << d.err;
+  // Without --print-config, A, B and -o are required (usage error).
+  EXPECT_EQ(run_cli_captured(dir, "diff").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, WorldPrintConfigRunsBackByteForByte) {
+  // A list (levels of detail), an optional number (unset: the placements file's threshold) and
+  // switches turned by their flags.
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(
+      dir, "world --print-config --lod-cells 0.1,0.3 --no-fill --no-connections --min-ridge 0.1");
+  ASSERT_EQ(a.code, 0) << a.err;
+  for (const char* want : {"lod_cells_m: [0.1, 0.3]", "fill_footprints: false",
+                           "find_connections: false", "min_ridge_m: 0.1", "min_confidence: ~"}) {
+    EXPECT_NE(a.out.find(want), std::string::npos) << want << "\n" << a.out;
+  }
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "world --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);
+  WorldModelConfig lib;
+  params::read_yaml(YAML::LoadFile((dir / "cfg.yaml").string())["world"], "cfg.yaml", "world", lib);
+  EXPECT_EQ(lib.seabed.lod_cells_m, (std::vector<double>{0.1, 0.3}));
+  EXPECT_FALSE(lib.min_confidence.has_value());
+  const auto c = run_cli_captured(dir, "world --print-config --min-confidence 0.4");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("min_confidence: 0.4"), std::string::npos) << c.out;
+  // The levels' rule (integer multiples) and an element out of bounds, named.
+  const auto d = run_cli_captured(dir, "world --print-config --lod-cells 0.1,0.25");
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("--lod-cells: 0.25 m is not an integer multiple"), std::string::npos)
+      << d.err;
+  std::ofstream(dir / "bad.yaml") << "world:\n  seabed:\n    lod_cells_m: [0.1, -1]\n";
+  const auto e =
+      run_cli_captured(dir, "world --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("bad.yaml:3"), std::string::npos) << e.err;
+  EXPECT_NE(e.err.find("position 2"), std::string::npos) << e.err;
+  EXPECT_EQ(run_cli_captured(dir, "world").code, 2);
   fs::remove_all(dir);
 }
 

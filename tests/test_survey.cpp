@@ -267,7 +267,7 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
            "map: {resolution: 0.05, method: drift, swath_times: [0, 10, "
            "12, 20]}\n"
            "recognize: {method: 3d, three_d: {yaw_step_deg: 7.5}, two_d: {run_icp: false}}\n"
-           "world: {lod_cells: [0.1, 0.5], min_confidence: 0.3}\n"
+           "world: {seabed: {lod_cells_m: [0.1, 0.5]}, min_confidence: 0.3}\n"
            "texture: {max_range: 12}\n"
            "report: {title: 'a \"quoted\" title', seed: 7}\n";
   }
@@ -282,7 +282,7 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   EXPECT_FALSE(c.recognize.two_d.run_icp);
   EXPECT_EQ(c.recognize.three_d.max_residual_median_m,
             sonar3d::Recognition3dConfig().max_residual_median_m);  // default kept
-  EXPECT_EQ(c.world.lod_cells, (std::vector<double>{0.1, 0.5}));
+  EXPECT_EQ(c.world.model.seabed.lod_cells_m, (std::vector<double>{0.1, 0.5}));
   EXPECT_EQ(c.report.title, "a \"quoted\" title");
   const std::string printed = sonar3d::survey_config_yaml(c);
   { std::ofstream(dir / "printed.yaml") << printed; }
@@ -295,9 +295,9 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   { std::ofstream(dir / "e1.yaml") << "mapping: {}\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e1.yaml").string()); },
                               "e1.yaml:1: key 'mapping': unknown key");
-  { std::ofstream(dir / "e2.yaml") << "world:\n  margin: wide\n"; }
+  { std::ofstream(dir / "e2.yaml") << "world:\n  seabed:\n    margin_m: wide\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e2.yaml").string()); },
-                              "e2.yaml:2: key 'world.margin'");
+                              "e2.yaml:3");
   { std::ofstream(dir / "e3.yaml") << "report: [1, 2]\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e3.yaml").string()); },
                               "expected a mapping");

@@ -821,8 +821,7 @@ TEST(WorldCli, BuildsAWorldModelAndRefusesBadInputs) {
   EXPECT_EQ(r.out.find("unconfirmed"), std::string::npos) << r.out;
   r = test::run_cli(d, "world " + with_conf + " --min-confidence 1.2 -o " + (d / "C3").string());
   EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("--min-confidence: 1.2 is not a confidence in [0, 1]"), std::string::npos)
-      << r.out;
+  EXPECT_NE(r.out.find("--min-confidence must lie in [0, 1], got 1.2"), std::string::npos) << r.out;
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
   write_text_file((d / "pc.json").string(), conf_file("1.3", "0.5"));
   r = test::run_cli(d, "world " + with_conf + " -o " + (d / "C4").string());

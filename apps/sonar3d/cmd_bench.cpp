@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "commands.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/sim/benchmark.hpp"
 
 namespace sonar3d::cli {
@@ -38,7 +39,6 @@ void add_bench(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd->callback([&run, o] {
     run = [o] {
-      constexpr double kDeg = M_PI / 180.0;
       SonarSpec spec;
       spec.name = "bench";
       spec.set_uniform_bearings(o->fov_deg * kDeg,

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/world/change.hpp"
@@ -22,19 +23,15 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "A's frame; with --colour-a/--colour-b also the colour change (colour_change_map.tif).");
   struct Opts {
     std::string a, b, output, catalogue, placements_a, placements_b, colour_a, colour_b;
-    std::string colour_space = "chromaticity";
-    ChangeConfig cfg;
+    std::unique_ptr<ConfigOptions<ChangeConfig>> config;
     RecognitionConfig recog;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("a", o->a, "survey A (the reference): a map directory (sonar3d map) or a .ply")
-      ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("b", o->b, "survey B (the later one): a map directory or a .ply")
-      ->required()
       ->check(CLI::ExistingPath);
-  cmd->add_option("-o,--output", o->output, "change directory to create (must not exist)")
-      ->required();
+  cmd->add_option("-o,--output", o->output, "change directory to create (must not exist)");
   cmd->add_option("--catalogue", o->catalogue,
                   "catalogue YAML (docs/recognition.md): symmetries for the turns; without "
                   "placements, each survey is recognised with it first")
@@ -55,76 +52,25 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                  ->check(CLI::ExistingFile);
   ca->needs(cb);
   cb->needs(ca);
-  ChangeConfig& c = o->cfg;
-  cmd->add_option("--colour-space", o->colour_space,
-                  "colour compared as chromaticity (brightness ignored) or lab (CIELAB)")
-      ->capture_default_str();
-  cmd->add_option("--colour-cell", c.colour.cell_m, "colour change cell, metres")
-      ->capture_default_str();
-  cmd->add_option("--colour-min-points", c.colour.min_points,
-                  "coloured points a cell needs in each survey to be compared")
-      ->capture_default_str();
-  cmd->add_option("--colour-top-layer", c.colour.top_layer_m,
-                  "only coloured points within this of their cell's highest count, metres")
-      ->capture_default_str();
-  cmd->add_option("--colour-k-sigma", c.colour.k_sigma,
-                  "significant colour change: more than this times the robust sigma")
-      ->capture_default_str();
-  cmd->add_option("--colour-min-area", c.colour.min_area_m2,
-                  "smallest region of colour change reported, square metres")
-      ->capture_default_str();
-  cmd->add_option("--cell", c.cell_m, "height change map cell, metres")->capture_default_str();
-  cmd->add_option("--k-sigma", c.k_sigma,
-                  "significant change: more than this times the robust sigma of B - A")
-      ->capture_default_str();
-  cmd->add_option("--tolerance", c.tolerance_m,
-                  "horizontal misalignment of the maps tolerated at height steps, metres")
-      ->capture_default_str();
-  cmd->add_option("--min-area", c.min_area_m2, "smallest region of change reported, square metres")
-      ->capture_default_str();
-  cmd->add_option("--registration-cell", c.registration.cell_m,
-                  "cell of the maps of the final registration, metres")
-      ->capture_default_str();
-  cmd->add_option("--yaw-cell", c.registration.yaw_cell_m,
-                  "cell of the maps of the yaw search, metres")
-      ->capture_default_str();
-  cmd->add_option("--search", c.registration.search_m,
-                  "half-width of the searched horizontal shift of B, metres")
-      ->capture_default_str();
-  cmd->add_option("--yaw-search-deg", c.registration.yaw_search_deg,
-                  "half-width of the searched yaw of B, degrees")
-      ->capture_default_str();
-  cmd->add_option("--yaw-step-deg", c.registration.yaw_step_deg,
-                  "yaw step of the coarse search (then refined), degrees")
-      ->capture_default_str();
-  cmd->add_option("--match-factor", c.match_radius_factor,
-                  "placements of one model whose centres lie within this many times the model's "
-                  "radius (half its footprint's diagonal) are one object")
-      ->capture_default_str();
-  cmd->add_option("--min-match-radius", c.min_match_radius_m,
-                  "the smallest match radius of a model of known size, metres")
-      ->capture_default_str();
-  cmd->add_option("--match-radius", c.match_radius_m,
-                  "without a catalogue (model sizes unknown): placements of one model closer "
-                  "than this are one object, metres")
-      ->capture_default_str();
-  cmd->add_option("--shift-tol", c.shift_tol_m,
-                  "an object moved by at most this is unchanged, metres")
-      ->capture_default_str();
-  cmd->add_option("--turn-tol-deg", c.turn_tol_deg,
-                  "an object turned by at most this (modulo its symmetry) is unchanged, degrees")
-      ->capture_default_str();
-  cmd->add_option("--confirm-radius", c.confirm_radius_m,
-                  "without a catalogue: an object change needs height change within this of the "
-                  "object, metres (with one: within its footprint)")
-      ->capture_default_str();
-  cmd->add_option("--threads", c.registration.num_threads, "worker threads (0 = all cores)")
-      ->capture_default_str();
+  // Every setting (declared once, world/change.hpp): its flag, --print-config, --config FILE.
+  o->config = std::make_unique<ConfigOptions<ChangeConfig>>(cmd);
   cmd->callback([&run, &g, o] {
+    // A, B and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->a.empty()) throw CLI::RequiredError("a");
+      if (o->b.empty()) throw CLI::RequiredError("b");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o, &g] {
-      ChangeConfig cfg = o->cfg;
-      cfg.colour.space = parse_colour_space(o->colour_space, "--colour-space");
-      cfg.validate();
+      const ChangeConfig cfg = o->config->resolve("diff");
+      with_flag_names(o->config->flag_names(), [&] { cfg.validate(); });
+      if (o->config->print_requested()) {
+        fmt::print("{}", ConfigOptions<ChangeConfig>::yaml(
+                             cfg, "diff",
+                             "sonar3d diff: the effective configuration (run with --config FILE; "
+                             "flags override)"));
+        return 0;
+      }
       Catalogue cat;
       if (!o->catalogue.empty()) cat = read_catalogue(o->catalogue);
       const PointCloud a = read_survey_cloud(o->a), b = read_survey_cloud(o->b);

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/catalogue.hpp"
@@ -26,52 +27,23 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       "models/<id>.ply and graph.json (docs/world.md).");
   struct Opts {
     std::string map, placements, catalogue, output, truth;
-    WorldModelConfig cfg;
-    bool glb_all_lods = false, no_connections = false;
+    std::unique_ptr<ConfigOptions<WorldModelConfig>> config;
+    bool glb_all_lods = false;
     std::string connections, colours;
-    std::optional<double> min_confidence;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
                   "map directory (sonar3d map: merged.ply) or point cloud (.ply, "
                   "world frame)")
-      ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("--placements", o->placements, "placements JSON from sonar3d recognize")
-      ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--catalogue", o->catalogue,
                   "catalogue YAML the placements were made with (docs/recognition.md)")
-      ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("-o,--output", o->output, "world model directory to create (must not exist)")
-      ->required();
-  cmd->add_option("--lod-cells", o->cfg.seabed.lod_cells_m,
-                  "seabed height-field cell per level of detail, metres, finest first; each an "
-                  "integer multiple of the previous")
-      ->delimiter(',')
-      ->capture_default_str();
-  cmd->add_option("--margin", o->cfg.seabed.margin_m,
-                  "points within a placed model's bounding box grown by this many metres are the "
-                  "model's, not the seabed's")
-      ->capture_default_str();
-  cmd->add_option("--min-valid-fraction", o->cfg.seabed.min_valid_fraction,
-                  "a coarse cell needs at least this fraction of its finest cells observed")
-      ->capture_default_str();
-  cmd->add_flag(
-      "--no-fill", [o](std::int64_t) { o->cfg.seabed.fill_footprints = false; },
-      "leave the seabed under placed models as holes (default: filled from around)");
-  cmd->add_option("--min-ridge", o->cfg.connections.min_ridge_m,
-                  "pipeline search: ridge crest above the ground, metres")
-      ->capture_default_str();
-  cmd->add_option("--ridge-fraction", o->cfg.connections.min_fraction,
-                  "pipeline search: fraction of cross-sections showing the ridge")
-      ->capture_default_str();
-  cmd->add_flag("--no-connections", o->no_connections, "do not search for pipelines");
-  cmd->add_option("--min-confidence", o->min_confidence,
-                  "placements below this confidence (0-1) are kept as unconfirmed objects: "
-                  "listed and drawn grey, never connected, their points left in the seabed "
-                  "(default: the placements file's settings.min_confidence, else 0)");
+  cmd->add_option("-o,--output", o->output, "world model directory to create (must not exist)");
+  // Every setting (declared once, world/world_model.hpp): its flag, --print-config, --config.
+  o->config = std::make_unique<ConfigOptions<WorldModelConfig>>(cmd);
   cmd->add_option("--connections", o->connections,
                   "connections you know, YAML: 'connections: [{from: riser_0, to: tank_0, kind: "
                   "pipeline}]' (ids as graph.json names the objects: <model>_<n>)")
@@ -87,10 +59,23 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                   "the map's dataset when it has truth/)")
       ->check(CLI::ExistingDirectory);
   cmd->callback([&run, o] {
+    // The map, placements, catalogue and -o are required unless --print-config (usage error).
+    if (!o->config->print_requested()) {
+      if (o->map.empty()) throw CLI::RequiredError("map");
+      if (o->placements.empty()) throw CLI::RequiredError("--placements");
+      if (o->catalogue.empty()) throw CLI::RequiredError("--catalogue");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o] {
-      WorldModelConfig cfg = o->cfg;
-      cfg.find_connections = !o->no_connections;
-      cfg.validate();
+      WorldModelConfig cfg = o->config->resolve("world");
+      with_flag_names(o->config->flag_names(), [&] { cfg.validate(); });
+      if (o->config->print_requested()) {
+        fmt::print("{}", ConfigOptions<WorldModelConfig>::yaml(
+                             cfg, "world",
+                             "sonar3d world: the effective configuration (run with --config FILE; "
+                             "flags override)"));
+        return 0;
+      }
       const fs::path map = o->map;
       fs::path cloud_path = map;
       if (fs::is_directory(map)) {
@@ -108,7 +93,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       std::vector<GivenConnection> given;
       if (!o->connections.empty()) given = read_given_connections(o->connections);
       const PlacementsFile placements = read_placements(o->placements);
-      cfg.min_confidence = world_confidence_threshold(placements, o->min_confidence);
+      cfg.min_confidence = world_confidence_threshold(placements, cfg.min_confidence);
       std::vector<WorldObject> objects = world_objects(placements, read_catalogue(o->catalogue));
       PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");

@@ -145,6 +145,23 @@ class ConfigOptions {
                 Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
           }
         });
+      } else if constexpr (std::is_same_v<T, params::Maybe>) {
+        // An optional number: absent unless the flag is given (or the file sets it).
+        auto holder = std::make_shared<double>(0);
+        CLI::Option* opt = cmd->add_option(p.cli, *holder, help);
+        opt->default_str(params::field_text(value, p));
+        appliers->push_back([holder, opt, offset](char* c) {
+          if (opt->count() > 0) *reinterpret_cast<T*>(c + offset) = *holder;
+        });
+      } else if constexpr (std::is_same_v<T, params::List>) {
+        // A list: comma-separated numbers ("0.05,0.2,1").
+        auto holder = std::make_shared<params::List>();
+        CLI::Option* opt = cmd->add_option(p.cli, *holder, help + "; comma-separated");
+        opt->delimiter(',');
+        opt->default_str(params::field_text(value, p));
+        appliers->push_back([holder, opt, offset](char* c) {
+          if (opt->count() > 0) *reinterpret_cast<T*>(c + offset) = *holder;
+        });
       } else if constexpr (std::is_same_v<T, bool>) {
         // A switch: its flag turns the default around ("--no-icp" sets run_icp false).
         auto given = std::make_shared<bool>(false);

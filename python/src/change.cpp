@@ -5,6 +5,7 @@
 #include <map>
 
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/video/texture_files.hpp"
@@ -71,27 +72,34 @@ PointCloud to_colour_cloud(const py::object& arg, const std::string& which) {
 }  // namespace
 
 void bind_change(py::module_& m) {
+  bind_config<ChangeRegistrationConfig>(
+      m, "ChangeRegistrationConfig",
+      "Survey B registered onto survey A on elevation maps: a yaw search, sec. 6.2.2.1's shift "
+      "search (eq. 6.1-6.2) per yaw, then Gauss-Newton (docs/change.md; sonar3d diff's flags).")
+      .def("validate", &ChangeRegistrationConfig::validate);
+  bind_config<params::Nested<ChangeRegistrationConfig>>(
+      m, "RegistrationPart",
+      "The registration settings of a RelocalizeConfig (a view; its threads are the "
+      "relocalisation's).");
+  bind_config<ColourChangeConfig>(m, "ColourChangeConfig",
+                                  "Colour change between two coloured clouds (docs/change.md).")
+      .def("validate", &ColourChangeConfig::validate);
+  bind_config<ChangeConfig>(
+      m, "ChangeConfig",
+      "Change detection between two surveys, as `sonar3d diff` runs it (its flags and "
+      "--print-config keys; docs/reference.md): registration, colour, then the height change "
+      "map and the objects' pairing.")
+      .def("validate", &ChangeConfig::validate);
   m.def(
       "diff_surveys",
       [](const carray<float>& points_a, const carray<float>& points_b, const py::list& placements_a,
-         const py::list& placements_b, const std::string& catalogue, double cell_m, double k_sigma,
-         double tolerance_m, double min_area_m2, double search_m, double yaw_search_deg,
-         int num_threads, const py::object& colour_a, const py::object& colour_b,
-         const std::string& colour_space, double colour_cell_m, double colour_k_sigma) {
+         const py::list& placements_b, const std::string& catalogue, const py::object& colour_a,
+         const py::object& colour_b, const py::object& config, const py::kwargs& settings) {
         PointCloud a, b;
         a.points = array_to_points(points_a);
         b.points = array_to_points(points_b);
-        ChangeConfig cfg;
-        cfg.cell_m = cell_m;
-        cfg.k_sigma = k_sigma;
-        cfg.tolerance_m = tolerance_m;
-        cfg.min_area_m2 = min_area_m2;
-        cfg.registration.search_m = search_m;
-        cfg.registration.yaw_search_deg = yaw_search_deg;
-        cfg.registration.num_threads = num_threads;
-        cfg.colour.space = parse_colour_space(colour_space, "colour_space");
-        cfg.colour.cell_m = colour_cell_m;
-        cfg.colour.k_sigma = colour_k_sigma;
+        const ChangeConfig cfg =
+            config_with_settings<ChangeConfig>(config, settings, "diff_surveys");
         cfg.validate();
         if (colour_a.is_none() != colour_b.is_none()) {
           throw Error("diff_surveys: colour_a and colour_b go together (both surveys' colours)");
@@ -124,10 +132,8 @@ void bind_change(py::module_& m) {
         return out;
       },
       "points_a"_a, "points_b"_a, "placements_a"_a = py::list(), "placements_b"_a = py::list(),
-      "catalogue"_a = "", "cell_m"_a = 0.04, "k_sigma"_a = 5.0, "tolerance_m"_a = 0.1,
-      "min_area_m2"_a = 0.05, "search_m"_a = 0.6, "yaw_search_deg"_a = 2.0, "num_threads"_a = 0,
-      "colour_a"_a = py::none(), "colour_b"_a = py::none(), "colour_space"_a = "chromaticity",
-      "colour_cell_m"_a = 0.1, "colour_k_sigma"_a = 5.0,
+      "catalogue"_a = "", "colour_a"_a = py::none(), "colour_b"_a = py::none(),
+      "config"_a = py::none(),
       "Compare two surveys of one site ((N, 3) world-frame clouds, each in its own world): B "
       "registered onto A, placements (lists of dicts with model and T_world_model, as "
       "sonar3d.recognize returns; symmetries and sizes from the catalogue YAML if given) compared "
@@ -138,7 +144,9 @@ void bind_change(py::module_& m) {
       "of B − A in A's frame (m). colour_a, colour_b (both or neither): each survey's coloured "
       "cloud in its own world as (points (N, 3), colors (N, 3) linear RGB in [0, 1], 0 = unseen; "
       "what texture_cloud returns): the colour change is compared too (the dict's 'colour', and "
-      "colour_change_map, the colour difference per cell).");
+      "colour_change_map, the colour difference per cell). config: a ChangeConfig (default: "
+      "the library's, the one sonar3d diff runs); any of its fields given as a keyword "
+      "(cell_m=0.05, registration=ChangeRegistrationConfig(num_threads=2)) overrides it.");
 }
 
 }  // namespace sonar3d::python

@@ -25,8 +25,8 @@ PYBIND11_MODULE(_sonar3d, m) {
   sonar3d::python::bind_mapping(m);
   sonar3d::python::bind_recog(m);
   sonar3d::python::bind_video(m);
+  sonar3d::python::bind_change(m);  // before world: RelocalizeConfig holds a registration
   sonar3d::python::bind_world(m);
-  sonar3d::python::bind_change(m);
   sonar3d::python::bind_pipeline(m);
   sonar3d::python::bind_online(m);
 }

@@ -36,6 +36,12 @@ py::object to_py(const T& value, const params::Param& p) {
   } else if constexpr (std::is_same_v<T, params::Box>) {
     if (!value) return py::none();
     return py::make_tuple(Eigen::Vector3d(value->min()), Eigen::Vector3d(value->max()));
+  } else if constexpr (std::is_same_v<T, params::Maybe>) {
+    return value ? py::object(py::float_(*value)) : py::object(py::none());
+  } else if constexpr (std::is_same_v<T, params::List>) {
+    py::list l;
+    for (const double v : value) l.append(v);
+    return l;
   } else {
     return py::cast(value);
   }
@@ -55,6 +61,24 @@ T from_py(const py::object& o, const params::Param& p) {
     if (!(b.min().allFinite() && b.max().allFinite() && (b.max().array() > b.min().array()).all()))
       throw Error(name + " must have finite corners and max > min on every axis");
     return b;
+  } else if constexpr (std::is_same_v<T, params::Maybe>) {
+    if (o.is_none()) return std::nullopt;
+    const double v = o.cast<double>();
+    if (!params::in_bounds(p, v)) {
+      throw Error(name + " " + params::bounds_rule(p) + " or None, got " +
+                  params::format_number(v));
+    }
+    return v;
+  } else if constexpr (std::is_same_v<T, params::List>) {
+    params::List l;
+    for (const auto& item : o.cast<py::sequence>()) l.push_back(item.cast<double>());
+    if (l.empty()) throw Error(name + " must hold at least one value");
+    for (const double v : l) {
+      if (!params::in_bounds(p, v)) {
+        throw Error(name + " " + params::bounds_rule(p) + ", got " + params::format_number(v));
+      }
+    }
+    return l;
   } else {
     const T v = o.cast<T>();
     if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
@@ -147,6 +171,40 @@ struct DictWriter {
     out[key] = inner.out;
   }
 };
+
+// The top-level keys of C (fields and groups), for messages.
+struct TopKeys {
+  std::string out;
+  template <class T>
+  void field(T&, const params::Param& p) {
+    out += (out.empty() ? "" : ", ") + std::string(p.key);
+  }
+  template <class G>
+  void group(const char* key, G&) {
+    out += (out.empty() ? "" : ", ") + std::string(key);
+  }
+};
+
+// A function's configuration: `config` (a C, or None for the defaults) with each keyword of
+// `settings` set as its attribute (checked by the bound setters). An unknown keyword is an Error
+// naming `what` and the fields C has.
+template <class C>
+C config_with_settings(const py::object& config, const py::kwargs& settings, const char* what) {
+  C c = config.is_none() ? C() : config.cast<C>();
+  py::object view = py::cast(&c, py::return_value_policy::reference);
+  for (auto item : settings) {
+    if (!py::hasattr(view, item.first)) {
+      TopKeys keys;
+      describe(c, keys);
+      throw Error(std::string(what) + ": unknown setting '" +
+                  py::str(item.first).cast<std::string>() + "' (a " +
+                  py::type::of(view).attr("__name__").cast<std::string>() + " field: " + keys.out +
+                  ")");
+    }
+    py::setattr(view, item.first, item.second);
+  }
+  return c;
+}
 
 // Binds C as a Python class `name`; its groups' classes must be bound first. A Nested<X> class is
 // a view (no constructor): the part of a larger config its description lists.

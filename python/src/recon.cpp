@@ -280,18 +280,9 @@ void bind_recon(py::module_& m) {
       [](const Dataset& dataset, const py::object& method, const py::object& config,
          const py::object& progress, const py::kwargs& settings) {
         ReconstructConfig c =
-            config.is_none() ? ReconstructConfig() : config.cast<ReconstructConfig>();
-        py::object view = py::cast(&c, py::return_value_policy::reference);
-        if (!method.is_none()) view.attr("method") = method;  // checked by the property
-        for (auto item : settings) {
-          const std::string key = py::str(item.first);
-          if (!py::hasattr(view, item.first)) {
-            throw Error("reconstruct: unknown setting '" + key +
-                        "' (a ReconstructConfig field: method, voxel_size, region, denoise, "
-                        "min_observations, resolve_occlusions, num_threads, carve, deconv, "
-                        "bracket)");
-          }
-          py::setattr(view, item.first, item.second);
+            config_with_settings<ReconstructConfig>(config, settings, "reconstruct");
+        if (!method.is_none()) {  // checked by the property
+          py::cast(&c, py::return_value_policy::reference).attr("method") = method;
         }
         return run_reconstruct(dataset, c, progress);
       },

@@ -13,6 +13,19 @@ namespace sonar3d::python {
 using namespace pybind11::literals;
 
 void bind_world(py::module_& m) {
+  bind_config<SeabedConfig>(m, "SeabedConfig",
+                            "The world model's seabed: levels of detail, the margin of placed "
+                            "models, filling under them (docs/world.md).")
+      .def("validate", &SeabedConfig::validate);
+  bind_config<ConnectionConfig>(m, "PipelineSearchConfig",
+                                "The search for pipelines between placed structures: a ridge "
+                                "along the line joining them (docs/world.md).")
+      .def("validate", &ConnectionConfig::validate);
+  bind_config<WorldModelConfig>(
+      m, "WorldModelConfig",
+      "A world model's settings, as `sonar3d world` runs it (its flags and --print-config keys; "
+      "docs/reference.md): seabed, find_connections, pipeline_search, min_confidence.")
+      .def("validate", &WorldModelConfig::validate);
   bind_config<RelocalizeConfig>(m, "RelocalizeConfig",
                                 "Relocalisation against a world model, as `sonar3d relocalize` "
                                 "runs it (docs/mapping.md \"Relocalisation\").")
@@ -74,10 +87,9 @@ void bind_world(py::module_& m) {
   m.def(
       "world_model",
       [](const carray<float>& points, const std::string& placements, const std::string& catalogue,
-         const std::vector<double>& lod_cells_m, double margin_m, bool fill_footprints,
-         bool find_connections, const std::string& connections_file, const std::string& output,
+         const py::object& config, const std::string& connections_file, const std::string& output,
          bool glb_all_lods, const std::optional<carray<std::uint8_t>>& colors,
-         std::optional<double> min_confidence) {
+         const py::kwargs& settings) {
         PointCloud cloud;
         cloud.points = array_to_points(points);
         if (colors) {
@@ -90,14 +102,11 @@ void bind_world(py::module_& m) {
           std::copy(colors->data(), colors->data() + colors->size(),
                     cloud.color.empty() ? nullptr : cloud.color[0].data());
         }
-        WorldModelConfig cfg;
-        cfg.seabed.lod_cells_m = lod_cells_m;
-        cfg.seabed.margin_m = margin_m;
-        cfg.seabed.fill_footprints = fill_footprints;
-        cfg.find_connections = find_connections;
-        const PlacementsFile p = read_placements(placements);
-        cfg.min_confidence = world_confidence_threshold(p, min_confidence, "min_confidence");
+        WorldModelConfig cfg =
+            config_with_settings<WorldModelConfig>(config, settings, "world_model");
         cfg.validate();
+        const PlacementsFile p = read_placements(placements);
+        cfg.min_confidence = world_confidence_threshold(p, cfg.min_confidence, "min_confidence");
         std::vector<GivenConnection> given;
         if (!connections_file.empty()) given = read_given_connections(connections_file);
         WorldModel w;
@@ -142,11 +151,8 @@ void bind_world(py::module_& m) {
                         "seabed_points"_a = w.seabed_points, "filled_cells"_a = w.filled_cells,
                         "min_confidence"_a = w.min_confidence);
       },
-      "points"_a, "placements"_a, "catalogue"_a,
-      "lod_cells_m"_a = std::vector<double>{0.05, 0.2, 1.0}, "margin_m"_a = 0.1,
-      "fill_footprints"_a = true, "find_connections"_a = true, "connections"_a = "",
+      "points"_a, "placements"_a, "catalogue"_a, "config"_a = py::none(), "connections"_a = "",
       "output"_a = "", "glb_all_lods"_a = false, "colors"_a = py::none(),
-      "min_confidence"_a = py::none(),
       "A world model (thesis sec. 6.3.3) from an (N, 3) world-frame cloud, a placements JSON "
       "(sonar3d.recognize / sonar3d recognize) and the catalogue YAML (colors: optional (N, 3) "
       "uint8 "
@@ -154,9 +160,11 @@ void bind_world(py::module_& m) {
       "(points no "
       "placed model explains) as height-field meshes at lod_cells_m (metres, finest first), the "
       "placed models and the pipelines found between them, plus the connections given in the "
-      "YAML file `connections` (docs/world.md). min_confidence (0-1; default: the placements "
-      "file's settings.min_confidence, else 0): placements below it stay unconfirmed objects, "
-      "never connected and explaining no point. Returns a dict: objects (id, model, kind, "
+      "YAML file `connections` (docs/world.md). config: a WorldModelConfig (sonar3d world's "
+      "settings; default the library's), any of its fields given as a keyword overriding it "
+      "(seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]), min_confidence=0.5: placements below it "
+      "stay unconfirmed objects, never connected and explaining no point; None: the placements "
+      "file's settings.min_confidence, else 0). Returns a dict: objects (id, model, kind, "
       "T_world_model 4×4, score_m, residual_median_m, confidence (NaN: unknown), confirmed), "
       "min_confidence, connections (from, to, kind, length_m, "
       "fraction (NaN when not found), found, given), seabed (lod, cell_m, vertices (N, 3) float32, "

@@ -29,7 +29,7 @@ def site(box=None, offset=(0.0, 0.0, 0.0), yaw_deg=0.0, noise=0.005, seed=1, ste
 def test_diff_surveys_registers_and_finds_an_added_box():
     a = site(seed=1)
     b = site(box=(1.5, 1.0, 0.3, 0.4), offset=(0.2, -0.1, 0.05), yaw_deg=1.0, seed=2)
-    r = sonar3d.diff_surveys(a, b, num_threads=2)
+    r = sonar3d.diff_surveys(a, b, registration=sonar3d.ChangeRegistrationConfig(num_threads=2))
     assert r["format"] == "sonar3d-changes"
     T = np.array(r["T_a_b"]).reshape(4, 4)
     assert math.degrees(math.atan2(T[1, 0], T[0, 0])) == pytest.approx(-1.0, abs=0.15)
@@ -67,7 +67,7 @@ def test_diff_surveys_finds_a_recoloured_box():
     b = site(box=box, seed=2)
     ca = (a, colours(a, box[:3], seed=4))
     cb = (b, colours(b, box[:3], box_rgb=(0.35, 0.2, 0.08), light=0.7, seed=5))
-    r = sonar3d.diff_surveys(a, b, num_threads=2, colour_a=ca, colour_b=cb)
+    r = sonar3d.diff_surveys(a, b, registration=sonar3d.ChangeRegistrationConfig(num_threads=2), colour_a=ca, colour_b=cb)
     assert r["regions"] == []
     c = r["colour"]
     assert c["space"] == "chromaticity"
@@ -79,7 +79,7 @@ def test_diff_surveys_finds_a_recoloured_box():
     assert g["height_change_fraction"] == 0  # the surface changed, not the geometry
     assert r["colour_change_map"].num_valid() == c["compared_cells"]
     # Without colours: no colour block.
-    assert sonar3d.diff_surveys(a, b, num_threads=2)["colour"] is None
+    assert sonar3d.diff_surveys(a, b, registration=sonar3d.ChangeRegistrationConfig(num_threads=2))["colour"] is None
 
 
 def test_diff_surveys_refuses_bad_colours():
@@ -94,3 +94,18 @@ def test_diff_surveys_refuses_bad_colours():
     far = a + np.array([30, 0, 0], dtype=np.float32)
     with pytest.raises(sonar3d.Error, match="the colour clouds overlap on 0 cells"):
         sonar3d.diff_surveys(a, a, colour_a=(a, good), colour_b=(far, good))
+
+
+def test_change_config_is_the_commands():
+    # One declaration: the command's settings, bounds checked on assignment, unknown keywords
+    # refused with the fields listed.
+    c = sonar3d.ChangeConfig(cell_m=0.05)
+    assert c.cell_m == 0.05 and c.registration.search_m == 0.6
+    assert c.colour.space == "chromaticity" and c.to_dict()["colour"]["space"] == "chromaticity"
+    with pytest.raises(Exception, match="k_sigma"):
+        sonar3d.ChangeConfig(k_sigma=-1)
+    with pytest.raises(Exception, match="chromaticity"):
+        c.colour.space = "rgb"
+    a = np.zeros((10, 3), dtype=np.float32)
+    with pytest.raises(Exception, match="unknown setting 'search_m'.*registration"):
+        sonar3d.diff_surveys(a, a, search_m=1.0)

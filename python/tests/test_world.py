@@ -20,7 +20,7 @@ def test_world_model_seabed_objects_and_files(tmp_path):
         "format": "sonar3d-placements", "version": 1,
         "placements": [{"model": "tank", "score_m": 0.1, "residual_median_m": 0.01,
                         "T_world_model": [[1, 0, 0, 3], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]}]}))
-    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.05, 0.2],
+    w = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.05, 0.2]),
                             output=str(tmp_path / "W"))
     assert [o["id"] for o in w["objects"]] == ["tank_0"]
     np.testing.assert_allclose(w["objects"][0]["T_world_model"][:3, 3], [3, 2, -1])
@@ -70,7 +70,7 @@ def test_world_model_given_connections(tmp_path):
                        for x in (2, 10)]}))
     given = tmp_path / "c.yaml"
     given.write_text("connections:\n  - {from: tank_0, to: tank_1, kind: cable}\n")
-    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+    w = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]),
                             connections=str(given))
     assert len(w["connections"]) == 1
     c = w["connections"][0]
@@ -79,7 +79,7 @@ def test_world_model_given_connections(tmp_path):
     assert c["length_m"] == pytest.approx(8.0, abs=1e-6)
     given.write_text("connections:\n  - {from: tank_0, to: tank_7}\n")
     with pytest.raises(sonar3d.Error, match="c.yaml:2: 'tank_7' names no placed object"):
-        sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+        sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]),
                             connections=str(given))
 
 
@@ -95,7 +95,7 @@ def test_world_model_seabed_colours(tmp_path):
     placements = tmp_path / "p.json"
     placements.write_text(json.dumps({"format": "sonar3d-placements", "version": 1,
                                       "placements": []}))
-    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2], colors=colors)
+    w = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.2]), colors=colors)
     lod = w["seabed"][0]
     assert lod["colors"].shape == lod["vertices"].shape
     assert (lod["color_points"] > 0).all()
@@ -104,7 +104,7 @@ def test_world_model_seabed_colours(tmp_path):
     to_srgb = lambda c: np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055) * 255
     np.testing.assert_allclose(to_srgb(lod["colors"][west]), [[200, 40, 30]] * west.sum(), atol=1)
     np.testing.assert_allclose(to_srgb(lod["colors"][east]), [[20, 60, 210]] * east.sum(), atol=1)
-    plain = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.2])
+    plain = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.2]))
     assert plain["seabed"][0]["colors"].shape == (0, 3)
     with pytest.raises(sonar3d.Error, match="colors must be an N×3 uint8 array"):
         sonar3d.world_model(pts, str(placements), str(cat), colors=colors[:5])
@@ -122,27 +122,30 @@ def test_world_model_confidence_threshold(tmp_path):
              "T_world_model": [[1, 0, 0, 2], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]},
             {"model": "tank", "confidence": 0.3,
              "T_world_model": [[1, 0, 0, 10], [0, 1, 0, 2], [0, 0, 1, -1], [0, 0, 0, 1]]}]}))
-    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1])
+    w = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]))
     assert w["min_confidence"] == pytest.approx(0.5)
     assert [o["confirmed"] for o in w["objects"]] == [True, False]
     assert w["objects"][1]["confidence"] == pytest.approx(0.3)
     given = tmp_path / "c.yaml"
     given.write_text("connections:\n  - {from: tank_0, to: tank_1}\n")
     with pytest.raises(sonar3d.Error, match="'tank_1' is an unconfirmed placement"):
-        sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+        sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]),
                             connections=str(given))
-    w = sonar3d.world_model(pts, str(placements), str(cat), lod_cells_m=[0.1],
+    w = sonar3d.world_model(pts, str(placements), str(cat), seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1]),
                             connections=str(given), min_confidence=0.2)
     assert [o["confirmed"] for o in w["objects"]] == [True, True]
     assert len(w["connections"]) == 1
-    with pytest.raises(sonar3d.Error, match="min_confidence: 1.5 is not a confidence"):
+    with pytest.raises(sonar3d.Error, match=r"min_confidence must lie in \[0, 1\]"):
         sonar3d.world_model(pts, str(placements), str(cat), min_confidence=1.5)
 
 
 def test_relocalize_config_and_bad_worlds(tmp_path):
     # The configuration is the command's (one declaration): bounds name the field.
-    c = sonar3d.RelocalizeConfig(search_m=0.8, piece_m=0)
-    assert c.search_m == 0.8 and c.to_dict()["piece_m"] == 0
+    c = sonar3d.RelocalizeConfig(piece_m=0)
+    c.registration.search_m = 0.8  # a view: sets c's own registration
+    assert c.registration.search_m == 0.8 and c.to_dict()["piece_m"] == 0
+    assert c.to_dict()["registration"]["search_m"] == 0.8
+    assert "num_threads" not in c.to_dict()["registration"]  # the relocalisation's own
     with pytest.raises(Exception, match="min_overlap_fraction"):
         sonar3d.RelocalizeConfig(min_overlap_fraction=1.5).validate()
     # A world directory that is missing, or has no seabed: one clear error each.
@@ -153,3 +156,16 @@ def test_relocalize_config_and_bad_worlds(tmp_path):
     (w / "graph.json").write_text('{"format": "sonar3d-world", "version": 1, "seabed": []}')
     with pytest.raises(Exception, match="has no seabed"):
         sonar3d.relocalize(str(tmp_path / "ds"), str(w))
+
+
+def test_world_model_config_is_the_commands():
+    c = sonar3d.WorldModelConfig()
+    assert c.seabed.lod_cells_m == [0.05, 0.2, 1.0] and c.min_confidence is None
+    c.seabed.lod_cells_m = [0.1, 0.2]
+    c.min_confidence = 0.3
+    d = c.to_dict()
+    assert d["seabed"]["lod_cells_m"] == [0.1, 0.2] and d["min_confidence"] == 0.3
+    with pytest.raises(Exception, match="lod_cells_m"):
+        c.seabed.lod_cells_m = [0.1, -1.0]
+    with pytest.raises(Exception, match="lod_cells_m"):
+        sonar3d.WorldModelConfig(seabed=sonar3d.SeabedConfig(lod_cells_m=[0.1, 0.25])).validate()

@@ -75,6 +75,12 @@ std::string box_text(const Box& b) {
   return out + "]";
 }
 
+std::string list_text(const List& l) {
+  std::string out = "[";
+  for (std::size_t k = 0; k < l.size(); ++k) out += (k ? ", " : "") + format_number(l[k]);
+  return out + "]";
+}
+
 std::string json_string(const std::string& s) {
   std::string out = "\"";
   for (const char ch : s) {

@@ -51,11 +51,10 @@
 #include <vector>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/units.hpp"
 
 namespace sonar3d {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 void require_segments(int segments, int minimum, const char* name) {
   if (segments < minimum) {

@@ -6,11 +6,9 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/units.hpp"
 
 namespace sonar3d {
-namespace {
-constexpr double kDeg = M_PI / 180.0;
-}
 
 double BeamPattern::amplitude(double theta, double theta_3db) const {
   switch (kind) {

@@ -10,14 +10,13 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 
 namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // Byte offsets of the FileHeader and FrameHeader fields we use, from Sound Metrics' published
 // type definitions (ARIS file SDK, type-definitions/C, packed structs of 1024 bytes).

@@ -23,6 +23,7 @@
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 
 extern char** environ;
@@ -32,8 +33,6 @@ using json = nlohmann::json;
 
 namespace sonar3d {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // ---------------------------------------------------------------- Config.json
 

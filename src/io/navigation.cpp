@@ -10,6 +10,7 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/yaml_config.hpp"
 #include "text_fields.hpp"
@@ -18,8 +19,6 @@ namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 using text::lower;
 using text::parse_number;

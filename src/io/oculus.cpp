@@ -10,14 +10,13 @@
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 
 namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // Byte offsets from the start of a message, from Blueprint's published Oculus.h (packed).
 namespace hdr {

@@ -8,10 +8,10 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/units.hpp"
 
 namespace sonar3d::yaml {
 namespace {
-constexpr double kDeg = M_PI / 180.0;
 
 std::string full_key(const std::string& ctx, const std::string& key) {
   return ctx.empty() ? key : ctx + "." + key;

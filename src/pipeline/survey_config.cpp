@@ -33,17 +33,6 @@ SurveyMapOptions::SurveyMapOptions() {
   threads = c.carve.num_threads;
 }
 
-SurveyWorldOptions::SurveyWorldOptions() {
-  const WorldModelConfig c;
-  lod_cells = c.seabed.lod_cells_m;
-  margin = c.seabed.margin_m;
-  min_valid_fraction = c.seabed.min_valid_fraction;
-  no_fill = !c.seabed.fill_footprints;
-  min_ridge = c.connections.min_ridge_m;
-  ridge_fraction = c.connections.min_fraction;
-  no_connections = !c.find_connections;
-}
-
 SurveyTextureOptions::SurveyTextureOptions() {
   const TextureConfig c;
   point_spacing = c.point_spacing_m;
@@ -168,6 +157,17 @@ void load_stage(const YAML::Node& root, const char* stage, const std::string& fi
 
 }  // namespace
 
+// A config declared with core/params.hpp as the stage's indented YAML lines.
+template <class C>
+std::string params_yaml(const C& config) {
+  YAML::Emitter e;
+  params::emit_yaml(e, config);
+  std::string out;
+  std::istringstream lines(e.c_str());
+  for (std::string line; std::getline(lines, line);) out += "  " + line + "\n";
+  return out;
+}
+
 template <class Opts>
 std::string stage_yaml(const Opts& opts) {
   Emitter e;
@@ -178,16 +178,10 @@ std::string stage_yaml(const Opts& opts) {
 std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
   if (stage == "import") return stage_yaml(c.import);
   if (stage == "map") return stage_yaml(c.map);
-  if (stage == "recognize") {
-    // The recognition's own declaration (core/params.hpp): the keys of recognize --print-config.
-    YAML::Emitter e;
-    params::emit_yaml(e, c.recognize);
-    std::string out;
-    std::istringstream lines(e.c_str());
-    for (std::string line; std::getline(lines, line);) out += "  " + line + "\n";
-    return out;
-  }
-  if (stage == "world") return stage_yaml(c.world);
+  // The recognition's and the world's own declarations (core/params.hpp): the keys of their
+  // commands' --print-config.
+  if (stage == "recognize") return params_yaml(c.recognize);
+  if (stage == "world") return params_yaml(c.world);
   if (stage == "texture") return stage_yaml(c.texture);
   if (stage == "report") return stage_yaml(c.report);
   throw Error("no survey stage '" + stage + "'");
@@ -207,7 +201,13 @@ SurveyConfig load_survey_config(const std::string& path) {
   if (const YAML::Node n = root["recognize"]; n && !n.IsNull()) {
     params::read_yaml(n, path, "recognize", c.recognize);
   }
-  load_stage(root, "world", path, base, c.world);
+  if (const YAML::Node n = root["world"]; n && !n.IsNull()) {
+    params::read_yaml(n, path, "world", c.world);
+    const fs::path given = c.world.connections;
+    if (!given.empty() && given.is_relative() && n["connections"]) {
+      c.world.connections = (base / given).lexically_normal().string();
+    }
+  }
   load_stage(root, "texture", path, base, c.texture);
   load_stage(root, "report", path, base, c.report);
   return c;

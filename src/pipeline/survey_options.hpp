@@ -54,20 +54,6 @@ void visit(SurveyMapOptions& o, V& v) {
 }
 
 template <class V>
-void visit(SurveyWorldOptions& o, V& v) {
-  v("lod_cells", o.lod_cells);
-  v("margin", o.margin);
-  v("min_valid_fraction", o.min_valid_fraction);
-  v("no_fill", o.no_fill);
-  v("min_ridge", o.min_ridge);
-  v("ridge_fraction", o.ridge_fraction);
-  v("no_connections", o.no_connections);
-  v("min_confidence", o.min_confidence);
-  v.path("connections", o.connections);
-  v("glb_all_lods", o.glb_all_lods);
-}
-
-template <class V>
 void visit(SurveyTextureOptions& o, V& v) {
   v("point_spacing", o.point_spacing);
   v("depth_tolerance", o.depth_tolerance);

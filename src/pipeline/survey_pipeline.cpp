@@ -547,14 +547,7 @@ void Survey::do_recognize(SurveyStageReport& r) {
 
 void Survey::do_world(SurveyStageReport& r) {
   const SurveyWorldOptions& c = o_.config.world;
-  WorldModelConfig cfg;
-  cfg.seabed.lod_cells_m = c.lod_cells;
-  cfg.seabed.margin_m = c.margin;
-  cfg.seabed.min_valid_fraction = c.min_valid_fraction;
-  cfg.seabed.fill_footprints = !c.no_fill;
-  cfg.connections.min_ridge_m = c.min_ridge;
-  cfg.connections.min_fraction = c.ridge_fraction;
-  cfg.find_connections = !c.no_connections;
+  WorldModelConfig cfg = c.model;
   cfg.validate();
   const fs::path map_dir = out_ / "map";
   const fs::path cloud_path = map_dir / "merged.ply";
@@ -567,13 +560,10 @@ void Survey::do_world(SurveyStageReport& r) {
     const fs::path placements_path = out_ / "placements.json";
     const PlacementsFile placements = read_placements(placements_path.string());
     cfg.min_confidence =
-        world_confidence_threshold(placements, c.min_confidence, "world.min_confidence");
+        world_confidence_threshold(placements, cfg.min_confidence, "world.min_confidence");
     objects = world_objects(placements, read_catalogue(o_.catalogue.string()));
     info.placements = placements_path.string();
     info.catalogue = o_.catalogue.string();
-  } else {
-    cfg.min_confidence = c.min_confidence.value_or(0.0);
-    cfg.validate();
   }
   const PointCloud cloud = read_ply(cloud_path.string());
   require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");

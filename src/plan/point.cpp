@@ -9,6 +9,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/reference_objects.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/params_yaml.hpp"
@@ -21,7 +22,6 @@ namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-constexpr double kDeg = M_PI / 180.0;
 
 double num(const std::map<std::string, SweepValue>& p, const std::string& k) {
   return std::get<double>(p.at(k));

@@ -22,11 +22,11 @@
 #include "deconvolve_internal.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/units.hpp"
 
 namespace sonar3d {
 
 namespace {
-constexpr double kDeg = M_PI / 180.0;
 
 std::string fmt(double v, int prec = 3) {
   std::ostringstream os;
@@ -36,9 +36,6 @@ std::string fmt(double v, int prec = 3) {
   return os.str();
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------

@@ -20,16 +20,13 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/projector.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 
 namespace sonar3d::deconv_detail {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The model matrix A, one row per (frame, pixel) with at least one candidate voxel, stored by
 // rows (CSR): each row is the pixel's footprint, Σ_v B(θ_v)²·ρ_v.

@@ -9,6 +9,7 @@
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/reference_objects.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/yaml_config.hpp"
@@ -19,7 +20,6 @@ namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-constexpr double kDeg = M_PI / 180.0;
 
 TriangleMesh load_primitive(const YAML::Node& n, const std::string& file, const std::string& ctx) {
   const std::string type = yaml::get_string(n, "type", "", file, ctx);

@@ -15,6 +15,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/rgb_image.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/texture_io.hpp"
 #include "sonar3d/recog/model.hpp"
 
@@ -23,13 +24,6 @@ namespace sonar3d {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
 
@@ -162,66 +156,29 @@ std::vector<std::vector<std::size_t>> sign_components(const std::vector<int8_t>&
 }  // namespace
 
 void ChangeRegistrationConfig::validate() const {
-  require_positive(cell_m, "registration cell_m", "m");
-  require_positive(yaw_cell_m, "yaw_cell_m", "m");
+  params::check(*this, "registration");
   require(yaw_cell_m >= cell_m, "yaw_cell_m must be at least the registration's cell_m");
-  require_positive(search_m, "search_m", "m");
-  require_non_negative(yaw_search_deg, "yaw_search_deg", "degrees");
-  require(yaw_search_deg <= 45, "yaw_search_deg must be at most 45 degrees");
-  require_positive(yaw_step_deg, "yaw_step_deg", "degrees");
   require(yaw_search_deg / yaw_step_deg <= 1000,
           "yaw_search_deg / yaw_step_deg must be at most 1000 (yaws searched)");
-  require(coarse_factor >= 1, "coarse_factor must be >= 1");
-  require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
-  require(inlier_fraction > 0 && inlier_fraction <= 1, "inlier_fraction must be in (0, 1]");
-  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
 }
 
 const char* colour_space_name(ColourSpace s) {
-  return s == ColourSpace::Lab ? "lab" : "chromaticity";
-}
-
-ColourSpace parse_colour_space(const std::string& name, const std::string& param) {
-  if (name == "chromaticity") return ColourSpace::Chromaticity;
-  if (name == "lab") return ColourSpace::Lab;
-  throw Error(param + ": '" + name + "' is none of chromaticity, lab");
+  return kColourSpaceNames[s == ColourSpace::Lab ? 1 : 0];
 }
 
 void ColourChangeConfig::validate() const {
-  require_positive(cell_m, "colour cell_m", "m");
-  require(min_points >= 1, "colour min_points must be >= 1");
-  require_non_negative(top_layer_m, "colour top_layer_m", "m");
-  require_positive(k_sigma, "colour k_sigma");
-  require(sigma_quantile > 0.5 && sigma_quantile < 1, "colour sigma_quantile must be in (0.5, 1)");
-  require_non_negative(min_sigma, "colour min_sigma");
-  require_non_negative(tolerance_m, "colour tolerance_m", "m");
+  params::check(*this, "colour");
   require(tolerance_m <= 20 * cell_m, "colour tolerance_m must be at most 20 colour cells");
-  require_non_negative(link_m, "colour link_m", "m");
   require(link_m <= 100 * cell_m, "colour link_m must be at most 100 colour cells");
-  require_non_negative(min_area_m2, "colour min_area_m2", "m²");
-  require(min_overlap_cells >= 1, "colour min_overlap_cells must be >= 1");
 }
 
 void ChangeConfig::validate() const {
+  params::check(*this, "change");
   registration.validate();
   colour.validate();
-  require_positive(cell_m, "cell_m", "m");
-  require_positive(k_sigma, "k_sigma");
-  require(sigma_quantile > 0.5 && sigma_quantile < 1, "sigma_quantile must be in (0.5, 1)");
-  require_non_negative(min_sigma_m, "min_sigma_m", "m");
-  require_non_negative(min_area_m2, "min_area_m2", "m²");
-  require_non_negative(link_m, "link_m", "m");
-  require_non_negative(tolerance_m, "tolerance_m", "m");
   require(tolerance_m <= 20 * cell_m, "tolerance_m must be at most 20 cells");
   require(link_m <= 100 * cell_m, "link_m must be at most 100 cells");
-  require_positive(match_radius_m, "match_radius_m", "m");
-  require_positive(match_radius_factor, "match_radius_factor");
-  require(match_radius_factor <= 10, "match_radius_factor must be at most 10 (r_model)");
-  require_non_negative(min_match_radius_m, "min_match_radius_m", "m");
-  require_non_negative(confirm_radius_m, "confirm_radius_m", "m");
   require(confirm_radius_m <= 1000 * cell_m, "confirm_radius_m must be at most 1000 cells");
-  require_non_negative(shift_tol_m, "shift_tol_m", "m");
-  require_non_negative(turn_tol_deg, "turn_tol_deg", "degrees");
 }
 
 const char* object_status_name(ObjectStatus s) {

@@ -11,6 +11,7 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
@@ -22,13 +23,6 @@ namespace sonar3d {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Points on a triangle: its edges every `spacing`, and inside about one per spacing² of area, a
 // deterministic low-discrepancy set (the R2 sequence) warped uniformly onto the triangle.
@@ -133,8 +127,9 @@ nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
 
 void RelocalizeConfig::validate() const {
   params::check(*this, "relocalize");
-  require(yaw_cell_m >= cell_m, "relocalize: yaw_cell_m must be at least cell_m");
-  require(search_m >= cell_m, "relocalize: search_m must be at least one cell (cell_m)");
+  registration.validate();
+  require(registration.search_m >= registration.cell_m,
+          "relocalize: registration.search_m must be at least one cell (registration.cell_m)");
 }
 
 WorldModelCloud read_world_model_cloud(const fs::path& world_dir, double spacing_m) {
@@ -238,11 +233,11 @@ void fit_pieces(const Dataset& dataset, const PointCloud& model, const Elevation
   }
   ChangeRegistrationConfig pc = reg;
   // Within the swath's fit, the drift leaves a piece off by at most about 1 % of half the line.
-  pc.search_m = 2 * config.cell_m + 0.005 * length;
-  pc.yaw_cell_m = config.cell_m;
+  pc.search_m = 2 * reg.cell_m + 0.005 * length;
+  pc.yaw_cell_m = reg.cell_m;
   pc.yaw_search_deg = 0;  // the yaw by Gauss-Newton only, within 2 steps
   pc.yaw_step_deg = 0.1;
-  pc.min_overlap_cells = std::max(50, config.min_overlap_cells / n);
+  pc.min_overlap_cells = std::max(50, reg.min_overlap_cells / n);
   struct PieceFit {
     double t;
     Eigen::Vector3d d;
@@ -259,7 +254,7 @@ void fit_pieces(const Dataset& dataset, const PointCloud& model, const Elevation
     } catch (const Error&) {
       continue;  // no overlap: the piece says nothing
     }
-    const RegistrationFit f = registration_fit(model_map, part, rk.T_a_b, config.inlier_fraction);
+    const RegistrationFit f = registration_fit(model_map, part, rk.T_a_b, reg.inlier_fraction);
     if (static_cast<double>(f.overlap) <
         config.min_overlap_fraction * static_cast<double>(f.b_cells)) {
       continue;
@@ -326,20 +321,13 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
   split.turn_threshold_rad = config.turn_deg * kDeg;
   const std::vector<std::pair<int, int>> ranges = split_swaths(dataset, split);
 
-  ChangeRegistrationConfig reg;
-  reg.cell_m = config.cell_m;
-  reg.yaw_cell_m = config.yaw_cell_m;
-  reg.search_m = config.search_m;
-  reg.yaw_search_deg = config.yaw_search_deg;
-  reg.yaw_step_deg = config.yaw_step_deg;
-  reg.inlier_fraction = config.inlier_fraction;
-  reg.min_overlap_cells = config.min_overlap_cells;
+  ChangeRegistrationConfig reg = config.registration;
   reg.num_threads = config.num_threads;
   reg.validate();
 
   // The model's map at the registration cell, for the found/not-found tests.
   ElevationMapConfig mc;
-  mc.cell_m = config.cell_m;
+  mc.cell_m = reg.cell_m;
   const ElevationMap model_map = elevation_map_from_points(world.cloud, mc);
 
   CarveConfig carve;
@@ -382,7 +370,7 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
     Eigen::Vector2d lo, hi;
     extent(cloud, &lo, &hi);
     const double margin =
-        config.search_m + std::sin(config.yaw_search_deg * kDeg) * 0.5 * (hi - lo).norm() + 1.0;
+        reg.search_m + std::sin(reg.yaw_search_deg * kDeg) * 0.5 * (hi - lo).norm() + 1.0;
     const PointCloud near = crop(world.cloud, lo, hi, margin);
     try {
       require(!near.empty(), "no model point near the swath");
@@ -391,10 +379,10 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
       // few cells and a yaw window of two coarse steps searched five times finer (a 9 m swath's
       // ends move 4 cm for 0.25°, under the coarse maps' cell); its Gauss-Newton gives σ.
       ChangeRegistrationConfig fine = reg;
-      fine.search_m = 2 * config.cell_m;
-      fine.yaw_cell_m = config.cell_m;
-      fine.yaw_search_deg = 2 * config.yaw_step_deg;
-      fine.yaw_step_deg = 0.2 * config.yaw_step_deg;
+      fine.search_m = 2 * reg.cell_m;
+      fine.yaw_cell_m = reg.cell_m;
+      fine.yaw_search_deg = 2 * reg.yaw_step_deg;
+      fine.yaw_step_deg = 0.2 * reg.yaw_step_deg;
       const ChangeRegistration r2 = register_surveys(near, transformed(cloud, r.T_a_b), fine);
       r2_pivot = r2.pivot;
       r.T_a_b = r2.T_a_b * r.T_a_b;
@@ -404,29 +392,28 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
       overlapped = false;
       sw.reason =
           fmt::format("no overlap with the model within ±{:g} m and ±{:g} deg of the navigation",
-                      config.search_m, config.yaw_search_deg);
+                      reg.search_m, reg.yaw_search_deg);
     }
     if (overlapped) {
       sw.T_model_survey = r.T_a_b;
       sw.yaw_deg = r.yaw_deg;
       // 3. The tests: overlap fraction, and the fit against the window's alternatives.
-      const RegistrationFit best =
-          registration_fit(model_map, cloud, r.T_a_b, config.inlier_fraction);
+      const RegistrationFit best = registration_fit(model_map, cloud, r.T_a_b, reg.inlier_fraction);
       sw.overlap_cells = best.overlap;
       sw.swath_cells = best.b_cells;
       sw.overlap_fraction =
           best.b_cells ? static_cast<double>(best.overlap) / static_cast<double>(best.b_cells) : 0;
       sw.residual_m = best.cost_m;
       std::vector<double> alt;
-      for (const double radius : {0.5 * config.search_m, config.search_m}) {
+      for (const double radius : {0.5 * reg.search_m, reg.search_m}) {
         for (int k = 0; k < 8; ++k) {
           Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
           T.translation() =
               radius * Eigen::Vector3d(std::cos(k * kPi / 4), std::sin(k * kPi / 4), 0);
           const RegistrationFit f =
-              registration_fit(model_map, cloud, T * r.T_a_b, config.inlier_fraction);
+              registration_fit(model_map, cloud, T * r.T_a_b, reg.inlier_fraction);
           // Shifted off the model: as bad as no fit (the alternative is no overlap at all).
-          if (f.overlap >= static_cast<std::size_t>(config.min_overlap_cells)) {
+          if (f.overlap >= static_cast<std::size_t>(reg.min_overlap_cells)) {
             alt.push_back(f.cost_m);
           }
         }
@@ -439,9 +426,9 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
       } else {
         sw.distinctiveness = 1;  // every alternative leaves the model: only the solution fits
       }
-      if (best.overlap < static_cast<std::size_t>(config.min_overlap_cells)) {
+      if (best.overlap < static_cast<std::size_t>(reg.min_overlap_cells)) {
         sw.reason = fmt::format("{} cells overlap the model at the best pose (fewer than {})",
-                                best.overlap, config.min_overlap_cells);
+                                best.overlap, reg.min_overlap_cells);
       } else if (sw.overlap_fraction < config.min_overlap_fraction) {
         sw.reason = fmt::format(
             "only {:.0f} % of the swath lies on the model at the best pose (at least {:.0f} % "
@@ -592,11 +579,11 @@ std::string relocalization_json(const RelocalizeResult& r, const RelocalizeConfi
     swaths.push_back(o);
   }
   j["swaths"] = swaths;
-  j["criterion"] = {{"min_overlap_cells", config.min_overlap_cells},
+  j["criterion"] = {{"min_overlap_cells", config.registration.min_overlap_cells},
                     {"min_overlap_fraction", config.min_overlap_fraction},
                     {"min_distinctiveness", config.min_distinctiveness},
-                    {"search_m", config.search_m},
-                    {"yaw_search_deg", config.yaw_search_deg}};
+                    {"search_m", config.registration.search_m},
+                    {"yaw_search_deg", config.registration.yaw_search_deg}};
   j["seconds"] = {{"carving", r.seconds_carving},
                   {"registration", r.seconds_registration},
                   {"total", r.seconds_total}};

@@ -258,37 +258,26 @@ PlacementsFile read_placements(const std::string& path) {
 }
 
 void SeabedConfig::validate() const {
-  require(!lod_cells_m.empty(), "lod_cells_m: give at least one cell size");
-  require(lod_cells_m.size() <= 8, "lod_cells_m: at most 8 levels of detail");
-  for (std::size_t k = 0; k < lod_cells_m.size(); ++k) {
-    require_positive(lod_cells_m[k], "lod_cells_m", "m");
-    if (k == 0) continue;
+  params::check(*this, "seabed");
+  require(lod_cells_m.size() <= 8, "seabed.lod_cells_m: at most 8 levels of detail");
+  for (std::size_t k = 1; k < lod_cells_m.size(); ++k) {
     const double f = lod_cells_m[k] / lod_cells_m[k - 1];
     require(f >= 1.999 && std::abs(f - std::round(f)) < 1e-6,
-            fmt::format("lod_cells_m: {} m is not an integer multiple (at least 2×) of {} m",
+            fmt::format("seabed.lod_cells_m: {} m is not an integer multiple (at least 2×) of {} m",
                         lod_cells_m[k], lod_cells_m[k - 1]));
   }
-  require_non_negative(margin_m, "margin_m", "m");
-  require(min_valid_fraction > 0 && min_valid_fraction <= 1,
-          "min_valid_fraction: must lie in (0, 1]");
-  require(max_cells > 0, "max_cells: must be positive");
 }
 
 void ConnectionConfig::validate() const {
-  require_positive(station_m, "station_m", "m");
-  require_positive(corridor_m, "corridor_m", "m");
-  require_positive(band_m, "band_m", "m");
-  require(band_m > corridor_m, "band_m: must exceed corridor_m (the ground lies beyond it)");
-  require_positive(min_ridge_m, "min_ridge_m", "m");
-  require(min_fraction > 0 && min_fraction <= 1, "min_fraction: must lie in (0, 1]");
-  require_positive(max_length_m, "max_length_m", "m");
+  params::check(*this, "pipeline_search");
+  require(band_m > corridor_m,
+          "pipeline_search.band_m: must exceed corridor_m (the ground lies beyond it)");
 }
 
 void WorldModelConfig::validate() const {
+  params::check(*this, "world");
   seabed.validate();
   connections.validate();
-  require(std::isfinite(min_confidence) && min_confidence >= 0 && min_confidence <= 1,
-          "min_confidence: must lie in [0, 1]");
 }
 
 double world_confidence_threshold(const PlacementsFile& placements, std::optional<double> asked,
@@ -587,8 +576,8 @@ WorldModel build_world_model(const PointCloud& cloud_world, std::vector<WorldObj
   require(!cloud_world.empty(), "the map holds no points: nothing to build a world model from");
   WorldModel w;
   w.cloud_points = cloud_world.size();
-  w.min_confidence = config.min_confidence;
-  confirm_objects(objects, config.min_confidence);
+  w.min_confidence = config.min_confidence.value_or(0.0);
+  confirm_objects(objects, w.min_confidence);
   const std::vector<std::uint8_t> explained =
       explained_points(cloud_world, objects, config.seabed.margin_m);
   const std::vector<std::uint8_t> coloured_all = video_coloured(cloud_world);

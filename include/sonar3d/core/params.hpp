@@ -18,8 +18,10 @@
 // A visitor V has
 //   template <class T> void field(T& value, const Param& p);   T: double, int, std::size_t,
 //                                                              unsigned long long, bool, string,
-//                                                              an enum (with .choices), or
-//                                                              Box (an optional world box)
+//                                                              an enum (with .choices), Box (an
+//                                                              optional world box), List
+//                                                              (numbers, each within bounds) or
+//                                                              Maybe (an optional number)
 //   template <class G> void group(const char* key, G& g);      recurses with describe(g, *this)
 // and `describe` is found by argument-dependent lookup.
 //
@@ -76,6 +78,9 @@ struct Param {
   constexpr Param range_open_high(double l, double h) const {
     return with([&](Param& p) { p.lo = l, p.hi = h, p.hi_open = true; });
   }
+  constexpr Param range_open(double l, double h) const {
+    return with([&](Param& p) { p.lo = l, p.hi = h, p.lo_open = p.hi_open = true; });
+  }
   constexpr Param positive() const {
     return with([&](Param& p) { p.lo = 0, p.lo_open = true; });
   }
@@ -112,6 +117,14 @@ constexpr Param param(const char* key, const char* unit, const char* help) {
 
 // An optional world-frame box (a region of interest): absent = unbounded.
 using Box = std::optional<Eigen::AlignedBox3d>;
+
+// A list of numbers (the seabed's levels of detail, say): each element within the field's bounds.
+using List = std::vector<double>;
+
+// An optional number: absent ("none" in YAML and the reference, null in JSON, None in Python)
+// means the value comes from elsewhere, which the field's help says (a placements file's own
+// threshold, say). When present it must lie within the field's bounds.
+using Maybe = std::optional<double>;
 
 // A config C nested in a larger one that sets some of C's fields itself: `describe(Nested<C>&,
 // V&)` (declared beside C's own describe) lists only the fields the larger config leaves to C.
@@ -166,6 +179,8 @@ E parse_choice(const Param& p, const std::string& s, const std::string& what) {
 }
 // "[xmin, ymin, zmin, xmax, ymax, zmax]" or "none".
 std::string box_text(const Box& b);
+// "[0.05, 0.2, 1]".
+std::string list_text(const List& l);
 // A field's value as text, as the YAML writer and the reference show it.
 template <class T>
 std::string field_text(const T& value, const Param& p) {
@@ -173,6 +188,10 @@ std::string field_text(const T& value, const Param& p) {
     return choice_name(p, static_cast<int>(value));
   } else if constexpr (std::is_same_v<T, Box>) {
     return box_text(value);
+  } else if constexpr (std::is_same_v<T, List>) {
+    return list_text(value);
+  } else if constexpr (std::is_same_v<T, Maybe>) {
+    return value ? format_number(*value) : std::string("none");
   } else {
     return format_value(value);
   }
@@ -220,6 +239,18 @@ struct BoundsCheck : PathVisitor<BoundsCheck> {
                     " must have finite corners and max > min on every axis, got " +
                     box_text(value));
       }
+    } else if constexpr (std::is_same_v<T, List>) {
+      if (value.empty()) {
+        throw Error((where.empty() ? std::string() : where + " ") + join(prefix, p.key) +
+                    (p.cli ? std::string(" (") + p.cli + ")" : std::string()) +
+                    " must hold at least one value");
+      }
+      for (const double v : value) {
+        if (!in_bounds(p, v)) throw_out_of_bounds(where, join(prefix, p.key), p, v);
+      }
+    } else if constexpr (std::is_same_v<T, Maybe>) {
+      if (value && !in_bounds(p, *value))
+        throw_out_of_bounds(where, join(prefix, p.key), p, *value);
     } else if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
       if (!p.bounded()) return;
       const double v = static_cast<double>(value);
@@ -287,6 +318,10 @@ struct JsonWriter {
       out += json_string(field_text(value, p));
     } else if constexpr (std::is_same_v<T, Box>) {
       out += value ? field_text(value, p) : std::string("null");
+    } else if constexpr (std::is_same_v<T, List>) {
+      out += list_text(value);
+    } else if constexpr (std::is_same_v<T, Maybe>) {
+      out += value ? format_number(*value) : std::string("null");
     } else {
       out += format_value(value);
     }

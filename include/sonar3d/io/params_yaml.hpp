@@ -38,6 +38,16 @@ struct YamlWriter {
         }
         out << YAML::EndSeq;
       }
+    } else if constexpr (std::is_same_v<T, Maybe>) {
+      if (value) {
+        out << format_number(*value);
+      } else {
+        out << YAML::Null;
+      }
+    } else if constexpr (std::is_same_v<T, List>) {
+      out << YAML::Flow << YAML::BeginSeq;
+      for (const double v : value) out << format_number(v);
+      out << YAML::EndSeq;
     } else if constexpr (std::is_same_v<T, bool>) {
       out << (value ? "true" : "false");
     } else if constexpr (std::is_arithmetic_v<T>) {
@@ -96,6 +106,34 @@ struct YamlReader : PathVisitor<YamlReader> {
         throw Error(at + ": max must exceed min on every axis, got " + box_text(b));
       }
       value = b;
+    } else if constexpr (std::is_same_v<T, List>) {
+      // [a, b, ...]: at least one finite number, each within the field's bounds
+      if (!n.IsSequence() || n.size() == 0 || n.size() > 1000) {
+        throw Error(at + ": expected a list of 1 to 1000 numbers" +
+                    (*p.unit ? " (" + std::string(p.unit) + ")" : std::string()));
+      }
+      List l;
+      for (std::size_t k = 0; k < n.size(); ++k) {
+        double d = 0;
+        if (!n[k].IsScalar() || !YAML::convert<double>::decode(n[k], d) || !std::isfinite(d)) {
+          throw Error(at + ": expected a finite number at position " + std::to_string(k + 1));
+        }
+        if (!in_bounds(p, d)) {
+          throw Error(at + ": position " + std::to_string(k + 1) + " " + bounds_rule(p) + ", got " +
+                      n[k].Scalar());
+        }
+        l.push_back(d);
+      }
+      value = std::move(l);
+    } else if constexpr (std::is_same_v<T, Maybe>) {
+      // a number, or null / none for "from elsewhere"
+      if (n.IsNull() || (n.IsScalar() && n.Scalar() == "none")) {
+        value.reset();
+        return;
+      }
+      double d = 0;
+      read_scalar(d, p, n, at);
+      value = d;
     } else {
       read_scalar(value, p, n, at);
     }

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "sonar3d/recog/recognize.hpp"
+#include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d {
 
@@ -79,17 +80,24 @@ struct SurveyMapOptions {  // sonar3d map (defaults: MapSurveyConfig's)
   double max_memory = 0;            // GB; 0: the default limit
 };
 
-struct SurveyWorldOptions {  // sonar3d world (defaults: WorldModelConfig's)
-  SurveyWorldOptions();
-  std::vector<double> lod_cells;
-  double margin = 0, min_valid_fraction = 0;
-  bool no_fill = false;
-  double min_ridge = 0, ridge_fraction = 0;
-  bool no_connections = false;
-  std::optional<double> min_confidence;  // default: the placements' settings.min_confidence
-  std::string connections;               // YAML of known connections
+// sonar3d world: its configuration (the keys of `sonar3d world --print-config`), plus the files
+// the command takes as options.
+struct SurveyWorldOptions {
+  WorldModelConfig model;
+  std::string connections;  // YAML of known connections (relative: to the survey file)
   bool glb_all_lods = false;
 };
+template <class V>
+void describe(SurveyWorldOptions& o, V& v) {
+  using params::param;
+  describe(o.model, v);  // the world's own keys, at the stage's level
+  v.field(o.connections, param("connections", "",
+                               "YAML of the connections you know ('connections: [{from: riser_0, "
+                               "to: tank_0, kind: pipeline}]'); relative to the survey file"));
+  v.field(o.glb_all_lods, param("glb_all_lods", "",
+                                "world.glb carries every seabed level of detail (else the "
+                                "coarsest)"));
+}
 
 struct SurveyTextureOptions {  // sonar3d texture --dataset (defaults: TextureConfig's)
   SurveyTextureOptions();

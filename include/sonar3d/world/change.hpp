@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
@@ -54,6 +55,56 @@ struct ChangeRegistrationConfig {
   int num_threads = 0;  // 0 = all cores
   void validate() const;
 };
+
+// The one declaration of ChangeRegistrationConfig's fields (core/params.hpp). A config that sets
+// the threads itself (relocalisation) describes it as Nested<ChangeRegistrationConfig>.
+template <class V>
+void describe_registration_own(ChangeRegistrationConfig& c, V& v) {
+  using params::param;
+  v.field(c.yaw_cell_m, param("yaw_cell_m", "m",
+                              "cell of the maps of the yaw search (finer on small sites, down "
+                              "to cell_m)")
+                            .positive()
+                            .flag("--yaw-cell"));
+  v.field(c.cell_m, param("cell_m", "m",
+                          "cell of the maps of the final shift search; Gauss-Newton refines at "
+                          "half of it")
+                        .positive()
+                        .equation("sec. 6.2.2.1, eq. 6.1-6.2")
+                        .flag("--registration-cell"));
+  v.field(c.search_m,
+          param("search_m", "m", "half-width of the searched horizontal shift (East, North)")
+              .positive()
+              .flag("--search"));
+  v.field(c.yaw_search_deg, param("yaw_search_deg", "deg", "half-width of the searched yaw")
+                                .range(0, 45)
+                                .flag("--yaw-search-deg"));
+  v.field(c.yaw_step_deg,
+          param("yaw_step_deg", "deg", "yaw step of the coarse search (then refined)")
+              .range_open_low(0, 10)
+              .flag("--yaw-step-deg"));
+  v.field(c.coarse_factor,
+          param("coarse_factor", "", "the shift search's coarse-to-fine factor").range(1, 64));
+  v.field(
+      c.min_overlap_cells,
+      param("min_overlap_cells", "", "fewer cells observed in both maps: no overlap").at_least(1));
+  v.field(c.inlier_fraction,
+          param("inlier_fraction", "",
+                "of the overlap, the fraction of smallest height differences that score a pose "
+                "(the changes themselves must not decide the registration)")
+              .range_open_low(0, 1));
+}
+template <class V>
+void describe(ChangeRegistrationConfig& c, V& v) {
+  describe_registration_own(c, v);
+  v.field(c.num_threads, params::param("num_threads", "", "worker threads (0 = all cores)")
+                             .non_negative()
+                             .flag("--threads"));
+}
+template <class V>
+void describe(params::Nested<ChangeRegistrationConfig>& n, V& v) {
+  describe_registration_own(n.c, v);
+}
 
 struct ChangeRegistration {
   Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
@@ -102,9 +153,8 @@ RegistrationFit registration_fit(const ElevationMap& a, const PointCloud& b_worl
 // brightness, so a lamp, an altitude or a water attenuation that differs between the surveys is
 // no change; CIELAB (D65, from linear RGB) also counts lightness, in ΔE*ab.
 enum class ColourSpace { Chromaticity, Lab };
+inline constexpr const char* kColourSpaceNames[] = {"chromaticity", "lab"};  // by ColourSpace
 const char* colour_space_name(ColourSpace s);  // "chromaticity", "lab"
-// "chromaticity" or "lab"; anything else is an Error naming `param`.
-ColourSpace parse_colour_space(const std::string& name, const std::string& param);
 
 struct ColourChangeConfig {
   ColourSpace space = ColourSpace::Chromaticity;
@@ -130,6 +180,55 @@ struct ColourChangeConfig {
   int min_overlap_cells = 20;  // fewer cells compared: the colour clouds do not overlap
   void validate() const;
 };
+
+template <class V>
+void describe(ColourChangeConfig& c, V& v) {
+  using params::param;
+  v.field(c.space, param("space", "",
+                         "colours compared as chromaticity (brightness ignored, percentage "
+                         "points) or lab (CIELAB, Delta E*ab)")
+                       .choices(kColourSpaceNames)
+                       .flag("--colour-space"));
+  v.field(c.cell_m,
+          param("cell_m", "m", "cell of the colour comparison").positive().flag("--colour-cell"));
+  v.field(c.min_points, param("min_points", "",
+                              "coloured points a cell needs in each survey to be compared "
+                              "(black points are the ones no camera saw)")
+                            .at_least(1)
+                            .flag("--colour-min-points"));
+  v.field(c.top_layer_m, param("top_layer_m", "m",
+                               "only the coloured points within this of their cell's highest "
+                               "coloured point count (the top a downward camera sees)")
+                             .non_negative()
+                             .flag("--colour-top-layer"));
+  v.field(c.k_sigma, param("k_sigma", "",
+                           "significant colour change: beyond this many robust sigmas of the "
+                           "differences (after their median offset)")
+                         .positive()
+                         .flag("--colour-k-sigma"));
+  v.field(c.sigma_quantile,
+          param("sigma_quantile", "",
+                "the robust sigma's quantile of |d - median d| (0.8: a sigma while at most 20 % "
+                "changed)")
+              .range_open(0.5, 1));
+  v.field(c.min_sigma,
+          param("min_sigma", "", "floor of the sigma, in the space's units (pp or Delta E*ab)")
+              .non_negative());
+  v.field(c.tolerance_m, param("tolerance_m", "m",
+                               "registration and drift left between the maps: a colour of the "
+                               "other survey within this is no change (at most 20 colour cells)")
+                             .non_negative());
+  v.field(c.link_m, param("link_m", "m",
+                          "changed cells closer than this form one region (at most 100 colour "
+                          "cells)")
+                        .non_negative());
+  v.field(c.min_area_m2, param("min_area_m2", "m2", "smallest region of colour change reported")
+                             .non_negative()
+                             .flag("--colour-min-area"));
+  v.field(c.min_overlap_cells,
+          param("min_overlap_cells", "", "fewer cells compared: the colour clouds do not overlap")
+              .at_least(1));
+}
 
 struct ChangeConfig {
   ChangeRegistrationConfig registration;
@@ -178,6 +277,71 @@ struct ChangeConfig {
   double confirm_radius_m = 1.5;
   void validate() const;
 };
+
+// The one declaration of the change detection's settings (sonar3d diff's flags, its
+// --print-config keys, Python's ChangeConfig; docs/reference.md).
+template <class V>
+void describe(ChangeConfig& c, V& v) {
+  using params::param;
+  v.group("registration", c.registration);
+  v.group("colour", c.colour);
+  v.field(c.cell_m,
+          param("cell_m", "m", "cell of the height change map").positive().flag("--cell"));
+  v.field(c.k_sigma, param("k_sigma", "",
+                           "significant height change: |B - A| beyond this many robust sigmas "
+                           "of the differences and beyond the other survey's 3x3 heights")
+                         .positive()
+                         .flag("--k-sigma"));
+  v.field(c.tolerance_m, param("tolerance_m", "m",
+                               "horizontal misalignment of the maps tolerated at height steps "
+                               "(at least one cell, at most 20)")
+                             .non_negative()
+                             .flag("--tolerance"));
+  v.field(c.sigma_quantile,
+          param("sigma_quantile", "",
+                "the robust sigma's quantile of |d - median d| over the overlap (0.8: a sigma "
+                "while at most 20 % of it changed)")
+              .range_open(0.5, 1));
+  v.field(c.min_sigma_m,
+          param("min_sigma_m", "m", "floor of the robust sigma (noise-free simulations)")
+              .non_negative());
+  v.field(c.min_area_m2, param("min_area_m2", "m2", "smallest region of change reported")
+                             .non_negative()
+                             .flag("--min-area"));
+  v.field(c.link_m, param("link_m", "m",
+                          "changed cells of one sign closer than this form one region (at most "
+                          "100 cells)")
+                        .non_negative());
+  v.field(c.match_radius_factor,
+          param("match_radius_factor", "",
+                "placements of one model whose centres lie within this many times the model's "
+                "radius (half its footprint's diagonal) are one object")
+              .range_open_low(0, 10)
+              .flag("--match-factor"));
+  v.field(c.min_match_radius_m,
+          param("min_match_radius_m", "m", "the smallest match radius of a model of known size")
+              .non_negative()
+              .flag("--min-match-radius"));
+  v.field(c.match_radius_m, param("match_radius_m", "m",
+                                  "without a catalogue (model sizes unknown): placements of one "
+                                  "model closer than this are one object")
+                                .positive()
+                                .flag("--match-radius"));
+  v.field(c.shift_tol_m, param("shift_tol_m", "m", "an object moved by at most this is unchanged")
+                             .non_negative()
+                             .flag("--shift-tol"));
+  v.field(c.turn_tol_deg,
+          param("turn_tol_deg", "deg",
+                "an object turned by at most this (modulo its symmetry) is unchanged")
+              .range(0, 180)
+              .flag("--turn-tol-deg"));
+  v.field(c.confirm_radius_m,
+          param("confirm_radius_m", "m",
+                "without a catalogue: an object change needs height change within this of the "
+                "object (with one: within its footprint); at most 1000 cells")
+              .non_negative()
+              .flag("--confirm-radius"));
+}
 
 // What change detection knows of a catalogue model: its symmetry (turns are compared modulo it)
 // and its size (the radius objects are paired over, the footprint a change must show in).

@@ -51,20 +51,31 @@
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/world/change.hpp"
 
 namespace sonar3d {
 
 struct Dataset;  // io/dataset.hpp
 
+// The registration's defaults for relocalisation: the navigation's whole expected error searched
+// (±1 m, ±5°), a smaller overlap accepted (one line).
+inline ChangeRegistrationConfig relocalize_registration_defaults() {
+  ChangeRegistrationConfig r;
+  r.cell_m = 0.1;
+  r.yaw_cell_m = 0.25;
+  r.search_m = 1.0;
+  r.yaw_search_deg = 5;
+  r.yaw_step_deg = 0.25;
+  r.inlier_fraction = 0.8;
+  r.min_overlap_cells = 300;
+  return r;
+}
+
 struct RelocalizeConfig {
-  double voxel_m = 0.05;         // carving voxel of the new survey (the world's seabed is 5 cm), m
-  double cell_m = 0.1;           // elevation-map cell of the shift search (Gauss-Newton at half), m
-  double yaw_cell_m = 0.25;      // cell of the yaw search's maps, m
-  double search_m = 1.0;         // ± horizontal error of the navigation searched (East, North), m
-  double yaw_search_deg = 5;     // ± heading error searched, degrees
-  double yaw_step_deg = 0.25;    // yaw step of the coarse search, degrees
-  double inlier_fraction = 0.8;  // of the overlap, the smallest |height differences| scored
-  int min_overlap_cells = 300;   // fewer cells observed in both: no overlap
+  double voxel_m = 0.05;  // carving voxel of the new survey (the world's seabed is 5 cm), m
+  // Each swath registered onto the model as sonar3d diff registers survey B onto A
+  // (world/change.hpp); num_threads is this config's.
+  ChangeRegistrationConfig registration = relocalize_registration_defaults();
   double min_overlap_fraction = 0.5;  // found: of the swath's cells, this fraction on the model
   double min_distinctiveness = 0.3;   // found: 1 − m*/m_alt at least this
   double model_spacing_m = 0.03;      // structures' meshes sampled at this spacing, m
@@ -82,32 +93,8 @@ void describe(RelocalizeConfig& c, V& v) {
   using params::param;
   v.field(c.voxel_m,
           param("voxel_m", "m", "carving voxel of the new survey").positive().flag("--voxel-size"));
-  v.field(c.cell_m, param("cell_m", "m",
-                          "elevation-map cell of the shift search; Gauss-Newton refines at half")
-                        .positive()
-                        .equation("sec. 6.2.2.1, eq. 6.1-6.2")
-                        .flag("--cell"));
-  v.field(c.yaw_cell_m,
-          param("yaw_cell_m", "m", "cell of the yaw search's maps").positive().flag("--yaw-cell"));
-  v.field(c.search_m, param("search_m", "m",
-                            "half-width of the searched horizontal error of the navigation "
-                            "(East, North)")
-                          .positive()
-                          .flag("--search"));
-  v.field(c.yaw_search_deg, param("yaw_search_deg", "deg",
-                                  "half-width of the searched heading "
-                                  "error")
-                                .range(0, 45)
-                                .flag("--yaw-search-deg"));
-  v.field(c.yaw_step_deg, param("yaw_step_deg", "deg", "yaw step of the coarse search")
-                              .range_open_low(0, 10)
-                              .flag("--yaw-step-deg"));
-  v.field(c.inlier_fraction,
-          param("inlier_fraction", "",
-                "of the overlap, the fraction of smallest height differences that score a pose")
-              .range_open_low(0, 1));
-  v.field(c.min_overlap_cells,
-          param("min_overlap_cells", "", "fewer cells observed in both: no overlap").at_least(1));
+  params::Nested<ChangeRegistrationConfig> registration{c.registration};
+  v.group("registration", registration);
   v.field(c.min_overlap_fraction,
           param("min_overlap_fraction", "",
                 "found: of the swath's cells, at least this fraction lie on the model")

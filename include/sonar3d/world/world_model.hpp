@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 
@@ -114,13 +115,84 @@ struct WorldModelConfig {
   bool find_connections = true;
   // Placements below this confidence are kept as unconfirmed objects (confirm_objects): never
   // connected, explaining no point. In [0, 1]; 0 confirms every placement, even of unknown
-  // confidence. `sonar3d world` takes it from the placements file (world_confidence_threshold).
-  double min_confidence = 0;
+  // confidence. Unset: the placements file's own threshold (world_confidence_threshold, which
+  // `sonar3d world` and the survey apply), else 0.
+  std::optional<double> min_confidence;
   void validate() const;
 };
 
+// The one declaration of the world model's settings (sonar3d world's flags and --print-config
+// keys, the survey's world stage, Python's WorldModelConfig; docs/reference.md).
+template <class V>
+void describe(SeabedConfig& c, V& v) {
+  using params::param;
+  v.field(c.lod_cells_m, param("lod_cells_m", "m",
+                               "seabed height-field cell per level of detail, finest first; each "
+                               "an integer multiple (at least 2x) of the previous, at most 8")
+                             .positive()
+                             .flag("--lod-cells"));
+  v.field(c.margin_m, param("margin_m", "m",
+                            "points within a placed model's bounding box grown by this are the "
+                            "model's, not the seabed's")
+                          .non_negative()
+                          .flag("--margin"));
+  v.field(c.min_valid_fraction,
+          param("min_valid_fraction", "",
+                "a coarse cell needs at least this fraction of its finest cells observed")
+              .range_open_low(0, 1)
+              .flag("--min-valid-fraction"));
+  v.field(c.fill_footprints, param("fill_footprints", "",
+                                   "fill the no-data cells under a placed model's footprint from "
+                                   "around (the seabed goes on under a structure); off: holes")
+                                 .flag("--no-fill"));
+  v.field(
+      c.max_cells,
+      param("max_cells", "", "height fields with more cells than this are refused").at_least(1));
+}
+template <class V>
+void describe(ConnectionConfig& c, V& v) {
+  using params::param;
+  v.field(c.station_m,
+          param("station_m", "m", "spacing of the cross-sections along the line").positive());
+  v.field(c.corridor_m,
+          param("corridor_m", "m", "half-width searched for the ridge's crest around the line")
+              .positive());
+  v.field(c.band_m, param("band_m", "m",
+                          "half-width of each cross-section; beyond corridor_m lies the ground")
+                        .positive());
+  v.field(c.min_ridge_m,
+          param("min_ridge_m", "m", "a ridge's crest at least this far above the ground's median")
+              .positive()
+              .flag("--min-ridge"));
+  v.field(c.min_fraction, param("min_fraction", "",
+                                "of the cross-sections with data, the fraction showing a ridge "
+                                "for a pipeline")
+                              .range_open_low(0, 1)
+                              .flag("--ridge-fraction"));
+  v.field(
+      c.max_length_m,
+      param("max_length_m", "m", "pairs of structures farther apart are not tested").positive());
+}
+template <class V>
+void describe(WorldModelConfig& c, V& v) {
+  using params::param;
+  v.group("seabed", c.seabed);
+  v.field(c.find_connections,
+          param("find_connections", "", "search for pipelines between placed structures")
+              .flag("--no-connections"));
+  v.group("pipeline_search", c.connections);
+  v.field(c.min_confidence,
+          param("min_confidence", "",
+                "placements below this confidence are kept as unconfirmed objects: listed, "
+                "never connected, their points left in the seabed (none: the placements file's "
+                "settings.min_confidence, else 0)")
+              .range(0, 1)
+              .flag("--min-confidence"));
+}
+
 // The confidence threshold the world applies: `asked` when given (finite, in [0, 1], else an
-// Error naming `param`), else the file's settings.min_confidence, else 0. A threshold above 0
+// Error naming `param`), else the file's settings.min_confidence, else 0 (WorldModelConfig::
+// min_confidence unset). A threshold above 0
 // with a placement of unknown confidence is an Error naming the file and the placement: the
 // threshold cannot be checked on it (write the placements again with sonar3d recognize).
 double world_confidence_threshold(const PlacementsFile& placements, std::optional<double> asked,
