@@ -645,6 +645,7 @@ std::string verdict(const Placement& p, const ModelTemplate& m, const Recognitio
   if (!(p.residual.median_m <= config.max_residual_median_m)) {
     return "residual median above max_residual_median_m";
   }
+  if (v.evidence < config.verification.min_evidence) return "relief evidence below min_evidence";
   if (v.confidence < config.verification.min_confidence) return "confidence below min_confidence";
   return "";
 }
@@ -1076,7 +1077,7 @@ nlohmann::json verification_json(const Verification& v) {
           {"intrusion", v.intrusion}, {"unexplained", v.unexplained},
           {"spill", v.spill},         {"overlap", v.overlap},
           {"relief_m3", v.relief_m3}, {"scene_relief_m3", v.scene_relief_m3},
-          {"score_m3", v.score_m3}};
+          {"score_m3", v.score_m3},   {"evidence", v.evidence}};
 }
 }  // namespace
 
@@ -1162,13 +1163,18 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                      {"context_min_m", config.verification.context_min_m},
                      {"context_fraction", config.verification.context_fraction},
                      {"spill_band_m", config.verification.spill_band_m},
+                     {"evidence_min_m", config.verification.evidence_min_m},
+                     {"evidence_ratio", config.verification.evidence_ratio},
+                     {"evidence_slip_m", config.verification.evidence_slip_m},
+                     {"min_evidence", config.verification.min_evidence},
                      {"confidence_model",
                       {{"bias", config.verification.bias},
                        {"w_seen", config.verification.w_seen},
                        {"w_explained", config.verification.w_explained},
                        {"w_violation", config.verification.w_violation},
                        {"w_unexplained", config.verification.w_unexplained},
-                       {"w_spill", config.verification.w_spill}}}}}};
+                       {"w_spill", config.verification.w_spill},
+                       {"w_evidence", config.verification.w_evidence}}}}}};
   nlohmann::json list = placements_list_json(result.placements);
   j["placements"] = list;
   nlohmann::json searches = nlohmann::json::array();

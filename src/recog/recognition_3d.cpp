@@ -734,6 +734,9 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
   } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
     std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
                   w.relief_m3, cfg.min_net_explained);
+  } else if (w.evidence < cfg.verification.min_evidence) {
+    std::snprintf(buf, sizeof buf, "relief evidence %.2f < %.2f", w.evidence,
+                  cfg.verification.min_evidence);
   } else if (w.confidence < cfg.verification.min_confidence) {
     std::snprintf(buf, sizeof buf,
                   "confidence %.2f < %.2f (seen %.2f, explained %.2f, violation %.2f, "

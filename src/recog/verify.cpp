@@ -20,7 +20,7 @@ double verification_confidence(const Verification& v, const VerificationConfig& 
   if (!v.valid) return 0.0;
   const double s = c.bias + c.w_seen * v.seen + c.w_explained * v.explained +
                    c.w_violation * v.violation + c.w_unexplained * v.unexplained +
-                   c.w_spill * v.spill;
+                   c.w_spill * v.spill + c.w_evidence * v.evidence;
   return 1.0 / (1.0 + std::exp(-s));
 }
 
@@ -154,11 +154,30 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
 
   // The model's relief against the scene.
   double seen = 0, agree = 0, violate = 0, intrude = 0;
+  // Relief evidence: every observed footprint cell where the model stands more than
+  // evidence_min_m above the seabed (all of its shape, not only its relief above relief_m),
+  // weighted by that height, supported where the scene within evidence_slip_m rises at least
+  // evidence_ratio of it. A rock under a small model explains its top (`explained`) but its
+  // flanks fall away under the model's ends.
+  const int ke = static_cast<int>(std::lround(config.evidence_slip_m / cell));
+  double ev_seen = 0, ev_support = 0;
   for (int r = 0; r < v.rows; ++r) {
     for (int c = 0; c < v.cols; ++c) {
       if (!fp[v.index(r, c)]) continue;
       const float zm = v.at(r, c);
       const double gz = ground_at(r, c);
+      if (zm > gz + config.evidence_min_m && scene_at(r, c) == scene_at(r, c)) {
+        const double h = zm - gz;
+        float top = ElevationMap::kNoData;
+        for (int dr = -ke; dr <= ke; ++dr) {
+          for (int dc = -ke; dc <= ke; ++dc) {
+            const float zn = scene_at(r + dr, c + dc);
+            if (zn == zn && !(top >= zn)) top = zn;
+          }
+        }
+        ev_seen += h;
+        if (top - gz >= config.evidence_ratio * h) ev_support += h;
+      }
       if (!(zm > gz + config.relief_m)) continue;
       const double w = (zm - gz) * area;
       out.relief_m3 += w;
@@ -230,6 +249,7 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
   }
   out.unexplained = scene_relief > 0 ? unexplained / scene_relief : 0.0;
   out.spill = band > 0 ? static_cast<double>(spilled) / static_cast<double>(band) : 0.0;
+  out.evidence = ev_seen > 0 ? ev_support / ev_seen : 0.0;
   out.score_m3 = agree - violate - unexplained;
   out.confidence = verification_confidence(out, config);
   return out;

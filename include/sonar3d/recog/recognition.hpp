@@ -194,12 +194,11 @@ struct RecognitionConfig {
   // (they cannot raise a blob), are left to the scan (the opening cannot lift the former off the
   // seabed).
   double relief_window_m = 2.0;
-  // Per model; 0 (the default): none. Off by default, by measurement: with the 4D search's height
-  // bounded by the seabed (Search4dConfig::seabed_ring_m), 4 per model find the buried cinder
-  // block and the upright sonobuoy of the benchmark's mixed_buried field that the scan never
-  // proposes, but still place one false hot stab on rock in the ordnance field
-  // (docs/recognition.md).
-  int max_relief_proposals = 0;
+  // Per model; 0: none. On by default since the verification's relief evidence
+  // (VerificationConfig::min_evidence) refuses the false hot stab on rock that they placed in
+  // the benchmark's ordnance field: 4 per model find the buried cinder block and the upright
+  // sonobuoy of mixed_buried that the scan never proposes (docs/recognition.md).
+  int max_relief_proposals = 4;
   double removal_margin_m = 0.1;  // area removed around a placed model's footprint
   // Scene points used by ICP and the residuals: those higher than the local seabed (median
   // scene height around the footprint) plus this, m.
