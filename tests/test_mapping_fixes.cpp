@@ -204,6 +204,101 @@ TEST(MappingFixes, OutlierRejectedAndReported) {
   EXPECT_LT((adj.offsets[0] - clean.offsets[0]).head<2>().norm(), 0.05);
 }
 
+namespace {
+
+// Known structure poses (issue 26 item 3): a structure at `p_true`, seen from line k as the
+// vehicle passed it (the sonar's ray: true lever p_true − vehicle, logged turned by the heading
+// bias β, with no DVL scale), known to be at p_true + `known_error`.
+sonar3d::AbsoluteFix structure_constraint(const Survey& sv, int k, const Eigen::Vector3d& p_true,
+                                          const Eigen::Vector3d& known_error, double s, double beta,
+                                          const std::string& name) {
+  const sonar3d::SwathTiming w = sv.timing(k);
+  const double x0 = k % 2 == 0 ? -20.0 : 20.0, dir = k % 2 == 0 ? 1.0 : -1.0;
+  const double t = w.t0 + dir * (p_true.x() - x0) / sv.speed;
+  sonar3d::AbsoluteFix f;
+  f.time = t;
+  f.p_logged = logged(sv, t, s, beta);
+  const Eigen::Vector3d lever_true = p_true - sv.truth(t);
+  f.lever = lever_true;
+  f.lever.head<2>() = Eigen::Rotation2Dd(beta) * lever_true.head<2>();
+  f.p_world = p_true + known_error;
+  f.sigma_m = 0.03;
+  f.name = name;
+  f.line = k;
+  f.swath_a = f.swath_b = k;
+  f.time_a = f.time_b = t;
+  return f;
+}
+
+}  // namespace
+
+// A survey logged with a 1.5 % DVL scale error and a 0.4° heading bias, no fixes: two structures
+// 27 m apart whose poses are known (a previous survey's world model, as-built drawings),
+// recognised in the map within 1 cm, give the scale back within 0.1 % and the whole navigation
+// within 5 cm; one alone places the map but cannot give a scale.
+TEST(MappingKnownPoses, TwoKnownStructuresFixTheScale) {
+  const Survey sv;
+  const double s = 0.015, beta = 0.4 * M_PI / 180;
+  const auto ties = make_ties(sv, 5);
+  sonar3d::AbsoluteConstraints abs;
+  abs.pivot = sv.truth(0);
+  abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));
+  abs.fixes.push_back(structure_constraint(sv, 1, {15, -11, -10.5}, {0, -0.01, 0}, s, beta, "b"));
+  const sonar3d::SwathAdjustment adj = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  ASSERT_TRUE(adj.has_fixes);
+  ASSERT_TRUE(adj.estimated_scale_heading);
+  EXPECT_NEAR(adj.scale_error(), s, 0.001);
+  EXPECT_NEAR(adj.heading_bias_rad() * 180 / M_PI, 0.4, 0.1);
+  EXPECT_LT(worst_error(sv, adj, s, beta), 0.05);
+  ASSERT_EQ(adj.fixes.size(), 2u);
+  for (const sonar3d::FixReport& f : adj.fixes) {
+    EXPECT_FALSE(f.rejected) << f.name;
+    EXPECT_LT(f.residual_m, 0.02) << f.name;
+  }
+  EXPECT_EQ(adj.fixes[0].name, "a");
+  EXPECT_TRUE(std::isfinite(adj.scale_error_sigma));
+  EXPECT_LT(std::abs(adj.scale_error() - s), 3 * adj.scale_error_sigma + 1e-4);
+  // The drift method too.
+  std::vector<sonar3d::SwathTiming> timing;
+  for (int k = 0; k < sv.lines; ++k) timing.push_back(sv.timing(k));
+  const sonar3d::SwathAdjustment drift = sonar3d::adjust_swaths_drift(timing, ties, {}, &abs);
+  EXPECT_NEAR(drift.scale_error(), s, 0.001);
+  EXPECT_LT(worst_error(sv, drift, s, beta), 0.05);
+  // One known structure: a shift only (the scale stays as logged), the map placed there.
+  abs.fixes.pop_back();
+  const sonar3d::SwathAdjustment one = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  EXPECT_FALSE(one.estimated_scale_heading);
+  EXPECT_EQ(one.scale_error(), 0.0);
+  EXPECT_LT(one.fixes[0].residual_m, 0.01);
+}
+
+// Four known structures, one of whose known pose is 0.8 m off (moved since the as-built
+// drawing, or a wrong match): rejected and reported by name with its residual; the other three
+// give the scale within 0.1 %.
+TEST(MappingKnownPoses, WrongKnownPoseRejectedAndReported) {
+  const Survey sv;
+  const double s = 0.01, beta = 0.2 * M_PI / 180;
+  const auto ties = make_ties(sv, 6);
+  sonar3d::AbsoluteConstraints abs;
+  abs.pivot = sv.truth(0);
+  abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));
+  abs.fixes.push_back(structure_constraint(sv, 1, {15, -11, -10.5}, {0, -0.01, 0}, s, beta, "b"));
+  abs.fixes.push_back(structure_constraint(sv, 5, {4, 13, -10.5}, {-0.01, 0.01, 0}, s, beta, "c"));
+  abs.fixes.push_back(structure_constraint(sv, 2, {-3, -2, -10.5}, {0.6, -0.5, 0}, s, beta, "d"));
+  const sonar3d::SwathAdjustment adj = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  ASSERT_EQ(adj.fixes.size(), 4u);
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_FALSE(adj.fixes[k].rejected) << adj.fixes[k].name;
+    EXPECT_LT(adj.fixes[k].residual_m, 0.03) << adj.fixes[k].name;
+  }
+  EXPECT_TRUE(adj.fixes[3].rejected);
+  EXPECT_EQ(adj.fixes[3].name, "d");
+  EXPECT_NEAR(adj.fixes[3].residual_m, std::hypot(0.6, 0.5), 0.05);
+  EXPECT_GT(adj.fixes[3].normalized, 20);
+  EXPECT_NEAR(adj.scale_error(), s, 0.001);
+  EXPECT_LT(worst_error(sv, adj, s, beta), 0.05);
+}
+
 // Fixes files: CSV with a header in any order (z optional, comments, extra columns) and TUM with
 // one σ; every bad file refused with one line naming the file, the line and the column.
 TEST(MappingFixes, FixesFilesReadOrRefusedWithOneLine) {

@@ -204,10 +204,13 @@ void AbsoluteConstraints::validate() const {
   require(std::isfinite(heading_prior_sigma_rad) && heading_prior_sigma_rad > 0,
           "fixes: heading_prior_sigma must be > 0");
   require(pivot.allFinite(), "fixes: the pivot is not finite");
+  require(std::isfinite(min_baseline_m) && min_baseline_m >= 0,
+          "fixes: min_baseline_m must be >= 0");
   for (const AbsoluteFix& f : fixes) {
     require(std::isfinite(f.time) && f.p_world.allFinite() && f.p_logged.allFinite() &&
                 std::isfinite(f.sigma_m) && f.sigma_m > 0 && std::isfinite(f.time_a) &&
-                std::isfinite(f.time_b) && f.weight_b >= 0 && f.weight_b <= 1,
+                std::isfinite(f.time_b) && f.weight_b >= 0 && f.weight_b <= 1 &&
+                f.lever.allFinite(),
             "fixes: the fix at t = " + std::to_string(f.time) + " s is not finite or has σ <= 0");
   }
 }
@@ -419,11 +422,16 @@ struct FixResidual {
   double dt_a, dt_b;  // from each swath's rate_t0
   template <typename T>
   void predict(const T* nav, T* p) const {
+    using std::cos;
+    using std::sin;
     T d[2];
     nav_linear(nav, T(f.p_logged.x() - pivot.x()), T(f.p_logged.y() - pivot.y()), d);
-    p[0] = T(pivot.x()) + d[0];
-    p[1] = T(pivot.y()) + d[1];
-    p[2] = T(f.p_logged.z());
+    // A known structure: the point the sonar saw, the lever turned by R(−β) (ranges carry no
+    // DVL scale); zero for a fix.
+    const T c = cos(nav[1]), sn = sin(nav[1]);
+    p[0] = T(pivot.x()) + d[0] + c * T(f.lever.x()) + sn * T(f.lever.y());
+    p[1] = T(pivot.y()) + d[1] - sn * T(f.lever.x()) + c * T(f.lever.y());
+    p[2] = T(f.p_logged.z() + f.lever.z());
   }
   template <typename T>
   void finish(const T* p, T* res) const {
@@ -484,6 +492,12 @@ struct NavModelPrior {
   }
 };
 
+// R(−β)·lever (the heading correction only), nav = (s, β).
+Eigen::Vector3d turned_lever(const Eigen::Vector2d& nav, const Eigen::Vector3d& lever) {
+  const double c = std::cos(nav.y()), sn = std::sin(nav.y());
+  return {c * lever.x() + sn * lever.y(), -sn * lever.x() + c * lever.y(), lever.z()};
+}
+
 Eigen::Vector2d nav_linear_d(const Eigen::Vector2d& nav, const Eigen::Vector2d& d) {
   Eigen::Vector2d out;
   nav_linear(nav.data(), d.x(), d.y(), out.data());
@@ -543,7 +557,7 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
   {
     std::vector<double> dx, dy, dz;
     for (const AbsoluteFix& f : abs.fixes) {
-      const Eigen::Vector3d d = f.p_world - f.p_logged - swath_corr(f);
+      const Eigen::Vector3d d = f.p_world - f.p_logged - f.lever - swath_corr(f);
       dx.push_back(d.x());
       dy.push_back(d.y());
       if (f.has_z) dz.push_back(d.z());
@@ -578,7 +592,18 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
           "{:g} σ: are they in the navigation's world frame (ENU, metres) and on its clock?",
           nf, abs.gate_sigma));
     }
-    estimate = abs.estimate_scale_heading && used >= 3;
+    // A scale and a turn need two constraints apart: 3 in use, or 2 at least min_baseline_m
+    // apart (two known structures).
+    double baseline = 0;
+    for (std::size_t a = 0; a < nf; ++a) {
+      for (std::size_t b = a + 1; b < nf && used == 2; ++b) {
+        if (!rejected[a] && !rejected[b]) {
+          baseline = (abs.fixes[a].p_world - abs.fixes[b].p_world).head<2>().norm();
+        }
+      }
+    }
+    estimate =
+        abs.estimate_scale_heading && (used >= 3 || (used == 2 && baseline >= abs.min_baseline_m));
     if (!estimate) out.nav_model.setZero();
     if (estimate) {
       problem.SetParameterBlockVariable(out.nav_model.data());
@@ -612,11 +637,13 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
     std::vector<bool> now(nf, false);
     for (std::size_t k = 0; k < nf; ++k) {
       const AbsoluteFix& f = abs.fixes[k];
-      Eigen::Vector3d r = out.apply_navigation_model(f.p_logged) + swath_corr(f) - f.p_world;
+      Eigen::Vector3d r = out.apply_navigation_model(f.p_logged) + swath_corr(f) +
+                          turned_lever(out.nav_model, f.lever) - f.p_world;
       if (!f.has_z) r.z() = 0;
       FixReport& rep = out.fixes[k];
       rep.time = f.time;
       rep.line = f.line;
+      rep.name = f.name;
       rep.residual_m = r.norm();
       rep.normalized = rep.residual_m / f.sigma_m;
       now[k] = rep.normalized > gate_radius(abs.gate_sigma, f.has_z ? 3 : 2);

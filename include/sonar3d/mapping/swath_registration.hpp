@@ -93,6 +93,13 @@ struct AbsoluteFix {
   // fix in a turn is tied to both swaths, as the corrected navigation interpolates there).
   int swath_a = 0, swath_b = 0;
   double time_a = 0, time_b = 0, weight_b = 0;
+  // A known structure pose (issue 26 item 3) is the same constraint on a point the sonar saw
+  // rather than on the vehicle: the recognised structure's position relative to the vehicle when
+  // it passed over it, in the logged frame. The sonar's ranges carry no DVL scale, so the
+  // corrected point is the corrected vehicle position + R(−β)·lever (turned by the heading
+  // correction, not scaled). Zero for a fix.
+  Eigen::Vector3d lever = Eigen::Vector3d::Zero();
+  std::string name;  // a known structure's name for reports; empty for a fix
 };
 
 struct AbsoluteConstraints {
@@ -100,9 +107,11 @@ struct AbsoluteConstraints {
   // Where dead reckoning started (the navigation's first position): the navigation model's
   // scale and turn act about it.
   Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
-  // Estimate the navigation's scale error and heading bias as well (with at least 3 fixes in
-  // use); else only the absolute placement (a shift).
+  // Estimate the navigation's scale error and heading bias as well (with at least 3 constraints
+  // in use, or 2 at least min_baseline_m apart horizontally: two known structures fix a scale and
+  // a turn); else only the absolute placement (a shift).
   bool estimate_scale_heading = true;
+  double min_baseline_m = 1.0;
   // A fix whose residual after the solve exceeds this many σ (as the 1-D gate: the same
   // probability, 99.73 % at 3, for the 2-D or 3-D residual) is rejected; solve and gate repeat
   // until the rejected set no longer changes (at most max_rounds solves).
@@ -124,6 +133,7 @@ struct AbsoluteConstraints {
 struct FixReport {
   double time = 0;
   int line = 0;
+  std::string name;       // AbsoluteFix::name: a known structure's; empty for a fix
   double residual_m = 0;  // |corrected navigation − fix| at the solution (horizontal without z)
   double normalized = 0;  // residual_m / σ
   bool rejected = false;
