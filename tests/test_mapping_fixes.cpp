@@ -99,8 +99,13 @@ std::vector<sonar3d::AbsoluteFix> make_fixes(const Survey& sv, double s, double 
 }
 
 // Ties between neighbouring lines, piece by piece: a uniform scale and heading error leaves the
-// swaths agreeing, so each measures ~0 (map-cell noise).
-std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed) {
+// swaths agreeing, so each measures ~0 (map-cell noise) — as if the sonar's rays were scaled with
+// the navigation. With `s`, `beta` the ties as swath maps measure them: a map is the logged
+// vehicle position plus the sonar's rays, which carry no DVL scale, so lines whose true positions
+// abeam the tie differ by Δ are logged (1 + s)·R(β)·Δ apart and their maps disagree by
+// t = s·R(β)·Δ (SwathTie::nav_separation = (1 + s)·R(β)·Δ).
+std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed, double s = 0,
+                                         double beta = 0) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0, 0.005);
   std::vector<sonar3d::SwathTie> ties;
@@ -115,6 +120,10 @@ std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed) {
       t.time_reference = time_at(a);
       t.time_moving = time_at(a + 1);
       t.t = Eigen::Vector3d(n(rng), n(rng), 0);
+      const Eigen::Vector2d delta =
+          (sv.truth(t.time_reference) - sv.truth(t.time_moving)).head<2>();
+      t.t.head<2>() += s * (Eigen::Rotation2Dd(beta) * delta);
+      if (s != 0 || beta != 0) t.nav_separation = (1 + s) * (Eigen::Rotation2Dd(beta) * delta);
       t.confidence = 0.8;
       ties.push_back(t);
     }
@@ -239,7 +248,7 @@ sonar3d::AbsoluteFix structure_constraint(const Survey& sv, int k, const Eigen::
 TEST(MappingKnownPoses, TwoKnownStructuresFixTheScale) {
   const Survey sv;
   const double s = 0.015, beta = 0.4 * M_PI / 180;
-  const auto ties = make_ties(sv, 5);
+  const auto ties = make_ties(sv, 5, s, beta);
   sonar3d::AbsoluteConstraints abs;
   abs.pivot = sv.truth(0);
   abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));
@@ -278,7 +287,7 @@ TEST(MappingKnownPoses, TwoKnownStructuresFixTheScale) {
 TEST(MappingKnownPoses, WrongKnownPoseRejectedAndReported) {
   const Survey sv;
   const double s = 0.01, beta = 0.2 * M_PI / 180;
-  const auto ties = make_ties(sv, 6);
+  const auto ties = make_ties(sv, 6, s, beta);
   sonar3d::AbsoluteConstraints abs;
   abs.pivot = sv.truth(0);
   abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));

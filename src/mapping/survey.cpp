@@ -675,6 +675,28 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       result.ties.push_back(tie);
     }
   }
+  // Where each swath's vehicle was when it passed abeam of a tie (the drift method's pieces carry
+  // the times; a whole-swath tie is taken at the middle of the two maps' common extent): the
+  // navigation model with absolute references scales the vehicle's displacements, not the
+  // sonar's rays (SwathTie::nav_separation).
+  for (SwathTie& tie : result.ties) {
+    double ta = tie.time_reference, tb = tie.time_moving;
+    if (!std::isfinite(ta) || !std::isfinite(tb)) {
+      const ElevationMap &A = maps[tie.reference], &B = maps[tie.moving];
+      const Eigen::Vector2d lo(
+          std::max(A.origin_xy.x(), B.origin_xy.x()),
+          std::max(A.origin_xy.y() - A.rows * A.cell_m, B.origin_xy.y() - B.rows * B.cell_m));
+      const Eigen::Vector2d hi(
+          std::min(A.origin_xy.x() + A.cols * A.cell_m, B.origin_xy.x() + B.cols * B.cell_m),
+          std::min(A.origin_xy.y(), B.origin_xy.y()));
+      const Eigen::Vector2d centre = 0.5 * (lo + hi);
+      ta = tracks[tie.reference].time_at(tracks[tie.reference].along(centre));
+      tb = tracks[tie.moving].time_at(tracks[tie.moving].along(centre));
+    }
+    tie.nav_separation = (dataset.navigation.interpolate(ta).translation() -
+                          dataset.navigation.interpolate(tb).translation())
+                             .head<2>();
+  }
   // Absolute fixes (issue 26): each tied to the swath correction at its time as the corrected
   // navigation interpolates it (step 3 below): the swath's own within it, the two swaths' across
   // a turn, the first's before and the last's after.

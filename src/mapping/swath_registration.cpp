@@ -393,17 +393,33 @@ void nav_linear(const T* nav, const T& dx, const T& dy, T* out) {
   out[1] = inv * (-sn * dx + c * dy);
 }
 
+// A tie t measured between the logged swath maps, carried into the corrected frame:
+// R(−β)·(t − s/(1 + s)·sep) = R(−β)·t + R(−β)·sep/(1 + s) − R(−β)·sep (the maps are vehicle
+// positions, which the model scales, plus the sonar's rays, which it only turns).
+template <typename T>
+void nav_tie(const T* nav, const Eigen::Vector3d& t, const Eigen::Vector2d& sep, T* out) {
+  using std::cos;
+  using std::sin;
+  const T c = cos(nav[1]), sn = sin(nav[1]);
+  T scaled[2];
+  nav_linear(nav, T(sep.x()), T(sep.y()), scaled);
+  const T dx = T(t.x() - sep.x()), dy = T(t.y() - sep.y());
+  out[0] = c * dx + sn * dy + scaled[0];
+  out[1] = -sn * dx + c * dy + scaled[1];
+}
+
 // With fixes, a tie between pieces at (t_A, t_B) in the corrected frame:
 // √w · (c_B(t_B) − c_A(t_A) − R(−β)·t/(1 + s)) / σ. Both methods (the global one's rates are held
 // at zero).
 struct NavTieResidual {
   Eigen::Vector3d t;
   double sqrt_w, dt_a, dt_b;
+  Eigen::Vector2d sep = Eigen::Vector2d::Zero();  // SwathTie::nav_separation
   template <typename T>
   bool operator()(const T* o_a, const T* r_a, const T* o_b, const T* r_b, const T* nav,
                   T* res) const {
     T lt[2];
-    nav_linear(nav, T(t.x()), T(t.y()), lt);
+    nav_tie(nav, t, sep, lt);
     const T w(sqrt_w / kTieSigma);
     for (int k = 0; k < 2; ++k) {
       res[k] = w * (o_b[k] + r_b[k] * T(dt_b) - o_a[k] - r_a[k] * T(dt_a) - lt[k]);
@@ -498,9 +514,9 @@ Eigen::Vector3d turned_lever(const Eigen::Vector2d& nav, const Eigen::Vector3d& 
   return {c * lever.x() + sn * lever.y(), -sn * lever.x() + c * lever.y(), lever.z()};
 }
 
-Eigen::Vector2d nav_linear_d(const Eigen::Vector2d& nav, const Eigen::Vector2d& d) {
+Eigen::Vector2d nav_tie_d(const Eigen::Vector2d& nav, const SwathTie& tie) {
   Eigen::Vector2d out;
-  nav_linear(nav.data(), d.x(), d.y(), out.data());
+  nav_tie(nav.data(), tie.t, tie.nav_separation, out.data());
   return out;
 }
 
@@ -696,7 +712,7 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
                 t.moving < num_swaths && t.reference != t.moving,
             "swath adjustment: a tie joins swaths " + std::to_string(t.reference) + " and " +
                 std::to_string(t.moving) + " of " + std::to_string(num_swaths));
-    require(t.t.allFinite() && std::isfinite(t.confidence),
+    require(t.t.allFinite() && std::isfinite(t.confidence) && t.nav_separation.allFinite(),
             "swath adjustment: a tie between swaths " + std::to_string(t.reference) + " and " +
                 std::to_string(t.moving) + " is not finite");
     const bool used = t.confidence >= config.min_confidence && t.confidence > 0;
@@ -750,17 +766,17 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
     for (std::size_t k = 0; k < ties.size(); ++k) {
       if (!out.tie_used[k]) continue;
       const SwathTie& t = ties[k];
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(
-                                   new NavTieResidual{t.t, std::sqrt(t.confidence), 0.0, 0.0}),
-                               new ceres::CauchyLoss(config.loss_scale_m / kTieSigma),
-                               out.offsets[t.reference].data(), out.rates[t.reference].data(),
-                               out.offsets[t.moving].data(), out.rates[t.moving].data(),
-                               out.nav_model.data());
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(
+              new NavTieResidual{t.t, std::sqrt(t.confidence), 0.0, 0.0, t.nav_separation}),
+          new ceres::CauchyLoss(config.loss_scale_m / kTieSigma), out.offsets[t.reference].data(),
+          out.rates[t.reference].data(), out.offsets[t.moving].data(), out.rates[t.moving].data(),
+          out.nav_model.data());
     }
     solve_with_fixes(problem, *absolute, config, num_swaths, out);
     for (const SwathTie& t : ties) {
       Eigen::Vector3d lt = t.t;
-      lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
+      lt.head<2>() = nav_tie_d(out.nav_model, t);
       out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - lt).norm());
     }
     return out;
@@ -874,7 +890,7 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(new NavTieResidual{
               t.t, std::sqrt(t.confidence), t.time_reference - swaths[t.reference].t0,
-              t.time_moving - swaths[t.moving].t0}),
+              t.time_moving - swaths[t.moving].t0, t.nav_separation}),
           new ceres::CauchyLoss(config.loss_scale_m / kTieSigma), out.offsets[t.reference].data(),
           out.rates[t.reference].data(), out.offsets[t.moving].data(), out.rates[t.moving].data(),
           out.nav_model.data());
@@ -903,7 +919,7 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
   out.tie_residual_m.clear();
   for (const SwathTie& t : ties) {
     Eigen::Vector3d lt = t.t;
-    lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
+    lt.head<2>() = nav_tie_d(out.nav_model, t);
     out.tie_residual_m.push_back((out.correction(t.moving, t.time_moving) -
                                   out.correction(t.reference, t.time_reference) - lt)
                                      .norm());

@@ -51,6 +51,13 @@ struct SwathTie {
   // mapping's drift method, which registers pieces of swaths; NaN otherwise.
   double time_reference = std::numeric_limits<double>::quiet_NaN();
   double time_moving = std::numeric_limits<double>::quiet_NaN();
+  // The logged vehicle positions' difference (reference − moving, horizontal) where each swath
+  // passed abeam of the tie's overlap: set by field mapping, used with absolute references. A
+  // swath map is the vehicle's position plus the sonar's rays; the navigation model scales the
+  // vehicle's displacements (a DVL scale error), not the rays (ranges carry none), so a tie
+  // carried into the corrected frame reads c_B − c_A = R(−β)·(t − s/(1 + s)·nav_separation):
+  // between lines 6 m apart a 1 % scale error is a 6 cm tie that the model itself explains.
+  Eigen::Vector2d nav_separation = Eigen::Vector2d::Zero();
 };
 
 // Sec. 6.2.2.1: every integer cell shift (i, j) in [−S, S]² (S = search_m / cell size) is scored
@@ -192,8 +199,9 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
 // With `absolute` fixes (issue 26): each fix adds (corrected navigation at its time − fix) / σ
 // under a Cauchy loss (AbsoluteConstraints::loss_sigma), the gauge is released (swath 0 is placed
 // by the fixes; its height stays held when no fix has z), the navigation model (scale error,
-// heading bias) is estimated, ties then read c_B − c_A = R(−β)·t/(1 + s) (a tie measured in the
-// logged frame, carried into the corrected one) with residuals in units of 2 cm, and fixes
+// heading bias) is estimated, ties then read c_B − c_A = R(−β)·(t − s/(1 + s)·nav_separation) (a
+// tie measured between logged maps, carried into the corrected one) with residuals in units of
+// 2 cm, and fixes
 // beyond the gate are rejected and reported (SwathAdjustment::fixes). An error when every fix is
 // rejected.
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
