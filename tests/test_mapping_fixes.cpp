@@ -99,8 +99,13 @@ std::vector<sonar3d::AbsoluteFix> make_fixes(const Survey& sv, double s, double 
 }
 
 // Ties between neighbouring lines, piece by piece: a uniform scale and heading error leaves the
-// swaths agreeing, so each measures ~0 (map-cell noise).
-std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed) {
+// swaths agreeing, so each measures ~0 (map-cell noise) — as if the sonar's rays were scaled with
+// the navigation. With `s`, `beta` the ties as swath maps measure them: a map is the logged
+// vehicle position plus the sonar's rays, which carry no DVL scale, so lines whose true positions
+// abeam the tie differ by Δ are logged (1 + s)·R(β)·Δ apart and their maps disagree by
+// t = s·R(β)·Δ (SwathTie::nav_separation = (1 + s)·R(β)·Δ).
+std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed, double s = 0,
+                                         double beta = 0) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0, 0.005);
   std::vector<sonar3d::SwathTie> ties;
@@ -115,6 +120,10 @@ std::vector<sonar3d::SwathTie> make_ties(const Survey& sv, unsigned seed) {
       t.time_reference = time_at(a);
       t.time_moving = time_at(a + 1);
       t.t = Eigen::Vector3d(n(rng), n(rng), 0);
+      const Eigen::Vector2d delta =
+          (sv.truth(t.time_reference) - sv.truth(t.time_moving)).head<2>();
+      t.t.head<2>() += s * (Eigen::Rotation2Dd(beta) * delta);
+      if (s != 0 || beta != 0) t.nav_separation = (1 + s) * (Eigen::Rotation2Dd(beta) * delta);
       t.confidence = 0.8;
       ties.push_back(t);
     }
@@ -202,6 +211,101 @@ TEST(MappingFixes, OutlierRejectedAndReported) {
   EXPECT_NEAR(adj.scale_error(), clean.scale_error(), 0.2 * clean.scale_error_sigma);
   EXPECT_NEAR(adj.heading_bias_rad(), clean.heading_bias_rad(), 0.2 * clean.heading_bias_sigma_rad);
   EXPECT_LT((adj.offsets[0] - clean.offsets[0]).head<2>().norm(), 0.05);
+}
+
+namespace {
+
+// Known structure poses (issue 26 item 3): a structure at `p_true`, seen from line k as the
+// vehicle passed it (the sonar's ray: true lever p_true − vehicle, logged turned by the heading
+// bias β, with no DVL scale), known to be at p_true + `known_error`.
+sonar3d::AbsoluteFix structure_constraint(const Survey& sv, int k, const Eigen::Vector3d& p_true,
+                                          const Eigen::Vector3d& known_error, double s, double beta,
+                                          const std::string& name) {
+  const sonar3d::SwathTiming w = sv.timing(k);
+  const double x0 = k % 2 == 0 ? -20.0 : 20.0, dir = k % 2 == 0 ? 1.0 : -1.0;
+  const double t = w.t0 + dir * (p_true.x() - x0) / sv.speed;
+  sonar3d::AbsoluteFix f;
+  f.time = t;
+  f.p_logged = logged(sv, t, s, beta);
+  const Eigen::Vector3d lever_true = p_true - sv.truth(t);
+  f.lever = lever_true;
+  f.lever.head<2>() = Eigen::Rotation2Dd(beta) * lever_true.head<2>();
+  f.p_world = p_true + known_error;
+  f.sigma_m = 0.03;
+  f.name = name;
+  f.line = k;
+  f.swath_a = f.swath_b = k;
+  f.time_a = f.time_b = t;
+  return f;
+}
+
+}  // namespace
+
+// A survey logged with a 1.5 % DVL scale error and a 0.4° heading bias, no fixes: two structures
+// 27 m apart whose poses are known (a previous survey's world model, as-built drawings),
+// recognised in the map within 1 cm, give the scale back within 0.1 % and the whole navigation
+// within 5 cm; one alone places the map but cannot give a scale.
+TEST(MappingKnownPoses, TwoKnownStructuresFixTheScale) {
+  const Survey sv;
+  const double s = 0.015, beta = 0.4 * M_PI / 180;
+  const auto ties = make_ties(sv, 5, s, beta);
+  sonar3d::AbsoluteConstraints abs;
+  abs.pivot = sv.truth(0);
+  abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));
+  abs.fixes.push_back(structure_constraint(sv, 1, {15, -11, -10.5}, {0, -0.01, 0}, s, beta, "b"));
+  const sonar3d::SwathAdjustment adj = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  ASSERT_TRUE(adj.has_fixes);
+  ASSERT_TRUE(adj.estimated_scale_heading);
+  EXPECT_NEAR(adj.scale_error(), s, 0.001);
+  EXPECT_NEAR(adj.heading_bias_rad() * 180 / M_PI, 0.4, 0.1);
+  EXPECT_LT(worst_error(sv, adj, s, beta), 0.05);
+  ASSERT_EQ(adj.fixes.size(), 2u);
+  for (const sonar3d::FixReport& f : adj.fixes) {
+    EXPECT_FALSE(f.rejected) << f.name;
+    EXPECT_LT(f.residual_m, 0.02) << f.name;
+  }
+  EXPECT_EQ(adj.fixes[0].name, "a");
+  EXPECT_TRUE(std::isfinite(adj.scale_error_sigma));
+  EXPECT_LT(std::abs(adj.scale_error() - s), 3 * adj.scale_error_sigma + 1e-4);
+  // The drift method too.
+  std::vector<sonar3d::SwathTiming> timing;
+  for (int k = 0; k < sv.lines; ++k) timing.push_back(sv.timing(k));
+  const sonar3d::SwathAdjustment drift = sonar3d::adjust_swaths_drift(timing, ties, {}, &abs);
+  EXPECT_NEAR(drift.scale_error(), s, 0.001);
+  EXPECT_LT(worst_error(sv, drift, s, beta), 0.05);
+  // One known structure: a shift only (the scale stays as logged), the map placed there.
+  abs.fixes.pop_back();
+  const sonar3d::SwathAdjustment one = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  EXPECT_FALSE(one.estimated_scale_heading);
+  EXPECT_EQ(one.scale_error(), 0.0);
+  EXPECT_LT(one.fixes[0].residual_m, 0.01);
+}
+
+// Four known structures, one of whose known pose is 0.8 m off (moved since the as-built
+// drawing, or a wrong match): rejected and reported by name with its residual; the other three
+// give the scale within 0.1 %.
+TEST(MappingKnownPoses, WrongKnownPoseRejectedAndReported) {
+  const Survey sv;
+  const double s = 0.01, beta = 0.2 * M_PI / 180;
+  const auto ties = make_ties(sv, 6, s, beta);
+  sonar3d::AbsoluteConstraints abs;
+  abs.pivot = sv.truth(0);
+  abs.fixes.push_back(structure_constraint(sv, 3, {-12, 5, -10.5}, {0.01, 0, 0}, s, beta, "a"));
+  abs.fixes.push_back(structure_constraint(sv, 1, {15, -11, -10.5}, {0, -0.01, 0}, s, beta, "b"));
+  abs.fixes.push_back(structure_constraint(sv, 5, {4, 13, -10.5}, {-0.01, 0.01, 0}, s, beta, "c"));
+  abs.fixes.push_back(structure_constraint(sv, 2, {-3, -2, -10.5}, {0.6, -0.5, 0}, s, beta, "d"));
+  const sonar3d::SwathAdjustment adj = sonar3d::adjust_swaths(sv.lines, ties, {}, 0, &abs);
+  ASSERT_EQ(adj.fixes.size(), 4u);
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_FALSE(adj.fixes[k].rejected) << adj.fixes[k].name;
+    EXPECT_LT(adj.fixes[k].residual_m, 0.03) << adj.fixes[k].name;
+  }
+  EXPECT_TRUE(adj.fixes[3].rejected);
+  EXPECT_EQ(adj.fixes[3].name, "d");
+  EXPECT_NEAR(adj.fixes[3].residual_m, std::hypot(0.6, 0.5), 0.05);
+  EXPECT_GT(adj.fixes[3].normalized, 20);
+  EXPECT_NEAR(adj.scale_error(), s, 0.001);
+  EXPECT_LT(worst_error(sv, adj, s, beta), 0.05);
 }
 
 // Fixes files: CSV with a header in any order (z optional, comments, extra columns) and TUM with
@@ -375,4 +479,98 @@ TEST(MappingCli, FixesPlaceTheMapAndRejectAnOutlier) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("--fixes needs --method global or drift"), std::string::npos) << r.out;
   fs::remove_all(dir);
+}
+
+// End to end: `sonar3d map --known-poses --placements` on the small simulated site (2 % DVL scale
+// error, 0.3° heading bias). The structures "recognised" in the map as logged (where the logged
+// navigation puts what the sonar saw of them: the true lever carried by the logged attitude) are
+// matched to their known poses; the box's and the rock's are right, the pipe's 1.3 m off (moved
+// since): it is rejected and reported in the printout and summary.json, the map is placed by the
+// other two; a directory without graph.json, or --placements alone, is one error line.
+TEST(MappingCli, KnownPosesPlaceTheMapAndRejectAWrongOne) {
+  const fs::path dir = temp_dir() / "cli_known";
+  fs::create_directories(dir);
+  { std::ofstream(dir / "f.yaml") << kScene; }
+  using sonar3d::test::run_cli;
+  auto r = run_cli(
+      dir, "simulate " + (dir / "f.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const sonar3d::Trajectory truth = sonar3d::read_tum((dir / "ds/truth/navigation.tum").string());
+  const sonar3d::Trajectory nav = sonar3d::read_tum((dir / "ds/navigation.tum").string());
+  struct Obj {
+    std::string model;
+    Eigen::Vector3d p, known_error;
+  };
+  const std::vector<Obj> objs = {{"box", {2.0, 1.5, 0}, {0, 0, 0}},
+                                 {"rock", {4.5, 3.2, -0.1}, {0, 0, 0}},
+                                 {"pipe", {3.0, 2.0, 0.05}, {1.0, -0.8, 0}}};
+  auto pose_json = [](const Eigen::Vector3d& p) {
+    return nlohmann::json::array(
+        {nlohmann::json::array({1, 0, 0, p.x()}), nlohmann::json::array({0, 1, 0, p.y()}),
+         nlohmann::json::array({0, 0, 1, p.z()}), nlohmann::json::array({0, 0, 0, 1})});
+  };
+  nlohmann::json recognised = {{"format", "sonar3d-placements"}, {"version", 1}};
+  nlohmann::json known = recognised;
+  for (const Obj& o : objs) {
+    // Where the map as logged shows it: from the frame whose true position passes closest.
+    std::size_t best = 0;
+    for (std::size_t k = 0; k < truth.size(); ++k) {
+      if ((truth.poses[k].translation() - o.p).head<2>().norm() <
+          (truth.poses[best].translation() - o.p).head<2>().norm()) {
+        best = k;
+      }
+    }
+    const double t = truth.times[best];
+    const Eigen::Isometry3d Tt = truth.interpolate(t), Tl = nav.interpolate(t);
+    const Eigen::Vector3d p_map =
+        Tl.translation() + Tl.linear() * Tt.linear().transpose() * (o.p - Tt.translation());
+    recognised["placements"].push_back({{"model", o.model}, {"T_world_model", pose_json(p_map)}});
+    known["placements"].push_back(
+        {{"model", o.model}, {"T_world_model", pose_json(o.p + o.known_error)}});
+  }
+  { std::ofstream(dir / "recognised.json") << recognised.dump(); }
+  { std::ofstream(dir / "known.json") << known.dump(); }
+  const std::string args = " --roi -1 -1 -0.6 7 6 0.8 --search 0.3 ";
+  const std::string kp = " --known-poses " + (dir / "known.json").string() + " --placements " +
+                         (dir / "recognised.json").string() + " --placements-nav " +
+                         (dir / "ds/navigation.tum").string();
+  const fs::path out = dir / "m";
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + out.string() + args + kp);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("3 matched"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("rejected: pipe_0"), std::string::npos) << r.out;
+  std::ifstream fs_(out / "summary.json");
+  const nlohmann::json s = nlohmann::json::parse(fs_);
+  ASSERT_TRUE(s.contains("known_poses")) << s.dump();
+  const auto& k = s["known_poses"];
+  EXPECT_EQ(k["matched"].get<int>(), 3);
+  EXPECT_EQ(k["rejected"].get<int>(), 1);
+  EXPECT_FALSE(s.contains("fixes"));
+  for (const auto& m : k["matches"]) {
+    if (m["model"] == "pipe") {
+      EXPECT_TRUE(m["rejected"].get<bool>()) << m.dump();
+      EXPECT_NEAR(m["residual_m"].get<double>(), std::hypot(1.0, 0.8), 0.15) << m.dump();
+    } else {
+      EXPECT_FALSE(m["rejected"].get<bool>()) << m.dump();
+      EXPECT_LT(m["residual_m"].get<double>(), 0.05) << m.dump();
+    }
+  }
+  const auto& navs = s["navigation_error"];
+  EXPECT_LT(navs["after"]["world_m"].get<double>(), navs["before"]["world_m"].get<double>());
+  EXPECT_LT(navs["after"]["world_m"].get<double>(), 0.05) << navs.dump();
+
+  // A directory that is no world model; --placements without --known-poses: one line each.
+  fs::create_directories(dir / "notworld");
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "m2").string() + args +
+                       "--known-poses " + (dir / "notworld").string() + " --placements " +
+                       (dir / "recognised.json").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("without graph.json"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  r = run_cli(dir, "map " + (dir / "ds").string() + " -o " + (dir / "m3").string() + args +
+                       "--placements " + (dir / "recognised.json").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--known-poses and --placements go together"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "m2"));
+  EXPECT_FALSE(fs::exists(dir / "m3"));
 }

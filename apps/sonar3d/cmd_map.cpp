@@ -1,15 +1,104 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "commands.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/position_fixes.hpp"
 #include "sonar3d/mapping/survey.hpp"
+#include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Known structure poses (--known-poses): a world model directory (graph.json, format
+// sonar3d-world: its confirmed objects) or a placements JSON (format sonar3d-placements: a
+// previous survey's `recognize`, or written from as-built drawings).
+std::vector<KnownStructurePose> read_known_poses(const std::string& path) {
+  std::vector<KnownStructurePose> out;
+  const fs::path graph = fs::path(path) / "graph.json";
+  if (!fs::is_directory(path)) {
+    const PlacementsFile f = read_placements(path);
+    std::vector<std::string> seen;
+    for (const PlacementRecord& p : f.placements) {
+      int n = 0;
+      for (const std::string& m : seen) n += m == p.model;
+      seen.push_back(p.model);
+      out.push_back({p.model, p.model + "_" + std::to_string(n), p.T_world_model.translation()});
+    }
+    return out;
+  }
+  require(fs::is_regular_file(graph), "--known-poses: '" + path +
+                                          "' is a directory without graph.json: give a world "
+                                          "model directory (sonar3d world) or a placements JSON");
+  std::ifstream in(graph);
+  std::stringstream text;
+  text << in.rdbuf();
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text.str());
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("--known-poses: " + graph.string() + " is not JSON: " + e.what());
+  }
+  require(j.is_object() && j.value("format", "") == "sonar3d-world" && j.contains("objects") &&
+              j["objects"].is_array(),
+          "--known-poses: " + graph.string() + " is not a sonar3d-world graph with 'objects'");
+  for (std::size_t k = 0; k < j["objects"].size(); ++k) {
+    const nlohmann::json& o = j["objects"][k];
+    const std::string at = graph.string() + ": objects[" + std::to_string(k) + "]";
+    require(o.is_object() && o.contains("model") && o["model"].is_string() &&
+                o.contains("T_world_model") && o["T_world_model"].is_array() &&
+                o["T_world_model"].size() == 16,
+            at + ": needs 'model' and 'T_world_model' (16 numbers, row-major)");
+    if (o.contains("confirmed") && o["confirmed"].is_boolean() && !o["confirmed"].get<bool>()) {
+      continue;  // below the world's confidence threshold: not one of its structures
+    }
+    Eigen::Vector3d t;
+    for (int r = 0; r < 3; ++r) {
+      const nlohmann::json& v = o["T_world_model"][static_cast<std::size_t>(4 * r + 3)];
+      require(v.is_number() && std::isfinite(v.get<double>()),
+              at + ": T_world_model holds a value that is not a finite number");
+      t[r] = v.get<double>();
+    }
+    const std::string id =
+        o.contains("id") && o["id"].is_string() ? o["id"].get<std::string>() : std::string();
+    out.push_back({o["model"].get<std::string>(), id, t});
+  }
+  return out;
+}
+
+// The navigation of the map a placements file was recognised in: `given`, else the
+// navigation_corrected.tum of the map directory the file names (its "map": the directory or a
+// file in it; relative to the working directory or to the placements file).
+std::string placements_navigation(const PlacementsFile& f, const std::string& given) {
+  if (!given.empty()) return given;
+  std::vector<fs::path> candidates;
+  if (!f.map.empty()) {
+    for (const fs::path& base : {fs::path(), fs::path(f.path).parent_path()}) {
+      const fs::path m = base / f.map;
+      candidates.push_back(m / "navigation_corrected.tum");
+      candidates.push_back(m.parent_path() / "navigation_corrected.tum");
+    }
+  }
+  for (const fs::path& c : candidates) {
+    if (fs::is_regular_file(c)) return c.string();
+  }
+  throw Error("--placements: '" + f.path + "' names the map '" + f.map +
+              "', where no navigation_corrected.tum was found: give --placements-nav (the "
+              "navigation_corrected.tum of the map the structures were recognised in)");
+}
+
+}  // namespace
 
 void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto* cmd = app.add_subcommand(
@@ -26,6 +115,7 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
     std::string fixes;
     double fix_sigma = 0;
     bool fixes_shift_only = false;
+    std::string known_poses, placements, placements_nav;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
@@ -75,6 +165,29 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--fixes-shift-only", o->fixes_shift_only,
                 "with --fixes: place the map by a shift only, no scale error or heading bias "
                 "estimated");
+  cmd->add_option("--known-poses", o->known_poses,
+                  "known structure poses: a world model directory (sonar3d world) or a "
+                  "placements JSON (a previous survey's, or written from as-built drawings). "
+                  "With --placements, each structure recognised in this survey's map is matched "
+                  "to the nearest known pose of its model and the adjustment brings it there "
+                  "(like a fix; outliers rejected and reported; docs/mapping.md)")
+      ->check(CLI::ExistingPath);
+  cmd->add_option("--placements", o->placements,
+                  "structures recognised in a map of this dataset (sonar3d recognize's "
+                  "placements JSON), for --known-poses")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--placements-nav", o->placements_nav,
+                  "the navigation (TUM) of the map the --placements were recognised in (default: "
+                  "the navigation_corrected.tum of the map directory the placements file names)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--known-pose-sigma", o->cfg.known_pose_sigma_m,
+                  "standard deviation of a recognised structure against its known pose, per "
+                  "horizontal axis, metres")
+      ->capture_default_str();
+  cmd->add_option("--known-pose-radius", o->cfg.known_pose_match_m,
+                  "a recognised structure matches a known pose of its model within this "
+                  "horizontal distance, metres")
+      ->capture_default_str();
   cmd->add_option("--threads", o->cfg.carve.num_threads, "worker threads (0 = all cores)")
       ->capture_default_str();
   add_max_memory_option(cmd, o->max_memory_gb);
@@ -87,7 +200,9 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                                    {"piece_m", "--piece"},
                                    {"carve.num_threads", "--threads"},
                                    {"num_threads", "--threads"},
-                                   {"fix_gate_sigma", "--fix-gate"}};
+                                   {"fix_gate_sigma", "--fix-gate"},
+                                   {"known_pose_sigma_m", "--known-pose-sigma"},
+                                   {"known_pose_match_m", "--known-pose-radius"}};
   cmd->callback([&run, &g, o] {
     run = [o, &g] {
       return with_flag_names(kFlags, [&] {
@@ -116,6 +231,27 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
         if (!o->fixes.empty()) {
           cfg.fixes = read_position_fixes(o->fixes, FixFormat::Auto, o->fix_sigma);
           cfg.fixes_source = o->fixes;
+          cfg.fix_scale_heading = !o->fixes_shift_only;
+        }
+        require(o->known_poses.empty() == o->placements.empty(),
+                "--known-poses and --placements go together: the known poses, and the "
+                "structures recognised in this survey's map");
+        require(o->placements_nav.empty() || !o->placements.empty(),
+                "--placements-nav: give --placements as well");
+        require(o->known_poses.empty() || cfg.method != SwathAdjustMethod::Consecutive,
+                "--known-poses needs --method global or drift (the consecutive method has no "
+                "adjustment to put them in)");
+        if (!o->known_poses.empty()) {
+          cfg.known_poses = read_known_poses(o->known_poses);
+          cfg.known_poses_source = o->known_poses;
+          const PlacementsFile f = read_placements(o->placements);
+          for (std::size_t k = 0; k < f.placements.size(); ++k) {
+            cfg.recognised.push_back({f.placements[k].model,
+                                      f.placements[k].T_world_model.translation(),
+                                      static_cast<int>(k)});
+          }
+          cfg.recognised_source = o->placements;
+          cfg.recognised_navigation = read_tum(placements_navigation(f, o->placements_nav));
           cfg.fix_scale_heading = !o->fixes_shift_only;
         }
         MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
@@ -162,17 +298,39 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
           }
           fmt::print("\n");
         }
-        if (!cfg.fixes.empty()) {  // the absolute references
+        if (!cfg.known_poses.empty()) {  // known structure poses
+          const SwathAdjustment& adj = r.adjustment;
+          std::size_t rejected = 0;
+          for (const auto& m : r.known_matches) rejected += adj.fixes.at(m.constraint).rejected;
+          fmt::print(
+              "  known poses: {} known ({}), {} recognised ({}), {} matched within {:g} m, {} "
+              "used, {} rejected (gate {:g} σ at σ {:g} m), {} recognised unmatched\n",
+              cfg.known_poses.size(), o->known_poses, cfg.recognised.size(), o->placements,
+              r.known_matches.size(), cfg.known_pose_match_m, r.known_matches.size() - rejected,
+              rejected, cfg.fix_gate_sigma, cfg.known_pose_sigma_m, r.recognised_unmatched.size());
+          for (const auto& m : r.known_matches) {
+            const FixReport& f = adj.fixes.at(m.constraint);
+            fmt::print("    {} {} (placement {}): swath {}, residual {:.3f} m = {:.1f} σ{}\n",
+                       f.rejected ? "rejected:" : "used:", m.id, m.recognised_index, m.swath,
+                       f.residual_m, f.normalized, f.rejected ? " (the known pose disagrees)" : "");
+          }
+        }
+        if (!cfg.fixes.empty() || !r.known_matches.empty()) {  // the absolute references
           const SwathAdjustment& adj = r.adjustment;
           std::vector<const FixReport*> rejected;
+          std::size_t n_fixes = 0;
           for (const FixReport& f : adj.fixes) {
+            if (!f.name.empty()) continue;  // known structure poses: above
+            ++n_fixes;
             if (f.rejected) rejected.push_back(&f);
           }
-          fmt::print(
-              "  fixes: {} given, {} outside the survey's time span (ignored), {} used, {} "
-              "rejected (gate {:g} σ, {} solve(s))\n",
-              r.fixes_given, r.fixes_outside, adj.fixes.size() - rejected.size(), rejected.size(),
-              cfg.fix_gate_sigma, adj.fix_rounds);
+          if (!cfg.fixes.empty()) {
+            fmt::print(
+                "  fixes: {} given, {} outside the survey's time span (ignored), {} used, {} "
+                "rejected (gate {:g} σ, {} solve(s))\n",
+                r.fixes_given, r.fixes_outside, n_fixes - rejected.size(), rejected.size(),
+                cfg.fix_gate_sigma, adj.fix_rounds);
+          }
           for (std::size_t k = 0; k < rejected.size(); ++k) {
             if (k == 10) {
               fmt::print("    ... {} more in summary.json\n", rejected.size() - k);
@@ -202,8 +360,9 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
               "(after a rigid placement) {:.3f} → "
               "{:.3f} m; after an affine placement {:.3f} → {:.3f} m, which hides a scale of "
               "{:.4f} → {:.4f} (docs/mapping.md)\n",
-              b.world_m, a.world_m, cfg.fixes.empty() ? " (from where the first swath starts)" : "",
-              b.absolute_m, a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
+              b.world_m, a.world_m,
+              r.adjustment.has_fixes ? "" : " (from where the first swath starts)", b.absolute_m,
+              a.absolute_m, b.rigid_m, a.rigid_m, b.affine_m, a.affine_m,
               r.alignment_before.scale(), r.alignment_after.scale());
         }
         for (const StructureEval& e : r.structures) {  // simulated site: against the CAD

@@ -283,9 +283,23 @@ void MapSurveyConfig::validate() const {
   registration.validate();
   adjustment.validate();
   require(std::isfinite(fix_gate_sigma) && fix_gate_sigma > 0, "fix_gate_sigma must be > 0");
-  require(fixes.empty() || method != SwathAdjustMethod::Consecutive,
-          "field mapping: fixes need the global or drift method (the consecutive one has no "
-          "adjustment to put them in)");
+  require((fixes.empty() && known_poses.empty()) || method != SwathAdjustMethod::Consecutive,
+          "field mapping: fixes and known poses need the global or drift method (the "
+          "consecutive one has no adjustment to put them in)");
+  require(std::isfinite(known_pose_sigma_m) && known_pose_sigma_m > 0 &&
+              known_pose_sigma_m <= kMaxFixSigma,
+          "known_pose_sigma_m must be > 0 m");
+  require(std::isfinite(known_pose_match_m) && known_pose_match_m > 0,
+          "known_pose_match_m must be > 0 m");
+  for (const RecognisedStructure& r : recognised) {
+    require(r.p_map.allFinite(), "field mapping: recognised structure " + std::to_string(r.index) +
+                                     " has a position not finite");
+  }
+  for (const KnownStructurePose& k : known_poses) {
+    require(k.p_world.allFinite(),
+            "field mapping: known pose '" + k.id + "' has a position not finite");
+  }
+  if (!recognised_navigation.empty()) recognised_navigation.validate("recognised_navigation");
 }
 
 std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
@@ -429,6 +443,96 @@ MemoryEstimate estimate_map_survey_memory(const Dataset& dataset, const MapSurve
   return e;
 }
 
+namespace {
+
+// Known structure poses (issue 26 item 3): each recognised structure matched to the nearest
+// known pose of its model (greedily, closest pairs first, each known pose once), then turned
+// into a constraint of the adjustment: the swath that passed closest over it (in the navigation
+// of the map it was recognised in), the time it did, the vehicle's logged position then and the
+// lever from the vehicle to the structure carried back into the logged frame (that map turned
+// its rays by its heading correction: T_map_vehicle·T_logged_vehicle⁻¹).
+void add_known_structures(const Dataset& dataset, const MapSurveyConfig& config,
+                          MapSurveyResult& result, AbsoluteConstraints& absolute) {
+  if (config.recognised.empty() || config.known_poses.empty()) {
+    for (const RecognisedStructure& r : config.recognised) {
+      result.recognised_unmatched.push_back(r.index);
+    }
+    return;
+  }
+  struct Pair {
+    double d;
+    std::size_t r, k;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t r = 0; r < config.recognised.size(); ++r) {
+    for (std::size_t k = 0; k < config.known_poses.size(); ++k) {
+      if (config.recognised[r].model != config.known_poses[k].model) continue;
+      const double d =
+          (config.recognised[r].p_map - config.known_poses[k].p_world).head<2>().norm();
+      if (d <= config.known_pose_match_m) pairs.push_back({d, r, k});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
+  std::vector<bool> r_used(config.recognised.size(), false), k_used(config.known_poses.size());
+  std::vector<std::pair<std::size_t, std::size_t>> matches;
+  for (const Pair& p : pairs) {
+    if (r_used[p.r] || k_used[p.k]) continue;
+    r_used[p.r] = k_used[p.k] = true;
+    matches.emplace_back(p.r, p.k);
+  }
+  for (std::size_t r = 0; r < config.recognised.size(); ++r) {
+    if (!r_used[r]) result.recognised_unmatched.push_back(config.recognised[r].index);
+  }
+  std::sort(matches.begin(), matches.end());
+  const Trajectory& map_nav =
+      config.recognised_navigation.empty() ? dataset.navigation : config.recognised_navigation;
+  for (const auto& [r, k] : matches) {
+    const RecognisedStructure& rec = config.recognised[r];
+    const KnownStructurePose& known = config.known_poses[k];
+    // The frame of a swath whose vehicle passed closest over the structure, in the map's frame.
+    int best_swath = -1;
+    double best_d = std::numeric_limits<double>::infinity(), best_t = 0;
+    for (std::size_t s = 0; s < result.swaths.size(); ++s) {
+      for (int i = result.swaths[s].first_frame; i <= result.swaths[s].last_frame; ++i) {
+        const double t = dataset.frames[i].timestamp;
+        const double d = (map_nav.interpolate(t).translation() - rec.p_map).head<2>().norm();
+        if (d < best_d) {
+          best_d = d;
+          best_swath = static_cast<int>(s);
+          best_t = t;
+        }
+      }
+    }
+    const Eigen::Isometry3d T_map = map_nav.interpolate(best_t);
+    const Eigen::Isometry3d T_logged = dataset.navigation.interpolate(best_t);
+    const Eigen::Matrix3d R_map_logged = T_map.linear() * T_logged.linear().transpose();
+    AbsoluteFix a;
+    a.time = best_t;
+    a.p_world = known.p_world;
+    a.has_z = false;
+    a.sigma_m = config.known_pose_sigma_m;
+    a.line = rec.index;
+    a.name = known.id.empty() ? known.model : known.id;
+    a.p_logged = T_logged.translation();
+    a.lever = R_map_logged.transpose() * (rec.p_map - T_map.translation());
+    a.swath_a = a.swath_b = best_swath;
+    a.time_a = a.time_b = best_t;
+    MapSurveyResult::KnownPoseMatch m;
+    m.model = rec.model;
+    m.id = a.name;
+    m.recognised_index = rec.index;
+    m.p_map = rec.p_map;
+    m.p_world = known.p_world;
+    m.swath = best_swath;
+    m.time = best_t;
+    m.constraint = absolute.fixes.size();
+    result.known_matches.push_back(m);
+    absolute.fixes.push_back(a);
+  }
+}
+
+}  // namespace
+
 MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config,
                            const fs::path& out_dir, bool progress, const MpiSession* mpi) {
   config.validate();
@@ -571,18 +675,39 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
       result.ties.push_back(tie);
     }
   }
+  // Where each swath's vehicle was when it passed abeam of a tie (the drift method's pieces carry
+  // the times; a whole-swath tie is taken at the middle of the two maps' common extent): the
+  // navigation model with absolute references scales the vehicle's displacements, not the
+  // sonar's rays (SwathTie::nav_separation).
+  for (SwathTie& tie : result.ties) {
+    double ta = tie.time_reference, tb = tie.time_moving;
+    if (!std::isfinite(ta) || !std::isfinite(tb)) {
+      const ElevationMap &A = maps[tie.reference], &B = maps[tie.moving];
+      const Eigen::Vector2d lo(
+          std::max(A.origin_xy.x(), B.origin_xy.x()),
+          std::max(A.origin_xy.y() - A.rows * A.cell_m, B.origin_xy.y() - B.rows * B.cell_m));
+      const Eigen::Vector2d hi(
+          std::min(A.origin_xy.x() + A.cols * A.cell_m, B.origin_xy.x() + B.cols * B.cell_m),
+          std::min(A.origin_xy.y(), B.origin_xy.y()));
+      const Eigen::Vector2d centre = 0.5 * (lo + hi);
+      ta = tracks[tie.reference].time_at(tracks[tie.reference].along(centre));
+      tb = tracks[tie.moving].time_at(tracks[tie.moving].along(centre));
+    }
+    tie.nav_separation = (dataset.navigation.interpolate(ta).translation() -
+                          dataset.navigation.interpolate(tb).translation())
+                             .head<2>();
+  }
   // Absolute fixes (issue 26): each tied to the swath correction at its time as the corrected
   // navigation interpolates it (step 3 below): the swath's own within it, the two swaths' across
   // a turn, the first's before and the last's after.
   AbsoluteConstraints absolute;
-  const bool with_fixes = !config.fixes.empty();
-  if (with_fixes) {
+  absolute.pivot = dataset.navigation.poses.front().translation();
+  absolute.estimate_scale_heading = config.fix_scale_heading;
+  absolute.gate_sigma = config.fix_gate_sigma;
+  if (!config.fixes.empty()) {
     result.fixes_given = config.fixes.size();
     const double t_first = dataset.frames.front().timestamp;
     const double t_last = dataset.frames.back().timestamp;
-    absolute.pivot = dataset.navigation.poses.front().translation();
-    absolute.estimate_scale_heading = config.fix_scale_heading;
-    absolute.gate_sigma = config.fix_gate_sigma;
     const auto& sw = result.swaths;
     for (const PositionFix& f : config.fixes) {
       if (f.time < t_first || f.time > t_last) {
@@ -628,6 +753,8 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
                         config.fixes_source.empty() ? "" : " of '" + config.fixes_source + "'",
                         t_first, t_last));
   }
+  add_known_structures(dataset, config, result, absolute);
+  const bool with_fixes = !absolute.fixes.empty();
   const AbsoluteConstraints* abs_ptr = with_fixes ? &absolute : nullptr;
   if (config.method == SwathAdjustMethod::Drift) {
     std::vector<SwathTiming> timing;
@@ -936,9 +1063,11 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
     // The absolute references: what was used, what was rejected (and why: its residual in σ),
     // and the navigation model they made observable.
     nlohmann::json rejected = nlohmann::json::array();
-    std::size_t n_rejected = 0;
+    std::size_t n_rejected = 0, n_fixes = 0;
     double sum_sq = 0;
     for (const FixReport& f : adj.fixes) {
+      if (!f.name.empty()) continue;  // a known structure pose: below
+      ++n_fixes;
       if (f.rejected) {
         ++n_rejected;
         rejected.push_back({{"time_s", f.time},
@@ -949,18 +1078,20 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
         sum_sq += f.normalized * f.normalized;
       }
     }
-    const std::size_t used = adj.fixes.size() - n_rejected;
+    const std::size_t used = n_fixes - n_rejected;
     auto num_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; };
-    summary["fixes"] = {
-        {"file", config.fixes_source},
-        {"given", result.fixes_given},
-        {"outside_time_span", result.fixes_outside},
-        {"used", used},
-        {"rejected", n_rejected},
-        {"gate_sigma", config.fix_gate_sigma},
-        {"rounds", adj.fix_rounds},
-        {"rms_residual_sigma", used ? std::sqrt(sum_sq / static_cast<double>(used)) : 0.0},
-        {"rejected_fixes", rejected}};
+    if (!config.fixes.empty()) {
+      summary["fixes"] = {
+          {"file", config.fixes_source},
+          {"given", result.fixes_given},
+          {"outside_time_span", result.fixes_outside},
+          {"used", used},
+          {"rejected", n_rejected},
+          {"gate_sigma", config.fix_gate_sigma},
+          {"rounds", adj.fix_rounds},
+          {"rms_residual_sigma", used ? std::sqrt(sum_sq / static_cast<double>(used)) : 0.0},
+          {"rejected_fixes", rejected}};
+    }
     summary["navigation_model"] = {
         {"estimated", adj.estimated_scale_heading},
         {"scale_error", adj.scale_error()},
@@ -973,6 +1104,37 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
         {"model",
          "p_logged - pivot = (1 + scale_error) R(heading_bias) (p_true - pivot), horizontal; "
          "heading_bias counter-clockwise about z (ENU)"}};
+  }
+  if (!config.known_poses.empty() || !config.recognised.empty()) {
+    // Known structure poses: every match, its residual and whether the gate rejected it.
+    nlohmann::json matches = nlohmann::json::array();
+    std::size_t n_rejected = 0;
+    for (const MapSurveyResult::KnownPoseMatch& m : result.known_matches) {
+      const FixReport& f = adj.fixes.at(m.constraint);
+      n_rejected += f.rejected;
+      matches.push_back({{"model", m.model},
+                         {"known_id", m.id},
+                         {"recognised_index", m.recognised_index},
+                         {"recognised_m", vec3(m.p_map)},
+                         {"known_m", vec3(m.p_world)},
+                         {"swath", m.swath},
+                         {"time_s", m.time},
+                         {"residual_m", f.residual_m},
+                         {"residual_sigma", f.normalized},
+                         {"rejected", f.rejected}});
+    }
+    summary["known_poses"] = {{"file", config.known_poses_source},
+                              {"placements", config.recognised_source},
+                              {"known", config.known_poses.size()},
+                              {"recognised", config.recognised.size()},
+                              {"matched", result.known_matches.size()},
+                              {"used", result.known_matches.size() - n_rejected},
+                              {"rejected", n_rejected},
+                              {"recognised_unmatched", result.recognised_unmatched},
+                              {"sigma_m", config.known_pose_sigma_m},
+                              {"match_radius_m", config.known_pose_match_m},
+                              {"gate_sigma", config.fix_gate_sigma},
+                              {"matches", matches}};
   }
   if (!result.structures.empty()) {
     summary["structures"] = structures;

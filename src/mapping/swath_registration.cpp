@@ -204,10 +204,13 @@ void AbsoluteConstraints::validate() const {
   require(std::isfinite(heading_prior_sigma_rad) && heading_prior_sigma_rad > 0,
           "fixes: heading_prior_sigma must be > 0");
   require(pivot.allFinite(), "fixes: the pivot is not finite");
+  require(std::isfinite(min_baseline_m) && min_baseline_m >= 0,
+          "fixes: min_baseline_m must be >= 0");
   for (const AbsoluteFix& f : fixes) {
     require(std::isfinite(f.time) && f.p_world.allFinite() && f.p_logged.allFinite() &&
                 std::isfinite(f.sigma_m) && f.sigma_m > 0 && std::isfinite(f.time_a) &&
-                std::isfinite(f.time_b) && f.weight_b >= 0 && f.weight_b <= 1,
+                std::isfinite(f.time_b) && f.weight_b >= 0 && f.weight_b <= 1 &&
+                f.lever.allFinite(),
             "fixes: the fix at t = " + std::to_string(f.time) + " s is not finite or has σ <= 0");
   }
 }
@@ -390,17 +393,33 @@ void nav_linear(const T* nav, const T& dx, const T& dy, T* out) {
   out[1] = inv * (-sn * dx + c * dy);
 }
 
+// A tie t measured between the logged swath maps, carried into the corrected frame:
+// R(−β)·(t − s/(1 + s)·sep) = R(−β)·t + R(−β)·sep/(1 + s) − R(−β)·sep (the maps are vehicle
+// positions, which the model scales, plus the sonar's rays, which it only turns).
+template <typename T>
+void nav_tie(const T* nav, const Eigen::Vector3d& t, const Eigen::Vector2d& sep, T* out) {
+  using std::cos;
+  using std::sin;
+  const T c = cos(nav[1]), sn = sin(nav[1]);
+  T scaled[2];
+  nav_linear(nav, T(sep.x()), T(sep.y()), scaled);
+  const T dx = T(t.x() - sep.x()), dy = T(t.y() - sep.y());
+  out[0] = c * dx + sn * dy + scaled[0];
+  out[1] = -sn * dx + c * dy + scaled[1];
+}
+
 // With fixes, a tie between pieces at (t_A, t_B) in the corrected frame:
 // √w · (c_B(t_B) − c_A(t_A) − R(−β)·t/(1 + s)) / σ. Both methods (the global one's rates are held
 // at zero).
 struct NavTieResidual {
   Eigen::Vector3d t;
   double sqrt_w, dt_a, dt_b;
+  Eigen::Vector2d sep = Eigen::Vector2d::Zero();  // SwathTie::nav_separation
   template <typename T>
   bool operator()(const T* o_a, const T* r_a, const T* o_b, const T* r_b, const T* nav,
                   T* res) const {
     T lt[2];
-    nav_linear(nav, T(t.x()), T(t.y()), lt);
+    nav_tie(nav, t, sep, lt);
     const T w(sqrt_w / kTieSigma);
     for (int k = 0; k < 2; ++k) {
       res[k] = w * (o_b[k] + r_b[k] * T(dt_b) - o_a[k] - r_a[k] * T(dt_a) - lt[k]);
@@ -419,11 +438,16 @@ struct FixResidual {
   double dt_a, dt_b;  // from each swath's rate_t0
   template <typename T>
   void predict(const T* nav, T* p) const {
+    using std::cos;
+    using std::sin;
     T d[2];
     nav_linear(nav, T(f.p_logged.x() - pivot.x()), T(f.p_logged.y() - pivot.y()), d);
-    p[0] = T(pivot.x()) + d[0];
-    p[1] = T(pivot.y()) + d[1];
-    p[2] = T(f.p_logged.z());
+    // A known structure: the point the sonar saw, the lever turned by R(−β) (ranges carry no
+    // DVL scale); zero for a fix.
+    const T c = cos(nav[1]), sn = sin(nav[1]);
+    p[0] = T(pivot.x()) + d[0] + c * T(f.lever.x()) + sn * T(f.lever.y());
+    p[1] = T(pivot.y()) + d[1] - sn * T(f.lever.x()) + c * T(f.lever.y());
+    p[2] = T(f.p_logged.z() + f.lever.z());
   }
   template <typename T>
   void finish(const T* p, T* res) const {
@@ -484,9 +508,15 @@ struct NavModelPrior {
   }
 };
 
-Eigen::Vector2d nav_linear_d(const Eigen::Vector2d& nav, const Eigen::Vector2d& d) {
+// R(−β)·lever (the heading correction only), nav = (s, β).
+Eigen::Vector3d turned_lever(const Eigen::Vector2d& nav, const Eigen::Vector3d& lever) {
+  const double c = std::cos(nav.y()), sn = std::sin(nav.y());
+  return {c * lever.x() + sn * lever.y(), -sn * lever.x() + c * lever.y(), lever.z()};
+}
+
+Eigen::Vector2d nav_tie_d(const Eigen::Vector2d& nav, const SwathTie& tie) {
   Eigen::Vector2d out;
-  nav_linear(nav.data(), d.x(), d.y(), out.data());
+  nav_tie(nav.data(), tie.t, tie.nav_separation, out.data());
   return out;
 }
 
@@ -543,7 +573,7 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
   {
     std::vector<double> dx, dy, dz;
     for (const AbsoluteFix& f : abs.fixes) {
-      const Eigen::Vector3d d = f.p_world - f.p_logged - swath_corr(f);
+      const Eigen::Vector3d d = f.p_world - f.p_logged - f.lever - swath_corr(f);
       dx.push_back(d.x());
       dy.push_back(d.y());
       if (f.has_z) dz.push_back(d.z());
@@ -578,7 +608,18 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
           "{:g} σ: are they in the navigation's world frame (ENU, metres) and on its clock?",
           nf, abs.gate_sigma));
     }
-    estimate = abs.estimate_scale_heading && used >= 3;
+    // A scale and a turn need two constraints apart: 3 in use, or 2 at least min_baseline_m
+    // apart (two known structures).
+    double baseline = 0;
+    for (std::size_t a = 0; a < nf; ++a) {
+      for (std::size_t b = a + 1; b < nf && used == 2; ++b) {
+        if (!rejected[a] && !rejected[b]) {
+          baseline = (abs.fixes[a].p_world - abs.fixes[b].p_world).head<2>().norm();
+        }
+      }
+    }
+    estimate =
+        abs.estimate_scale_heading && (used >= 3 || (used == 2 && baseline >= abs.min_baseline_m));
     if (!estimate) out.nav_model.setZero();
     if (estimate) {
       problem.SetParameterBlockVariable(out.nav_model.data());
@@ -612,11 +653,13 @@ void solve_with_fixes(ceres::Problem& problem, const AbsoluteConstraints& abs,
     std::vector<bool> now(nf, false);
     for (std::size_t k = 0; k < nf; ++k) {
       const AbsoluteFix& f = abs.fixes[k];
-      Eigen::Vector3d r = out.apply_navigation_model(f.p_logged) + swath_corr(f) - f.p_world;
+      Eigen::Vector3d r = out.apply_navigation_model(f.p_logged) + swath_corr(f) +
+                          turned_lever(out.nav_model, f.lever) - f.p_world;
       if (!f.has_z) r.z() = 0;
       FixReport& rep = out.fixes[k];
       rep.time = f.time;
       rep.line = f.line;
+      rep.name = f.name;
       rep.residual_m = r.norm();
       rep.normalized = rep.residual_m / f.sigma_m;
       now[k] = rep.normalized > gate_radius(abs.gate_sigma, f.has_z ? 3 : 2);
@@ -669,7 +712,7 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
                 t.moving < num_swaths && t.reference != t.moving,
             "swath adjustment: a tie joins swaths " + std::to_string(t.reference) + " and " +
                 std::to_string(t.moving) + " of " + std::to_string(num_swaths));
-    require(t.t.allFinite() && std::isfinite(t.confidence),
+    require(t.t.allFinite() && std::isfinite(t.confidence) && t.nav_separation.allFinite(),
             "swath adjustment: a tie between swaths " + std::to_string(t.reference) + " and " +
                 std::to_string(t.moving) + " is not finite");
     const bool used = t.confidence >= config.min_confidence && t.confidence > 0;
@@ -723,17 +766,17 @@ SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
     for (std::size_t k = 0; k < ties.size(); ++k) {
       if (!out.tie_used[k]) continue;
       const SwathTie& t = ties[k];
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(
-                                   new NavTieResidual{t.t, std::sqrt(t.confidence), 0.0, 0.0}),
-                               new ceres::CauchyLoss(config.loss_scale_m / kTieSigma),
-                               out.offsets[t.reference].data(), out.rates[t.reference].data(),
-                               out.offsets[t.moving].data(), out.rates[t.moving].data(),
-                               out.nav_model.data());
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(
+              new NavTieResidual{t.t, std::sqrt(t.confidence), 0.0, 0.0, t.nav_separation}),
+          new ceres::CauchyLoss(config.loss_scale_m / kTieSigma), out.offsets[t.reference].data(),
+          out.rates[t.reference].data(), out.offsets[t.moving].data(), out.rates[t.moving].data(),
+          out.nav_model.data());
     }
     solve_with_fixes(problem, *absolute, config, num_swaths, out);
     for (const SwathTie& t : ties) {
       Eigen::Vector3d lt = t.t;
-      lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
+      lt.head<2>() = nav_tie_d(out.nav_model, t);
       out.tie_residual_m.push_back((out.offsets[t.moving] - out.offsets[t.reference] - lt).norm());
     }
     return out;
@@ -847,7 +890,7 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<NavTieResidual, 3, 3, 2, 3, 2, 2>(new NavTieResidual{
               t.t, std::sqrt(t.confidence), t.time_reference - swaths[t.reference].t0,
-              t.time_moving - swaths[t.moving].t0}),
+              t.time_moving - swaths[t.moving].t0, t.nav_separation}),
           new ceres::CauchyLoss(config.loss_scale_m / kTieSigma), out.offsets[t.reference].data(),
           out.rates[t.reference].data(), out.offsets[t.moving].data(), out.rates[t.moving].data(),
           out.nav_model.data());
@@ -876,7 +919,7 @@ SwathAdjustment adjust_swaths_drift(const std::vector<SwathTiming>& swaths,
   out.tie_residual_m.clear();
   for (const SwathTie& t : ties) {
     Eigen::Vector3d lt = t.t;
-    lt.head<2>() = nav_linear_d(out.nav_model, t.t.head<2>());
+    lt.head<2>() = nav_tie_d(out.nav_model, t);
     out.tie_residual_m.push_back((out.correction(t.moving, t.time_moving) -
                                   out.correction(t.reference, t.time_reference) - lt)
                                      .norm());

@@ -16,6 +16,7 @@
 
 #include "sonar3d/core/mpi.hpp"
 #include "sonar3d/core/scene.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/position_fixes.hpp"
@@ -51,6 +52,21 @@ struct SwathSplitConfig {
   void validate() const;
 };
 
+// Known structure poses (issue 26 item 3). A structure recognised in a map of this survey
+// (`sonar3d recognize`'s placements: the model frame's origin), in the frame of the map it was
+// recognised in.
+struct RecognisedStructure {
+  std::string model;
+  Eigen::Vector3d p_map = Eigen::Vector3d::Zero();
+  int index = 0;  // in its placements file, for reports
+};
+// Where a structure is known to be, world (ENU) frame: a previous survey's world model, or an
+// as-built drawing's T_world_model (its translation: the model frame's origin).
+struct KnownStructurePose {
+  std::string model, id;
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+};
+
 struct MapSurveyConfig {
   SwathSplitConfig split;
   CarveConfig carve = [] {
@@ -74,6 +90,19 @@ struct MapSurveyConfig {
   std::string fixes_source;  // where they came from, for the record
   bool fix_scale_heading = true;
   double fix_gate_sigma = 3.0;
+  // Known structure poses (issue 26 item 3): each recognised structure is matched to the nearest
+  // known pose of the same model within known_pose_match_m (horizontally, in the map's frame
+  // against the world's); a match is a constraint of the same adjustment as the fixes: the point
+  // the sonar saw there, corrected, at the known position, horizontally, with σ
+  // known_pose_sigma_m, gated (fix_gate_sigma) and reported like a fix. `recognised_navigation`
+  // is the vehicle navigation of the map the structures were recognised in (that map's
+  // navigation_corrected.tum); empty: the logged navigation (a map built as logged).
+  std::vector<RecognisedStructure> recognised;
+  Trajectory recognised_navigation;
+  std::vector<KnownStructurePose> known_poses;
+  std::string recognised_source, known_poses_source;  // for the record
+  double known_pose_sigma_m = 0.03;
+  double known_pose_match_m = 2.0;
 
   void validate() const;
 };
@@ -159,6 +188,19 @@ struct MapSurveyResult {
   // With fixes: how many were given, and how many fell outside the frames' time span (ignored);
   // the others are in adjustment.fixes (rejected ones flagged).
   std::size_t fixes_given = 0, fixes_outside = 0;
+  // With known structure poses: each recognised structure matched to a known pose, where the
+  // sonar saw it (swath, time), and its entry in adjustment.fixes (FixReport::name = the known
+  // pose's id); the recognised structures no known pose matched.
+  struct KnownPoseMatch {
+    std::string model, id;
+    int recognised_index = 0;
+    Eigen::Vector3d p_map = Eigen::Vector3d::Zero(), p_world = Eigen::Vector3d::Zero();
+    int swath = 0;
+    double time = 0;
+    std::size_t constraint = 0;  // index into adjustment.fixes
+  };
+  std::vector<KnownPoseMatch> known_matches;
+  std::vector<int> recognised_unmatched;  // RecognisedStructure::index
   double seconds_carving = 0, seconds_registration = 0, seconds_total = 0;
 };
 

@@ -51,6 +51,13 @@ struct SwathTie {
   // mapping's drift method, which registers pieces of swaths; NaN otherwise.
   double time_reference = std::numeric_limits<double>::quiet_NaN();
   double time_moving = std::numeric_limits<double>::quiet_NaN();
+  // The logged vehicle positions' difference (reference − moving, horizontal) where each swath
+  // passed abeam of the tie's overlap: set by field mapping, used with absolute references. A
+  // swath map is the vehicle's position plus the sonar's rays; the navigation model scales the
+  // vehicle's displacements (a DVL scale error), not the rays (ranges carry none), so a tie
+  // carried into the corrected frame reads c_B − c_A = R(−β)·(t − s/(1 + s)·nav_separation):
+  // between lines 6 m apart a 1 % scale error is a 6 cm tie that the model itself explains.
+  Eigen::Vector2d nav_separation = Eigen::Vector2d::Zero();
 };
 
 // Sec. 6.2.2.1: every integer cell shift (i, j) in [−S, S]² (S = search_m / cell size) is scored
@@ -93,6 +100,13 @@ struct AbsoluteFix {
   // fix in a turn is tied to both swaths, as the corrected navigation interpolates there).
   int swath_a = 0, swath_b = 0;
   double time_a = 0, time_b = 0, weight_b = 0;
+  // A known structure pose (issue 26 item 3) is the same constraint on a point the sonar saw
+  // rather than on the vehicle: the recognised structure's position relative to the vehicle when
+  // it passed over it, in the logged frame. The sonar's ranges carry no DVL scale, so the
+  // corrected point is the corrected vehicle position + R(−β)·lever (turned by the heading
+  // correction, not scaled). Zero for a fix.
+  Eigen::Vector3d lever = Eigen::Vector3d::Zero();
+  std::string name;  // a known structure's name for reports; empty for a fix
 };
 
 struct AbsoluteConstraints {
@@ -100,9 +114,11 @@ struct AbsoluteConstraints {
   // Where dead reckoning started (the navigation's first position): the navigation model's
   // scale and turn act about it.
   Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
-  // Estimate the navigation's scale error and heading bias as well (with at least 3 fixes in
-  // use); else only the absolute placement (a shift).
+  // Estimate the navigation's scale error and heading bias as well (with at least 3 constraints
+  // in use, or 2 at least min_baseline_m apart horizontally: two known structures fix a scale and
+  // a turn); else only the absolute placement (a shift).
   bool estimate_scale_heading = true;
+  double min_baseline_m = 1.0;
   // A fix whose residual after the solve exceeds this many σ (as the 1-D gate: the same
   // probability, 99.73 % at 3, for the 2-D or 3-D residual) is rejected; solve and gate repeat
   // until the rejected set no longer changes (at most max_rounds solves).
@@ -124,6 +140,7 @@ struct AbsoluteConstraints {
 struct FixReport {
   double time = 0;
   int line = 0;
+  std::string name;       // AbsoluteFix::name: a known structure's; empty for a fix
   double residual_m = 0;  // |corrected navigation − fix| at the solution (horizontal without z)
   double normalized = 0;  // residual_m / σ
   bool rejected = false;
@@ -182,8 +199,9 @@ SwathAdjustment accumulate_consecutive(int num_swaths, const std::vector<SwathTi
 // With `absolute` fixes (issue 26): each fix adds (corrected navigation at its time − fix) / σ
 // under a Cauchy loss (AbsoluteConstraints::loss_sigma), the gauge is released (swath 0 is placed
 // by the fixes; its height stays held when no fix has z), the navigation model (scale error,
-// heading bias) is estimated, ties then read c_B − c_A = R(−β)·t/(1 + s) (a tie measured in the
-// logged frame, carried into the corrected one) with residuals in units of 2 cm, and fixes
+// heading bias) is estimated, ties then read c_B − c_A = R(−β)·(t − s/(1 + s)·nav_separation) (a
+// tie measured between logged maps, carried into the corrected one) with residuals in units of
+// 2 cm, and fixes
 // beyond the gate are rejected and reported (SwathAdjustment::fixes). An error when every fix is
 // rejected.
 SwathAdjustment adjust_swaths(int num_swaths, const std::vector<SwathTie>& ties,
