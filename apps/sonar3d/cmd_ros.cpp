@@ -123,7 +123,6 @@ class OnlineFeed {
   enum class Kind { Sonar, Nav, Tf };
 
   OnlineFeed(FeedConfig cfg, Sink& sink) : cfg_(std::move(cfg)), sink_(sink) {
-    start_ = Clock::now();
     worker_ = std::thread([this] { run(); });
   }
   ~OnlineFeed() { stop(); }
@@ -384,7 +383,7 @@ class OnlineFeed {
         source = cfg_.tf_topic + ": " + chain;
         from_tf = true;
       }
-    } else if (ms_since(start_, Clock::now()) < cfg_.tf_wait_s * 1e3) {
+    } else if (ms_since(first_frame_, Clock::now()) < cfg_.tf_wait_s * 1e3) {
       return false;  // no static transform yet: wait (frames dropped, counted)
     }
     const SonarSpec spec = frames_->set_mounting(cfg_.mount, T_vehicle_frame, from_tf, where);
@@ -401,6 +400,7 @@ class OnlineFeed {
     if (!frames_) {
       frames_.emplace(e.type, RosWire::Ros1, e.bytes.data(), e.bytes.size(), where, cfg_.described,
                       cfg_.vertical_aperture_rad);
+      first_frame_ = e.arrived;  // --tf-wait counts from here
     }
     if (!mapper_) {
       // Frames wait (bounded: max_pending_images, the oldest dropped and counted) until the
@@ -481,7 +481,7 @@ class OnlineFeed {
 
   FeedConfig cfg_;
   Sink& sink_;
-  Clock::time_point start_;
+  Clock::time_point first_frame_;
   std::thread worker_;
   std::mutex mutex_;  // guards what the callbacks touch: events_, tasks_, the arrival counters
   std::condition_variable cv_;
@@ -827,7 +827,8 @@ void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "frames older than the newest by more than this are dropped as late, s")
       ->capture_default_str();
   cmd->add_option("--tf-wait", o->tf_wait_s,
-                  "how long frames wait for the first static transform before the mounting is "
+                  "how long frames wait (from the first one) for the first static transform before "
+                  "the mounting is "
                   "taken as identity (up to 64 frames wait meanwhile; older ones are dropped and "
                   "counted), s")
       ->capture_default_str();
