@@ -13,7 +13,7 @@
 #   bench/ros_latency.sh BUILD_DIR WORK_DIR [p900|mb2250|both] [RATE_FACTORS...]
 # e.g. bench/ros_latency.sh build /tmp/ros_bench both 1 2 3
 # Environment: VOXEL (m, default 0.02), ROI ("xmin ymin zmin xmax ymax zmax", m; default the seabed
-# prior -1 -8 -2.05 16 8 -0.5), RATE (cloud publishing rate, Hz, default 1).
+# prior -1 -8 -2.05 16 8 -0.5), RATE (cloud publishing rate, Hz, default 1), QUEUE (--queue, 8).
 set -euo pipefail
 BUILD=$(realpath "${1:?build dir}")
 WORK=${2:?work dir}
@@ -26,6 +26,7 @@ PY=/usr/bin/python3  # Debian's interpreter: it has the ROS 1 modules
 VOXEL=${VOXEL:-0.02}
 ROI=${ROI:--1 -8 -2.05 16 8 -0.5}
 RATE=${RATE:-1}
+QUEUE=${QUEUE:-8}
 mkdir -p "$WORK"
 WORK=$(realpath "$WORK")
 
@@ -39,7 +40,7 @@ cleanup() {
   sleep 1
   for p in "${PIDS[@]}"; do kill -KILL -- "-$p" 2>/dev/null || true; done
 }
-trap cleanup EXIT
+trap cleanup EXIT INT TERM
 setsid roscore -p "$PORT" >"$WORK/roscore.log" 2>&1 &
 PIDS+=($!)
 for _ in $(seq 100); do
@@ -74,9 +75,9 @@ EOF
 
 run() {  # name factor
   local name=$1 f=$2
-  local out="$WORK/$name.v$VOXEL.x$f.json"
+  local out="$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f.json"
   # shellcheck disable=SC2086
-  setsid "$S" ros --quiet --voxel-size "$VOXEL" --roi $ROI --rate "$RATE" --queue 8 >"$out" 2>"$WORK/$name.v$VOXEL.x$f.log" &
+  setsid "$S" ros --quiet --voxel-size "$VOXEL" --roi $ROI --rate "$RATE" --queue "$QUEUE" >"$out" 2>"$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f.log" &
   local node=$!
   PIDS+=("$node")
   rosbag play --wait-for-subscribers -q -r "$f" "$WORK/$name.bag" >/dev/null 2>&1
@@ -85,18 +86,19 @@ run() {  # name factor
   load=$(cut -d' ' -f1-3 /proc/loadavg)
   kill -INT "$node"
   wait "$node" || true
-  $PY - "$out" "$name" "$f" "$load" "$VOXEL" <<'EOF'
+  $PY - "$out" "$name" "$f" "$load" "$VOXEL" "$RATE" "$QUEUE" <<'EOF'
 import json, sys
-path, name, f, load, voxel = sys.argv[1:]
+path, name, f, load, voxel, rate, queue = sys.argv[1:]
 s = json.loads(open(path).read().strip().splitlines()[-1])
 m = s['map']
 c, p = s['latency_arrival_to_carved_ms'], s['latency_arrival_to_published_ms']
 dropped = s['dropped_node_queue_full'] + s['frames_dropped_by_map']
-print(f"{name} voxel {voxel} m, bag x{f}: received {s['sonar_received']}, carved {m.get('frames_used', 0)}, dropped {dropped} "
+print(f"{name} voxel {voxel} m, cloud at {rate} Hz, queue {queue}, bag x{f}: received {s['sonar_received']}, carved {m.get('frames_used', 0)}, dropped {dropped} "
       f"(queue full {s['dropped_node_queue_full']}); arrival->carved ms median {c['median']:.1f} "
       f"p95 {c['p95']:.1f} max {c['max']:.1f}; arrival->published median {p['median']:.0f} "
       f"p95 {p['p95']:.0f}; carve ms/frame median {m.get('push_ms', {}).get('median', 0):.1f} "
-      f"p95 {m.get('push_ms', {}).get('p95', 0):.1f}; {s['cloud_points']} points; load {load}")
+      f"p95 {m.get('push_ms', {}).get('p95', 0):.1f}; cloud() ms (last) {m.get('resolve_ms_last', 0):.0f}; "
+      f"{s['cloud_points']} points; mounting {s['mounting']}; load {load}")
 EOF
 }
 

@@ -234,9 +234,14 @@ class OnlineFeed {
     j["mounting"] = mounting_source_;
     j["latency_arrival_to_carved_ms"] = latency_json(latency_carved_);
     j["latency_arrival_to_published_ms"] = latency_json(latency_published_);
-    j["frames_dropped_by_map"] = mapper_ ? mapper_->stats().dropped() : 0;
-    j["map"] = mapper_ ? nlohmann::ordered_json::parse(mapper_->stats().to_json())
-                       : nlohmann::ordered_json::object();
+    if (mapper_) {
+      const OnlineMapStats ms = mapper_->stats();  // walks the map: once a publishing period
+      j["frames_dropped_by_map"] = ms.dropped();
+      j["map"] = nlohmann::ordered_json::parse(ms.to_json());
+    } else {
+      j["frames_dropped_by_map"] = 0;
+      j["map"] = nlohmann::ordered_json::object();
+    }
     return j;
   }
 
@@ -342,14 +347,14 @@ class OnlineFeed {
       if (early_nav_.size() > 10000) early_nav_.pop_front();
       return;
     }
-    const std::size_t used = mapper_->stats().frames_used;
+    const std::size_t used = mapper_->frames_used();
     if (!mapper_->push_navigation(t, T)) {
       sink_.log(
           fmt::format("{}: navigation sample at {:.6f} s rejected (not finite, not rigid or "
                       "not after the previous one)",
                       where, t));
     }
-    carved(mapper_->stats().frames_used - used, Clock::now());
+    carved(mapper_->frames_used() - used, Clock::now());
   }
 
   // Frames carved: the oldest arrivals waiting for navigation (FIFO: pending images are carved in
@@ -440,26 +445,26 @@ class OnlineFeed {
   void carve(const Event& e, const std::string& where) {
     const double t = frames_->decode(e.bytes.data(), e.bytes.size(), where, image_);
     image_.timestamp = t + cfg_.time_offset;
-    const std::size_t used = mapper_->stats().frames_used;
+    const std::size_t used = mapper_->frames_used();
     const FrameDrop d = mapper_->push_image(image_.timestamp, image_);
-    const OnlineMapStats st = mapper_->stats();
+    const std::size_t now_used = mapper_->frames_used(), pending = mapper_->frames_pending();
     if (d != FrameDrop::None) {
       sink_.log(fmt::format("{}: frame at {:.6f} s dropped ({})", where, image_.timestamp,
                             frame_drop_name(d)));
     } else {
       pending_arrivals_.push_back(e.arrived);
       // Bounded by the mapper's own pending queue (max_pending_images).
-      while (pending_arrivals_.size() > st.frames_pending + (st.frames_used - used)) {
+      while (pending_arrivals_.size() > pending + (now_used - used)) {
         pending_arrivals_.pop_front();
       }
     }
     last_stamp_ = std::max(last_stamp_, image_.timestamp);
-    carved(st.frames_used - used, Clock::now());
+    carved(now_used - used, Clock::now());
   }
 
   void publish() {
     if (mapper_) {
-      const std::size_t used = mapper_->stats().frames_used;
+      const std::size_t used = mapper_->frames_used();
       if (used != frames_in_cloud_ || clouds_published_ == 0) {
         const PointCloud cloud = mapper_->cloud();
         const std::string frame = !cfg_.frame_id.empty() ? cfg_.frame_id
