@@ -42,3 +42,22 @@ find_package(MPI COMPONENTS CXX QUIET)
 if(NOT MPI_CXX_FOUND)
   message(WARNING "MPI not found: `sonar3d plan` will run on one machine only")
 endif()
+
+# Debian's ROS 1 (roscpp, topic_tools' ShapeShifter, the message packages) for the node
+# `sonar3d ros` (apps/sonar3d/cmd_ros.cpp); only the CLI links it. SONAR3D_ROS1 (CMakeLists.txt).
+set(SONAR3D_HAVE_ROS1 OFF)
+if(NOT SONAR3D_ROS1 STREQUAL "OFF")
+  set(_sonar3d_ros1_required "")
+  if(SONAR3D_ROS1 STREQUAL "ON")
+    set(_sonar3d_ros1_required REQUIRED)
+  endif()
+  pkg_check_modules(ROS1 ${_sonar3d_ros1_required} QUIET IMPORTED_TARGET roscpp topic_tools
+                    sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs diagnostic_msgs)
+  if(ROS1_FOUND)
+    set(SONAR3D_HAVE_ROS1 ON)
+    message(STATUS "ROS 1 (roscpp ${ROS1_roscpp_VERSION}) found: building `sonar3d ros`")
+  else()
+    message(STATUS "ROS 1 not found (libroscpp-dev, libtopic-tools-dev, lib*-msgs-dev): "
+                   "`sonar3d ros` will say the build has no ROS 1 support")
+  endif()
+endif()

@@ -19,6 +19,12 @@ PACKAGES=(
   # Python API and CLI, and imports bags written by it); python3-yaml reads sonar.yaml there.
   python3-rosbag python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs
   python3-yaml
+  # Debian's ROS 1 for the node `sonar3d ros` (docs/online.md): roscpp, topic_tools'
+  # ShapeShifter and the message headers it builds against; roscore and the Python client that
+  # tests/test_ros_node.py runs it with (rosbag play comes with python3-rosbag).
+  libroscpp-dev libtopic-tools-dev libstd-msgs-dev libsensor-msgs-dev libnav-msgs-dev
+  libgeometry-msgs-dev libstd-srvs-dev libdiagnostic-msgs-dev
+  ros-core python3-rospy python3-rosgraph python3-std-srvs python3-diagnostic-msgs
   libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
   zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev

@@ -129,6 +129,7 @@ int main(int argc, char** argv) {
   add_diff(app, g, run);
   add_survey(app, g, run);
   add_relocalize(app, g, run);
+  add_ros(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -22,17 +22,9 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-bool is_sonar_image_type(const std::string& t) {
-  const std::string n = ros_type_name(t);
-  return n == "marine_acoustic_msgs/ProjectedSonarImage" ||
-         n == "acoustic_msgs/ProjectedSonarImage";
-}
-bool is_image_type(const std::string& t) { return ros_type_name(t) == "sensor_msgs/Image"; }
-bool is_nav_type(const std::string& t) {
-  const std::string n = ros_type_name(t);
-  return n == "nav_msgs/Odometry" || n == "geometry_msgs/PoseStamped" ||
-         n == "geometry_msgs/PoseWithCovarianceStamped";
-}
+bool is_sonar_image_type(const std::string& t) { return is_ros_sonar_image_type(t); }
+bool is_image_type(const std::string& t) { return is_ros_image_type(t); }
+bool is_nav_type(const std::string& t) { return is_ros_nav_type(t); }
 
 std::string fmt(double v) {
   std::ostringstream os;
@@ -41,12 +33,7 @@ std::string fmt(double v) {
   return os.str();
 }
 
-// A TF frame name as tf2 compares them: ROS 1 logs (tf before tf2, many drivers) write
-// "/base_link" where others write "base_link"; tf2 strips the leading slash, so do we.
-std::string tf_frame(const std::string& name) {
-  const std::size_t k = name.find_first_not_of('/');
-  return k == std::string::npos ? std::string() : name.substr(k);
-}
+std::string tf_frame(const std::string& name) { return ros_tf_frame(name); }
 
 std::string topic_list(const BagReader& r) {
   std::string s;
@@ -137,6 +124,198 @@ Eigen::Matrix3d R_msg_flu() {
   // msg x = up (flu z), msg y = starboard (−flu y), msg z = forward (flu x)
   R << 0, 0, 1, 0, -1, 0, 1, 0, 0;
   return R;
+}
+
+bool is_ros_sonar_image_type(const std::string& t) {
+  const std::string n = ros_type_name(t);
+  return n == "marine_acoustic_msgs/ProjectedSonarImage" ||
+         n == "acoustic_msgs/ProjectedSonarImage";
+}
+bool is_ros_image_type(const std::string& t) { return ros_type_name(t) == "sensor_msgs/Image"; }
+bool is_ros_nav_type(const std::string& t) {
+  const std::string n = ros_type_name(t);
+  return n == "nav_msgs/Odometry" || n == "geometry_msgs/PoseStamped" ||
+         n == "geometry_msgs/PoseWithCovarianceStamped";
+}
+
+// ROS 1 logs (tf before tf2, many drivers) write "/base_link" where others write "base_link";
+// tf2 strips the leading slash, so do we.
+std::string ros_tf_frame(const std::string& name) {
+  const std::size_t k = name.find_first_not_of('/');
+  return k == std::string::npos ? std::string() : name.substr(k);
+}
+
+void RosStaticTransforms::add(const std::vector<RosTransform>& transforms) {
+  for (const RosTransform& t : transforms) {
+    parent_of_[ros_tf_frame(t.child)] = {ros_tf_frame(t.parent), iso(t.translation, t.rotation)};
+  }
+}
+
+Eigen::Isometry3d RosStaticTransforms::chain(const std::string& base, const std::string& frame_in,
+                                             const std::string& where, std::string* chain_out,
+                                             int* depth_out) const {
+  Eigen::Isometry3d T_base_frame = Eigen::Isometry3d::Identity();
+  std::string frame = frame_in, chain = frame_in;
+  int depth = 0;
+  while (frame != base) {
+    const auto it = parent_of_.find(frame);
+    if (it == parent_of_.end()) break;
+    if (++depth > 64)
+      throw Error(where + ": the static transforms above '" + frame_in + "' form a cycle");
+    T_base_frame = it->second.second * T_base_frame;
+    frame = it->second.first;
+    chain = frame + " -> " + chain;
+  }
+  if (!base.empty() && frame != base) {
+    throw Error(where + ": no static transform chain from '" + base + "' to the sonar frame '" +
+                frame_in + "' (reached '" + frame +
+                "'); give the mounting with --mount or the vehicle frame with --base-frame");
+  }
+  if (chain_out) *chain_out = chain;
+  if (depth_out) *depth_out = depth;
+  return T_base_frame;
+}
+
+RosSonarFrames::RosSonarFrames(const std::string& type, RosWire wire, const std::uint8_t* p,
+                               std::size_t n, const std::string& where,
+                               const std::optional<SonarSpec>& described,
+                               double vertical_aperture_rad)
+    : wire_(wire) {
+  projected_ = is_ros_sonar_image_type(type);
+  if (!projected_ && !is_ros_image_type(type)) {
+    throw Error(where + ": messages of type " + type +
+                ", not marine_acoustic_msgs/ProjectedSonarImage (or acoustic_msgs/…) or "
+                "sensor_msgs/Image");
+  }
+  if (!projected_ && !described) {
+    throw Error(where +
+                ": sensor_msgs/Image says nothing of the sonar: give its description (--sonar "
+                "FILE.yaml)");
+  }
+  if (!projected_) {
+    const RosImage m = decode_image(p, n, wire, where);
+    frame_id_ = ros_tf_frame(m.frame_id);
+    // 32FC1 frames are linear intensities: a float TIFF dataset whatever bit depth the
+    // description gives for integer frames (which must be 8 or 16).
+    is_float_ = m.encoding == "32FC1";
+    spec_ = *described;
+  } else {
+    const RosSonarImage m = decode_sonar_image(p, n, wire, where);
+    frame_id_ = ros_tf_frame(m.frame_id);
+    spec_ = sonar_spec_from_message(m, where, &reversed_);
+    sample_size_ = dtype_size(m.dtype);
+    is_float_ = m.dtype == kRosDtypeFloat32;
+    big_endian_ = m.is_bigendian;
+    if (described) {
+      if (spec_.vertical_aperture_rad == 0)
+        spec_.vertical_aperture_rad = described->vertical_aperture_rad;
+      spec_.beam_pattern = described->beam_pattern;
+      spec_.name = described->name;
+      if (!is_float_ && described->bit_depth == spec_.bit_depth) {
+        spec_.intensity_scale = described->intensity_scale;
+      }
+    }
+  }
+  if (vertical_aperture_rad > 0) spec_.vertical_aperture_rad = vertical_aperture_rad;
+}
+
+const SonarSpec& RosSonarFrames::set_mounting(const std::optional<Eigen::Isometry3d>& mount,
+                                              const Eigen::Isometry3d& T_vehicle_frame,
+                                              bool from_tf, const std::string& topic) {
+  if (!(spec_.vertical_aperture_rad > 0)) {
+    throw Error(topic +
+                " give no vertical aperture "
+                "(ping_info.tx_beamwidths is empty): give --vertical-aperture-deg or --sonar");
+  }
+  if (mount) {
+    spec_.T_vehicle_sonar = *mount;
+  } else if (projected_) {
+    // The message frame is z forward, x up: our FLU sonar frame is that frame rotated.
+    Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
+    R.linear() = R_msg_flu();
+    spec_.T_vehicle_sonar = T_vehicle_frame * R;
+  } else if (from_tf) {
+    spec_.T_vehicle_sonar = T_vehicle_frame;
+  }
+  spec_.validate();
+  return spec_;
+}
+
+double RosSonarFrames::decode(const std::uint8_t* p, std::size_t n, const std::string& where,
+                              SonarImage& img) const {
+  double t = 0;
+  const SonarSpec& spec = spec_;
+  if (img.rows != spec.range_bins || img.cols != spec.beams()) {
+    img = SonarImage(spec.range_bins, spec.beams());
+  }
+  if (projected_) {
+    const RosSonarImage m = decode_sonar_image(p, n, wire_, where);
+    if (m.beam_directions.size() != static_cast<std::size_t>(spec.beams()) ||
+        m.ranges.size() != static_cast<std::size_t>(spec.range_bins) ||
+        dtype_size(m.dtype) != sample_size_ || m.is_bigendian != big_endian_) {
+      throw Error(where + ": the image changes size or encoding (" +
+                  std::to_string(m.ranges.size()) + " ranges × " +
+                  std::to_string(m.beam_directions.size()) + " beams, " + dtype_name(m.dtype) +
+                  "; the first message has " + std::to_string(spec.range_bins) + " × " +
+                  std::to_string(spec.beams()) + "); a dataset holds one sensor geometry");
+    }
+    bool rev = false;
+    const SonarSpec si = sonar_spec_from_message(m, where, &rev);
+    const double tol = 1e-5 * spec.r_max;
+    if (std::abs(si.r_min - spec.r_min) > tol || std::abs(si.r_max - spec.r_max) > tol ||
+        rev != reversed_) {
+      throw Error(where + ": the range window or beam order changes (" + fmt(si.r_min) + "–" +
+                  fmt(si.r_max) + " m; the first message has " + fmt(spec.r_min) + "–" +
+                  fmt(spec.r_max) + " m)");
+    }
+    for (int j = 0; j < spec.beams(); ++j) {
+      if (std::abs(si.bearings_rad[j] - spec.bearings_rad[j]) > 1e-6) {
+        throw Error(where + ": beam " + std::to_string(j) + " moves to " +
+                    fmt(si.bearings_rad[j] / kDeg) + "°; a dataset holds one bearing table");
+      }
+    }
+    samples_to_image(m.data.data(), sample_size_, m.is_bigendian, is_float_, spec.intensity_scale,
+                     reversed_, img);
+    t = m.stamp.seconds();
+  } else {
+    const RosImage m = decode_image(p, n, wire_, where);
+    std::size_t size = 0;
+    if (m.encoding == "mono8" || m.encoding == "8UC1") size = 1;
+    if (m.encoding == "mono16" || m.encoding == "16UC1") size = 2;
+    if (m.encoding == "32FC1") size = 4;
+    if (size == 0) {
+      throw Error(where + ": encoding '" + printable(m.encoding) +
+                  "' is not read (mono8, mono16, 32FC1 are)");
+    }
+    if ((size == 1 && spec.bit_depth != 8) || (size == 2 && spec.bit_depth != 16)) {
+      throw Error(where + ": a " + m.encoding + " image but the sonar description declares " +
+                  std::to_string(spec.bit_depth) + "-bit intensities");
+    }
+    if (m.height != static_cast<std::uint32_t>(spec.range_bins) ||
+        m.width != static_cast<std::uint32_t>(spec.beams())) {
+      throw Error(where + ": a " + std::to_string(m.height) + "×" + std::to_string(m.width) +
+                  " image but the sonar description has " + std::to_string(spec.range_bins) +
+                  " range bins × " + std::to_string(spec.beams()) + " beams");
+    }
+    if (m.step != m.width * size || m.data.size() != std::size_t(m.step) * m.height) {
+      throw Error(where + ": step " + std::to_string(m.step) + " and " +
+                  std::to_string(m.data.size()) + " data bytes do not match " +
+                  std::to_string(m.height) + " rows of " + std::to_string(m.width) + " × " +
+                  std::to_string(size) + " bytes");
+    }
+    if ((size == 4) != is_float_) {
+      throw Error(where + ": a " + m.encoding + " image after " +
+                  (is_float_ ? "32FC1 images" : "integer images") +
+                  "; a dataset holds one encoding (float TIFF or integer PNG frames)");
+    }
+    samples_to_image(m.data.data(), size, m.is_bigendian != 0, size == 4, spec.intensity_scale,
+                     false, img);
+    t = m.stamp.seconds();
+  }
+  for (float v : img.data) {
+    if (!std::isfinite(v)) throw Error(where + ": a non-finite intensity");
+  }
+  return t;
 }
 
 const BagTopic* BagReader::find(const std::string& topic) const {
@@ -395,36 +574,22 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
     res.navigation_samples = nav.size();
   }
 
-  // The sonar's frame and, for ProjectedSonarImage, the sensor description: from its first
-  // message.
-  std::string sonar_frame;
-  SonarSpec spec;
-  bool reversed = false;
-  std::size_t sample_size = 0;
-  bool is_float = false, big_endian = false;
+  // The sonar's frame and the sensor description: from its first message (RosSonarFrames, shared
+  // with the ROS node).
+  std::optional<RosSonarFrames> frames;
   const bool have_first = bag->read_first(
       sonar->name,
       [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
-        if (!projected) {
-          const RosImage m = decode_image(p, n, wire, where);
-          sonar_frame = tf_frame(m.frame_id);
-          // 32FC1 frames are linear intensities: a float TIFF dataset whatever bit depth the
-          // description gives for integer frames (which must be 8 or 16).
-          is_float = m.encoding == "32FC1";
-          return;
-        }
-        const RosSonarImage m = decode_sonar_image(p, n, wire, where);
-        sonar_frame = tf_frame(m.frame_id);
-        spec = sonar_spec_from_message(m, where, &reversed);
-        sample_size = dtype_size(m.dtype);
-        is_float = m.dtype == kRosDtypeFloat32;
-        big_endian = m.is_bigendian;
+        frames.emplace(sonar->type, wire, p, n, where, described, config.vertical_aperture_rad);
       });
   if (!have_first) throw Error(src + ": topic '" + sonar->name + "' holds no message");
+  const std::string sonar_frame = frames->frame_id();
+  const bool is_float = frames->is_float();
 
   // Mounting: --mount, else the static transforms from the vehicle frame to the sonar frame.
   Eigen::Isometry3d T_vehicle_frame = Eigen::Isometry3d::Identity();
   res.mounting_source = "identity (no static transform)";
+  bool from_tf = false;
   if (config.T_vehicle_sonar) {
     res.mounting_source = "--mount";
   } else if (const BagTopic* tf = bag->find(config.tf_topic)) {
@@ -432,68 +597,25 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
       throw Error(src + ": topic '" + tf->name + "' is of type " + tf->type +
                   ", not tf2_msgs/TFMessage");
     }
-    std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent_of;  // child -> ...
-    bag->read(tf->name, [&](std::int64_t, const std::uint8_t* p, std::size_t n,
-                            const std::string& where) {
-      for (const RosTransform& t : decode_tf(p, n, wire, where)) {
-        parent_of[tf_frame(t.child)] = {tf_frame(t.parent), iso(t.translation, t.rotation)};
-      }
-    });
+    RosStaticTransforms statics;
+    bag->read(tf->name,
+              [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
+                statics.add(decode_tf(p, n, wire, where));
+              });
     const std::string base = !config.base_frame.empty() ? tf_frame(config.base_frame) : body_frame;
-    std::string frame = sonar_frame, chain = sonar_frame;
+    std::string chain;
     int depth = 0;
-    while (frame != base) {
-      const auto it = parent_of.find(frame);
-      if (it == parent_of.end()) break;
-      if (++depth > 64)
-        throw Error(src + ": the static transforms above '" + sonar_frame + "' form a cycle");
-      T_vehicle_frame = it->second.second * T_vehicle_frame;
-      frame = it->second.first;
-      chain = frame + " -> " + chain;
+    T_vehicle_frame = statics.chain(base, sonar_frame, src + ": " + tf->name, &chain, &depth);
+    if (depth > 0) {
+      res.mounting_source = tf->name + ": " + chain;
+      from_tf = true;
     }
-    if (!base.empty() && frame != base) {
-      throw Error(src + ": no static transform chain on " + tf->name + " from '" + base +
-                  "' to the sonar frame '" + sonar_frame + "' (reached '" + frame +
-                  "'); give the mounting with --mount or the vehicle frame with --base-frame");
-    }
-    if (depth > 0) res.mounting_source = tf->name + ": " + chain;
   }
 
   // The sensor description.
-  if (projected) {
-    if (described) {
-      if (spec.vertical_aperture_rad == 0)
-        spec.vertical_aperture_rad = described->vertical_aperture_rad;
-      spec.beam_pattern = described->beam_pattern;
-      spec.name = described->name;
-      if (!is_float && described->bit_depth == spec.bit_depth) {
-        spec.intensity_scale = described->intensity_scale;
-      }
-    }
-  } else {
-    spec = *described;
-  }
-  if (config.vertical_aperture_rad > 0) spec.vertical_aperture_rad = config.vertical_aperture_rad;
-  if (!(spec.vertical_aperture_rad > 0)) {
-    throw Error(src + ": the messages of '" + sonar->name +
-                "' give no vertical aperture "
-                "(ping_info.tx_beamwidths is empty): give --vertical-aperture-deg or --sonar");
-  }
-  if (config.T_vehicle_sonar) {
-    spec.T_vehicle_sonar = *config.T_vehicle_sonar;
-  } else if (projected) {
-    // The message frame is z forward, x up: our FLU sonar frame is that frame rotated.
-    Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
-    R.linear() = R_msg_flu();
-    spec.T_vehicle_sonar = T_vehicle_frame * R;
-  } else if (res.mounting_source.rfind("identity", 0) != 0) {
-    spec.T_vehicle_sonar = T_vehicle_frame;
-  }
-  spec.validate();
+  const SonarSpec spec = frames->set_mounting(config.T_vehicle_sonar, T_vehicle_frame, from_tf,
+                                              src + ": the messages of '" + sonar->name + "'");
   res.spec = spec;
-  if (config.static_sonar) {
-    // A fixed sonar: identity vehicle poses over every stamp (filled in below).
-  }
 
   const bool tiff = is_float;
   std::unique_ptr<DatasetWriter> writer;
@@ -503,75 +625,8 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   std::vector<double> stamps;
   bag->read(sonar->name, [&](std::int64_t, const std::uint8_t* p, std::size_t n,
                              const std::string& where) {
-    double t = 0;
-    if (projected) {
-      const RosSonarImage m = decode_sonar_image(p, n, wire, where);
-      if (m.beam_directions.size() != static_cast<std::size_t>(spec.beams()) ||
-          m.ranges.size() != static_cast<std::size_t>(spec.range_bins) ||
-          dtype_size(m.dtype) != sample_size || m.is_bigendian != big_endian) {
-        throw Error(where + ": the image changes size or encoding (" +
-                    std::to_string(m.ranges.size()) + " ranges × " +
-                    std::to_string(m.beam_directions.size()) + " beams, " + dtype_name(m.dtype) +
-                    "; the first message has " + std::to_string(spec.range_bins) + " × " +
-                    std::to_string(spec.beams()) + "); a dataset holds one sensor geometry");
-      }
-      bool rev = false;
-      const SonarSpec si = sonar_spec_from_message(m, where, &rev);
-      const double tol = 1e-5 * spec.r_max;
-      if (std::abs(si.r_min - spec.r_min) > tol || std::abs(si.r_max - spec.r_max) > tol ||
-          rev != reversed) {
-        throw Error(where + ": the range window or beam order changes (" + fmt(si.r_min) + "–" +
-                    fmt(si.r_max) + " m; the first message has " + fmt(spec.r_min) + "–" +
-                    fmt(spec.r_max) + " m)");
-      }
-      for (int j = 0; j < spec.beams(); ++j) {
-        if (std::abs(si.bearings_rad[j] - spec.bearings_rad[j]) > 1e-6) {
-          throw Error(where + ": beam " + std::to_string(j) + " moves to " +
-                      fmt(si.bearings_rad[j] / kDeg) + "°; a dataset holds one bearing table");
-        }
-      }
-      samples_to_image(m.data.data(), sample_size, m.is_bigendian, is_float, spec.intensity_scale,
-                       reversed, img);
-      t = m.stamp.seconds();
-    } else {
-      const RosImage m = decode_image(p, n, wire, where);
-      std::size_t size = 0;
-      if (m.encoding == "mono8" || m.encoding == "8UC1") size = 1;
-      if (m.encoding == "mono16" || m.encoding == "16UC1") size = 2;
-      if (m.encoding == "32FC1") size = 4;
-      if (size == 0) {
-        throw Error(where + ": encoding '" + printable(m.encoding) +
-                    "' is not read (mono8, mono16, 32FC1 are)");
-      }
-      if ((size == 1 && spec.bit_depth != 8) || (size == 2 && spec.bit_depth != 16)) {
-        throw Error(where + ": a " + m.encoding + " image but the sonar description declares " +
-                    std::to_string(spec.bit_depth) + "-bit intensities");
-      }
-      if (m.height != static_cast<std::uint32_t>(spec.range_bins) ||
-          m.width != static_cast<std::uint32_t>(spec.beams())) {
-        throw Error(where + ": a " + std::to_string(m.height) + "×" + std::to_string(m.width) +
-                    " image but the sonar description has " + std::to_string(spec.range_bins) +
-                    " range bins × " + std::to_string(spec.beams()) + " beams");
-      }
-      if (m.step != m.width * size || m.data.size() != std::size_t(m.step) * m.height) {
-        throw Error(where + ": step " + std::to_string(m.step) + " and " +
-                    std::to_string(m.data.size()) + " data bytes do not match " +
-                    std::to_string(m.height) + " rows of " + std::to_string(m.width) + " × " +
-                    std::to_string(size) + " bytes");
-      }
-      if ((size == 4) != tiff) {
-        throw Error(where + ": a " + m.encoding + " image after " +
-                    (tiff ? "32FC1 images" : "integer images") +
-                    "; a dataset holds one encoding (float TIFF or integer PNG frames)");
-      }
-      samples_to_image(m.data.data(), size, m.is_bigendian != 0, size == 4, spec.intensity_scale,
-                       false, img);
-      t = m.stamp.seconds();
-    }
+    double t = frames->decode(p, n, where, img);
     t += config.time_offset;
-    for (float v : img.data) {
-      if (!std::isfinite(v)) throw Error(where + ": a non-finite intensity");
-    }
     if (t < last_t) {
       throw Error(where + ": header stamp " + fmt(t) + " s goes backwards (previous " +
                   fmt(last_t) + " s)");
@@ -663,13 +718,17 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
   // Messages in time order, made one at a time (a dataset may be larger than memory): the static
   // transform first, then navigation samples and frames merged by stamp.
   RosbagExportResult res;
+  // A ROS 1 bag's record times start at ros::TIME_MIN (1 ns): Debian's rosbag player refuses to
+  // load index entries at 0 ("contains invalid time") and would lose the messages of a dataset
+  // that starts at t = 0, among them the only /tf_static. The header stamps stay as they are.
+  auto record_ns = [&](std::int64_t ns) { return ros2 ? ns : std::max<std::int64_t>(ns, 1); };
   Progress bar("export", ds.size(), progress);
   bool tf_sent = false;
   std::size_t nav_k = 0, frame_k = 0;
   const bag::NextMessage next = [&](BagOutMessage& out_msg) {
     if (!tf_sent) {
       tf_sent = true;
-      out_msg = {2, tf.stamp.ns(), encode_tf({tf}, config.wire)};
+      out_msg = {2, record_ns(tf.stamp.ns()), encode_tf({tf}, config.wire)};
       return true;
     }
     const bool have_nav = nav_k < ds.navigation.size();
@@ -683,7 +742,7 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
       p.child_frame_id = config.base_frame;
       p.position = ds.navigation.poses[nav_k].translation();
       p.orientation = Eigen::Quaterniond(ds.navigation.poses[nav_k].linear());
-      out_msg = {1, p.stamp.ns(), encode_odometry(p, config.wire)};
+      out_msg = {1, record_ns(p.stamp.ns()), encode_odometry(p, config.wire)};
       ++nav_k;
       ++res.navigation_samples;
       return true;
@@ -702,7 +761,7 @@ RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
         if (size == 2) m.data[i * size + 1] = static_cast<std::uint8_t>(q >> 8);
       }
     }
-    out_msg = {0, m.stamp.ns(), encode_sonar_image(m, config.wire)};
+    out_msg = {0, record_ns(m.stamp.ns()), encode_sonar_image(m, config.wire)};
     ++frame_k;
     ++res.frames;
     bar.add();

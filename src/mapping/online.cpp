@@ -410,6 +410,16 @@ ElevationMap OnlineMapper::elevation() {
   return elevation_map_from_points(pts, ec);
 }
 
+std::size_t OnlineMapper::frames_used() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->st.frames_used;
+}
+
+std::size_t OnlineMapper::frames_pending() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->pending.size();
+}
+
 OnlineMapStats OnlineMapper::stats() const {
   const Impl& m = *impl_;
   std::lock_guard<std::mutex> lock(m.mu);

@@ -12,11 +12,13 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/io/ros_msgs.hpp"
 
@@ -91,6 +93,68 @@ std::vector<std::string> choose_rosbag_topics(const std::filesystem::path& bag,
 // flipped). Throws Error naming `where`.
 SonarSpec sonar_spec_from_message(const RosSonarImage& m, const std::string& where,
                                   bool* reversed = nullptr);
+
+// The messages of one sonar topic as SonarImages, exactly as `import rosbag` reads them; shared by
+// import_rosbag() and the ROS node (`sonar3d ros`), so that a bag and a live topic give the same
+// frames. The sensor description comes from the first message (ProjectedSonarImage: bearings,
+// range bins, tx_beamwidths, dtype; `described` supplies what it lacks) or from `described`
+// alone (sensor_msgs/Image); every later message is checked against it.
+class RosSonarFrames {
+ public:
+  // `type`: the topic's message type (either naming); p, n: its first message. Throws Error naming
+  // `where` (also when `type` is no sonar type, or an Image comes without `described`).
+  RosSonarFrames(const std::string& type, RosWire wire, const std::uint8_t* p, std::size_t n,
+                 const std::string& where, const std::optional<SonarSpec>& described,
+                 double vertical_aperture_rad = 0);
+  bool projected() const { return projected_; }
+  bool is_float() const { return is_float_; }                // float32 intensities (a TIFF dataset)
+  const std::string& frame_id() const { return frame_id_; }  // the sonar's TF frame (no "/")
+  // Completes the description with the mounting: `mount` (--mount, our FLU sonar frame) when
+  // given, else T_vehicle_frame (vehicle → the message's frame_id, from static transforms;
+  // `from_tf` false = none found: identity for ProjectedSonarImage, the description's mounting
+  // for Image). Checks the vertical aperture (`topic` names the topic in that error) and
+  // validates. Returns the description.
+  const SonarSpec& set_mounting(const std::optional<Eigen::Isometry3d>& mount,
+                                const Eigen::Isometry3d& T_vehicle_frame, bool from_tf,
+                                const std::string& topic);
+  const SonarSpec& spec() const { return spec_; }
+  // One message into `img` (spec().range_bins × beams()); returns its header stamp, s. Throws
+  // Error naming `where` when it disagrees with the first message (size, encoding, bearings,
+  // range window) or holds a non-finite intensity.
+  double decode(const std::uint8_t* p, std::size_t n, const std::string& where,
+                SonarImage& img) const;
+
+ private:
+  RosWire wire_;
+  bool projected_ = false, is_float_ = false, big_endian_ = false, reversed_ = false;
+  std::size_t sample_size_ = 0;
+  std::string frame_id_;
+  SonarSpec spec_;
+};
+
+// The static transforms (tf2_msgs/TFMessage on /tf_static) seen so far, child → parent.
+class RosStaticTransforms {
+ public:
+  void add(const std::vector<RosTransform>& transforms);
+  bool empty() const { return parent_of_.empty(); }
+  // T_base_frame along the chain from `frame` up to `base` ("" = as far as the chain goes);
+  // `chain` gets "base -> … -> frame" and `depth` the number of links (0: none found). Throws
+  // Error (naming `where`) on a cycle, or when `base` is given and not reached.
+  Eigen::Isometry3d chain(const std::string& base, const std::string& frame,
+                          const std::string& where, std::string* chain = nullptr,
+                          int* depth = nullptr) const;
+
+ private:
+  std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent_of_;
+};
+
+// A TF frame name as tf2 compares them (leading slashes stripped).
+std::string ros_tf_frame(const std::string& name);
+// The message types read: ProjectedSonarImage (both packages), sensor_msgs/Image, navigation
+// (nav_msgs/Odometry, geometry_msgs/PoseStamped, PoseWithCovarianceStamped); either naming.
+bool is_ros_sonar_image_type(const std::string& type);
+bool is_ros_image_type(const std::string& type);
+bool is_ros_nav_type(const std::string& type);
 
 struct RosbagExportConfig {
   RosWire wire = RosWire::Cdr;  // Cdr: ROS 2 sqlite3 bag directory; Ros1: ROS 1 .bag file

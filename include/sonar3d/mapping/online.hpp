@@ -141,6 +141,10 @@ class OnlineMapper {
   // the highest point of every cell finished so far.
   ElevationMap elevation();
   OnlineMapStats stats() const;
+  // The frame counters alone, cheap enough for every message (stats() also walks the map to
+  // count its voxels and bytes: O(active voxels)).
+  std::size_t frames_used() const;
+  std::size_t frames_pending() const;
 
   // Finishes every block still in memory (writes them with a rolling window) and returns their
   // points; the mapper is empty afterwards but keeps its counters and navigation.
