@@ -64,13 +64,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
     run = [o, &g] {
       const ChangeConfig cfg = o->config->resolve("diff");
       with_flag_names(o->config->flag_names(), [&] { cfg.validate(); });
-      if (o->config->print_requested()) {
-        fmt::print("{}", ConfigOptions<ChangeConfig>::yaml(
-                             cfg, "diff",
-                             "sonar3d diff: the effective configuration (run with --config FILE; "
-                             "flags override)"));
-        return 0;
-      }
+      if (o->config->print_if_requested(cfg, "diff", "diff")) return 0;
       Catalogue cat;
       if (!o->catalogue.empty()) cat = read_catalogue(o->catalogue);
       const PointCloud a = read_survey_cloud(o->a), b = read_survey_cloud(o->b);

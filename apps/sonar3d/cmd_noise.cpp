@@ -4,8 +4,8 @@
 #include <memory>
 
 #include "commands.hpp"
-#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/sim/noise.hpp"

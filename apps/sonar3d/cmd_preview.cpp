@@ -1,16 +1,17 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
-#include "sonar3d/io/dataset.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/preview.hpp"
 
 namespace sonar3d::cli {
 
 void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto* cmd = app.add_subcommand(
-      "preview", "Save a dataset frame as a viewable PNG: the fan-shaped Cartesian view (sonar at "
-                 "the bottom, port on the left) or the polar image, colour-mapped.");
+      "preview",
+      "Save a dataset frame as a viewable PNG: the fan-shaped Cartesian view (sonar at "
+      "the bottom, port on the left) or the polar image, colour-mapped.");
   struct Opts {
     std::string dataset, out;
     int frame = 0;
@@ -24,7 +25,8 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->required();
   add_overwrite_flag(cmd, o->overwrite, "a picture sonar3d wrote earlier");
   cmd->add_option("--frame", o->frame, "frame index (0-based)")->capture_default_str();
-  cmd->add_flag("--polar", o->polar, "save the polar image (range bins × beams) instead of the fan");
+  cmd->add_flag("--polar", o->polar,
+                "save the polar image (range bins × beams) instead of the fan");
   cmd->add_flag("--grey", o->grey, "grey levels instead of the JET colour map");
   cmd->add_option("--width", o->cfg.width, "fan picture width, pixels")->capture_default_str();
   cmd->add_option("--max", o->cfg.max_value,

@@ -84,13 +84,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       if (yaw_given) cfg.three_d.yaw_step_deg = cfg.two_d.search.yaw_step_deg;
       if (residual_given) cfg.three_d.max_residual_median_m = cfg.two_d.max_residual_median_m;
       cfg.validate();
-      if (o->config->print_requested()) {
-        fmt::print("{}", ConfigOptions<RecognizeConfig>::yaml(
-                             cfg, "recognize",
-                             "sonar3d recognize: the effective configuration (run with --config "
-                             "FILE; flags override)"));
-        return 0;
-      }
+      if (o->config->print_if_requested(cfg, "recognize", "recognize")) return 0;
       require(!o->map.empty(), "recognize: give MAP (a cloud, a map directory or a dataset)");
       require(!o->catalogue.empty(), "recognize: give --catalogue CATALOGUE.yaml");
       require(!o->output.empty(), "recognize: give -o PLACEMENTS.json");

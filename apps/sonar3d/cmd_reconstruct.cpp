@@ -261,11 +261,7 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
       return with_flag_names(flags, [&] {
         const ReconstructConfig cfg = o->config->resolve("reconstruct");
         cfg.validate();  // a printed configuration is one that runs
-        if (o->config->print_requested()) {
-          fmt::print("{}", ConfigOptions<ReconstructConfig>::yaml(
-                               cfg, "reconstruct", "sonar3d reconstruct: effective configuration"));
-          return 0;
-        }
+        if (o->config->print_if_requested(cfg, "reconstruct", "reconstruct")) return 0;
         return run_reconstruct(*o, cfg, g, flags);
       });
     };

@@ -39,13 +39,7 @@ void add_relocalize(CLI::App& app, const GlobalOptions& g, Runner& run) {
     run = [o, &g] {
       RelocalizeConfig cfg = o->config->resolve("relocalize");
       cfg.validate();
-      if (o->config->print_requested()) {
-        fmt::print("{}", ConfigOptions<RelocalizeConfig>::yaml(
-                             cfg, "relocalize",
-                             "sonar3d relocalize: the effective configuration (run with "
-                             "--config FILE; flags override)"));
-        return 0;
-      }
+      if (o->config->print_if_requested(cfg, "relocalize", "relocalize")) return 0;
       require(!o->dataset.empty(), "relocalize: give DATASET (the new survey's dataset directory)");
       require(!o->world.empty(), "relocalize: give --world WORLD_DIR (written by sonar3d world)");
       require(!o->output.empty(), "relocalize: give -o OUTPUT (a directory to write)");

@@ -855,11 +855,7 @@ void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run) {
       return with_flag_names(flags, [&]() -> int {
         const ReconstructConfig cfg = o->config->resolve("reconstruct");
         cfg.validate();
-        if (o->config->print_requested()) {
-          fmt::print("{}", ConfigOptions<ReconstructConfig>::yaml(
-                               cfg, "reconstruct", "sonar3d ros: effective configuration"));
-          return 0;
-        }
+        if (o->config->print_if_requested(cfg, "reconstruct", "ros")) return 0;
 #ifdef SONAR3D_HAVE_ROS1
         return run_ros(*o, cfg, g);
 #else

@@ -69,13 +69,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     run = [o] {
       WorldModelConfig cfg = o->config->resolve("world");
       with_flag_names(o->config->flag_names(), [&] { cfg.validate(); });
-      if (o->config->print_requested()) {
-        fmt::print("{}", ConfigOptions<WorldModelConfig>::yaml(
-                             cfg, "world",
-                             "sonar3d world: the effective configuration (run with --config FILE; "
-                             "flags override)"));
-        return 0;
-      }
+      if (o->config->print_if_requested(cfg, "world", "world")) return 0;
       const fs::path map = o->map;
       fs::path cloud_path = map;
       if (fs::is_directory(map)) {

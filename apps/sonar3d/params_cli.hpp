@@ -86,6 +86,18 @@ class ConfigOptions {
     return v.names;
   }
 
+  // With --print-config: prints `config` under `key` (sonar3d <command>'s block, as --config
+  // reads it) and returns true; else false.
+  bool print_if_requested(const C& config, const std::string& key,
+                          const std::string& command) const {
+    if (!print_) return false;
+    fmt::print("{}", yaml(config, key,
+                          "sonar3d " + command +
+                              ": the effective configuration (run with --config FILE; flags "
+                              "override)"));
+    return true;
+  }
+
   // `config` as YAML under `key` (as --config reads it).
   static std::string yaml(const C& config, const std::string& key, const std::string& title) {
     YAML::Emitter out;

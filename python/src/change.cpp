@@ -126,7 +126,7 @@ void bind_change(py::module_& m) {
           r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &ca : nullptr,
                            colour ? &cb : nullptr);
         }
-        py::dict out = py::module_::import("json").attr("loads")(changes_json(r));
+        py::dict out = json_loads(changes_json(r));
         out["change_map"] = py::cast(r.change_map);
         if (r.colour.compared) out["colour_change_map"] = py::cast(r.colour.delta_map);
         return out;

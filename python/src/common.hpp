@@ -183,6 +183,11 @@ class ProgressArg {
   std::optional<py::error_already_set> error_;
 };
 
+// A JSON text (the library's one serialisation of a result) as Python objects.
+inline py::object json_loads(const std::string& text) {
+  return py::module_::import("json").attr("loads")(text);
+}
+
 // A config built from keyword arguments: C() with each keyword set as an attribute (so unknown
 // names raise AttributeError and values go through the bound setters' checks).
 template <class C>

@@ -144,11 +144,8 @@ void bind_online(py::module_& m) {
           },
           "Finishes every block in memory (written with a rolling window), returns them.")
       .def("reset", &OnlineMapper::reset)
-      .def_property_readonly(
-          "stats",
-          [](const OnlineMapper& o) {
-            return py::module_::import("json").attr("loads")(o.stats().to_json());
-          })
+      .def_property_readonly("stats",
+                             [](const OnlineMapper& o) { return json_loads(o.stats().to_json()); })
       .def_property_readonly("config", &OnlineMapper::config);
 }
 

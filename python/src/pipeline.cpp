@@ -57,7 +57,7 @@ void bind_pipeline(py::module_& m) {
         std::vector<std::string> warnings;
         o.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
         const SurveyResult r = p.run([&] { return run_survey(o); });
-        py::dict summary = py::module_::import("json").attr("loads")(r.summary_json);
+        py::dict summary = json_loads(r.summary_json);
         summary["warnings"] = warnings;
         return summary;
       },

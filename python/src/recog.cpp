@@ -68,12 +68,7 @@ void bind_recog(py::module_& m) {
               "score_m"_a = p.score_m, "residual_median_m"_a = p.residual.median_m,
               "residual_mean_m"_a = p.residual.mean_m, "support"_a = p.support,
               "confidence"_a = p.confidence, "yaw_ambiguous"_a = p.yaw_ambiguous,
-              "verification"_a = py::dict(
-                  "valid"_a = p.verification.valid, "seen"_a = p.verification.seen,
-                  "explained"_a = p.verification.explained,
-                  "violation"_a = p.verification.violation,
-                  "unexplained"_a = p.verification.unexplained, "spill"_a = p.verification.spill,
-                  "score_m3"_a = p.verification.score_m3),
+              "verification"_a = json_loads(verification_json_text(p.verification)),
               "step1_T_world_model"_a = pose_to_array(p.T_world_model_4d),
               "step1_residual_median_m"_a = p.residual_4d.median_m, "seconds"_a = p.seconds));
         }

@@ -43,6 +43,7 @@ def test_recognize_finds_a_box_and_not_an_absent_model(tmp_path):
     assert [p["model"] for p in placements] == ["box"]
     assert 0.5 <= placements[0]["confidence"] <= 1.0
     assert placements[0]["verification"]["explained"] > 0.8
+    assert placements[0]["verification"]["evidence"] >= 0.85  # as the placements JSON has it
     assert placements[0]["scale"] == 1.0  # no scale_range in the catalogue: not searched
     T = placements[0]["T_world_model"]
     assert T.shape == (4, 4)

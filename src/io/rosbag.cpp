@@ -12,6 +12,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/navigation.hpp"
 
@@ -19,8 +20,6 @@ namespace fs = std::filesystem;
 
 namespace sonar3d {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 bool is_sonar_image_type(const std::string& t) { return is_ros_sonar_image_type(t); }
 bool is_image_type(const std::string& t) { return is_ros_image_type(t); }

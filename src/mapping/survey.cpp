@@ -20,6 +20,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/eval/per_object.hpp"
 #include "sonar3d/io/truth.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
@@ -29,10 +30,6 @@ namespace sonar3d {
 namespace fs = std::filesystem;
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 

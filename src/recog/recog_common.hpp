@@ -11,16 +11,15 @@
 #include <vector>
 
 #include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/units.hpp"
 #include "sonar3d/recog/recognition.hpp"
 
 namespace sonar3d {
 
 namespace recog_internal {
-constexpr double kDeg = M_PI / 180.0;
+using sonar3d::kDeg;
 using Clock = std::chrono::steady_clock;
-inline double since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+inline double since(Clock::time_point t) { return seconds_since(t); }
 }  // namespace recog_internal
 
 // Roll, pitch, yaw in degrees with R = Rz(yaw)·Ry(pitch)·Rx(roll), as scene files give poses.

@@ -1081,6 +1081,8 @@ nlohmann::json verification_json(const Verification& v) {
 }
 }  // namespace
 
+std::string verification_json_text(const Verification& v) { return verification_json(v).dump(); }
+
 nlohmann::json rpy_deg_json(const Eigen::Isometry3d& T) {
   // R = Rz(yaw)·Ry(pitch)·Rx(roll), as scene files give poses.
   const Eigen::Matrix3d R = T.linear();

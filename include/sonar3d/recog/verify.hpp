@@ -31,6 +31,7 @@
 // Frames: local ENU world (x East, y North, z up); placements are T_world_model.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "sonar3d/core/params.hpp"
@@ -157,6 +158,9 @@ Verification verify_placement(const ModelTemplate& model, const Eigen::Isometry3
 
 // The logistic confidence of the terms (see VerificationConfig).
 double verification_confidence(const Verification& v, const VerificationConfig& config);
+
+// The terms as the placements JSON writes them (one JSON object; Python returns the same dict).
+std::string verification_json_text(const Verification& v);
 
 // Marks (sets to 1) the cells of `map` under the placed model's footprint grown by `margin_m`
 // in `mask` (same size as map.z): the area an accepted placement takes from later candidates,

@@ -1,0 +1,23 @@
+#pragma once
+// Known structure poses for the map's adjustment (issue 26 item 3, mapping/survey.hpp
+// MapSurveyConfig::known_poses): the structures of a previous survey's world model, or a
+// placements file (a previous recognition, or poses written from as-built drawings).
+#include <string>
+#include <vector>
+
+#include "sonar3d/mapping/survey.hpp"
+#include "sonar3d/world/world_model.hpp"
+
+namespace sonar3d {
+
+// A world model directory (graph.json of format sonar3d-world: its confirmed objects) or a
+// placements JSON (format sonar3d-placements). Errors name the path and say what is expected.
+std::vector<KnownStructurePose> read_known_poses(const std::string& path);
+
+// The navigation of the map a placements file was recognised in: `given` when not empty, else
+// the navigation_corrected.tum of the map directory the file names (its "map": the directory or
+// a file in it; relative to the working directory or to the placements file). An Error naming
+// the file when there is none.
+std::string placements_navigation(const PlacementsFile& f, const std::string& given);
+
+}  // namespace sonar3d
