@@ -92,15 +92,6 @@ struct Loader {
     if (!n) return;
     x = n.IsNull() ? std::vector<double>() : yaml::get_vector(node, k, 0, file, ctx);
   }
-  void operator()(const char* k, std::optional<double>& x) {
-    const YAML::Node n = get(k);
-    if (!n) return;
-    if (n.IsNull()) {
-      x.reset();
-    } else {
-      x = yaml::get_double(node, k, file, ctx);
-    }
-  }
   void path(const char* k, std::string& x) {
     (*this)(k, x);
     if (!x.empty() && fs::path(x).is_relative() && node[k]) x = (base / x).lexically_normal();
@@ -137,9 +128,6 @@ struct Emitter {
     std::string s = "[";
     for (std::size_t i = 0; i < x.size(); ++i) s += (i ? ", " : "") + fmt::format("{}", x[i]);
     line(k, s + "]");
-  }
-  void operator()(const char* k, const std::optional<double>& x) {
-    line(k, x ? fmt::format("{}", *x) : std::string("null"));
   }
   void path(const char* k, const std::string& x) { (*this)(k, x); }
 };
