@@ -21,7 +21,7 @@ else
   ROI="[-23, -18, -1.2, 23, 18, 3]"
 fi
 cat > "$WORK/survey.yaml" <<YAML
-map: {roi: $ROI, method: drift}
+map: {region: $ROI, method: drift}
 YAML
 rm -rf "$WORK/field" "$WORK/survey"
 /usr/bin/time -f "simulate: %e s, %M kB peak" "$S3D" simulate "$WORK/field.yaml" -o "$WORK/field" -q

@@ -450,7 +450,7 @@ TEST(MappingCli, ElevationAndRegister) {
   std::tie(rc, out) = run("elevation " + d + "b.ply -o " + d + "b.tif --uint16-step-m 0.0005");
   ASSERT_EQ(rc, 0) << out;
   std::tie(rc, out) =
-      run("register " + d + "a.tif " + d + "b.tif --search-m 0.2 --json " + d + "tie.json");
+      run("register " + d + "a.tif " + d + "b.tif --search 0.2 --json " + d + "tie.json");
   ASSERT_EQ(rc, 0) << out;
   std::ifstream tie(dir / "tie.json");
   const std::string j((std::istreambuf_iterator<char>(tie)), std::istreambuf_iterator<char>());

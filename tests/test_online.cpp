@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <tuple>
@@ -17,7 +19,9 @@
 #include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/online.hpp"
+#include "sonar3d/pipeline/online_feed.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulator.hpp"
@@ -223,6 +227,134 @@ TEST(Online, NavigationAndImagesMatchReconstructDataset) {
   expect_same_cloud(map.cloud(), batch.cloud, "online vs reconstruct_dataset");
   const ElevationMap em = map.elevation();
   EXPECT_GT(em.num_valid(), 0u);
+  fs::remove_all(dir);
+}
+
+namespace {
+
+// The online feed's output, as a test sees it (the ROS 1 node publishes it instead).
+struct RecordingSink : OnlineFeedSink {
+  PointCloud last;
+  std::size_t clouds = 0, diagnostics_seen = 0;
+  std::vector<std::string> lines;
+  void cloud(const PointCloud& c, double, const std::string&) override {
+    last = c;
+    ++clouds;
+  }
+  bool wants_elevation() const override { return false; }
+  void elevation(const ElevationMap&, double, const std::string&) override {}
+  void diagnostics(const std::string&) override { ++diagnostics_seen; }
+  void log(const std::string& line) override { lines.push_back(line); }
+};
+
+// A dataset of the survey with a mounting and a navigation at twice the frame rate.
+void write_survey_dataset(const fs::path& dir) {
+  const Survey& s = Survey::get();
+  SonarSpec spec = s.spec;
+  spec.T_vehicle_sonar = sonar_at(0.1, 0.0, -0.05);
+  DatasetWriter w(dir, spec, DatasetWriter::ImageFormat::Tiff);
+  for (const auto& im : s.images) w.add_frame(im);
+  Trajectory nav;
+  for (std::size_t k = 0; k < s.poses.size(); ++k) {
+    const std::size_t next = std::min(k + 1, s.poses.size() - 1);
+    for (double a : {0.0, 0.5}) {
+      const Eigen::Vector3d p =
+          (1 - a) * s.poses[k].translation() + a * s.poses[next].translation();
+      nav.push_back(s.times[k] - 0.025 + a * 0.1,
+                    sonar_at(p.x(), p.y(), p.z(), 0.01 * std::sin(0.3 * k + a)) *
+                        spec.T_vehicle_sonar.inverse());
+    }
+  }
+  w.set_navigation(nav);
+  w.commit();
+}
+
+}  // namespace
+
+// A ROS 1 bag replayed through the online feed (the ROS-independent core of `sonar3d ros`):
+// the mounting from /tf_static, the navigation from Odometry, the frames from
+// ProjectedSonarImage, give the cloud that `import rosbag` + carving gives; a message that is no
+// sonar message is counted and logged, not thrown; save() writes the pair under the output rule.
+TEST(OnlineFeed, ReplayedBagGivesTheImportedDatasetsCloud) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_feed_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_survey_dataset(dir / "ds");
+  RosbagExportConfig ec;
+  ec.wire = RosWire::Ros1;
+  export_rosbag(dir / "ds", dir / "survey.bag", ec);
+  RosbagImportConfig ic;
+  ic.sonar_topic = ec.sonar_topic;
+  ic.nav_topic = ec.nav_topic;
+  ic.drop_outside = true;  // the first frame precedes the navigation (the feed drops it too)
+  import_rosbag(dir / "survey.bag", dir / "imported", ic);
+  const Dataset imported = read_dataset(dir / "imported");
+  Carver carver(imported.spec, carve_config());
+  for (std::size_t k = 0; k < imported.size(); ++k) {
+    carver.integrate(imported.load_frame(k), imported.T_world_sonar(k));
+  }
+  const PointCloud expected = carver.finalize();
+  ASSERT_GT(expected.size(), 100u);
+
+  // Every message of the bag, in receive-time order, as the subscribers would hand them over.
+  const auto bag = BagReader::open(dir / "survey.bag");
+  struct Msg {
+    std::int64_t t;
+    OnlineFeed::Kind kind;
+    std::string type;
+    std::vector<std::uint8_t> bytes;
+  };
+  std::vector<Msg> msgs;
+  for (const BagTopic& topic : bag->topics()) {
+    const OnlineFeed::Kind kind = topic.name == ec.sonar_topic ? OnlineFeed::Kind::Sonar
+                                  : topic.name == ec.nav_topic ? OnlineFeed::Kind::Nav
+                                                               : OnlineFeed::Kind::Tf;
+    bag->read(topic.name,
+              [&](std::int64_t t, const std::uint8_t* p, std::size_t n, const std::string&) {
+                msgs.push_back({t, kind, topic.type, std::vector<std::uint8_t>(p, p + n)});
+              });
+  }
+  std::stable_sort(msgs.begin(), msgs.end(), [](const Msg& a, const Msg& b) { return a.t < b.t; });
+
+  OnlineFeedConfig fc;
+  fc.sonar_topic = ec.sonar_topic;
+  fc.nav_topic = ec.nav_topic;
+  fc.tf_topic = "/tf_static";
+  fc.queue = msgs.size();  // a replay: nothing dropped for speed
+  fc.period_s = 0.05;
+  fc.map.carve = carve_config();
+  RecordingSink sink;
+  std::size_t sonar = 0;
+  {
+    OnlineFeed feed(fc, sink);
+    for (const Msg& m : msgs) {
+      sonar += m.kind == OnlineFeed::Kind::Sonar;
+      feed.push(m.kind, m.type, m.bytes);
+    }
+    // Not a sonar message on the sonar topic: counted and logged.
+    feed.push(OnlineFeed::Kind::Sonar, "std_msgs/String", {1, 2, 3});
+    feed.drain();
+    const std::string saved = feed.save((dir / "snap").string(), false);
+    EXPECT_NE(saved.find("snap.ply"), std::string::npos) << saved;
+    EXPECT_TRUE(fs::exists(dir / "snap.ply"));
+    EXPECT_TRUE(fs::exists(dir / "snap.tif"));
+    // A second save replaces the feed's own files; a foreign file is never replaced.
+    EXPECT_NO_THROW(feed.save((dir / "snap").string(), false));
+    { std::ofstream(dir / "mine.ply") << "not sonar3d's\n"; }
+    EXPECT_THROW(feed.save((dir / "mine").string(), false), Error);
+    feed.stop();
+    const nlohmann::json st = nlohmann::json::parse(feed.stats_json());
+    EXPECT_EQ(st["sonar_received"].get<std::size_t>(), sonar + 1);
+    EXPECT_EQ(st["bad_sonar_messages"].get<std::size_t>(), 1u);
+    EXPECT_EQ(st["dropped_node_queue_full"].get<std::size_t>(), 0u);
+    EXPECT_EQ(st["map"]["frames_used"].get<std::size_t>(), imported.size());
+    EXPECT_NE(st["mounting"].get<std::string>().find("/tf_static"), std::string::npos) << st.dump();
+  }
+  EXPECT_GE(sink.clouds, 1u);
+  EXPECT_GE(sink.diagnostics_seen, 1u);
+  EXPECT_FALSE(sink.lines.empty());
+  expect_same_cloud(sink.last, expected, "replayed bag vs import rosbag + carving");
   fs::remove_all(dir);
 }
 

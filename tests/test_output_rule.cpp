@@ -135,7 +135,7 @@ TEST_F(OutputRule, EverySubcommandFollowsTheRule) {
       {"register --json", ".json",
        [&](const fs::path& o) {
          return "register " + map.string() + " " + map.string() +
-                " --search-m 0.1 --min-overlap-cells 10 --json " + o.string();
+                " --search 0.1 --min-overlap-cells 10 --json " + o.string();
        },
        map},
   };

@@ -12,6 +12,8 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/io/params_yaml.hpp"
+#include "sonar3d/mapping/survey.hpp"
+#include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/world/change.hpp"
@@ -92,6 +94,21 @@ std::string reference() {
       "takes them too); Python: `sonar3d.WorldModelConfig` and `sonar3d.world_model(points, "
       "placements, catalogue, config=cfg)` (docs/world.md).",
       params::rows(WorldModelConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "map",
+      "`sonar3d map --print-config` prints these under `map:` (the survey's `map:` block takes "
+      "them too, with `max_memory_gb`); Python: `sonar3d.MapSurveyConfig` and "
+      "`sonar3d.map_survey(dataset, output, config=cfg)` (docs/mapping.md). `carve` holds the "
+      "carving settings the map leaves to the carving (voxel size, region and threads are the "
+      "map's).",
+      params::rows(MapSurveyConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "register",
+      "`sonar3d register --print-config` prints these under `register:`; Python: "
+      "`sonar3d.SwathRegistrationConfig` and `sonar3d.register_elevation_maps(a, b, cfg)`.",
+      params::rows(SwathRegistrationConfig()));
   return out;
 }
 
@@ -288,6 +305,53 @@ TEST(Params, WorldPrintConfigRunsBackByteForByte) {
   EXPECT_NE(e.err.find("bad.yaml:3"), std::string::npos) << e.err;
   EXPECT_NE(e.err.find("position 2"), std::string::npos) << e.err;
   EXPECT_EQ(run_cli_captured(dir, "world").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, MapPrintConfigRunsBackByteForByte) {
+  // An enum, a box, a list of time ranges, a switch turned by its flag, nested carving settings.
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(
+      dir,
+      "map --print-config --method drift --roi -1 -2 -3 1 2 3 --swath-times 0,5,7,12 "
+      "--fixes-shift-only --resolution 0.05 --search 0.3 --turn-deg 45 --carve-margin 0.5");
+  ASSERT_EQ(a.code, 0) << a.err;
+  for (const char* want :
+       {"method: drift", "region: [-1, -2, -3, 1, 2, 3]", "time_ranges_s: [0, 5, 7, 12]",
+        "fix_scale_heading: false", "cell_m: 0.05", "search_m: 0.3", "turn_threshold_deg: 45",
+        "carve_margin: 0.5"}) {
+    EXPECT_NE(a.out.find(want), std::string::npos) << want << "\n" << a.out;
+  }
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "map --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);
+  MapSurveyConfig lib;
+  params::read_yaml(YAML::LoadFile((dir / "cfg.yaml").string())["map"], "cfg.yaml", "map", lib);
+  EXPECT_EQ(lib.method, SwathAdjustMethod::Drift);
+  EXPECT_EQ(lib.split.time_ranges_s, (std::vector<double>{0, 5, 7, 12}));
+  EXPECT_EQ(lib.registration.search_m, 0.3);
+  EXPECT_FALSE(lib.fix_scale_heading);
+  // Space-separated times still work; an odd count and an out-of-bounds value name the flag.
+  const auto c = run_cli_captured(dir, "map --print-config --swath-times 0 5");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("time_ranges_s: [0, 5]"), std::string::npos) << c.out;
+  const auto d = run_cli_captured(dir, "map --print-config --swath-times 0,5,7");
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("--swath-times"), std::string::npos) << d.err;
+  const auto e = run_cli_captured(dir, "map --print-config --turn-deg 200");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--turn-deg must lie in (0, 180)"), std::string::npos) << e.err;
+  // Without --print-config, the dataset and -o are required (usage error).
+  EXPECT_EQ(run_cli_captured(dir, "map").code, 2);
+  // register: the same registration declaration, its own block.
+  const auto r = run_cli_captured(dir, "register --print-config --search 0.2 --coarse-factor 2");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("register:"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("search_m: 0.2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("coarse_factor: 2"), std::string::npos) << r.out;
+  EXPECT_EQ(run_cli_captured(dir, "register").code, 2);
   fs::remove_all(dir);
 }
 

@@ -67,7 +67,10 @@ TEST(SurveyCli, EndToEndResumesRerunsChangedStagesAndNamesFailures) {
     std::ofstream(dir / "cat.yaml")
         << "models:\n  - {name: tank, reference: tank, symmetry: full}\n";
   }
-  { std::ofstream(dir / "survey.yaml") << "map: {roi: [-5, -4, -1, 5, 4, 1.5], search: 0.3}\n"; }
+  {
+    std::ofstream(dir / "survey.yaml")
+        << "map: {region: [-5, -4, -1, 5, 4, 1.5], registration: {search_m: 0.3}}\n";
+  }
   CliRun r = run_cli(
       dir, "simulate " + (dir / "scene.yaml").string() + " -o " + (dir / "ds").string() + " -q");
   ASSERT_EQ(r.code, 0) << r.out;
@@ -151,7 +154,7 @@ TEST(SurveyCli, EndToEndResumesRerunsChangedStagesAndNamesFailures) {
   // 3. A recognize setting changed: recognize and the stages after it run again, map does not.
   {
     std::ofstream(dir / "survey2.yaml")
-        << "map: {roi: [-5, -4, -1, 5, 4, 1.5], search: 0.3}\n"
+        << "map: {region: [-5, -4, -1, 5, 4, 1.5], registration: {search_m: 0.3}}\n"
            "recognize: {two_d: {verification: {min_confidence: 0.45}}}\n";
   }
   r = run_cli(dir, base + " --config " + (dir / "survey2.yaml").string());
@@ -171,7 +174,7 @@ TEST(SurveyCli, EndToEndResumesRerunsChangedStagesAndNamesFailures) {
   r = run_cli(dir, "survey --config " + (dir / "survey2.yaml").string() + " --print-config");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("min_confidence: 0.45"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("roi: [-5, -4, -1, 5, 4, 1.5]"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("region: [-5, -4, -1, 5, 4, 1.5]"), std::string::npos) << r.out;
   { std::ofstream(dir / "printed.yaml") << r.out; }
   r = run_cli(dir, base + " --config " + (dir / "printed.yaml").string());
   ASSERT_EQ(r.code, 0) << r.out;
@@ -242,7 +245,7 @@ TEST(SurveyCli, ForeignOutputAndBadInputsAreOneLineErrors) {
   EXPECT_EQ(r.code, 1);
   EXPECT_FALSE(fs::exists(dir / "in/o"));
   // A configuration key that does not exist: file, line and key.
-  { std::ofstream(dir / "bad.yaml") << "map:\n  resolution: 0.05\n  voxel: 0.02\n"; }
+  { std::ofstream(dir / "bad.yaml") << "map:\n  cell_m: 0.05\n  voxel: 0.02\n"; }
   r = run_cli(dir, "survey --config " + (dir / "bad.yaml").string() + " --print-config");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find((dir / "bad.yaml").string() + ":3: key 'map.voxel': unknown key"),
@@ -264,8 +267,8 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   {
     std::ofstream(dir / "c.yaml")
         << "import: {nav: nav.tum, mount: '0,0,0,0,90,0', static: true}\n"
-           "map: {resolution: 0.05, method: drift, swath_times: [0, 10, "
-           "12, 20]}\n"
+           "map: {cell_m: 0.05, method: drift, split: {time_ranges_s: [0, 10, "
+           "12, 20]}}\n"
            "recognize: {method: 3d, three_d: {yaw_step_deg: 7.5}, two_d: {run_icp: false}}\n"
            "world: {seabed: {lod_cells_m: [0.1, 0.5]}, min_confidence: 0.3}\n"
            "texture: {max_range: 12}\n"
@@ -274,9 +277,10 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   const sonar3d::SurveyConfig c = sonar3d::load_survey_config((dir / "c.yaml").string());
   EXPECT_EQ(c.import.nav, (dir / "nav.tum").string());
   EXPECT_TRUE(c.import.static_sonar);
-  EXPECT_EQ(c.map.resolution, 0.05);
-  EXPECT_EQ(c.map.voxel_size, sonar3d::SurveyMapOptions().voxel_size);  // default kept
-  EXPECT_EQ(c.map.swath_times.size(), 4u);
+  EXPECT_EQ(c.map.map.cell_m, 0.05);
+  EXPECT_EQ(c.map.map.method, sonar3d::SwathAdjustMethod::Drift);
+  EXPECT_EQ(c.map.map.carve.voxel_size, sonar3d::MapSurveyConfig().carve.voxel_size);  // default
+  EXPECT_EQ(c.map.map.split.time_ranges_s.size(), 4u);
   EXPECT_EQ(c.recognize.method, "3d");
   EXPECT_EQ(c.recognize.three_d.yaw_step_deg, 7.5);
   EXPECT_FALSE(c.recognize.two_d.run_icp);
@@ -289,8 +293,8 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   const sonar3d::SurveyConfig back = sonar3d::load_survey_config((dir / "printed.yaml").string());
   EXPECT_EQ(sonar3d::survey_config_yaml(back), printed);
   // Defaults are the commands' defaults.
-  EXPECT_EQ(sonar3d::SurveyMapOptions().turn_deg, 30);
-  EXPECT_EQ(sonar3d::SurveyMapOptions().method, "global");
+  EXPECT_EQ(sonar3d::SurveyMapOptions().map.split.turn_threshold_deg, 30);
+  EXPECT_EQ(sonar3d::SurveyMapOptions().map.method, sonar3d::SwathAdjustMethod::Global);
   // Errors name file, line and key.
   { std::ofstream(dir / "e1.yaml") << "mapping: {}\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e1.yaml").string()); },
@@ -339,7 +343,10 @@ camera: {width: 160, height: 120, fx: 100, fy: 100, cx: 79.5, cy: 59.5, T_vehicl
 trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5, spacing: 0.04, period: 0.1}
 )";
   }
-  { std::ofstream(dir / "survey.yaml") << "map: {roi: [-1, -1, -0.6, 7, 6, 0.8], search: 0.3}\n"; }
+  {
+    std::ofstream(dir / "survey.yaml")
+        << "map: {region: [-1, -1, -0.6, 7, 6, 0.8], registration: {search_m: 0.3}}\n";
+  }
   CliRun r = run_cli(
       dir, "simulate " + (dir / "field.yaml").string() + " -o " + (dir / "ds").string() + " -q");
   ASSERT_EQ(r.code, 0) << r.out;

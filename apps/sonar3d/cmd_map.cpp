@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/dataset.hpp"
@@ -24,46 +25,17 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "swath, register the swath elevation maps (eq. 6.1-6.2), correct the navigation and merge. "
       "Under `mpirun -np N` the swaths are carved on the ranks and rank 0 does the rest.");
   struct Opts {
-    std::string dataset, output, method = "global";
-    MapSurveyConfig cfg;
-    std::vector<double> roi, swath_times;
-    double turn_deg = 30;
+    std::string dataset, output;
+    std::unique_ptr<ConfigOptions<MapSurveyConfig>> config;
     double max_memory_gb = 0;
     std::string fixes;
     double fix_sigma = 0;
-    bool fixes_shift_only = false;
     std::string known_poses, placements, placements_nav;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("dataset", o->dataset, "dataset directory (a lawnmower survey)")
-      ->required()
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", o->output, "map directory to create (must not exist)")->required();
-  cmd->add_option("--resolution", o->cfg.cell_m, "elevation map cell size, metres")
-      ->capture_default_str();
-  cmd->add_option("--voxel-size", o->cfg.carve.voxel_size, "carving voxel edge, metres")
-      ->capture_default_str();
-  cmd->add_option("--roi", o->roi,
-                  "region to carve, world frame: xmin ymin zmin xmax ymax zmax (metres); "
-                  "default: all the sonar sees")
-      ->expected(6);
-  cmd->add_option("--search", o->cfg.registration.search_m,
-                  "half-width of the searched swath shifts, metres")
-      ->capture_default_str();
-  cmd->add_option("--method", o->method,
-                  "consecutive (the thesis: each swath against the previous), global (every "
-                  "overlapping pair, one robust adjustment of swath offsets) or drift (every "
-                  "overlapping pair piece by piece, a drift rate per swath as well)")
-      ->check(CLI::IsMember({"consecutive", "global", "drift"}))
-      ->capture_default_str();
-  cmd->add_option("--piece", o->cfg.piece_m,
-                  "drift method: length of the swath pieces registered, metres")
-      ->capture_default_str();
-  cmd->add_option("--turn-deg", o->turn_deg,
-                  "a new swath starts where the track turns by more than this, degrees")
-      ->capture_default_str();
-  cmd->add_option("--swath-times", o->swath_times,
-                  "explicit swaths instead of turns: t0 t1 [t0 t1 ...] (seconds)");
+  cmd->add_option("-o,--output", o->output, "map directory to create (must not exist)");
   cmd->add_option("--fixes", o->fixes,
                   "absolute position fixes (USBL/GNSS) of the navigation's reference point, in "
                   "its world frame (ENU, metres) and clock (seconds): a CSV with the header "
@@ -75,13 +47,6 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--fix-sigma", o->fix_sigma,
                   "standard deviation of every fix of a TUM fixes file, metres");
-  cmd->add_option("--fix-gate", o->cfg.fix_gate_sigma,
-                  "a fix whose residual after the adjustment exceeds this many standard "
-                  "deviations (1-D equivalent probability) is rejected and reported")
-      ->capture_default_str();
-  cmd->add_flag("--fixes-shift-only", o->fixes_shift_only,
-                "with --fixes: place the map by a shift only, no scale error or heading bias "
-                "estimated");
   cmd->add_option("--known-poses", o->known_poses,
                   "known structure poses: a world model directory (sonar3d world) or a "
                   "placements JSON (a previous survey's, or written from as-built drawings). "
@@ -97,50 +62,30 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "the navigation (TUM) of the map the --placements were recognised in (default: "
                   "the navigation_corrected.tum of the map directory the placements file names)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--known-pose-sigma", o->cfg.known_pose_sigma_m,
-                  "standard deviation of a recognised structure against its known pose, per "
-                  "horizontal axis, metres")
-      ->capture_default_str();
-  cmd->add_option("--known-pose-radius", o->cfg.known_pose_match_m,
-                  "a recognised structure matches a known pose of its model within this "
-                  "horizontal distance, metres")
-      ->capture_default_str();
-  cmd->add_option("--threads", o->cfg.carve.num_threads, "worker threads (0 = all cores)")
-      ->capture_default_str();
   add_max_memory_option(cmd, o->max_memory_gb);
-  // Library fields named in errors -> the flags that set them.
-  static const FlagNames kFlags = {{"cell_m", "--resolution"},
-                                   {"carve.voxel_size", "--voxel-size"},
-                                   {"carve.region", "--roi"},
-                                   {"search_m", "--search"},
-                                   {"registration.search_m", "--search"},
-                                   {"piece_m", "--piece"},
-                                   {"carve.num_threads", "--threads"},
-                                   {"num_threads", "--threads"},
-                                   {"fix_gate_sigma", "--fix-gate"},
-                                   {"known_pose_sigma_m", "--known-pose-sigma"},
-                                   {"known_pose_match_m", "--known-pose-radius"}};
+  // Every setting (declared once, mapping/survey.hpp): its flag, --print-config, --config FILE.
+  o->config = std::make_unique<ConfigOptions<MapSurveyConfig>>(cmd);
   cmd->callback([&run, &g, o] {
+    // The dataset and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->dataset.empty()) throw CLI::RequiredError("dataset");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o, &g] {
-      return with_flag_names(kFlags, [&] {
+      // The carving's own checks name its fields under "carve.": the map declares them.
+      FlagNames names = o->config->flag_names();
+      names.insert(names.end(), {{"carve.voxel_size", "--voxel-size"},
+                                 {"carve.region", "--roi"},
+                                 {"carve.num_threads", "--threads"},
+                                 {"registration.num_threads", "--threads"}});
+      return with_flag_names(names, [&] {
+        MapSurveyConfig cfg = o->config->resolve("map");
+        cfg.validate();
+        if (o->config->print_if_requested(cfg, "map", "map")) return 0;
         // The output rule (core/output_dir.hpp): never the dataset, inside it, or a special file;
         // an existing path is refused by map_survey (a map directory is always new).
         check_output_location(o->output, output_policy(false, {o->dataset}), "-o", "map");
-        MapSurveyConfig cfg = o->cfg;
-        cfg.method = swath_adjust_method_from_string(o->method);
         cfg.registration.num_threads = cfg.carve.num_threads;
-        cfg.split.turn_threshold_rad = o->turn_deg * 3.14159265358979323846 / 180.0;
-        if (!o->roi.empty()) {
-          const Eigen::AlignedBox3d box(Eigen::Vector3d(o->roi[0], o->roi[1], o->roi[2]),
-                                        Eigen::Vector3d(o->roi[3], o->roi[4], o->roi[5]));
-          validate_region(box, "--roi");
-          cfg.carve.region = box;
-        }
-        require(o->swath_times.size() % 2 == 0,
-                "--swath-times: give pairs of times (t0 t1 per swath)");
-        for (std::size_t k = 0; k + 1 < o->swath_times.size(); k += 2) {
-          cfg.split.time_ranges.emplace_back(o->swath_times[k], o->swath_times[k + 1]);
-        }
         require(o->fixes.empty() || cfg.method != SwathAdjustMethod::Consecutive,
                 "--fixes needs --method global or drift (the consecutive method has no "
                 "adjustment to put them in)");
@@ -148,7 +93,6 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
         if (!o->fixes.empty()) {
           cfg.fixes = read_position_fixes(o->fixes, FixFormat::Auto, o->fix_sigma);
           cfg.fixes_source = o->fixes;
-          cfg.fix_scale_heading = !o->fixes_shift_only;
         }
         require(o->known_poses.empty() == o->placements.empty(),
                 "--known-poses and --placements go together: the known poses, and the "
@@ -169,7 +113,6 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
           }
           cfg.recognised_source = o->placements;
           cfg.recognised_navigation = read_tum(placements_navigation(f, o->placements_nav));
-          cfg.fix_scale_heading = !o->fixes_shift_only;
         }
         MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
         const Dataset ds = read_dataset(o->dataset);
@@ -196,7 +139,8 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
         std::size_t used = 0;
         for (bool u : r.adjustment.tie_used) used += u;
         fmt::print("mapped {} swaths ({} points) into {}: {} ties ({} used, {} method){}\n",
-                   r.swaths.size(), r.merged_points, o->output, r.ties.size(), used, o->method,
+                   r.swaths.size(), r.merged_points, o->output, r.ties.size(), used,
+                   to_string(cfg.method),
                    mpi.size() > 1 ? fmt::format(", carved on {} ranks", mpi.size()) : "");
         for (std::size_t s = 0; s < r.swaths.size(); ++s) {
           const SwathInfo& w = r.swaths[s];

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 
@@ -17,39 +18,38 @@ void add_register(CLI::App& app, const GlobalOptions&, Runner& run) {
       "confidence.");
   struct Opts {
     std::string reference, moving, json;
-    SwathRegistrationConfig cfg;
+    std::unique_ptr<ConfigOptions<SwathRegistrationConfig>> config;
     bool overwrite = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("reference", o->reference, "elevation map GeoTIFF (sonar3d elevation)")
-      ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("moving", o->moving, "elevation map GeoTIFF at the same cell size")
-      ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--search-m", o->cfg.search_m, "half-width of the searched shifts, metres")
-      ->capture_default_str();
-  cmd->add_option("--coarse-factor", o->cfg.coarse_factor,
-                  "coarse-to-fine factor (1 = the thesis' exhaustive search)")
-      ->capture_default_str();
-  cmd->add_option("--min-overlap-cells", o->cfg.min_overlap_cells,
-                  "fewest cells defined in both maps for a shift to count")
-      ->capture_default_str();
-  cmd->add_option("--threads", o->cfg.num_threads, "worker threads (0 = all cores)")
-      ->capture_default_str();
   cmd->add_option("--json", o->json,
                   "also write the result as JSON to this file (an existing one only if sonar3d "
                   "register wrote it, with --overwrite)");
   add_overwrite_flag(cmd, o->overwrite, "a result JSON sonar3d register wrote earlier");
+  // Every setting (declared once, mapping/swath_registration.hpp): its flag, --print-config,
+  // --config FILE.
+  o->config = std::make_unique<ConfigOptions<SwathRegistrationConfig>>(cmd);
   cmd->callback([&run, o] {
+    // Both maps are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->reference.empty()) throw CLI::RequiredError("reference");
+      if (o->moving.empty()) throw CLI::RequiredError("moving");
+    }
     run = [o] {
+      const SwathRegistrationConfig cfg = o->config->resolve("register");
+      with_flag_names(o->config->flag_names(), [&] { cfg.validate(); });
+      if (o->config->print_if_requested(cfg, "register", "register")) return 0;
       OutputFiles out(output_policy(o->overwrite, {o->reference, o->moving}));
       const std::filesystem::path json =
           o->json.empty() ? std::filesystem::path()
                           : out.add(o->json, OutputKind::RegistrationJson, "--json");
       const ElevationMap a = read_elevation_geotiff(o->reference);
       const ElevationMap b = read_elevation_geotiff(o->moving);
-      const SwathTie t = register_elevation_maps(a, b, o->cfg);
+      const SwathTie t = register_elevation_maps(a, b, cfg);
       fmt::print(
           "shift East {:+.3f} m, North {:+.3f} m, height {:+.3f} m; score (median |dz|) {:.4f} "
           "m over {} cells; confidence {:.2f}; {:.2f} s\n",

@@ -1,14 +1,22 @@
 // Field mapping (thesis sec. 6.2): elevation maps, swath registration, survey mapping.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/position_fixes.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/world/known_poses.hpp"
+#include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d::python {
 
 using namespace pybind11::literals;
+namespace fs = std::filesystem;
 
 void bind_mapping(py::module_& m) {
   py::class_<ElevationMap>(m, "ElevationMap",
@@ -66,19 +74,28 @@ void bind_mapping(py::module_& m) {
   m.def("write_elevation_png", &write_elevation_png, "path"_a, "map"_a,
         "A picture with a colour bar; returns the (min, max) height shown.");
 
-  py::class_<SwathRegistrationConfig>(
+  bind_config<SwathRegistrationConfig>(
       m, "SwathRegistrationConfig",
-      "Swath registration (sec. 6.2.2.1): search_m (m), min_overlap_cells, subcell, "
-      "overlap_full_cells, coarse_factor (1 = the thesis' exhaustive search), num_threads.")
-      .def(py::init(&from_kwargs<SwathRegistrationConfig>))
-      .def_readwrite("search_m", &SwathRegistrationConfig::search_m)
-      .def_readwrite("min_overlap_cells", &SwathRegistrationConfig::min_overlap_cells)
-      .def_readwrite("subcell", &SwathRegistrationConfig::subcell)
-      .def_readwrite("overlap_full_cells", &SwathRegistrationConfig::overlap_full_cells)
-      .def_readwrite("coarse_factor", &SwathRegistrationConfig::coarse_factor)
-      .def_readwrite("num_threads", &SwathRegistrationConfig::num_threads)
-      .def("__repr__", &fields_repr)
+      "Swath registration (sec. 6.2.2.1, eq. 6.1-6.2): the shift search between two elevation "
+      "maps (docs/reference.md).")
       .def("validate", &SwathRegistrationConfig::validate);
+  bind_config<params::Nested<SwathRegistrationConfig>>(
+      m, "SwathRegistrationPart",
+      "The registration settings of a MapSurveyConfig (a view; its threads are the map's).");
+  bind_config<SwathAdjustmentConfig>(
+      m, "SwathAdjustmentConfig",
+      "The robust adjustment of the swath offsets from every tie (docs/mapping.md).")
+      .def("validate", &SwathAdjustmentConfig::validate);
+  bind_config<SwathSplitConfig>(
+      m, "SwathSplitConfig",
+      "A survey split into swaths at its turns, or by explicit time ranges (docs/mapping.md).")
+      .def("validate", &SwathSplitConfig::validate);
+  bind_config<MapSurveyConfig>(
+      m, "MapSurveyConfig",
+      "Field mapping, as `sonar3d map` runs it (its flags and --print-config keys; "
+      "docs/reference.md): elevation map cell, carving voxel and region, adjustment method, "
+      "swath split, registration, adjustment, carving.")
+      .def("validate", &MapSurveyConfig::validate);
 
   py::class_<SwathTie>(m, "SwathTie",
                        "A registered pair: t = (dx, dy, dz) moving the moving map onto the "
@@ -105,29 +122,37 @@ void bind_mapping(py::module_& m) {
 
   m.def(
       "map_survey",
-      [](const Dataset& dataset, const std::string& output, double cell_m, double voxel_size,
-         const SwathRegistrationConfig& registration, const std::string& method, double piece_m,
-         const py::object& region, const py::object& progress, const py::object& fixes,
-         double fix_sigma, double fix_gate_sigma, bool fix_scale_heading) {
-        MapSurveyConfig cfg;
+      [](const Dataset& dataset, const std::string& output, const py::object& fixes,
+         double fix_sigma, const py::object& known_poses, const py::object& placements,
+         const py::object& placements_nav, const py::object& progress, const py::object& config,
+         const py::kwargs& settings) {
+        MapSurveyConfig cfg = config_with_settings<MapSurveyConfig>(config, settings, "map_survey");
+        cfg.registration.num_threads = cfg.carve.num_threads;
+        require(fix_sigma == 0 || !fixes.is_none(), "fix_sigma: give fixes as well");
         if (!fixes.is_none()) {
           cfg.fixes_source = fixes.cast<std::string>();
           cfg.fixes = read_position_fixes(cfg.fixes_source, FixFormat::Auto, fix_sigma);
         }
-        cfg.fix_gate_sigma = fix_gate_sigma;
-        cfg.fix_scale_heading = fix_scale_heading;
-        cfg.cell_m = cell_m;
-        cfg.piece_m = piece_m;
-        cfg.carve.voxel_size = voxel_size;
-        cfg.registration = registration;
-        cfg.method = swath_adjust_method_from_string(method);
-        if (!region.is_none()) {
-          const auto t = region.cast<py::sequence>();
-          if (t.size() != 2) throw Error("region must be (min xyz, max xyz) or None");
-          cfg.carve.region =
-              Eigen::AlignedBox3d(t[0].cast<Eigen::Vector3d>(), t[1].cast<Eigen::Vector3d>());
-          validate_region(*cfg.carve.region, "region");
+        require(known_poses.is_none() == placements.is_none(),
+                "known_poses and placements go together: the known poses, and the structures "
+                "recognised in this survey's map");
+        require(placements_nav.is_none() || !placements.is_none(),
+                "placements_nav: give placements as well");
+        if (!known_poses.is_none()) {  // as sonar3d map --known-poses
+          cfg.known_poses_source = known_poses.cast<std::string>();
+          cfg.known_poses = read_known_poses(cfg.known_poses_source);
+          cfg.recognised_source = placements.cast<std::string>();
+          const PlacementsFile f = read_placements(cfg.recognised_source);
+          for (std::size_t k = 0; k < f.placements.size(); ++k) {
+            cfg.recognised.push_back({f.placements[k].model,
+                                      f.placements[k].T_world_model.translation(),
+                                      static_cast<int>(k)});
+          }
+          const std::string nav =
+              placements_nav.is_none() ? std::string() : placements_nav.cast<std::string>();
+          cfg.recognised_navigation = read_tum(placements_navigation(f, nav));
         }
+        cfg.validate();
         ProgressArg p(progress);
         const MapSurveyResult r =
             p.run([&] { return map_survey(dataset, cfg, output, p.terminal()); });
@@ -155,7 +180,10 @@ void bind_mapping(py::module_& m) {
         if (!cfg.fixes.empty()) {  // the absolute references and the navigation model
           const SwathAdjustment& adj = r.adjustment;
           py::list rejected;
+          std::size_t n_fixes = 0;
           for (const FixReport& f : adj.fixes) {
+            if (!f.name.empty()) continue;  // a known structure pose: in the summary
+            ++n_fixes;
             if (!f.rejected) continue;
             py::dict e;
             e["time_s"] = f.time;
@@ -167,7 +195,7 @@ void bind_mapping(py::module_& m) {
           py::dict fx;
           fx["given"] = r.fixes_given;
           fx["outside_time_span"] = r.fixes_outside;
-          fx["used"] = adj.fixes.size() - py::len(rejected);
+          fx["used"] = n_fixes - py::len(rejected);
           fx["rejected"] = rejected;
           d["fixes"] = fx;
           py::dict nm;
@@ -178,15 +206,16 @@ void bind_mapping(py::module_& m) {
           nm["heading_bias_sigma_rad"] = adj.heading_bias_sigma_rad;
           d["navigation_model"] = nm;
         }
+        // Everything the CLI writes: OUTPUT/summary.json (docs/formats.md), known poses included.
+        std::ifstream in(fs::path(output) / "summary.json");
+        std::stringstream text;
+        text << in.rdbuf();
+        d["summary"] = json_loads(text.str());
         return d;
       },
-      "dataset"_a, "output"_a, "cell_m"_a = MapSurveyConfig().cell_m,
-      "voxel_size"_a = MapSurveyConfig().carve.voxel_size,
-      "registration"_a = SwathRegistrationConfig(), "method"_a = "global",
-      "piece_m"_a = MapSurveyConfig().piece_m, "region"_a = py::none(), "progress"_a = py::none(),
-      "fixes"_a = py::none(), "fix_sigma"_a = 0.0,
-      "fix_gate_sigma"_a = MapSurveyConfig().fix_gate_sigma,
-      "fix_scale_heading"_a = MapSurveyConfig().fix_scale_heading,
+      "dataset"_a, "output"_a, "fixes"_a = py::none(), "fix_sigma"_a = 0.0,
+      "known_poses"_a = py::none(), "placements"_a = py::none(), "placements_nav"_a = py::none(),
+      "progress"_a = py::none(), "config"_a = py::none(),
       "Field mapping (sec. 6.2; `sonar3d map`): writes `output` (swath maps, ties, corrected "
       "navigation, merged cloud and map) and returns {offsets: per-swath (dx, dy, dz) at the "
       "swath's "
@@ -197,7 +226,14 @@ void bind_mapping(py::module_& m) {
       "metres) placing the map in the world; then the dict also holds fixes {given, "
       "outside_time_span, used, rejected: [{time_s, line, residual_m, residual_sigma}]} and "
       "navigation_model {estimated, scale_error, scale_error_sigma, heading_bias_rad, "
-      "heading_bias_sigma_rad}.");
+      "heading_bias_sigma_rad}. `known_poses` (a world model directory or placements JSON) with "
+      "`placements` (structures recognised in a map of this dataset) and optionally "
+      "`placements_nav` (that map's navigation, TUM): known structure poses as constraints "
+      "(`sonar3d map --known-poses`). 'summary' holds output/summary.json as the CLI writes it "
+      "(docs/formats.md). `config`: a MapSurveyConfig (or None for the defaults); keyword "
+      "settings set its fields (cell_m=0.05, method='drift', region=((x0, y0, z0), (x1, y1, "
+      "z1)), ...), an unknown one is an error listing the fields. `progress`: None, True "
+      "(terminal bars) or a callable progress(done, total).");
 }
 
 }  // namespace sonar3d::python

@@ -1,5 +1,7 @@
 """Field mapping through the bindings: elevation maps, GeoTIFF round trip, swath registration."""
+import json
 import math
+
 
 import numpy as np
 import pytest
@@ -71,10 +73,10 @@ def test_map_survey_with_the_drift_method(tmp_path):
     (tmp_path / "field.yaml").write_text(FIELD)
     sonar3d.simulate(str(tmp_path / "field.yaml"), str(tmp_path / "ds"))
     ds = sonar3d.read_dataset(str(tmp_path / "ds"))
-    reg = sonar3d.SwathRegistrationConfig()
-    reg.search_m = 0.3
-    r = sonar3d.map_survey(ds, str(tmp_path / "map"), registration=reg, method="drift",
-                           piece_m=2.0, region=((-1, -1, -0.6), (7, 6, 0.8)))
+    cfg = sonar3d.MapSurveyConfig(method="drift", piece_m=2.0)
+    cfg.registration.search_m = 0.3
+    r = sonar3d.map_survey(ds, str(tmp_path / "map"), config=cfg,
+                           region=((-1, -1, -0.6), (7, 6, 0.8)))
     assert len(r["offsets"]) == 4 and len(r["rates"]) == 4
     assert np.allclose(r["offsets"][0], 0.0)  # the gauge: exact where swath 0 starts
     assert any(np.linalg.norm(rate) > 0 for rate in r["rates"])
@@ -82,9 +84,16 @@ def test_map_survey_with_the_drift_method(tmp_path):
     assert kinds == {"box": "structure", "pipe": "pipeline", "rock": "structure"}
     for s in r["structures"]:
         assert s["after"]["median_error"] < 0.05
-    assert (tmp_path / "map" / "summary.json").exists()
-    with pytest.raises(sonar3d.Error, match="consecutive, global, drift"):
+    # The CLI's summary.json, as the CLI wrote it.
+    assert r["summary"] == json.loads((tmp_path / "map" / "summary.json").read_text())
+    # The configuration is the command's: its --print-config keys and defaults.
+    assert sonar3d.MapSurveyConfig().cell_m == 0.02
+    assert cfg.to_dict()["split"]["turn_threshold_deg"] == 30
+    with pytest.raises(sonar3d.Error, match="consecutive, global or drift"):
         sonar3d.map_survey(ds, str(tmp_path / "map2"), method="sideways")
+    with pytest.raises(sonar3d.Error, match="unknown setting 'resolution'"):
+        sonar3d.map_survey(ds, str(tmp_path / "map2"), resolution=0.05)
+    assert not (tmp_path / "map2").exists()
 
 
 def test_map_survey_with_fixes(tmp_path):
@@ -103,11 +112,9 @@ def test_map_survey_with_fixes(tmp_path):
         y = np.interp(t, truth[:, 0], truth[:, 2]) + rng.normal(0, 0.1)
         lines.append(f"{t},{x + (3.0 if k == 10 else 0.0)},{y},0.1")
     (tmp_path / "fixes.csv").write_text("\n".join(lines) + "\n")
-    reg = sonar3d.SwathRegistrationConfig()
-    reg.search_m = 0.3
-    r = sonar3d.map_survey(ds, str(tmp_path / "map"), registration=reg,
-                           region=((-1, -1, -0.6), (7, 6, 0.8)),
-                           fixes=str(tmp_path / "fixes.csv"))
+    cfg = sonar3d.MapSurveyConfig(region=((-1, -1, -0.6), (7, 6, 0.8)))
+    cfg.registration.search_m = 0.3
+    r = sonar3d.map_survey(ds, str(tmp_path / "map"), config=cfg, fixes=str(tmp_path / "fixes.csv"))
     assert r["fixes"]["given"] == len(times)
     assert [f["time_s"] for f in r["fixes"]["rejected"]] == [times[10]]
     assert r["navigation_model"]["estimated"]

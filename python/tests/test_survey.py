@@ -25,7 +25,7 @@ trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5,
 def test_survey_runs_resumes_and_returns_the_summary(tmp_path):
     (tmp_path / "field.yaml").write_text(FIELD)
     sonar3d.simulate(str(tmp_path / "field.yaml"), str(tmp_path / "ds"))
-    config = {"map": {"roi": [-1, -1, -0.6, 7, 6, 0.8], "search": 0.3}}
+    config = {"map": {"region": [-1, -1, -0.6, 7, 6, 0.8], "registration": {"search_m": 0.3}}}
     calls = []
     s = sonar3d.survey(str(tmp_path / "ds"), str(tmp_path / "out"), config=config,
                        progress=lambda done, total: calls.append((done, total)))
@@ -47,7 +47,7 @@ def test_survey_runs_resumes_and_returns_the_summary(tmp_path):
     assert {st["name"]: st["status"] for st in again["stages"]}["report"] == "unchanged"
     # The printed configuration, as a file, is the same configuration.
     text = sonar3d.survey_config(config)
-    assert "search: 0.3" in text
+    assert "search_m: 0.3" in text
     (tmp_path / "printed.yaml").write_text(text)
     assert sonar3d.survey_config(str(tmp_path / "printed.yaml")) == text
     with pytest.raises(sonar3d.Error, match="map.voxel"):

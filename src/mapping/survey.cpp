@@ -236,58 +236,38 @@ double MapAlignment::stretch() const {
 }
 
 const char* to_string(SwathAdjustMethod method) {
-  switch (method) {
-    case SwathAdjustMethod::Consecutive:
-      return "consecutive";
-    case SwathAdjustMethod::Drift:
-      return "drift";
-    case SwathAdjustMethod::Global:
-      break;
-  }
-  return "global";
+  const int k = static_cast<int>(method);
+  return k >= 0 && k < 3 ? kSwathAdjustMethodNames[k] : "?";
 }
 
 SwathAdjustMethod swath_adjust_method_from_string(const std::string& name) {
-  for (SwathAdjustMethod m :
-       {SwathAdjustMethod::Consecutive, SwathAdjustMethod::Global, SwathAdjustMethod::Drift}) {
-    if (name == to_string(m)) return m;
-  }
-  throw Error("unknown swath adjustment method '" + printable(name) +
-              "' (consecutive, global, drift)");
+  return params::parse_choice<SwathAdjustMethod>(
+      params::param("method", "", "").choices(kSwathAdjustMethodNames), name,
+      "swath adjustment method");
 }
 
 void SwathSplitConfig::validate() const {
-  require(std::isfinite(turn_threshold_rad) && turn_threshold_rad > 0 &&
-              turn_threshold_rad < 3.14159265358979323846,
-          "swath split: turn_threshold must be within (0°, 180°)");
-  require(std::isfinite(straight_radius_m) && straight_radius_m > 0,
-          "swath split: straight_radius must be > 0 m");
-  require(min_frames >= 2, "swath split: min_frames must be >= 2");
-  require(
-      std::isfinite(min_length_fraction) && min_length_fraction >= 0 && min_length_fraction <= 1,
-      "swath split: min_length_fraction must lie in [0, 1]");
-  for (const Eigen::Vector2d& r : time_ranges) {
-    require(r.allFinite() && r.x() < r.y(),
-            "swath split: a time range must be finite with start < end (s)");
+  params::check(*this, "split");
+  require(time_ranges_s.size() % 2 == 0,
+          "split.time_ranges_s: give pairs of times (t0 t1 per swath), got " +
+              std::to_string(time_ranges_s.size()) + " number(s)");
+  for (std::size_t k = 0; k + 1 < time_ranges_s.size(); k += 2) {
+    require(std::isfinite(time_ranges_s[k]) && std::isfinite(time_ranges_s[k + 1]) &&
+                time_ranges_s[k] < time_ranges_s[k + 1],
+            fmt::format("split.time_ranges_s: swath {} ({} to {} s) must be finite with start < "
+                        "end",
+                        k / 2, time_ranges_s[k], time_ranges_s[k + 1]));
   }
 }
 
 void MapSurveyConfig::validate() const {
+  params::check(*this, "map");
   split.validate();
   carve.validate();
-  require_positive(cell_m, "cell_m", "m");
-  require_positive(piece_m, "piece_m", "m");
   registration.validate();
-  adjustment.validate();
-  require(std::isfinite(fix_gate_sigma) && fix_gate_sigma > 0, "fix_gate_sigma must be > 0");
   require((fixes.empty() && known_poses.empty()) || method != SwathAdjustMethod::Consecutive,
           "field mapping: fixes and known poses need the global or drift method (the "
           "consecutive one has no adjustment to put them in)");
-  require(std::isfinite(known_pose_sigma_m) && known_pose_sigma_m > 0 &&
-              known_pose_sigma_m <= kMaxFixSigma,
-          "known_pose_sigma_m must be > 0 m");
-  require(std::isfinite(known_pose_match_m) && known_pose_match_m > 0,
-          "known_pose_match_m must be > 0 m");
   for (const RecognisedStructure& r : recognised) {
     require(r.p_map.allFinite(), "field mapping: recognised structure " + std::to_string(r.index) +
                                      " has a position not finite");
@@ -306,8 +286,9 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
   require(n >= 2, "field mapping: the dataset has " + std::to_string(n) +
                       " frame(s); a survey needs swaths of many frames");
   std::vector<std::pair<int, int>> swaths;
-  if (!config.time_ranges.empty()) {
-    for (const Eigen::Vector2d& r : config.time_ranges) {
+  if (!config.time_ranges_s.empty()) {
+    for (std::size_t k = 0; k + 1 < config.time_ranges_s.size(); k += 2) {
+      const Eigen::Vector2d r(config.time_ranges_s[k], config.time_ranges_s[k + 1]);
       int first = -1, last = -1;
       for (int i = 0; i < n; ++i) {
         const double t = dataset.frames[i].timestamp;
@@ -356,7 +337,7 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
     a = b + 1;
     if (a < n) along[a] = 0;
   }
-  const double cos_turn = std::cos(config.turn_threshold_rad);
+  const double cos_turn = std::cos(config.turn_threshold_deg * kDeg);
   int start = 0;
   bool open = false;
   Eigen::Vector2d heading = Eigen::Vector2d::Zero();  // the current run's direction
@@ -401,7 +382,7 @@ std::vector<std::pair<int, int>> split_swaths(const Dataset& dataset,
   require(!swaths.empty(),
           fmt::format("field mapping: no straight run of at least {} frames in the survey "
                       "(turn threshold {:.1f}°): give swath time ranges, or lower min_frames",
-                      config.min_frames, config.turn_threshold_rad * 180 / 3.14159265358979323846));
+                      config.min_frames, config.turn_threshold_deg));
   return swaths;
 }
 

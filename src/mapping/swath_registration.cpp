@@ -161,21 +161,9 @@ double distinctness(const std::vector<ShiftScore>& scores, int best) {
 
 }  // namespace
 
-void SwathRegistrationConfig::validate() const {
-  require_non_negative(search_m, "search_m", "m");
-  require(min_overlap_cells >= 1, "min_overlap_cells must be >= 1");
-  require(overlap_full_cells >= 1, "overlap_full_cells must be >= 1");
-  require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores)");
-  require(coarse_factor >= 1 && coarse_factor <= 64, "coarse_factor must be within 1-64");
-}
+void SwathRegistrationConfig::validate() const { params::check(*this, "registration"); }
 
-void SwathAdjustmentConfig::validate() const {
-  require_positive(loss_scale_m, "loss_scale_m", "m");
-  require(min_confidence >= 0 && min_confidence <= 1, "min_confidence must be within [0, 1]");
-  require(max_iterations >= 1, "max_iterations must be >= 1");
-  require(std::isfinite(nav_drift_fraction) && nav_drift_fraction > 0 && nav_drift_fraction < 1,
-          "nav_drift_fraction must be within (0, 1)");
-}
+void SwathAdjustmentConfig::validate() const { params::check(*this, "adjustment"); }
 
 Eigen::Vector3d SwathAdjustment::correction(int s, double t) const {
   Eigen::Vector3d c = offsets.at(static_cast<std::size_t>(s));

@@ -22,17 +22,6 @@ namespace sonar3d {
 namespace fs = std::filesystem;
 
 // Defaults: the library configs' (what each command starts from).
-SurveyMapOptions::SurveyMapOptions() {
-  const MapSurveyConfig c;
-  resolution = c.cell_m;
-  voxel_size = c.carve.voxel_size;
-  search = c.registration.search_m;
-  method = to_string(c.method);
-  piece = c.piece_m;
-  turn_deg = std::round(c.split.turn_threshold_rad * 180 / M_PI * 1e9) / 1e9;  // 30, not 29.99…
-  threads = c.carve.num_threads;
-}
-
 SurveyTextureOptions::SurveyTextureOptions() {
   const TextureConfig c;
   point_spacing = c.point_spacing_m;
@@ -165,11 +154,11 @@ std::string stage_yaml(const Opts& opts) {
 
 std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
   if (stage == "import") return stage_yaml(c.import);
-  if (stage == "map") return stage_yaml(c.map);
-  // The recognition's and the world's own declarations (core/params.hpp): the keys of their
-  // commands' --print-config.
+  // The map's, the recognition's and the world's own declarations (core/params.hpp): the keys of
+  // their commands' --print-config.
   if (stage == "recognize") return params_yaml(c.recognize);
   if (stage == "world") return params_yaml(c.world);
+  if (stage == "map") return params_yaml(c.map);
   if (stage == "texture") return stage_yaml(c.texture);
   if (stage == "report") return stage_yaml(c.report);
   throw Error("no survey stage '" + stage + "'");
@@ -185,7 +174,9 @@ SurveyConfig load_survey_config(const std::string& path) {
   yaml::check_keys(root, {"import", "map", "recognize", "world", "texture", "report"}, path);
   const fs::path base = fs::absolute(fs::path(path)).parent_path();
   load_stage(root, "import", path, base, c.import);
-  load_stage(root, "map", path, base, c.map);
+  if (const YAML::Node n = root["map"]; n && !n.IsNull()) {
+    params::read_yaml(n, path, "map", c.map);
+  }
   if (const YAML::Node n = root["recognize"]; n && !n.IsNull()) {
     params::read_yaml(n, path, "recognize", c.recognize);
   }

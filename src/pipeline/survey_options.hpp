@@ -40,20 +40,6 @@ void visit(SurveyImportOptions& o, V& v) {
 }
 
 template <class V>
-void visit(SurveyMapOptions& o, V& v) {
-  v("resolution", o.resolution);
-  v("voxel_size", o.voxel_size);
-  v("roi", o.roi);
-  v("search", o.search);
-  v("method", o.method);
-  v("piece", o.piece);
-  v("turn_deg", o.turn_deg);
-  v("swath_times", o.swath_times);
-  v("threads", o.threads);
-  v("max_memory", o.max_memory);
-}
-
-template <class V>
 void visit(SurveyTextureOptions& o, V& v) {
   v("point_spacing", o.point_spacing);
   v("depth_tolerance", o.depth_tolerance);

@@ -469,29 +469,11 @@ void Survey::do_import(SurveyStageReport& r) {
 
 void Survey::do_map(SurveyStageReport& r) {
   const SurveyMapOptions& c = o_.config.map;
-  MapSurveyConfig cfg;
-  cfg.cell_m = c.resolution;
-  cfg.carve.voxel_size = c.voxel_size;
-  cfg.registration.search_m = c.search;
-  cfg.method = swath_adjust_method_from_string(c.method);
-  cfg.piece_m = c.piece;
-  cfg.carve.num_threads = c.threads;
-  cfg.registration.num_threads = c.threads;
-  cfg.split.turn_threshold_rad = c.turn_deg * M_PI / 180.0;
-  if (!c.roi.empty()) {
-    require(c.roi.size() == 6, "map.roi: give xmin ymin zmin xmax ymax zmax (6 numbers)");
-    const Eigen::AlignedBox3d box(Eigen::Vector3d(c.roi[0], c.roi[1], c.roi[2]),
-                                  Eigen::Vector3d(c.roi[3], c.roi[4], c.roi[5]));
-    validate_region(box, "map.roi");
-    cfg.carve.region = box;
-  }
-  require(c.swath_times.size() % 2 == 0, "map.swath_times: give pairs of times (t0 t1 per swath)");
-  for (std::size_t k = 0; k + 1 < c.swath_times.size(); k += 2) {
-    cfg.split.time_ranges.emplace_back(c.swath_times[k], c.swath_times[k + 1]);
-  }
-  require(c.max_memory >= 0, "map.max_memory must be >= 0 GB");
+  MapSurveyConfig cfg = c.map;
+  cfg.registration.num_threads = cfg.carve.num_threads;
+  cfg.validate();
   const Dataset ds = read_dataset(dataset_);
-  const double limit = c.max_memory > 0 ? c.max_memory * 1e9 : default_memory_limit_bytes();
+  const double limit = c.max_memory_gb > 0 ? c.max_memory_gb * 1e9 : default_memory_limit_bytes();
   check_memory(estimate_map_survey_memory(ds, cfg, limit), limit, "survey (map)");
   const fs::path s = staging("map");
   const MapSurveyResult m = map_survey(ds, cfg, s / "map", o_.progress);
@@ -509,7 +491,7 @@ void Survey::do_map(SurveyStageReport& r) {
     r.figures.emplace_back("navigation_error_before_m", m.navigation_before.rigid_m);
     r.figures.emplace_back("navigation_error_after_m", m.navigation_after.rigid_m);
   }
-  r.note = fmt::format("{} method", c.method);
+  r.note = fmt::format("{} method", to_string(cfg.method));
 }
 
 // ---- recognise ---------------------------------------------------------------------------------

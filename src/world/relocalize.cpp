@@ -127,6 +127,7 @@ nlohmann::json matrix_json(const Eigen::Isometry3d& T) {
 
 void RelocalizeConfig::validate() const {
   params::check(*this, "relocalize");
+  split.validate();
   registration.validate();
   require(registration.search_m >= registration.cell_m,
           "relocalize: registration.search_m must be at least one cell (registration.cell_m)");
@@ -317,9 +318,7 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
   result.world = world.dir;
   result.world_points = world.cloud.size();
 
-  SwathSplitConfig split;
-  split.turn_threshold_rad = config.turn_deg * kDeg;
-  const std::vector<std::pair<int, int>> ranges = split_swaths(dataset, split);
+  const std::vector<std::pair<int, int>> ranges = split_swaths(dataset, config.split);
 
   ChangeRegistrationConfig reg = config.registration;
   reg.num_threads = config.num_threads;

@@ -259,6 +259,7 @@ PlacementsFile read_placements(const std::string& path) {
 
 void SeabedConfig::validate() const {
   params::check(*this, "seabed");
+  require(!lod_cells_m.empty(), "seabed.lod_cells_m must hold at least one value");
   require(lod_cells_m.size() <= 8, "seabed.lod_cells_m: at most 8 levels of detail");
   for (std::size_t k = 1; k < lod_cells_m.size(); ++k) {
     const double f = lod_cells_m[k] / lod_cells_m[k - 1];

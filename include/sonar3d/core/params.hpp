@@ -118,7 +118,8 @@ constexpr Param param(const char* key, const char* unit, const char* help) {
 // An optional world-frame box (a region of interest): absent = unbounded.
 using Box = std::optional<Eigen::AlignedBox3d>;
 
-// A list of numbers (the seabed's levels of detail, say): each element within the field's bounds.
+// A list of numbers (the seabed's levels of detail, say): each element within the field's bounds;
+// whether it may be empty is the config's validate() to say.
 using List = std::vector<double>;
 
 // An optional number: absent ("none" in YAML and the reference, null in JSON, None in Python)
@@ -240,11 +241,7 @@ struct BoundsCheck : PathVisitor<BoundsCheck> {
                     box_text(value));
       }
     } else if constexpr (std::is_same_v<T, List>) {
-      if (value.empty()) {
-        throw Error((where.empty() ? std::string() : where + " ") + join(prefix, p.key) +
-                    (p.cli ? std::string(" (") + p.cli + ")" : std::string()) +
-                    " must hold at least one value");
-      }
+      // An empty list is the config's to judge (validate()): "none" for some, an error for others.
       for (const double v : value) {
         if (!in_bounds(p, v)) throw_out_of_bounds(where, join(prefix, p.key), p, v);
       }

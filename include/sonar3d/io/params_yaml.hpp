@@ -107,9 +107,10 @@ struct YamlReader : PathVisitor<YamlReader> {
       }
       value = b;
     } else if constexpr (std::is_same_v<T, List>) {
-      // [a, b, ...]: at least one finite number, each within the field's bounds
-      if (!n.IsSequence() || n.size() == 0 || n.size() > 1000) {
-        throw Error(at + ": expected a list of 1 to 1000 numbers" +
+      // [a, b, ...]: finite numbers, each within the field's bounds (whether the list may be
+      // empty is the config's validate() to say)
+      if (!n.IsSequence() || n.size() > 1000) {
+        throw Error(at + ": expected a list of at most 1000 numbers" +
                     (*p.unit ? " (" + std::string(p.unit) + ")" : std::string()));
       }
       List l;

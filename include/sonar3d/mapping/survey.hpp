@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sonar3d/core/mpi.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/eval/metrics.hpp"
@@ -31,14 +32,16 @@ enum class SwathAdjustMethod {
   Drift         // every overlapping pair, piece by piece: a drift rate per swath as well
 };
 
+inline constexpr const char* kSwathAdjustMethodNames[] = {"consecutive", "global",
+                                                          "drift"};  // by SwathAdjustMethod
 const char* to_string(SwathAdjustMethod method);  // "consecutive", "global", "drift"
 // Throws Error naming the choices.
 SwathAdjustMethod swath_adjust_method_from_string(const std::string& name);
 
 struct SwathSplitConfig {
   // A new swath starts where the direction of travel turns by more than this from the current
-  // swath's (the turns of a lawnmower), rad.
-  double turn_threshold_rad = 30.0 * 3.14159265358979323846 / 180.0;
+  // swath's (the turns of a lawnmower), degrees.
+  double turn_threshold_deg = 30;
   // Where the track bends tighter than this radius of curvature (measured over 1 m of track
   // either side of a frame) the vehicle is turning: those frames belong to no swath, m.
   double straight_radius_m = 20.0;
@@ -46,11 +49,37 @@ struct SwathSplitConfig {
   // Straight runs shorter than this fraction of the survey's longest run (the legs across the
   // lines inside wide turns) belong to no swath.
   double min_length_fraction = 0.25;
-  // Alternatively, explicit swaths as [t0, t1] time ranges (s); when set, turns are not searched.
-  std::vector<Eigen::Vector2d> time_ranges;
+  // Alternatively, explicit swaths as time ranges t0 t1 [t0 t1 ...] (s); when set, turns are not
+  // searched.
+  params::List time_ranges_s;
 
   void validate() const;
 };
+
+// The one declaration of SwathSplitConfig's fields (core/params.hpp).
+template <class V>
+void describe(SwathSplitConfig& c, V& v) {
+  using params::param;
+  v.field(c.turn_threshold_deg, param("turn_threshold_deg", "deg",
+                                      "a new swath starts where the track turns by more than this")
+                                    .range_open(0, 180)
+                                    .flag("--turn-deg"));
+  v.field(c.straight_radius_m,
+          param("straight_radius_m", "m",
+                "where the track bends tighter than this radius the vehicle is turning: those "
+                "frames belong to no swath")
+              .positive());
+  v.field(c.min_frames, param("min_frames", "", "shorter runs belong to no swath").at_least(2));
+  v.field(c.min_length_fraction,
+          param("min_length_fraction", "",
+                "straight runs shorter than this fraction of the longest belong to no swath")
+              .range(0, 1));
+  v.field(c.time_ranges_s,
+          param("time_ranges_s", "s",
+                "explicit swaths instead of turns: t0 t1 [t0 t1 ...], each pair a swath's time "
+                "range")
+              .flag("--swath-times"));
+}
 
 // Known structure poses (issue 26 item 3). A structure recognised in a map of this survey
 // (`sonar3d recognize`'s placements: the model frame's origin), in the frame of the map it was
@@ -106,6 +135,65 @@ struct MapSurveyConfig {
 
   void validate() const;
 };
+
+// The one declaration of MapSurveyConfig's settings (core/params.hpp): `sonar3d map`'s flags,
+// --print-config and --config, the survey's `map:` block and Python's MapSurveyConfig. The
+// inputs (fixes, recognised structures, known poses) are files the command reads, not settings.
+// The carving's voxel size, region and threads are the map's; the registration runs on the
+// carving's threads.
+template <class V>
+void describe(MapSurveyConfig& c, V& v) {
+  using params::param;
+  v.field(c.cell_m, param("cell_m", "m", "elevation map cell").positive().flag("--resolution"));
+  v.field(c.carve.voxel_size,
+          param("voxel_size", "m", "carving voxel edge").range(1e-5, 1e3).flag("--voxel-size"));
+  v.field(c.carve.region,
+          param("region", "m", "world-frame region to carve (none = all the sonar sees)")
+              .flag("--roi"));
+  v.field(c.method, param("method", "",
+                          "consecutive (the thesis: each swath against the previous), global "
+                          "(every overlapping pair, one robust adjustment of swath offsets) or "
+                          "drift (every overlapping pair piece by piece, a drift rate per swath "
+                          "as well)")
+                        .choices(kSwathAdjustMethodNames)
+                        .equation("sec. 6.2.2")
+                        .flag("--method"));
+  v.field(c.piece_m, param("piece_m", "m", "drift method: length of the swath pieces registered")
+                         .positive()
+                         .flag("--piece"));
+  v.field(
+      c.carve.num_threads,
+      param("num_threads", "", "worker threads (0 = all cores)").non_negative().flag("--threads"));
+  v.field(c.fix_scale_heading,
+          param("fix_scale_heading", "",
+                "with fixes or known poses: estimate the navigation's scale error and heading "
+                "bias (else the map is placed by a shift only)")
+              .flag("--fixes-shift-only"));
+  v.field(c.fix_gate_sigma,
+          param("fix_gate_sigma", "",
+                "a fix or known pose whose residual after the adjustment exceeds this many "
+                "standard deviations (1-D equivalent probability) is rejected and reported")
+              .positive()
+              .flag("--fix-gate"));
+  v.field(c.known_pose_sigma_m,
+          param("known_pose_sigma_m", "m",
+                "standard deviation of a recognised structure against its known pose, per "
+                "horizontal axis")
+              .range_open_low(0, kMaxFixSigma)
+              .flag("--known-pose-sigma"));
+  v.field(c.known_pose_match_m,
+          param("known_pose_match_m", "m",
+                "a recognised structure matches a known pose of its model within this "
+                "horizontal distance")
+              .positive()
+              .flag("--known-pose-radius"));
+  v.group("split", c.split);
+  params::Nested<SwathRegistrationConfig> registration{c.registration};
+  v.group("registration", registration);
+  v.group("adjustment", c.adjustment);
+  params::Nested<CarveConfig> carve{c.carve};
+  v.group("carve", carve);
+}
 
 struct SwathInfo {
   int first_frame = 0, last_frame = 0;  // inclusive, dataset frame indices

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 
 namespace sonar3d {
@@ -34,6 +35,45 @@ struct SwathRegistrationConfig {
 
   void validate() const;  // throws Error naming the parameter
 };
+
+// The one declaration of SwathRegistrationConfig's fields (core/params.hpp). A config that sets
+// the threads itself (field mapping) describes it as Nested<SwathRegistrationConfig>.
+template <class V>
+void describe_swath_registration_own(SwathRegistrationConfig& c, V& v) {
+  using params::param;
+  v.field(c.search_m,
+          param("search_m", "m", "half-width of the searched shifts (East, North) between two maps")
+              .non_negative()
+              .equation("sec. 6.2.2.1, eq. 6.1-6.2")
+              .flag("--search"));
+  v.field(c.min_overlap_cells,
+          param("min_overlap_cells", "", "fewer cells defined in both maps: no tie")
+              .at_least(1)
+              .flag("--min-overlap-cells"));
+  v.field(c.subcell, param("subcell", "",
+                           "refine the best shift to a tenth of a cell on the bilinearly "
+                           "interpolated reference (beyond the thesis)"));
+  v.field(c.overlap_full_cells,
+          param("overlap_full_cells", "",
+                "a tie's confidence is scaled down when the overlap has fewer cells than this")
+              .at_least(1));
+  v.field(c.coarse_factor, param("coarse_factor", "",
+                                 "search on maps this many times coarser, then around the "
+                                 "winner at map resolution (1 = the thesis' exhaustive search)")
+                               .range(1, 64)
+                               .flag("--coarse-factor"));
+}
+template <class V>
+void describe(SwathRegistrationConfig& c, V& v) {
+  describe_swath_registration_own(c, v);
+  v.field(c.num_threads, params::param("num_threads", "", "worker threads (0 = all cores)")
+                             .non_negative()
+                             .flag("--threads"));
+}
+template <class V>
+void describe(params::Nested<SwathRegistrationConfig>& n, V& v) {
+  describe_swath_registration_own(n.c, v);
+}
 
 struct SwathTie {
   int reference = -1, moving = -1;              // swath indices (A, B)
@@ -86,6 +126,27 @@ struct SwathAdjustmentConfig {
 
   void validate() const;
 };
+
+// The one declaration of SwathAdjustmentConfig's fields (core/params.hpp).
+template <class V>
+void describe(SwathAdjustmentConfig& c, V& v) {
+  using params::param;
+  v.field(c.loss_scale_m,
+          param("loss_scale_m", "m",
+                "robust loss scale (Cauchy): ties that disagree with the others by much more "
+                "than this are down-weighted")
+              .positive());
+  v.field(c.min_confidence,
+          param("min_confidence", "", "ties below this confidence are left out").range(0, 1));
+  v.field(c.max_iterations,
+          param("max_iterations", "", "iterations of the least-squares solver").at_least(1));
+  v.field(c.nav_drift_fraction,
+          param("nav_drift_fraction", "",
+                "drift method: the navigation drifts by about this fraction of the distance "
+                "travelled (the thesis: about 1 %); bounds a swath's drift rate and its change "
+                "across a turn")
+              .range_open(0, 1));
+}
 
 // Absolute references (issue 26): a position fix as the adjustment sees it. mapping/survey.cpp
 // builds these from io's PositionFix and the navigation.

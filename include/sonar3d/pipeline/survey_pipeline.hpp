@@ -29,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/world/world_model.hpp"
 
@@ -66,19 +67,21 @@ struct SurveyImportOptions {
   std::string sensor, image_key, pose_key = "PoseSensor", python;
 };
 
-struct SurveyMapOptions {  // sonar3d map (defaults: MapSurveyConfig's)
-  SurveyMapOptions();
-  double resolution = 0.02;         // elevation map cell, m
-  double voxel_size = 0.02;         // carving voxel edge, m
-  std::vector<double> roi;          // xmin ymin zmin xmax ymax zmax, m; empty: all
-  double search = 0.5;              // half-width of the searched swath shifts, m
-  std::string method = "global";    // consecutive, global or drift
-  double piece = 10;                // drift: swath piece length, m
-  double turn_deg = 30;             // a new swath where the track turns more, degrees
-  std::vector<double> swath_times;  // explicit swaths t0 t1 [t0 t1 ...], s
-  int threads = 0;                  // 0: all cores
-  double max_memory = 0;            // GB; 0: the default limit
+// sonar3d map: its configuration (the keys of `sonar3d map --print-config`), plus its memory
+// limit.
+struct SurveyMapOptions {
+  MapSurveyConfig map;
+  double max_memory_gb = 0;  // 0: the default limit
 };
+template <class V>
+void describe(SurveyMapOptions& o, V& v) {
+  describe(o.map, v);  // the map's own keys, at the stage's level
+  v.field(o.max_memory_gb,
+          params::param("max_memory_gb", "GB",
+                        "refuse to start when the map's estimated memory exceeds this (0 = the "
+                        "default limit)")
+              .non_negative());
+}
 
 // sonar3d world: its configuration (the keys of `sonar3d world --print-config`), plus the files
 // the command takes as options.

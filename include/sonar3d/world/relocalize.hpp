@@ -51,6 +51,7 @@
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/core/trajectory.hpp"
+#include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/world/change.hpp"
 
 namespace sonar3d {
@@ -83,9 +84,9 @@ struct RelocalizeConfig {
   // again: the drift of the navigation along the line (a DVL scale error, a heading bias) is
   // fitted to them as a correction linear in time, and their agreement gives σ. 0: no pieces.
   double piece_m = 6;
-  double turn_deg = 30;   // a new swath starts where the track turns by more than this, degrees
-  int num_threads = 0;    // 0 = all cores
-  void validate() const;  // throws Error naming the parameter
+  SwathSplitConfig split;  // the new survey's swaths (as sonar3d map splits them)
+  int num_threads = 0;     // 0 = all cores
+  void validate() const;   // throws Error naming the parameter
 };
 
 template <class V>
@@ -114,10 +115,7 @@ void describe(RelocalizeConfig& c, V& v) {
                            "again: the drift along the line and sigma (0: no pieces)")
                          .non_negative()
                          .flag("--piece"));
-  v.field(c.turn_deg,
-          param("turn_deg", "deg", "a new swath starts where the track turns by more than this")
-              .range_open_low(0, 180)
-              .flag("--turn-deg"));
+  v.group("split", c.split);
   v.field(
       c.num_threads,
       param("num_threads", "", "worker threads (0 = all cores)").non_negative().flag("--threads"));
