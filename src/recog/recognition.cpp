@@ -2,6 +2,7 @@
 // acceptance, area removal.
 #include "sonar3d/recog/recognition.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
@@ -166,65 +167,73 @@ std::optional<BoundedShift> bounded_shift_search(const ElevationMap& ref,
       if (zs == zs) sm.emplace_back(zs, cell.z);
     }
   };
-  tbb::parallel_for(0, W * W, [&](int k) {
-    const int i = k % W - S, j = k / W - S;
+  // Each task keeps its buffers across the shifts it scores (one allocation per chunk).
+  tbb::parallel_for(tbb::blocked_range<int>(0, W * W), [&](const tbb::blocked_range<int>& range) {
     std::vector<float> d, g, ds;
-    d.reserve(cells.size());
-    for (const ShiftCell& cell : cells) {
-      const int r = cell.row - j, c = cell.col + i;
-      if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
-      const float zs = ref.at(r, c);
-      if (zs != zs) continue;
-      d.push_back(zs - cell.z);
-      if (cell.structure) ds.push_back(zs - cell.z);
-    }
-    if (d.size() < min_overlap || d.empty()) return;
-    Score& s = scores[static_cast<std::size_t>(k)];
-    g.reserve(ground.size());
-    for (const ShiftCell& cell : ground) {
-      const int r = cell.row - j, c = cell.col + i;
-      if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
-      const float zs = ref.at(r, c);
-      if (zs == zs) g.push_back(zs - cell.z);
-    }
-    // Height candidates: eq. 6.1's median over every compared cell; with a seabed, also the
-    // median and the upper quartile over the structure (a thin part that the scene shows
-    // narrower than the model: its top is the upper cells) and the model standing on the
-    // seabed, each held within the bounds. The one scoring best is kept.
-    std::array<double, 4> zetas;
-    std::size_t nz = 0;
-    zetas[nz++] = median_of(d);  // eq. 6.1
-    if (g.size() >= min_ground) {
-      const double zg = median_of(g);
-      s.seabed = static_cast<float>(base + zg);
-      zetas[nz++] = zg;
-      if (ds.size() >= min_structure) {
-        zetas[nz++] = median_of(ds);
-        const auto q = ds.begin() + static_cast<std::ptrdiff_t>(3 * (ds.size() - 1) / 4);
-        std::nth_element(ds.begin(), q, ds.end());
-        zetas[nz++] = *q;
-      }
-      for (std::size_t z = 0; z < nz; ++z) {
-        zetas[z] = std::clamp(zetas[z], zg - below_m, zg + above_m);
-      }
-    }
     std::vector<std::pair<float, float>> sm;
-    overlap(i, j, sm);
-    const double n = static_cast<double>(std::max<std::size_t>(1, sm.size()));
-    for (std::size_t z = 0; z < nz; ++z) {
-      const float zeta = static_cast<float>(zetas[z]);
-      double sum = 0, sum_t = 0;
-      for (const auto& [zs, zm] : sm) {
-        const double e = std::abs(zs - std::max(zm + zeta, s.seabed));
-        sum += e;
-        sum_t += std::min(e, truncate_m);
+    d.reserve(cells.size());
+    sm.reserve(cells.size());
+    g.reserve(ground.size());
+    for (int k = range.begin(); k < range.end(); ++k) {
+      const int i = k % W - S, j = k / W - S;
+      sm.clear();
+      d.clear();
+      ds.clear();
+      for (const ShiftCell& cell : cells) {
+        const int r = cell.row - j, c = cell.col + i;
+        if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
+        const float zs = ref.at(r, c);
+        if (zs != zs) continue;
+        sm.emplace_back(zs, cell.z);
+        d.push_back(zs - cell.z);
+        if (cell.structure) ds.push_back(zs - cell.z);
       }
-      const float score = static_cast<float>(sum_t / n), mean = static_cast<float>(sum / n);
-      if (z == 0 || score < s.score - 1e-6f ||
-          (std::abs(score - s.score) <= 1e-6f && mean < s.mean)) {
-        s.zeta = zeta;
-        s.mean = mean;
-        s.score = score;
+      if (d.size() < min_overlap || d.empty()) continue;
+      Score& s = scores[static_cast<std::size_t>(k)];
+      g.clear();
+      for (const ShiftCell& cell : ground) {
+        const int r = cell.row - j, c = cell.col + i;
+        if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
+        const float zs = ref.at(r, c);
+        if (zs == zs) g.push_back(zs - cell.z);
+      }
+      // Height candidates: eq. 6.1's median over every compared cell; with a seabed, also the
+      // median and the upper quartile over the structure (a thin part that the scene shows
+      // narrower than the model: its top is the upper cells) and the model standing on the
+      // seabed, each held within the bounds. The one scoring best is kept.
+      std::array<double, 4> zetas;
+      std::size_t nz = 0;
+      zetas[nz++] = median_of(d);  // eq. 6.1
+      if (g.size() >= min_ground) {
+        const double zg = median_of(g);
+        s.seabed = static_cast<float>(base + zg);
+        zetas[nz++] = zg;
+        if (ds.size() >= min_structure) {
+          zetas[nz++] = median_of(ds);
+          const auto q = ds.begin() + static_cast<std::ptrdiff_t>(3 * (ds.size() - 1) / 4);
+          std::nth_element(ds.begin(), q, ds.end());
+          zetas[nz++] = *q;
+        }
+        for (std::size_t z = 0; z < nz; ++z) {
+          zetas[z] = std::clamp(zetas[z], zg - below_m, zg + above_m);
+        }
+      }
+      const double n = static_cast<double>(std::max<std::size_t>(1, sm.size()));
+      for (std::size_t z = 0; z < nz; ++z) {
+        const float zeta = static_cast<float>(zetas[z]);
+        double sum = 0, sum_t = 0;
+        for (const auto& [zs, zm] : sm) {
+          const double e = std::abs(zs - std::max(zm + zeta, s.seabed));
+          sum += e;
+          sum_t += std::min(e, truncate_m);
+        }
+        const float score = static_cast<float>(sum_t / n), mean = static_cast<float>(sum / n);
+        if (z == 0 || score < s.score - 1e-6f ||
+            (std::abs(score - s.score) <= 1e-6f && mean < s.mean)) {
+          s.zeta = zeta;
+          s.mean = mean;
+          s.score = score;
+        }
       }
     }
   });
