@@ -303,6 +303,34 @@ TEST(RecogSearch4d, AnOpenFrameIsPlacedStandingOnTheSeabed) {
   EXPECT_LT(yaw_error_deg(yaw_of(r.T_world_model), 75 * kDeg, M_PI), 2.0);
 }
 
+// The bounded search's shifts coarse to fine (every second cell shift, then every shift about
+// the best of them and a descent) end where the exhaustive search ends: an open frame of thin
+// members (its score's basin is narrowest), searched from patches off its centre on both sides.
+TEST(RecogSearch4d, CoarseToFineShiftsEndWhereTheExhaustiveSearchEnds) {
+  const ModelTemplate frame = open_frame_template(3.0, 2.4, 1.6, 0.06);
+  const Eigen::Isometry3d truth = pose(4.02, 3.05, -0.03, 75);
+  const PointCloud cloud = synthetic_scene({{&frame, truth}}, 0, 0, 8, 6.5, 0.02, 0.003, 4);
+  ElevationMapConfig mc;
+  mc.cell_m = 0.08;
+  const ElevationMap coarse = elevation_map_from_points(cloud, mc);
+  mc.cell_m = 0.02;
+  const ElevationMap fine = elevation_map_from_points(cloud, mc);
+  const Eigen::Vector2d c_true =
+      (truth * Eigen::Vector3d(frame.center_xy.x(), frame.center_xy.y(), 0)).head<2>();
+  Search4dConfig exhaustive;
+  exhaustive.shift_stride = 1;
+  ASSERT_GT(Search4dConfig{}.shift_stride, 1);  // the default is coarse to fine
+  for (const Eigen::Vector2d& off : {Eigen::Vector2d(0.35, -0.3), Eigen::Vector2d(-0.5, 0.45)}) {
+    const Search4dResult a = search_4d(frame, coarse, fine, c_true + off, 0.16, {}, 0.5);
+    const Search4dResult b = search_4d(frame, coarse, fine, c_true + off, 0.16, exhaustive, 0.5);
+    ASSERT_TRUE(a.found && b.found);
+    expect_placed(frame, truth, a, 0.05, 0.05);
+    EXPECT_LT((a.T_world_model.translation() - b.T_world_model.translation()).norm(), 0.01)
+        << "patch offset " << off.transpose();
+    EXPECT_LT(yaw_error_deg(yaw_of(a.T_world_model), yaw_of(b.T_world_model), M_PI), 0.5);
+  }
+}
+
 // A thin upright buoy (13 cm wide, 0.9 m tall) buried 20 cm: on 8 cm cells its top is 2 × 2 or
 // 3 × 3 cells and its ring of seabed the majority. The thesis' median seats it on that ring (20 cm
 // too high, or its top sunk to the seabed beside it); bounded by the seabed, its height comes from

@@ -2,6 +2,7 @@
 // acceptance, area removal.
 #include "sonar3d/recog/recognition.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
@@ -145,7 +146,8 @@ std::optional<BoundedShift> bounded_shift_search(const ElevationMap& ref,
                                                  const std::vector<ShiftCell>& cells,
                                                  const std::vector<ShiftCell>& ground, float base,
                                                  int S, double below_m, double above_m,
-                                                 double truncate_m, std::size_t min_overlap) {
+                                                 double truncate_m, std::size_t min_overlap,
+                                                 int stride, int seeds) {
   const int W = 2 * S + 1;
   struct Score {
     float score = std::numeric_limits<float>::infinity(), mean = 0, zeta = 0;
@@ -166,68 +168,147 @@ std::optional<BoundedShift> bounded_shift_search(const ElevationMap& ref,
       if (zs == zs) sm.emplace_back(zs, cell.z);
     }
   };
-  tbb::parallel_for(0, W * W, [&](int k) {
-    const int i = k % W - S, j = k / W - S;
-    std::vector<float> d, g, ds;
-    d.reserve(cells.size());
-    for (const ShiftCell& cell : cells) {
-      const int r = cell.row - j, c = cell.col + i;
-      if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
-      const float zs = ref.at(r, c);
-      if (zs != zs) continue;
-      d.push_back(zs - cell.z);
-      if (cell.structure) ds.push_back(zs - cell.z);
-    }
-    if (d.size() < min_overlap || d.empty()) return;
-    Score& s = scores[static_cast<std::size_t>(k)];
-    g.reserve(ground.size());
-    for (const ShiftCell& cell : ground) {
-      const int r = cell.row - j, c = cell.col + i;
-      if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
-      const float zs = ref.at(r, c);
-      if (zs == zs) g.push_back(zs - cell.z);
-    }
-    // Height candidates: eq. 6.1's median over every compared cell; with a seabed, also the
-    // median and the upper quartile over the structure (a thin part that the scene shows
-    // narrower than the model: its top is the upper cells) and the model standing on the
-    // seabed, each held within the bounds. The one scoring best is kept.
-    std::array<double, 4> zetas;
-    std::size_t nz = 0;
-    zetas[nz++] = median_of(d);  // eq. 6.1
-    if (g.size() >= min_ground) {
-      const double zg = median_of(g);
-      s.seabed = static_cast<float>(base + zg);
-      zetas[nz++] = zg;
-      if (ds.size() >= min_structure) {
-        zetas[nz++] = median_of(ds);
-        const auto q = ds.begin() + static_cast<std::ptrdiff_t>(3 * (ds.size() - 1) / 4);
-        std::nth_element(ds.begin(), q, ds.end());
-        zetas[nz++] = *q;
+  // Scores the shifts listed in `todo` (indices k = (j + S)·W + i + S); each task keeps its
+  // buffers across the shifts it scores (one allocation per chunk).
+  std::vector<uint8_t> scored(static_cast<std::size_t>(W) * W, 0);
+  auto score_all = [&](const std::vector<int>& todo) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, todo.size()),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          std::vector<float> d, g, ds;
+          std::vector<std::pair<float, float>> sm;
+          d.reserve(cells.size());
+          sm.reserve(cells.size());
+          g.reserve(ground.size());
+          for (std::size_t t = range.begin(); t < range.end(); ++t) {
+            const int k = todo[t];
+            const int i = k % W - S, j = k / W - S;
+            sm.clear();
+            d.clear();
+            ds.clear();
+            for (const ShiftCell& cell : cells) {
+              const int r = cell.row - j, c = cell.col + i;
+              if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
+              const float zs = ref.at(r, c);
+              if (zs != zs) continue;
+              sm.emplace_back(zs, cell.z);
+              d.push_back(zs - cell.z);
+              if (cell.structure) ds.push_back(zs - cell.z);
+            }
+            if (d.size() < min_overlap || d.empty()) continue;
+            Score& s = scores[static_cast<std::size_t>(k)];
+            g.clear();
+            for (const ShiftCell& cell : ground) {
+              const int r = cell.row - j, c = cell.col + i;
+              if (r < 0 || c < 0 || r >= ref.rows || c >= ref.cols) continue;
+              const float zs = ref.at(r, c);
+              if (zs == zs) g.push_back(zs - cell.z);
+            }
+            // Height candidates: eq. 6.1's median over every compared cell; with a seabed, also the
+            // median and the upper quartile over the structure (a thin part that the scene shows
+            // narrower than the model: its top is the upper cells) and the model standing on the
+            // seabed, each held within the bounds. The one scoring best is kept.
+            std::array<double, 4> zetas;
+            std::size_t nz = 0;
+            zetas[nz++] = median_of(d);  // eq. 6.1
+            if (g.size() >= min_ground) {
+              const double zg = median_of(g);
+              s.seabed = static_cast<float>(base + zg);
+              zetas[nz++] = zg;
+              if (ds.size() >= min_structure) {
+                zetas[nz++] = median_of(ds);
+                const auto q = ds.begin() + static_cast<std::ptrdiff_t>(3 * (ds.size() - 1) / 4);
+                std::nth_element(ds.begin(), q, ds.end());
+                zetas[nz++] = *q;
+              }
+              for (std::size_t z = 0; z < nz; ++z) {
+                zetas[z] = std::clamp(zetas[z], zg - below_m, zg + above_m);
+              }
+            }
+            const double n = static_cast<double>(std::max<std::size_t>(1, sm.size()));
+            for (std::size_t z = 0; z < nz; ++z) {
+              const float zeta = static_cast<float>(zetas[z]);
+              double sum = 0, sum_t = 0;
+              for (const auto& [zs, zm] : sm) {
+                const double e = std::abs(zs - std::max(zm + zeta, s.seabed));
+                sum += e;
+                sum_t += std::min(e, truncate_m);
+              }
+              const float score = static_cast<float>(sum_t / n), mean = static_cast<float>(sum / n);
+              if (z == 0 || score < s.score - 1e-6f ||
+                  (std::abs(score - s.score) <= 1e-6f && mean < s.mean)) {
+                s.zeta = zeta;
+                s.mean = mean;
+                s.score = score;
+              }
+            }
+          }
+        });
+    for (const int k : todo) scored[static_cast<std::size_t>(k)] = 1;
+  };
+  auto better_k = [&](int a, int b) {  // shift a scores better than b (ties: the plain mean)
+    const Score &sa = scores[static_cast<std::size_t>(a)],
+                &sb = scores[static_cast<std::size_t>(b)];
+    if (!std::isfinite(sa.score)) return false;
+    if (!std::isfinite(sb.score)) return true;
+    return std::abs(sa.score - sb.score) > 1e-6f ? sa.score < sb.score : sa.mean < sb.mean;
+  };
+  std::vector<int> todo;
+  if (stride <= 1) {
+    // Every cell shift (eq. 6.9's exhaustive search).
+    for (int k = 0; k < W * W; ++k) todo.push_back(k);
+    score_all(todo);
+  } else {
+    // Coarse to fine: the shifts on a lattice of `stride` cells (and the window's edges), then
+    // every shift about the `seeds` best of them (the lattice cell around each), then a descent
+    // over the 8 neighbours of the best until none scores better. The score varies over a
+    // structure's width (a cell shift moves every compared cell by one cell), so the true shift's
+    // basin holds a lattice shift; docs/recognition.md gives the no-loss check on the benchmark.
+    auto on_lattice = [&](int i) { return i % stride == 0 || i == -S || i == S; };
+    for (int j = -S; j <= S; ++j) {
+      for (int i = -S; i <= S; ++i) {
+        if (on_lattice(i) && on_lattice(j)) todo.push_back((j + S) * W + i + S);
       }
-      for (std::size_t z = 0; z < nz; ++z) {
-        zetas[z] = std::clamp(zetas[z], zg - below_m, zg + above_m);
-      }
     }
-    std::vector<std::pair<float, float>> sm;
-    overlap(i, j, sm);
-    const double n = static_cast<double>(std::max<std::size_t>(1, sm.size()));
-    for (std::size_t z = 0; z < nz; ++z) {
-      const float zeta = static_cast<float>(zetas[z]);
-      double sum = 0, sum_t = 0;
-      for (const auto& [zs, zm] : sm) {
-        const double e = std::abs(zs - std::max(zm + zeta, s.seabed));
-        sum += e;
-        sum_t += std::min(e, truncate_m);
+    score_all(todo);
+    std::vector<int> order = todo;
+    const std::size_t n_seeds =
+        std::min<std::size_t>(order.size(), static_cast<std::size_t>(seeds));
+    std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n_seeds),
+                      order.end(),
+                      [&](int a, int b) { return better_k(a, b) || (!better_k(b, a) && a < b); });
+    auto around = [&](int k, int reach, std::vector<int>& list) {
+      const int i0 = k % W - S, j0 = k / W - S;
+      for (int dj = -reach; dj <= reach; ++dj) {
+        for (int di = -reach; di <= reach; ++di) {
+          const int i = i0 + di, j = j0 + dj;
+          if (i < -S || j < -S || i > S || j > S) continue;
+          const int kk = (j + S) * W + i + S;
+          if (!scored[static_cast<std::size_t>(kk)]) {
+            scored[static_cast<std::size_t>(kk)] = 2;  // queued
+            list.push_back(kk);
+          }
+        }
       }
-      const float score = static_cast<float>(sum_t / n), mean = static_cast<float>(sum / n);
-      if (z == 0 || score < s.score - 1e-6f ||
-          (std::abs(score - s.score) <= 1e-6f && mean < s.mean)) {
-        s.zeta = zeta;
-        s.mean = mean;
-        s.score = score;
-      }
+    };
+    todo.clear();
+    for (std::size_t q = 0; q < n_seeds; ++q) {
+      if (std::isfinite(scores[static_cast<std::size_t>(order[q])].score))
+        around(order[q], stride - 1, todo);
     }
-  });
+    score_all(todo);
+    for (;;) {
+      int cur = -1;
+      for (int k = 0; k < W * W; ++k) {
+        if (scored[static_cast<std::size_t>(k)] && (cur < 0 || better_k(k, cur))) cur = k;
+      }
+      if (cur < 0) break;
+      todo.clear();
+      around(cur, 1, todo);
+      if (todo.empty()) break;
+      score_all(todo);
+    }
+  }
   int best = -1;
   for (int k = 0; k < W * W; ++k) {
     const Score& s = scores[static_cast<std::size_t>(k)];
@@ -322,7 +403,8 @@ YawTrial best_yaw(const ModelTemplate& model, const ElevationMap& scene,
       const std::optional<BoundedShift> t = bounded_shift_search(
           ref, compared, ground, base, S, max_buried_fraction * h + config.seabed_slack_m,
           config.seabed_slack_m, config.truncate_m,
-          std::max<std::size_t>(1, static_cast<std::size_t>(0.5 * static_cast<double>(cells))));
+          std::max<std::size_t>(1, static_cast<std::size_t>(0.5 * static_cast<double>(cells))),
+          config.shift_stride, config.shift_seeds);
       if (t) {
         trials[k].t = t->t;
         trials[k].fit = t->fit;

@@ -57,6 +57,12 @@ struct Search4dConfig {
   // covers fewer of the scene's cells than this is searched on the fine map (refine_cell_m)
   // over the whole window: a 13 cm buoy has no shape on 8 cm cells.
   int min_coarse_cells = 16;
+  // With seabed_ring_m > 0, the shifts coarse to fine: every shift_stride-th cell shift of the
+  // window first, then every shift about the shift_seeds best of them and a descent to the best
+  // neighbour; shift_stride 1: every cell shift (exhaustive). Measured on the benchmark's seven
+  // fields: the same placements as the exhaustive search (docs/recognition.md, recog28e).
+  int shift_stride = 2;
+  int shift_seeds = 8;
   void validate() const;
 };
 template <class V>
@@ -105,6 +111,15 @@ void describe(Search4dConfig& c, V& v) {
                 "with seabed_ring_m > 0: models covering fewer scan cells are searched on the fine "
                 "map")
               .range(0, 1000000));
+  v.field(c.shift_stride,
+          param("shift_stride", "",
+                "with seabed_ring_m > 0: cell shifts scored first on this lattice, then about its "
+                "best (1: every shift)")
+              .range(1, 16)
+              .equation("eq. 6.9"));
+  v.field(
+      c.shift_seeds,
+      param("shift_seeds", "", "best lattice shifts refined at every cell shift").range(1, 1000));
 }
 
 struct Search4dResult {
