@@ -76,7 +76,7 @@ constexpr int kExplainMaxRounds = 4;      // rounds of explanation, then occlusi
 
 // One point in one return pixel of one frame. The geometry does not change between the
 // explanation's passes and rounds (only which points are alive and pinned does), so every frame's
-// hits are projected and sorted once (collect_hits) and each pass scans them.
+// hits are projected and sorted once (ReturnHits) and each pass scans them.
 struct Hit {
   std::uint32_t pixel;  // range bin · beams + beam
   float arc;            // r·θ (m): position along the pixel's elevation arc
@@ -86,74 +86,111 @@ struct Hit {
 constexpr std::uint32_t kInAperture = 0x80000000u;
 constexpr std::uint32_t kPointMask = 0x7fffffffu;
 
-// Per frame, the hits sorted by (pixel, arc); per point, in how many frames it lies in a return
-// pixel within the aperture (fixed: it depends on the point and the frame only).
-struct ReturnHits {
-  std::vector<std::vector<Hit>> frames;
-  std::vector<int> in_return;
-  std::size_t hits = 0;
-};
+// Frames' hits kept between passes up to this many bytes (the rest are projected again in each
+// pass): a large open lattice holds ~10^8 hits (12 B each; the 7 × 6 m lattice of
+// data/scenes/lattice_seafloor.yaml at 1 cm peaked at 2.0 GB with all of them kept).
+constexpr std::size_t kHitCacheBytes = std::size_t{256} << 20;
 
-ReturnHits collect_hits(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
-                        const detail::SonarGeometry& g, double voxel_size, double theta_lobe,
-                        tbb::task_arena& arena) {
-  const std::size_t n_points = points_world.size();
-  const std::vector<PointBlock> blocks = group_points(points_world, voxel_size);
-  auto outside_lobe = [&](const Eigen::Vector3d& c, double radius) {
-    const double d = c.norm();
-    if (d + radius < g.r_min || d - radius >= g.r_max) return true;
-    const double rho = std::sqrt(c.x() * c.x() + c.y() * c.y());
-    if (d <= 1.01 * radius || rho <= 1.01 * radius) return false;
-    const double alpha = std::asin(radius / d) + 1e-3;
-    if (std::abs(std::atan2(c.z(), rho)) - alpha > theta_lobe) return true;
-    const double beta = std::asin(radius / rho) + 1e-3, phi = std::atan2(c.y(), c.x());
-    return phi + beta < g.fov_min || phi - beta >= g.fov_max;
-  };
-  ReturnHits out;
-  out.frames.resize(frames.size());
-  std::unique_ptr<std::atomic<int>[]> in_return(new std::atomic<int>[n_points]);
-  for (std::size_t n = 0; n < n_points; ++n) in_return[n].store(0, std::memory_order_relaxed);
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
-      const FrameReturns& fr = frames[f];
-      const detail::FrameFootprint fp(g, fr);
-      std::vector<Hit> hits;
-      for (const PointBlock& b : blocks) {
-        if (outside_lobe(fp.to_sonar(b.centre), b.radius)) continue;
-        for (std::uint32_t n : b.points) {
-          const Eigen::Vector3d p = fp.to_sonar(points_world.points[n].cast<double>());
-          const double r2 = p.squaredNorm();
-          if (!(r2 > 0) || r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
-          const double r = std::sqrt(r2);
-          // The pixel first: most points lie in an empty one, and its test is cheaper than the
-          // elevation's atan2 (the same points pass both tests in either order).
-          const double phi = detail::fast_atan2(p.y(), p.x());
-          if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
-          const int j = g.beam(phi);
-          const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
-          if (!fr.has_return(i, j)) continue;
-          const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
-          const double theta = std::atan2(p.z(), rho);
-          if (std::abs(theta) > theta_lobe) continue;
-          const bool in_aperture = std::abs(theta) <= g.theta3;
-          if (in_aperture) in_return[n].fetch_add(1, std::memory_order_relaxed);
-          hits.push_back({static_cast<std::uint32_t>(i * g.beams + j),
-                          static_cast<float>(r * theta), n | (in_aperture ? kInAperture : 0u)});
+// Per frame, the hits sorted by (pixel, arc), kept while they fit kHitCacheBytes; per point, in
+// how many frames it lies in a return pixel within the aperture (fixed: it depends on the point
+// and the frame only).
+class ReturnHits {
+ public:
+  ReturnHits(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
+             const detail::SonarGeometry& g, double voxel_size, double theta_lobe,
+             tbb::task_arena& arena)
+      : points_(points_world),
+        frames_(frames),
+        g_(g),
+        theta_lobe_(theta_lobe),
+        blocks_(group_points(points_world, voxel_size)),
+        cache_(frames.size()),
+        cached_(frames.size(), 0) {
+    const std::size_t n_points = points_world.size();
+    std::unique_ptr<std::atomic<int>[]> counts(new std::atomic<int>[n_points]);
+    for (std::size_t n = 0; n < n_points; ++n) counts[n].store(0, std::memory_order_relaxed);
+    std::atomic<std::size_t> used{0};
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
+        std::vector<Hit> hits;
+        project(f, hits, counts.get());
+        // Which frames are kept depends on the threads' order; the passes' result does not.
+        const std::size_t bytes = hits.size() * sizeof(Hit);
+        if (used.fetch_add(bytes, std::memory_order_relaxed) + bytes <= kHitCacheBytes) {
+          hits.shrink_to_fit();
+          cache_[f] = std::move(hits);
+          cached_[f] = 1;
+        } else {
+          used.fetch_sub(bytes, std::memory_order_relaxed);
         }
-      }
-      std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
-        return a.pixel != b.pixel ? a.pixel < b.pixel : a.arc < b.arc;
       });
-      hits.shrink_to_fit();
-      out.frames[f] = std::move(hits);
     });
-  });
-  out.in_return.resize(n_points);
-  for (std::size_t n = 0; n < n_points; ++n)
-    out.in_return[n] = in_return[n].load(std::memory_order_relaxed);
-  for (const auto& h : out.frames) out.hits += h.size();
-  return out;
-}
+    in_return.resize(n_points);
+    for (std::size_t n = 0; n < n_points; ++n)
+      in_return[n] = counts[n].load(std::memory_order_relaxed);
+  }
+  std::size_t frames() const { return frames_.size(); }
+  // The hits of frame f: the cached ones, or projected into `scratch`.
+  const std::vector<Hit>& of(std::size_t f, std::vector<Hit>& scratch) const {
+    if (cached_[f]) return cache_[f];
+    scratch.clear();
+    project(f, scratch, nullptr);
+    return scratch;
+  }
+  std::vector<int> in_return;
+
+ private:
+  // Frame f's hits, sorted by (pixel, arc); counts the in-aperture ones per point when given.
+  void project(std::size_t f, std::vector<Hit>& hits, std::atomic<int>* counts) const {
+    const detail::SonarGeometry& g = g_;
+    const FrameReturns& fr = frames_[f];
+    const detail::FrameFootprint fp(g, fr);
+    auto outside_lobe = [&](const Eigen::Vector3d& c, double radius) {
+      const double d = c.norm();
+      if (d + radius < g.r_min || d - radius >= g.r_max) return true;
+      const double rho = std::sqrt(c.x() * c.x() + c.y() * c.y());
+      if (d <= 1.01 * radius || rho <= 1.01 * radius) return false;
+      const double alpha = std::asin(radius / d) + 1e-3;
+      if (std::abs(std::atan2(c.z(), rho)) - alpha > theta_lobe_) return true;
+      const double beta = std::asin(radius / rho) + 1e-3, phi = std::atan2(c.y(), c.x());
+      return phi + beta < g.fov_min || phi - beta >= g.fov_max;
+    };
+    for (const PointBlock& b : blocks_) {
+      if (outside_lobe(fp.to_sonar(b.centre), b.radius)) continue;
+      for (std::uint32_t n : b.points) {
+        const Eigen::Vector3d p = fp.to_sonar(points_.points[n].cast<double>());
+        const double r2 = p.squaredNorm();
+        if (!(r2 > 0) || r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
+        const double r = std::sqrt(r2);
+        // The pixel first: most points lie in an empty one, and its test is cheaper than the
+        // elevation's atan2 (the same points pass both tests in either order).
+        const double phi = detail::fast_atan2(p.y(), p.x());
+        if (!(phi >= g.fov_min) || !(phi < g.fov_max)) continue;
+        const int j = g.beam(phi);
+        const int i = std::min(static_cast<int>((r - g.r_min) * g.inv_dr), g.bins - 1);
+        if (!fr.has_return(i, j)) continue;
+        const double rho = std::sqrt(p.x() * p.x() + p.y() * p.y());
+        const double theta = std::atan2(p.z(), rho);
+        if (std::abs(theta) > theta_lobe_) continue;
+        const bool in_aperture = std::abs(theta) <= g.theta3;
+        if (in_aperture && counts) counts[n].fetch_add(1, std::memory_order_relaxed);
+        hits.push_back({static_cast<std::uint32_t>(i * g.beams + j), static_cast<float>(r * theta),
+                        n | (in_aperture ? kInAperture : 0u)});
+      }
+    }
+    std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+      return a.pixel != b.pixel ? a.pixel < b.pixel : a.arc < b.arc;
+    });
+  }
+
+  const PointCloud& points_;
+  const std::vector<FrameReturns>& frames_;
+  const detail::SonarGeometry& g_;
+  double theta_lobe_;
+  std::vector<PointBlock> blocks_;
+  std::vector<std::vector<Hit>> cache_;
+  std::vector<std::uint8_t> cached_;
+};
 
 // The explanation's passes over cached hits (see explain_returns() in recon/visibility.hpp):
 // `alive` (in: the points taking part; out: ghosts cleared) and `pinned` (out) index the points
@@ -167,6 +204,7 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
   // in one of them no other surface holds a pinned point.
   std::unique_ptr<std::atomic<int>[]> alone(new std::atomic<int>[n_points]);
   std::unique_ptr<std::atomic<std::uint8_t>[]> unexplained(new std::atomic<std::uint8_t>[n_points]);
+  tbb::enumerable_thread_specific<std::vector<Hit>> scratch;  // hits of frames not cached
   // One pass over every frame: per return pixel, the live points lying in it, split into surfaces
   // along the elevation arc. A surface alone in its pixel counts towards pinning its points
   // (`alone`); in a pixel holding several, a surface is explained away when another one holds a
@@ -177,8 +215,8 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
       unexplained[n].store(0, std::memory_order_relaxed);
     }
     arena.execute([&] {
-      tbb::parallel_for(std::size_t{0}, rh.frames.size(), [&](std::size_t f) {
-        const std::vector<Hit>& hits = rh.frames[f];
+      tbb::parallel_for(std::size_t{0}, rh.frames(), [&](std::size_t f) {
+        const std::vector<Hit>& hits = rh.of(f, scratch.local());
         const std::size_t H = hits.size();
         auto live = [&](std::size_t k) { return alive[hits[k].point & kPointMask] != 0; };
         for (std::size_t b = 0; b < H;) {
@@ -287,7 +325,7 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
   if (n_points == 0 || frames.empty()) return alive;
   const detail::SonarGeometry g(spec);
   tbb::task_arena arena = make_arena(config);
-  const ReturnHits rh = collect_hits(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  const ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
   std::vector<std::uint8_t> pinned;
   int iterations = 0;
   const std::size_t removed =
@@ -326,10 +364,11 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
   plain.explain_returns = false;
   const detail::SonarGeometry g(spec);
   tbb::task_arena arena = make_arena(config);
-  // The hits of every frame, projected and sorted once for all rounds: a round only removes
-  // points, so each pass skips the dead ones (issue 29: 3-5x the 50 ms/frame target when every
-  // pass projected every point into every frame again).
-  const ReturnHits rh = collect_hits(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  // The hits of every frame, projected and sorted once for all rounds (up to kHitCacheBytes;
+  // frames beyond are projected again in each pass): a round only removes points, so each pass
+  // skips the dead ones (issue 29: 3-5x the 50 ms/frame target when every pass projected every
+  // point into every frame again).
+  const ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
   const double gap = kExplainGapVoxels * config.voxel_size;
   std::vector<std::uint8_t> alive(points_world.size(), 1), pinned;
   for (int round = 0; round < kExplainMaxRounds; ++round) {
