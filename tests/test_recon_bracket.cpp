@@ -9,8 +9,8 @@
 
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
-#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/recon/bracketing.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/reference_objects.hpp"
