@@ -97,7 +97,9 @@ TEST_F(Cli, SimulateInfoPreviewNoiseEvaluate) {
 // A pass that stops short (the ball's top at 0.4 m, the pass ending at 0.3 m): the carving summary
 // warns and suggests the filters for the ghosts beyond it and inside open structures; once
 // --explain-returns is given, it no longer suggests it.
-TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
+// A pass that stops short turns the bracket filter on by default and says so (issue 29); with the
+// ghost filters switched off, the notes suggest them.
+TEST_F(Cli, ShortPassFiltersGhostsAndSaysSo) {
   write(kTmp / "scene.yaml", kScene);
   const fs::path ds = kTmp / "ds";
   ASSERT_EQ(run("simulate " + (kTmp / "scene.yaml").string() + " -o " + ds.string() + " -q").code,
@@ -108,11 +110,26 @@ TEST_F(Cli, ShortPassSuggestsTheGhostFilters) {
   // Warnings and notes on stderr, never on stdout (issue 29).
   EXPECT_NE(r.err.find("sonar3d: warning: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("stops short"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("sonar3d: note: --min-bracket 0.5 drops"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("--explain-returns with --min-bracket 0.5"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sonar3d: note: points bracketed below 0.50 were dropped"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("--no-auto-min-bracket"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("a pass stops short: the bracket filter at 0.50 kept"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("the return explanation dropped"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("--explain-returns"), std::string::npos) << r.err;
   EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
-  r = run(cmd + " --explain-returns --min-bracket 0.5 --overwrite");
+  // Both filters off (the defaults before issue 29): the notes suggest them.
+  r = run(cmd + " --no-auto-min-bracket --no-explain-returns --overwrite");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("sonar3d: note: --min-bracket 0.5 drops"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the return explanation (on unless --no-explain-returns)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.out.find("the return explanation dropped"), std::string::npos) << r.out;
+  // An explicit --min-bracket: no note.
+  r = run(cmd + " --min-bracket 0.5 --overwrite");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("stops short"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("note:"), std::string::npos) << r.err;

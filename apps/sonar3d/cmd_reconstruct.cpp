@@ -26,7 +26,8 @@ namespace {
 struct ReconstructCliOptions {
   std::string dataset, output, vdb, json;
   bool ascii = false, allow_empty = false, overwrite = false;
-  double max_memory_gb = 0;  // --max-memory (0 = the default limit)
+  bool explain_returns = false;  // --explain-returns: the default since issue 29, kept for scripts
+  double max_memory_gb = 0;      // --max-memory (0 = the default limit)
   std::unique_ptr<ConfigOptions<ReconstructConfig>> config;
 };
 
@@ -79,33 +80,43 @@ void print_bracketing(const ReconstructResult& r, const ReconstructConfig& cfg,
         br.median_bracket, 100.0 * br.unbracketed_share, br.sample_step,
         cfg.region ? " over --roi" : " over the points' box", bc.bracketed_level,
         100.0 * br.never_bracketed_share,
-        bc.min_bracket > 0 ? fmt::format("; --min-bracket {:.2f} kept {} of {} points",
-                                         bc.min_bracket, br.kept, br.points)
-                           : std::string(),
+        br.min_bracket > 0
+            ? fmt::format("; {} {:.2f} kept {} of {} points",
+                          br.min_bracket_auto ? "a pass stops short: the bracket filter at"
+                                              : "--min-bracket",
+                          br.min_bracket, br.kept, br.points)
+            : std::string(),
         br.seconds);
   }
   for (const auto& w : br.warnings()) print_warning(name_flags(w, flags));
-  if (!br.extensions.empty() && bc.min_bracket == 0) {
+  if (br.min_bracket_auto) {
+    print_note(fmt::format(
+        "points bracketed below {:.2f} were dropped since a pass stops short (the ghost arcs "
+        "beyond its end; docs/carving.md, \"Elevation bracketing\"); --no-auto-min-bracket keeps "
+        "them",
+        br.min_bracket));
+  } else if (!br.extensions.empty() && br.min_bracket == 0) {
     print_note(
         "--min-bracket 0.5 drops the points no frame saw from the other side of their "
         "elevation (measured: docs/carving.md, \"Elevation bracketing\")");
   }
   if (!br.extensions.empty() && cfg.method == "carve" && !cfg.carve.occlusion.explain_returns) {
     print_note(
-        "on an open structure, --explain-returns with --min-bracket 0.5 also drops the "
-        "ghosts inside it (measured at 20 degrees: 0-3.1 % outliers on the lattices of "
-        "docs/carving.md, \"Interior ghosts\", 3.8 % on a 7 x 6 m one with "
-        "--explain-pin-fraction 0.4), for an occlusion step 2 to 14 times longer");
+        "on an open structure, the return explanation (on unless --no-explain-returns) also "
+        "drops the ghosts inside it (docs/carving.md, \"Interior ghosts\")");
   }
 }
 
 // Refuses an empty cloud unless --allow-empty, saying why it is empty.
 void check_not_empty(const ReconstructResult& r, const ReconstructConfig& cfg, std::size_t frames) {
   if (!r.cloud.empty()) return;
-  const BracketConfig bc = cfg.effective_bracket();
   if (r.points_before_bracket > 0) {
-    throw Error("--min-bracket " + std::to_string(bc.min_bracket) + " kept none of the " +
-                std::to_string(r.points_before_bracket) +
+    const BracketReport& br = r.bracketing;
+    throw Error((br.min_bracket_auto
+                     ? "the bracket filter (at " + fmt::format("{:.2f}", br.min_bracket) +
+                           ", on since a pass stops short; --no-auto-min-bracket turns it off)"
+                     : "--min-bracket " + fmt::format("{:.2f}", br.min_bracket)) +
+                " kept none of the " + std::to_string(r.points_before_bracket) +
                 " points; lower it, or pass --allow-empty to write the empty cloud");
   }
   if (r.carve_stats) {
@@ -161,7 +172,7 @@ void print_carving(const ReconstructResult& r, const ReconstructConfig& cfg,
         peak_rss_bytes() / 1e6, r.integrate_peak_rss / 1e6);
   }
   if (cfg.carve.occlusion.explain_returns) {
-    fmt::print("  --explain-returns dropped {} points whose returns other surfaces explain\n",
+    fmt::print("  the return explanation dropped {} points whose returns other surfaces explain\n",
                st.ghosts);
   }
   if (st.min_observations_used < cfg.min_observations) {
@@ -244,6 +255,9 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
   // --print-config and --config.
   o->config = std::make_unique<ConfigOptions<ReconstructConfig>>(cmd);
   cmd->add_flag("--ascii", o->ascii, "write an ASCII PLY");
+  cmd->add_flag("--explain-returns", o->explain_returns,
+                "sets carve.occlusion.explain_returns to true: the default since issue 29 "
+                "(--no-explain-returns turns it off); kept for scripts, and over a --config file");
   cmd->add_flag("--allow-empty", o->allow_empty,
                 "write the cloud even when it has no point (by default an error, exit status 1)");
   cmd->add_option("--json", o->json,
@@ -259,7 +273,8 @@ void add_reconstruct(CLI::App& app, const GlobalOptions& g, Runner& run) {
     const FlagNames flags = reconstruct_flags(*o->config);
     run = [&g, o, flags]() -> int {
       return with_flag_names(flags, [&] {
-        const ReconstructConfig cfg = o->config->resolve("reconstruct");
+        ReconstructConfig cfg = o->config->resolve("reconstruct");
+        if (o->explain_returns) cfg.carve.occlusion.explain_returns = true;
         cfg.validate();  // a printed configuration is one that runs
         if (o->config->print_if_requested(cfg, "reconstruct", "reconstruct")) return 0;
         return run_reconstruct(*o, cfg, g, flags);

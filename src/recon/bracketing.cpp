@@ -201,6 +201,8 @@ std::string BracketReport::to_json() const {
   nlohmann::ordered_json j;
   j["points"] = points;
   j["kept"] = kept;
+  j["min_bracket"] = min_bracket;
+  j["min_bracket_auto"] = min_bracket_auto;
   j["median_bracket"] = median_bracket;
   j["region_samples"] = region_samples;
   j["sample_step"] = sample_step;
@@ -336,6 +338,9 @@ BracketReport assess_bracketing(PointCloud& cloud,
     }
 
     // Pass ends (the rule of docs/experiments.md: a pass runs 2·r·tan(A_v/2) past the surface).
+    // short_ends: per end that stops short and leads up or level, its extreme surface point and
+    // the way out (world).
+    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> short_ends;
     for (std::size_t p = 0; p < passes.size(); ++p) {
       Extreme up, down;
       upper.combine_each([&](const std::vector<Extreme>& v) {
@@ -374,6 +379,12 @@ BracketReport assess_bracketing(PointCloud& cloud,
           if (!any_inside) continue;
         }
         rep.extensions.push_back(x);
+        // The automatic filter looks beyond ends that lead into the water column only: below a
+        // pass that starts over the seabed lies the seabed, seen from above only — never
+        // bracketed, like a ghost, but real (ghost_half_buried.yaml, 20°, long passes: 8.1 %
+        // coverage when a short lower end turned the filter on everywhere, 48.5 % now;
+        // docs/carving.md, "Ghost removal by default").
+        if (x.direction.z() >= 0) short_ends.push_back({e.p, x.direction});
       }
     }
 
@@ -432,12 +443,28 @@ BracketReport assess_bracketing(PointCloud& cloud,
                            cloud.properties.end());
     cloud.properties.push_back({"bracket", bracket});
     cloud.properties.push_back({"views", views});
-    if (config.min_bracket > 0) {
+    // The filter: min_bracket everywhere; else, with auto_min_bracket, bracketed_level beyond
+    // each pass end that stops short (past its extreme surface along the way out), where its
+    // unbracketed ghost arcs lie — a seabed under the passes, seen from above only, stays.
+    rep.min_bracket = config.min_bracket;
+    if (rep.min_bracket == 0 && config.auto_min_bracket && !short_ends.empty()) {
+      rep.min_bracket = config.bracketed_level;
+      rep.min_bracket_auto = true;
+    }
+    auto beyond_short_end = [&](std::size_t i) {
+      const Eigen::Vector3d q = cloud.points[i].cast<double>();
+      for (const auto& [p, dir] : short_ends)
+        if ((q - p).dot(dir) > 0) return true;
+      return false;
+    };
+    if (rep.min_bracket > 0) {
       PointCloud kept;
       kept.properties = cloud.properties;
       for (auto& p : kept.properties) p.values.clear();
       for (std::size_t i = 0; i < n; ++i) {
-        if (bracket[i] < config.min_bracket) continue;
+        if (bracket[i] < rep.min_bracket && (!rep.min_bracket_auto || beyond_short_end(i))) {
+          continue;
+        }
         kept.points.push_back(cloud.points[i]);
         if (cloud.has_intensity()) kept.intensity.push_back(cloud.intensity[i]);
         for (std::size_t a = 0; a < kept.properties.size(); ++a)

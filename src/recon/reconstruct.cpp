@@ -56,6 +56,10 @@ DeconvConfig ReconstructConfig::effective_deconv() const {
 BracketConfig ReconstructConfig::effective_bracket() const {
   BracketConfig b = bracket;
   b.num_threads = num_threads;
+  // The automatic filter is carving's (issue 29, measured in docs/carving.md); deconvolution's
+  // voxel mode leaves the unbracketed candidates out of its unknowns itself
+  // (VoxelDeconvConfig::support_min_bracket) and the pass mode keeps its measured defaults.
+  if (method != "carve") b.auto_min_bracket = false;
   return b;
 }
 
@@ -63,6 +67,8 @@ ReconstructConfig ReconstructConfig::from_carve(const CarveConfig& c) {
   ReconstructConfig r;
   r.method = "carve";
   r.carve = c;
+  // A carving config alone keeps the thesis' output, as c.occlusion.explain_returns says.
+  r.bracket.auto_min_bracket = false;
   r.voxel_size = c.voxel_size;
   r.region = c.region;
   r.denoise = c.denoise;

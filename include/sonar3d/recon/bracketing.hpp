@@ -36,6 +36,11 @@ struct BracketConfig {
   // Drop output points whose bracket is below this (0 = keep all). A ghost arc beyond the end of
   // a pass is seen from one side only; a surface the pass covered is seen from both.
   double min_bracket = 0.0;
+  // When min_bracket is 0 and a pass stops short (a PassExtension: the data shows unbracketed
+  // space beyond a pass end, where ghost arcs lie), drop the points bracketed less than
+  // bracketed_level anyway (issue 29). Orbits and level approaches find no short pass and keep
+  // everything. Off here; a reconstruction's carving turns it on (ReconstructConfig).
+  bool auto_min_bracket = false;
   // A point (or region sample) counts as bracketed when its bracket is >= this; the summary
   // reports the share of the observed region below it.
   double bracketed_level = 0.5;
@@ -62,6 +67,12 @@ void describe_bracket_own(BracketConfig& c, V& v) {
                 "of the vertical aperture, 0 = from one side only; 0 = keep all)")
               .range(0, 1)
               .flag("--min-bracket"));
+  v.field(c.auto_min_bracket,
+          param("auto_min_bracket", "",
+                "when min_bracket is 0 and a pass stops short, drop the points bracketed less "
+                "than bracketed_level (the ghost arcs beyond its end)")
+              // The switch turns the default around (on in ReconstructConfig).
+              .flag(c.auto_min_bracket ? "--no-auto-min-bracket" : "--auto-min-bracket"));
   v.field(c.bracketed_level,
           param("bracketed_level", "", "a point counts as bracketed from this bracket on")
               .range_open_low(0, 1));
@@ -109,6 +120,8 @@ struct PassExtension {
 struct BracketReport {
   std::size_t points = 0;                     // points assessed
   std::size_t kept = 0;                       // after min_bracket
+  double min_bracket = 0;                     // the filter applied (0 = none)
+  bool min_bracket_auto = false;              // applied by auto_min_bracket (a pass stops short)
   std::size_t region_samples = 0;             // samples of the region seen by at least one frame
   double sample_step = 0;                     // m, spacing of the region samples
   double unbracketed_share = 0;               // of those: bracket < bracketed_level
@@ -132,7 +145,8 @@ std::vector<PointBracket> bracket_points(const std::vector<Eigen::Vector3f>& poi
                                          const SonarSpec& spec, int num_threads = 0);
 
 // Attaches the properties "bracket" and "views" to `cloud` (world frame), drops the points below
-// config.min_bracket, and measures the region (`region`, or the cloud's bounding box) and the
+// config.min_bracket (or, with auto_min_bracket and a pass that stops short, below
+// bracketed_level), and measures the region (`region`, or the cloud's bounding box) and the
 // passes. Throws Error on an invalid config or spec.
 BracketReport assess_bracketing(PointCloud& cloud,
                                 const std::vector<Eigen::Isometry3d>& T_world_sonar,

@@ -35,12 +35,24 @@ struct ReconstructConfig {
   int min_observations = 2;        // carving's observation filter (CarveConfig)
   bool resolve_occlusions = true;  // sec. 4.4.5 / 5.6.7.3
   int num_threads = 0;             // 0 = all cores; every step
-  CarveConfig carve;               // its shared fields are replaced by the above
-  DeconvConfig deconv;             // likewise; "deconv-l1"/"deconv-exact" set lambda / exact
+  // Its shared fields are replaced by the above. A reconstruction's carving drops interior ghosts
+  // by default (occlusion.explain_returns, issue 29; docs/carving.md, "Interior ghosts"); a
+  // CarveConfig alone (online maps, Python's carve()) keeps the thesis' rule.
+  CarveConfig carve = [] {
+    CarveConfig c;
+    c.occlusion.explain_returns = true;
+    return c;
+  }();
+  DeconvConfig deconv;  // likewise; "deconv-l1"/"deconv-exact" set lambda / exact
   // Every method's points get the properties "bracket" and "views" (recon/bracketing.hpp); the
   // report gains "bracketing" (never-bracketed share of the region, passes that stop short) and
-  // the notes a warning per short pass. bracket.min_bracket > 0 drops unbracketed points.
-  BracketConfig bracket;
+  // the notes a warning per short pass. bracket.min_bracket > 0 drops unbracketed points; so does
+  // bracket.auto_min_bracket, for carving, when a pass stops short (issue 29).
+  BracketConfig bracket = [] {
+    BracketConfig b;
+    b.auto_min_bracket = true;
+    return b;
+  }();
   bool progress = false;  // terminal bars (not a setting: how the caller shows work)
 
   // The configs each step runs with: the method group with the shared fields filled in.

@@ -92,8 +92,9 @@ struct OcclusionConfig {
 
 // The one declaration of OcclusionConfig's fields (core/params.hpp). As part of carving
 // (Nested<OcclusionConfig>), the voxel size and thread count are carving's.
+// `explain_flag` is the flag of explain_returns (nullptr: none).
 template <class V>
-void describe_occlusion_own(OcclusionConfig& c, V& v) {
+void describe_occlusion_own(OcclusionConfig& c, V& v, const char* explain_flag) {
   using params::param;
   v.field(c.elevation_resolution_rad,
           param("elevation_resolution_rad", "rad", "interval size along the vertical aperture")
@@ -120,7 +121,7 @@ void describe_occlusion_own(OcclusionConfig& c, V& v) {
           param("explain_returns", "",
                 "beyond the thesis: drop the points whose every return another surface explains "
                 "(interior ghosts of open structures, docs/carving.md)")
-              .flag("--explain-returns"));
+              .flag(explain_flag));
   v.field(c.explain_pin_fraction,
           param("explain_pin_fraction", "",
                 "with explain_returns: a point alone in its pixel in at least this fraction of "
@@ -133,12 +134,17 @@ void describe(OcclusionConfig& c, V& v) {
   using params::param;
   v.field(c.voxel_size,
           param("voxel_size", "m", "the final map keeps one point per voxel").positive());
-  describe_occlusion_own(c, v);
+  // A whole OcclusionConfig is deconvolution's (DeconvConfig::occlusion): its explanation is set
+  // in YAML or Python only; the flag is carving's.
+  describe_occlusion_own(c, v, nullptr);
   v.field(c.num_threads, param("num_threads", "", "worker threads (0 = all cores)").non_negative());
 }
 template <class V>
 void describe(params::Nested<OcclusionConfig>& n, V& v) {
-  describe_occlusion_own(n.c, v);
+  // Carving's: the switch turns the default around — a reconstruction's carving explains by
+  // default (ReconstructConfig, issue 29), a CarveConfig alone (map, survey) does not.
+  describe_occlusion_own(n.c, v,
+                         n.c.explain_returns ? "--no-explain-returns" : "--explain-returns");
 }
 
 // Occlusion resolution (sec. 4.4.5): for every frame, walks each beam from short to long range,
