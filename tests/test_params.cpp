@@ -14,6 +14,7 @@
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/change.hpp"
 #include "sonar3d/world/relocalize.hpp"
 #include "sonar3d/world/world_model.hpp"
@@ -92,6 +93,13 @@ std::string reference() {
       "takes them too); Python: `sonar3d.WorldModelConfig` and `sonar3d.world_model(points, "
       "placements, catalogue, config=cfg)` (docs/world.md).",
       params::rows(WorldModelConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "texture",
+      "`sonar3d texture --print-config` prints these under `texture:`: the colouring's settings "
+      "(Python: `sonar3d.TextureConfig`) and how the poses of `--neus`/`--colmap` relate to the "
+      "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
+      params::rows(TextureFilesConfig()));
   return out;
 }
 
