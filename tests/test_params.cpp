@@ -97,7 +97,8 @@ std::string reference() {
   out += params::reference_markdown(
       "texture",
       "`sonar3d texture --print-config` prints these under `texture:`: the colouring's settings "
-      "(Python: `sonar3d.TextureConfig`) and how the poses of `--neus`/`--colmap` relate to the "
+      "(Python: `sonar3d.TextureConfig`, `sonar3d.TexturePosesConfig`) and how the poses of "
+      "`--neus`/`--colmap` relate to the "
       "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
       params::rows(TextureFilesConfig()));
   return out;
