@@ -34,6 +34,7 @@ PACKAGES=(
   libopenmpi-dev openmpi-bin  # planner sweeps over MPI ranks
   chromium                    # headless browser test of `sonar3d report`
   strace                      # the test that atomic writes fsync before renaming
+  mkdocs                      # `make docs`: the documentation site (tests/docs_site.sh)
 )
 
 missing=()

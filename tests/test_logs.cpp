@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <utility>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
@@ -159,26 +160,52 @@ std::vector<ArisWriteFrame> aris_frames(const SimulatedPass& p, bool with_nav) {
 
 }  // namespace
 
-TEST(ArisTables, PublishedBeamTablesAreIncreasingAndSymmetric) {
+TEST(ArisTables, BearingsEqualSoundMetricsCurrentPublishedTables) {
+  // Spot values of every lens and beam count, read from the current tables of Sound Metrics'
+  // ARIS file SDK (approval files of SoundMetrics.Aris.BeamWidths.Tests): the outermost beams,
+  // the two either side of the boresight and one in between. The telephoto 48-beam and ARIS 3000
+  // tables are the revised ones (outer telephoto 48 beam at 7.339 deg, no longer 6.742).
   struct Case {
     ArisSystem s;
     bool tele;
     int beams;
-    double edge_deg;
+    std::vector<std::pair<int, double>> published_deg;
   };
-  for (const Case c :
-       {Case{ArisSystem::Aris1800, false, 48, 13.5735},
-        Case{ArisSystem::Aris1200, false, 48, 13.5735},
-        Case{ArisSystem::Aris1800, false, 96, 13.8759},
-        Case{ArisSystem::Aris3000, false, 64, 14.703},
-        Case{ArisSystem::Aris3000, false, 128, 14.705}, Case{ArisSystem::Aris1800, true, 48, 6.742},
-        Case{ArisSystem::Aris1800, true, 96, 7.419}}) {
+  const std::vector<std::pair<int, double>> std48 = {
+      {0, -13.5735}, {23, -0.3461}, {24, 0.3461}, {36, 8.0899}, {47, 13.5735}};
+  const std::vector<std::pair<int, double>> tele48 = {{0, -7.339}, {2, -6.744}, {23, -0.16},
+                                                      {24, 0.16},  {37, 4.29},  {47, 7.339}};
+  const std::vector<Case> cases = {
+      {ArisSystem::Aris1800, false, 48, std48},
+      {ArisSystem::Aris1200, false, 48, std48},
+      {ArisSystem::Aris1800,
+       false,
+       96,
+       {{0, -13.749}, {47, -0.1757}, {48, 0.1706}, {73, 8.315}, {95, 13.8759}}},
+      {ArisSystem::Aris3000,
+       false,
+       64,
+       {{0, -14.8872}, {31, -0.2389}, {32, 0.2389}, {47, 7.3742}, {63, 14.8872}}},
+      {ArisSystem::Aris3000,
+       false,
+       128,
+       {{0, -15.0068}, {63, -0.1196}, {64, 0.1194}, {100, 8.6812}, {127, 15.0156}}},
+      {ArisSystem::Aris1800, true, 48, tele48},
+      {ArisSystem::Aris1200, true, 48, tele48},
+      {ArisSystem::Aris1800,
+       true,
+       96,
+       {{0, -7.419}, {47, -0.08}, {48, 0.08}, {73, 4.055}, {95, 7.419}}}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(aris_system_name(c.s)) + (c.tele ? " telephoto " : " ") +
+                 std::to_string(c.beams));
     const std::vector<double> b = aris_beam_bearings(c.s, c.tele, c.beams);
     ASSERT_EQ(static_cast<int>(b.size()), c.beams);
-    EXPECT_NEAR(b.back(), c.edge_deg * kDeg, 1e-12);
+    for (const auto& [beam, deg] : c.published_deg) EXPECT_NEAR(b[beam], deg * kDeg, 1e-12);
     for (int j = 1; j < c.beams; ++j) EXPECT_GT(b[j], b[j - 1]);
     EXPECT_LT(std::abs(b.front() + b.back()), 0.2 * kDeg) << "centred on the boresight";
   }
+  expect_error([] { aris_beam_bearings(ArisSystem::Aris1200, false, 96); }, "publishes no beam");
   EXPECT_EQ(aris_beams_of_ping_mode(1), 48);
   EXPECT_EQ(aris_beams_of_ping_mode(3), 96);
   EXPECT_EQ(aris_beams_of_ping_mode(6), 64);

@@ -16,6 +16,7 @@
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/change.hpp"
 #include "sonar3d/world/relocalize.hpp"
 #include "sonar3d/world/world_model.hpp"
@@ -109,6 +110,14 @@ std::string reference() {
       "`sonar3d register --print-config` prints these under `register:`; Python: "
       "`sonar3d.SwathRegistrationConfig` and `sonar3d.register_elevation_maps(a, b, cfg)`.",
       params::rows(SwathRegistrationConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "texture",
+      "`sonar3d texture --print-config` prints these under `texture:`: the colouring's settings "
+      "(Python: `sonar3d.TextureConfig`, `sonar3d.TexturePosesConfig`) and how the poses of "
+      "`--neus`/`--colmap` relate to the "
+      "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
+      params::rows(TextureFilesConfig()));
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -25,6 +26,7 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/recog/catalogue.hpp"
@@ -685,7 +687,7 @@ TriangleMesh placed(TriangleMesh m, const Eigen::Matrix4d& T) {
 
 const char* kCatalogue =
     "models:\n  - name: tank\n    reference: tank\n    symmetry: full\n"
-    "  - name: sphere\n    reference: sphere\n    symmetry: full\n";
+    "  - name: sphere\n    reference: sphere\n    symmetry: full\n    expected: 2\n";
 
 class SceneReportTest : public ::testing::Test {
  protected:
@@ -970,7 +972,22 @@ TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
         {{"id", (*m)["id"]}, {"type", "mesh"}, {"count", (*m)["count"]}, {"visible", true}});
   }
   EXPECT_EQ(table_rows(d, "placements"), 3u);
-  EXPECT_EQ(s.num_table_rows, 3u);
+  // Per catalogue model, expected (the catalogue's `expected`) and found.
+  const json* per_model = nullptr;
+  for (const auto& t : d["tables"]) {
+    if (t["id"] == "models") per_model = &t;
+  }
+  ASSERT_NE(per_model, nullptr);
+  ASSERT_EQ((*per_model)["rows"].size(), 2u);
+  EXPECT_EQ((*per_model)["rows"][0],
+            json({"tank", nullptr, 2, "tank: 2 (expected count not given)"}));
+  EXPECT_EQ((*per_model)["rows"][1], json({"sphere", 2, 1, "sphere: 1 of 2"}));
+  bool card_found = false;
+  for (const auto& c : d["cards"]) {
+    if (c["k"] == "found of expected") card_found = c["v"] == "1 of 2";
+  }
+  EXPECT_TRUE(card_found) << d["cards"];
+  EXPECT_EQ(s.num_table_rows, 5u);
   // Same model, same colour; another model, another.
   EXPECT_EQ((*layer(d, "placement_0"))["color"], (*layer(d, "placement_1"))["color"]);
   EXPECT_NE((*layer(d, "placement_0"))["color"], (*layer(d, "placement_2"))["color"]);
@@ -983,6 +1000,121 @@ TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
                        {"focus", {{"table", "placements"}, {"layer", "placement_0"}}},
                        {"mode_change", false}};
   run_scene_browser_test(s.output, expect, "map");
+}
+
+// A map directory as `sonar3d map --method drift` writes it: summary.json's swaths (offsets,
+// drift rates) and ties become tables, and the dataset's navigation against
+// navigation_corrected.tum a picture (axes in metres, scale bar, north arrow) and the
+// correction's median and maximum.
+TEST_F(SceneReportTest, MapPageShowsSwathsTiesDriftAndTheNavigationCorrection) {
+  const fs::path dir = root_ / "map_drift", ds = root_ / "map_drift_dataset";
+  fs::create_directories(dir);
+  fs::create_directories(ds);
+  PointCloud cloud;
+  for (int i = 0; i < 50; ++i) cloud.points.emplace_back(0.2f * i, 0.1f * (i % 7), 0.0f);
+  write_ply((dir / "merged.ply").string(), cloud);
+  // Logged: 0.5 m/s east for 20 s; corrected: 0.1 m + 0.01 m/s · t further east.
+  Trajectory before, after;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = k;
+    before.push_back(t, Eigen::Isometry3d(Eigen::Translation3d(0.5 * t, 2.0, -1.0)));
+    after.push_back(t,
+                    Eigen::Isometry3d(Eigen::Translation3d(0.5 * t + 0.1 + 0.01 * t, 2.0, -1.0)));
+  }
+  write_tum((ds / "navigation.tum").string(), before);
+  write_tum((dir / "navigation_corrected.tum").string(), after);
+  const json summary = {{"dataset", ds.string()},
+                        {"method", "drift"},
+                        {"swaths",
+                         {{{"frames", {0, 99}},
+                           {"time_s", {0.0, 10.0}},
+                           {"points", 1200},
+                           {"map_cells", 300},
+                           {"offset_m", {0.1, 0.0, 0.0}},
+                           {"seconds", 0.5},
+                           {"rate_mps", {0.01, -0.002}}},
+                          {{"frames", {100, 199}},
+                           {"time_s", {10.0, 20.0}},
+                           {"points", 1100},
+                           {"map_cells", 280},
+                           {"offset_m", {0.2, 0.0, 0.01}},
+                           {"seconds", 0.4},
+                           {"rate_mps", {0.01, 0.003}}}}},
+                        {"ties",
+                         {{{"reference", 0},
+                           {"moving", 1},
+                           {"shift_m", {0.1, 0.0, 0.01}},
+                           {"score_m", 0.02},
+                           {"overlap_cells", 150},
+                           {"confidence", 0.9},
+                           {"used", true},
+                           {"residual_m", 0.004},
+                           {"seconds", 0.1},
+                           {"time_reference_s", 5.0},
+                           {"time_moving_s", 15.0}},
+                          {{"reference", 1},
+                           {"moving", 0},
+                           {"shift_m", {-0.1, 0.0, 0.0}},
+                           {"score_m", 0.05},
+                           {"overlap_cells", 40},
+                           {"confidence", 0.2},
+                           {"used", false},
+                           {"residual_m", 0.03},
+                           {"seconds", 0.1}}}}};
+  write_text_file((dir / "summary.json").string(), summary.dump(2));
+  const ReportSummary s = write_report(dir, config());
+  const json d = embedded_data(read_text_file(s.output.string()));
+  const json* swaths = nullptr;
+  const json* ties = nullptr;
+  for (const auto& t : d["tables"]) {
+    if (t["id"] == "swaths") swaths = &t;
+    if (t["id"] == "ties") ties = &t;
+  }
+  ASSERT_NE(swaths, nullptr);
+  ASSERT_NE(ties, nullptr);
+  ASSERT_EQ((*swaths)["rows"].size(), 2u);
+  EXPECT_EQ((*swaths)["rows"][1],
+            json({1, 100, 199, 10.0, 20.0, 1100, 0.2, 0.0, 0.01, 0.01, 0.003}));
+  EXPECT_NE((*swaths)["title"].get<std::string>().find("drift rates"), std::string::npos);
+  EXPECT_EQ((*swaths)["columns"][9], "drift rate x [m/s]");
+  ASSERT_EQ((*ties)["rows"].size(), 2u);
+  EXPECT_EQ((*ties)["rows"][0],
+            json({0, 1, 5.0, 15.0, 0.1, 0.0, 0.01, 0.02, 150, 0.9, "yes", 0.004}));
+  EXPECT_EQ((*ties)["rows"][1][10], "no");
+  std::map<std::string, json> cards;
+  for (const auto& c : d["cards"]) cards[c["k"].get<std::string>()] = c["v"];
+  EXPECT_EQ(cards["ties used"], "1 of 2");
+  EXPECT_EQ(cards["map method"], "drift");
+  // The correction grows from 0.1 m (t = 0) to 0.3 m (t = 20); its median is at t = 10.
+  EXPECT_NEAR(cards["navigation correction, median [m]"].get<double>(), 0.2, 1e-9);
+  EXPECT_NEAR(cards["navigation correction, max [m]"].get<double>(), 0.3, 1e-9);
+  ASSERT_EQ(d["figures"].size(), 1u);
+  const std::string svg = d["figures"][0]["svg"];
+  for (const char* part :
+       {"class=\"track-before\"", "class=\"track-after\"", "class=\"north-arrow\"",
+        "class=\"scale-bar\"", "x [m] (East)", "y [m] (North)", " m</text>"}) {
+    EXPECT_NE(svg.find(part), std::string::npos) << part;
+  }
+  // The tracks' first vertices sit where their first poses are: x = 0 and 0.1 m on a common
+  // equal-scale frame, so the corrected track starts right of the logged one at the same height.
+  auto first_vertex = [&](const std::string& cls) {
+    const std::size_t at = svg.find("class=\"" + cls + "\"");
+    const std::size_t p = svg.find("points=\"", at) + 8;
+    double x = 0, y = 0;
+    std::sscanf(svg.c_str() + p, "%lf,%lf", &x, &y);
+    return Eigen::Vector2d(x, y);
+  };
+  const Eigen::Vector2d b0 = first_vertex("track-before"), a0 = first_vertex("track-after");
+  EXPECT_GT(a0.x(), b0.x());
+  EXPECT_NEAR(a0.y(), b0.y(), 0.05);
+  EXPECT_TRUE(d["warnings"].empty()) << d["warnings"];
+  const json expect = {
+      {"kind", "map"},
+      {"layers", {{{"id", "cloud"}, {"type", "points"}, {"count", 50}, {"visible", true}}}},
+      {"tables", {{"swaths", 2}, {"ties", 2}}},
+      {"figures", {"track"}},
+      {"mode_change", false}};
+  run_scene_browser_test(s.output, expect, "map_drift");
 }
 
 // World model: seabed levels of detail (one shown at a time), the models (the tank in its vertex
@@ -1456,7 +1588,8 @@ TEST_F(SceneReportTest, CommandLine) {
   EXPECT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("map"), std::string::npos) << out;
   EXPECT_NE(out.find("4 layers"), std::string::npos) << out;
-  EXPECT_NE(out.find("3 table rows"), std::string::npos) << out;
+  // 3 placements and the per-model table's 2 rows (tank, sphere).
+  EXPECT_NE(out.find("5 table rows"), std::string::npos) << out;
   std::tie(rc, out) =
       run("'" + (root_ / "world").string() + "' -o '" + (root_ / "cli_world.html").string() + "'");
   EXPECT_EQ(rc, 0) << out;

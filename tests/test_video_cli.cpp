@@ -221,7 +221,7 @@ TEST(TextureCli, ColoursASimulatedSceneAndLeavesHiddenPointsBlack) {
     EXPECT_NE(r.err.find("invert"), std::string::npos) << r.err;
   }
   r = run(tmp, args + bad_out.string() + " --quiet --depth-tolerance -1");
-  expect_one_line_error(r, "depth_tolerance");
+  expect_one_line_error(r, "--depth-tolerance must be");
   EXPECT_FALSE(fs::exists(bad_out));
 }
 
@@ -447,6 +447,111 @@ TEST(TextureCli, NeusCamerasColourTheCloud) {
   r = run(tmp, args + (tmp / "x.ply").string() + " --colmap " + tmp.string());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_FALSE(fs::exists(tmp / "x.ply"));
+}
+
+// The camera world (docs/video.md, "Camera world"): `aoneus` is (x, y, z)_camera-world =
+// (−y, −z, x)_sonar-world, and the explicit matrix form says the same.
+TEST(TextureCli, CameraWorldTransformsAreRigid) {
+  const Eigen::Isometry3d T = camera_world_transform("aoneus");
+  EXPECT_LT((T * Eigen::Vector3d(1, 2, 3) - Eigen::Vector3d(-2, -3, 1)).norm(), 1e-12);
+  EXPECT_LT((camera_world_transform("holoocean").matrix() - T.matrix()).norm(), 1e-12);
+  EXPECT_LT((camera_world_transform("0,-1,0, 0,0,-1, 1,0,0").matrix() - T.matrix()).norm(), 1e-12);
+  const Eigen::Isometry3d U = camera_world_transform("1 0 0 0.5  0 1 0 -2  0 0 1 3  0 0 0 1");
+  EXPECT_LT((U * Eigen::Vector3d::Zero() - Eigen::Vector3d(0.5, -2, 3)).norm(), 1e-12);
+  EXPECT_TRUE(camera_world_transform("identity").isApprox(Eigen::Isometry3d::Identity()));
+  test::expect_error([] { camera_world_transform("2 0 0 0 1 0 0 0 1"); }, "not a rotation");
+  test::expect_error([] { camera_world_transform("-1 0 0 0 1 0 0 0 1"); }, "not a rotation");
+  test::expect_error([] { camera_world_transform("opengl"); }, "must be identity, aoneus");
+  test::expect_error([] { camera_world_transform("1 0 0 0 1 0 0 0 1 0 0 0 0 0 0 2"); }, "0 0 0 1");
+}
+
+// A NeuS file whose camera world is the sonar world rotated as AONeuS's is: with --camera-world
+// aoneus the cloud takes the same colours as with poses in its own world; left out, the colours
+// come from the images' black background and the camera centres lie far from the sonar's
+// navigation, and both are warned about.
+TEST(TextureCli, RotatedCameraWorldIsRelatedByTheTransformAndWarnedAbout) {
+  const fs::path tmp = test::temp_dir("texture_camera_world");
+  const fs::path npz = fs::path(SONAR3D_SOURCE_DIR) / "data/video/cameras_neus.npz";
+  // A red box off the cameras' common aim point (the origin), filmed against black open water.
+  Scene scene;
+  SceneObject box;
+  box.name = "box";
+  box.mesh_world = make_box(0.6, 0.6, 0.6);
+  box.mesh_world.transform(Eigen::Isometry3d(Eigen::Translation3d(0.5, 0.3, 0.3)));
+  box.color = {0.9f, 0.1f, 0.1f};
+  scene.objects = {box};
+  CameraRenderConfig rc;
+  rc.ambient = 1.0;
+  rc.attenuation_per_m = 0.0;
+  rc.background = Eigen::Vector3f::Zero();
+  const CameraRenderer renderer(scene, rc);
+  const fs::path images = tmp / "image";
+  fs::create_directories(images);
+  const auto cams = read_neus_cameras(npz);
+  ASSERT_EQ(cams.size(), 3u);
+  Trajectory nav;  // the sonar at the cameras' centres, as on the AONeuS data
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    write_rgb_image(
+        images / ("00" + std::to_string(i) + ".png"),
+        renderer.render(intrinsics_from_K(cams[i].K, 640, 480), cams[i].T_world_camera));
+    nav.push_back(double(i),
+                  Eigen::Isometry3d(Eigen::Translation3d(cams[i].T_world_camera.translation())));
+  }
+  write_tum((tmp / "nav.tum").string(), nav);
+  PointCloud cloud;
+  cloud.points = sample_surface(box.mesh_world, 8000, 5);
+  const fs::path in = tmp / "cloud.ply";
+  write_ply(in.string(), cloud);
+  // The same cameras with their world rotated: P' = P·M⁻¹ (p_camera-world = M·p_sonar-world).
+  const fs::path rotated = tmp / "cameras_rotated.npz";
+  const std::string py =
+      "/usr/bin/python3 -c \"import numpy as np; d = dict(np.load('" + npz.string() +
+      "')); M = np.eye(4); M[:3, :3] = [[0, -1, 0], [0, 0, -1], [1, 0, 0]]; "
+      "d.update({k: v @ np.linalg.inv(M) for k, v in d.items() if k.startswith('world_mat_') "
+      "and '_inv' not in k}); np.savez('" +
+      rotated.string() + "', **d)\"";
+  ASSERT_EQ(std::system(py.c_str()), 0) << py;
+  const std::string common = "texture " + in.string() + " --images " + images.string() +
+                             " --point-spacing 0.02 --sonar-navigation " +
+                             (tmp / "nav.tum").string() + " --quiet -o ";
+  const CliRun own = run(tmp, common + (tmp / "own.ply").string() + " --neus " + npz.string());
+  ASSERT_EQ(own.code, 0) << own.err;
+  EXPECT_EQ(own.err.find("warning"), std::string::npos) << own.err;
+  const PointCloud want = read_ply((tmp / "own.ply").string());
+  const std::array<std::uint8_t, 3> black{0, 0, 0};
+  const std::size_t coloured = static_cast<std::size_t>(std::count_if(
+      want.color.begin(), want.color.end(), [&](const auto& c) { return c != black; }));
+  EXPECT_GT(coloured, want.size() / 3);
+  for (const char* spec : {"aoneus", "holoocean", "'0 -1 0 0 0 -1 1 0 0'"}) {
+    SCOPED_TRACE(spec);
+    const fs::path out = tmp / "related.ply";
+    const CliRun r = run(tmp, common + out.string() + " --overwrite --neus " + rotated.string() +
+                                  " --camera-world " + spec);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
+    const PointCloud got = read_ply(out.string());
+    ASSERT_EQ(got.size(), want.size());
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < got.size(); ++i)
+      same += near(got.color[i], {want.color[i][0], want.color[i][1], want.color[i][2]}, 2) ? 1 : 0;
+    EXPECT_GE(same, got.size() - got.size() / 200) << "of " << got.size();
+  }
+  const CliRun left_out =
+      run(tmp, common + (tmp / "unrelated.ply").string() + " --neus " + rotated.string());
+  ASSERT_EQ(left_out.code, 0) << left_out.err;
+  std::printf("own world: %swithout --camera-world: %s%s", own.out.c_str(), left_out.out.c_str(),
+              left_out.err.c_str());
+  EXPECT_NE(left_out.err.find("sonar3d: warning: "), std::string::npos) << left_out.err;
+  EXPECT_NE(left_out.err.find("near-black"), std::string::npos) << left_out.err;
+  EXPECT_NE(left_out.err.find("camera centres lie a median"), std::string::npos) << left_out.err;
+  EXPECT_NE(left_out.err.find("--camera-world"), std::string::npos) << left_out.err;
+  // A dataset's frames are placed on its navigation: the option does not apply there.
+  expect_one_line_error(run(tmp, "texture " + in.string() + " --dataset " + images.string() +
+                                     " --camera-world aoneus -o " + (tmp / "x.ply").string()),
+                        "--camera-world");
+  expect_one_line_error(run(tmp, common + (tmp / "y.ply").string() + " --neus " + npz.string() +
+                                     " --camera-world 2,0,0,0,1,0,0,0,1"),
+                        "not a rotation");
 }
 
 // Camera frames in a dataset: a scene with a `camera:` block simulates camera images into the

@@ -54,6 +54,14 @@
   }
   function drawTables() {
     const box = document.getElementById('tables');
+    // Pictures sonar3d drew (SVG: the map's navigation before and after correction, with axes in
+    // metres, a scale bar and a north arrow), above the tables.
+    for (const f of D.figures || []) {
+      const pic = el('div', { class: 'figure', id: 'figure-' + f.id });
+      pic.innerHTML = f.svg;
+      box.append(el('section', { id: 'section-figure-' + f.id }, el('h2', { text: f.title }), pic,
+        el('p', { class: 'hint', text: f.caption || '' })));
+    }
     for (const t of D.tables || []) {
       const table = el('table', { id: 'table-' + t.id, class: 'results scene-table' });
       table.append(el('thead', {}, el('tr', {}, ...t.columns.map((c) => el('th', { text: c })))));

@@ -14,7 +14,8 @@
 // (exactly these, in this order), "tables": {id: rows}, "groups": {name: [layer ids]} (one shown
 // at a time), "colors": [{"layer", "index", "rgb": [r, g, b]} or {..., "hue": "red"|"blue"|
 // "white"}], "mode_change": whether another point colouring repaints the canvas, "focus":
-// {"table", "layer"}: clicking the table's first row brings that layer into view}.
+// {"table", "layer"}: clicking the table's first row brings that layer into view, "figures":
+// [id]: an SVG picture drawn under #figure-<id> with its north arrow and scale bar}.
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 import fs from 'node:fs';
@@ -386,6 +387,11 @@ async function checkScene(page, ex) {
         'segments' : 'points'} in its geometry (${l.drawn} drawn, ${l.count} listed)`);
     check(l.visible === e.visible, `layer ${e.id} ${e.visible ? 'shown' : 'hidden'} at first`);
   });
+  for (const id of ex.figures || []) {
+    const parts = await page.$$eval(`#figure-${id} svg .north-arrow, #figure-${id} svg .scale-bar`,
+      (e) => e.length).catch(() => -1);
+    check(parts === 2, `figure ${id} is drawn with its north arrow and scale bar (${parts})`);
+  }
   for (const [id, n] of Object.entries(ex.tables || {})) {
     const rows = await page.$$eval(`#table-${id} tbody tr`, (r) => r.length).catch(() => -1);
     check(rows === n, `table ${id} has ${n} rows (${rows})`);

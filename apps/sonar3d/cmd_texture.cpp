@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/video/texture_files.hpp"
 
 namespace sonar3d::cli {
@@ -18,12 +19,11 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto job = std::make_shared<TextureFilesJob>();
   auto cloud = std::make_shared<std::string>(), colmap = std::make_shared<std::string>(),
        images = std::make_shared<std::string>(), output = std::make_shared<std::string>(),
-       neus = std::make_shared<std::string>(), neus_frame = std::make_shared<std::string>("world"),
-       dataset = std::make_shared<std::string>();
+       neus = std::make_shared<std::string>(), dataset = std::make_shared<std::string>(),
+       sonar_navigation = std::make_shared<std::string>();
   cmd->add_option("cloud", *cloud,
                   "point cloud to colour (PLY), or with --mesh a mesh (any Assimp format); in the "
                   "poses' frame")
-      ->required()
       ->check(CLI::ExistingFile);
   auto* colmap_opt = cmd->add_option("--colmap", *colmap,
                                      "COLMAP text model directory (cameras.txt, images.txt; "
@@ -51,28 +51,21 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->needs(dataset_opt);
   colmap_opt->excludes(neus_opt)->excludes(dataset_opt);
   neus_opt->excludes(dataset_opt);
-  cmd->add_option("--neus-frame", *neus_frame,
-                  "frame of the cloud for --neus: world (world_mat as given) or normalized "
-                  "(NeuS's unit-sphere frame, x = (x_world - c)/s by scale_mat)")
-      ->check(CLI::IsMember({"world", "normalized"}))
-      ->capture_default_str();
+  cmd->add_option("--sonar-navigation", *sonar_navigation,
+                  "with --neus or --colmap: the sonar's navigation (TUM) in the cloud's world, to "
+                  "warn when the camera centres lie far from it (the two worlds disagree)")
+      ->check(CLI::ExistingFile)
+      ->excludes(dataset_opt);
   cmd->add_option("--images", *images,
                   "with --colmap or --neus: the images: those named in images.txt, or with --neus "
                   "all of the directory in name order (8/16-bit: sRGB; float: linear)")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--output", *output,
                   "coloured point cloud (PLY with uchar red green blue, sRGB); with --mesh a PLY "
-                  "mesh with vertex colours, or a glTF 2.0 binary if it ends in .glb")
-      ->required();
-  cmd->add_option("--point-spacing", job->config.point_spacing_m,
-                  "the cloud's point spacing, m (the splat size of the depth test)")
-      ->capture_default_str();
-  cmd->add_option("--depth-tolerance", job->config.depth_tolerance_m,
-                  "a point is visible within this of the nearest depth at its pixel, m")
-      ->capture_default_str();
-  cmd->add_option("--max-range", job->config.max_range_m,
-                  "points farther from a camera take no colour from it, m")
-      ->capture_default_str();
+                  "mesh with vertex colours, or a glTF 2.0 binary if it ends in .glb");
+  // The colouring's and the poses' settings (declared once, video/texture_files.hpp): their
+  // flags, --print-config, --config.
+  auto config = std::make_shared<ConfigOptions<TextureFilesConfig>>(cmd);
   cmd->add_flag(
       "--mesh", job->is_mesh,
       "CLOUD is a mesh (any format Assimp reads, e.g. a registered CAD model): colour its "
@@ -108,8 +101,23 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_flag("--drop-uncoloured", job->drop_uncoloured,
                 "leave out the points no image saw (default: kept, black)");
   add_overwrite_flag(cmd, job->overwrite, "a point cloud sonar3d wrote at --output");
-  cmd->callback([&g, &run, job, cloud, colmap, neus, neus_frame, images, output, dataset,
-                 navigation, silhouette_opt] {
+  cmd->callback([&g, &run, job, cloud, colmap, neus, images, output, dataset, navigation,
+                 sonar_navigation, silhouette_opt, config] {
+    if (config->print_requested()) {
+      run = [config] {
+        const TextureFilesConfig c = config->resolve("texture");
+        with_flag_names(config->flag_names(), [&] {
+          params::check(c, "texture");
+          c.texture.validate();
+          c.poses.validate();
+        });
+        config->print_if_requested(c, "texture", "texture");
+        return 0;
+      };
+      return;
+    }
+    if (cloud->empty()) throw CLI::RequiredError("cloud");
+    if (output->empty()) throw CLI::RequiredError("-o,--output");
     if (colmap->empty() && neus->empty() && dataset->empty()) {
       throw CLI::ValidationError("--colmap, --neus or --dataset", "camera poses are required");
     }
@@ -132,18 +140,29 @@ void add_texture(CLI::App& app, const GlobalOptions& g, Runner& run) {
     if (!job->is_mesh && !job->occluders.empty()) {
       throw CLI::ValidationError("--occluder", "applies to --mesh only");
     }
-    run = [&g, job, cloud, colmap, neus, neus_frame, images, output, dataset, navigation] {
+    run = [&g, job, cloud, colmap, neus, images, output, dataset, navigation, sonar_navigation,
+           config] {
+      const TextureFilesConfig c = config->resolve("texture");
+      with_flag_names(config->flag_names(), [&] {
+        params::check(c, "texture");
+        c.texture.validate();
+        c.poses.validate();
+      });
+      job->config = c.texture;
+      job->poses = c.poses;
+      job->sonar_navigation_file = *sonar_navigation;
       job->cloud = *cloud;
       job->mesh.max_range_m = job->config.max_range_m;
       job->colmap_dir = *colmap;
       job->neus_file = *neus;
       job->dataset_dir = *dataset;
       job->navigation_file = *navigation;
-      job->neus_frame = *neus_frame == "normalized" ? NeusFrame::Normalized : NeusFrame::World;
       job->images_dir = *images;
       job->output = *output;
       job->progress = !g.quiet;
-      const TextureFilesResult r = texture_cloud_files(*job);
+      const TextureFilesResult r =
+          with_flag_names(config->flag_names(), [&] { return texture_cloud_files(*job); });
+      for (const auto& w : r.warnings) fmt::print(stderr, "sonar3d: warning: {}\n", w);
       const char* what = job->is_mesh ? "vertices" : "points";
       fmt::print("coloured {} of {} {} from {} images; wrote {} {} to {}\n", r.coloured, r.points,
                  what, r.frames, r.written, what, job->output.string());

@@ -1,7 +1,9 @@
 // Video mapping (thesis sec. 6.4, docs/video.md): cameras, simulated camera images, colouring a
 // cloud or a mesh from posed images, a dataset's camera frames.
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/video/camera_dataset.hpp"
+#include "sonar3d/video/neus.hpp"
 #include "sonar3d/video/render.hpp"
 #include "sonar3d/video/texture.hpp"
 #include "sonar3d/video/texture_files.hpp"
@@ -91,16 +93,26 @@ void bind_video(py::module_& m) {
           },
           "p_camera"_a, "The pixel (u, v) of a camera-frame point (m), or None behind the camera.");
 
-  py::class_<TextureConfig>(m, "TextureConfig",
-                            "Colouring a cloud: point_spacing_m (the splat size of the depth "
-                            "test), depth_tolerance_m, max_range_m, max_splat_px.")
-      .def(py::init(&from_kwargs<TextureConfig>))
-      .def_readwrite("point_spacing_m", &TextureConfig::point_spacing_m)
-      .def_readwrite("depth_tolerance_m", &TextureConfig::depth_tolerance_m)
-      .def_readwrite("max_range_m", &TextureConfig::max_range_m)
-      .def_readwrite("max_splat_px", &TextureConfig::max_splat_px)
-      .def("__repr__", &fields_repr)
+  // From their one declaration (core/params.hpp; docs/reference.md "texture").
+  bind_config<TextureConfig>(m, "TextureConfig",
+                             "Colouring a cloud: point_spacing_m (the splat size of the depth "
+                             "test), depth_tolerance_m, max_range_m, max_splat_px.")
       .def("validate", &TextureConfig::validate);
+  bind_config<TexturePosesConfig>(
+      m, "TexturePosesConfig",
+      "How the poses of a NeuS file or COLMAP model relate to the cloud's world (`sonar3d "
+      "texture`'s neus_frame, camera_world) and when to warn that they may not "
+      "(docs/video.md \"Camera world\").")
+      .def("validate", &TexturePosesConfig::validate);
+  m.def(
+      "camera_world_transform",
+      [](const std::string& spec) -> Eigen::Matrix4d {
+        return camera_world_transform(spec).matrix();
+      },
+      "spec"_a,
+      "The 4×4 T_cameraworld_world (p_camera-world = T · p_world) of a camera-world spec: "
+      "'identity', 'aoneus' or 'holoocean' ((x, y, z)_camera-world = (-y, -z, x)_sonar-world), "
+      "or 9 / 12 / 16 numbers (a rotation or rigid 3×4 / 4×4 matrix, row-major); docs/video.md.");
 
   py::class_<MeshTextureConfig>(m, "MeshTextureConfig",
                                 "Colouring a mesh: texel_m (subdivision edge length, 0 = as is), "

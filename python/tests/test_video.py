@@ -103,3 +103,16 @@ def test_bad_views_give_clear_errors():
         sonar3d.texture_cloud(pts, [(cam, T, img[:60])])
     with pytest.raises(sonar3d.Error, match="camera/camera.yaml is missing"):
         sonar3d.read_camera_frames(".")
+
+
+def test_camera_world_transform_and_poses_config():
+    T = np.asarray(sonar3d.camera_world_transform("aoneus"))
+    assert np.allclose(T[:3, :3] @ [1, 2, 3], [-2, -3, 1])
+    assert np.allclose(np.asarray(sonar3d.camera_world_transform("0 -1 0 0 0 -1 1 0 0")), T)
+    with pytest.raises(sonar3d.Error, match="not a rotation"):
+        sonar3d.camera_world_transform("2 0 0 0 1 0 0 0 1")
+    c = sonar3d.TexturePosesConfig(camera_world="holoocean", neus_frame="normalized")
+    assert c.camera_world == "holoocean" and c.neus_frame == "normalized"
+    c.validate()
+    with pytest.raises(sonar3d.Error, match="warn_dark_share"):
+        c.warn_dark_share = 2.0

@@ -2,6 +2,7 @@
 // Internal to src/report: what every page `sonar3d report` writes shares — the web assets, the
 // template filling, base64 of binary arrays, display-only mesh simplification and seeded cloud
 // subsampling (docs/report.md, "How the page stays offline").
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -53,6 +54,12 @@ void check_replaceable(const std::filesystem::path& output);
 // <!--{{DATA}}-->, <!--{{APP}}-->) replaced by the escaped title, the style, the inlined
 // libraries, `data_json` in <script type="application/json" id="sonar3d-data"> and the code.
 std::string fill_page(const WebAssets& assets, const std::string& title, std::string data_json);
+
+// A top view of the navigation before and after drift correction (x East, y North, metres), as
+// SVG: equal scale on both axes, axes ticked and labelled in metres, a scale bar, a north arrow
+// and a legend (src/report/track_figure.cpp).
+std::string track_svg(const std::vector<Eigen::Vector2d>& before,
+                      const std::vector<Eigen::Vector2d>& after);
 
 // The 3D scene page of a map, world, change directory or PLY file (src/report/scene_report.cpp).
 ReportSummary write_scene_report(const std::filesystem::path& input, ReportInput kind,

@@ -3,6 +3,7 @@
 // graph), a change directory between two surveys, and PLY clouds or meshes in their own colours
 // (video texturing, sec. 6.4). Layout of the page data: docs/report.md, "Scene pages".
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
+#include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/report/scene_files.hpp"
 #include "sonar3d/world/world_model.hpp"
@@ -179,6 +181,11 @@ class Scene {
     summary_.num_table_rows += rows.size();
   }
   void card(const std::string& k, const json& v) { cards_.push_back({{"k", k}, {"v", v}}); }
+  // A picture (SVG) shown above the tables, with a title and a caption.
+  void figure(const std::string& id, const std::string& title, const std::string& svg,
+              const std::string& caption) {
+    figures_.push_back({{"id", id}, {"title", title}, {"svg", svg}, {"caption", caption}});
+  }
   void legend(const std::string& color, const std::string& text) {
     legend_.push_back({{"color", color}, {"text", text}});
   }
@@ -226,6 +233,7 @@ class Scene {
     d["layers"] = layers_;
     d["tables"] = tables_;
     d["cards"] = cards_;
+    d["figures"] = figures_;
     d["legend"] = legend_;
     d["max_points_per_cloud"] = per_cloud;
     return d;
@@ -244,7 +252,7 @@ class Scene {
   ReportSummary& summary_;
   std::vector<Pending> pending_;
   json layers_ = json::array(), tables_ = json::array(), cards_ = json::array(),
-       legend_ = json::array();
+       legend_ = json::array(), figures_ = json::array();
   std::map<std::string, std::string> model_colors_;
 };
 
@@ -253,6 +261,7 @@ class Scene {
 class Models {
  public:
   explicit Models(const fs::path& catalogue) : cat_(read_catalogue(catalogue.string())) {}
+  const Catalogue& catalogue() const { return cat_; }
   const TriangleMesh& mesh(const std::string& model, const std::string& asked_by) {
     auto it = meshes_.find(model);
     if (it != meshes_.end()) return it->second;
@@ -331,6 +340,153 @@ void build_map(const fs::path& cloud_path, const PlyData& ply, const ReportConfi
                "residual median [m]", "residual mean [m]", "method", "confidence"},
               rows, focus);
   scene.card("placements", placements.size());
+  // Per catalogue model: how many were expected (the catalogue's `expected`) and found.
+  std::map<std::string, int> found;
+  for (const PlacementRecord& p : placements) ++found[p.model];
+  json model_rows = json::array();
+  int expected_total = 0, found_of_expected = 0;
+  bool all_known = true;
+  for (const CatalogueModel& m : models.catalogue().models) {
+    const int n = found.count(m.name) ? found[m.name] : 0;
+    const std::string text =
+        m.expected >= 0 ? m.name + ": " + std::to_string(n) + " of " + std::to_string(m.expected)
+                        : m.name + ": " + std::to_string(n) + " (expected count not given)";
+    model_rows.push_back({m.name, m.expected >= 0 ? json(m.expected) : json(nullptr), n, text});
+    if (m.expected >= 0) {
+      expected_total += m.expected;
+      found_of_expected += std::min(n, m.expected);
+    } else {
+      all_known = false;
+    }
+  }
+  scene.table("models", "Per catalogue model: expected and found (" + models.catalogue().path + ")",
+              {"model", "expected", "found", "summary"}, model_rows);
+  if (expected_total > 0 || all_known) {
+    scene.card("found of expected",
+               std::to_string(found_of_expected) + " of " + std::to_string(expected_total));
+  }
+}
+
+// Horizontal positions of a trajectory's poses.
+std::vector<Eigen::Vector2d> track_xy(const Trajectory& t) {
+  std::vector<Eigen::Vector2d> xy;
+  xy.reserve(t.size());
+  for (const Eigen::Isometry3d& T : t.poses) xy.push_back(T.translation().head<2>());
+  return xy;
+}
+
+// What `sonar3d map` recorded (summary.json, docs/formats.md "Map directory"): the swaths with
+// their offsets and drift rates, the ties between them, and the navigation before and after
+// correction (the dataset's navigation.tum, navigation_corrected.tum) as a picture and figures.
+void build_map_record(const fs::path& dir, Scene& scene, std::vector<std::string>& warnings) {
+  const fs::path spath = dir / "summary.json";
+  if (!fs::is_regular_file(spath)) return;
+  json sm;
+  try {
+    sm = json::parse(read_text_file(spath.string()));
+  } catch (const json::exception& e) {
+    throw Error("report: '" + spath.string() + "' is not valid JSON: " + e.what());
+  }
+  auto get_num = [&](const json& j, const char* key, std::size_t i) -> json {
+    if (!j.contains(key) || j[key].is_null()) return nullptr;
+    const json& v = j[key];
+    if (v.is_array()) return i < v.size() && v[i].is_number() ? v[i] : json(nullptr);
+    return v.is_number() ? v : json(nullptr);
+  };
+  const std::string where = "'" + spath.string() + "'";
+  if (sm.contains("method") && sm["method"].is_string()) scene.card("map method", sm["method"]);
+  if (sm.contains("swaths")) {
+    require(sm["swaths"].is_array(), "report: " + where + ": 'swaths' must be an array");
+    json rows = json::array();
+    bool drift = false;
+    for (std::size_t k = 0; k < sm["swaths"].size(); ++k) {
+      const json& w = sm["swaths"][k];
+      require(w.is_object(),
+              "report: " + where + ": swaths[" + std::to_string(k) + "] must be an object");
+      drift = drift || w.contains("rate_mps");
+      rows.push_back({k, get_num(w, "frames", 0), get_num(w, "frames", 1), get_num(w, "time_s", 0),
+                      get_num(w, "time_s", 1), get_num(w, "points", 0), get_num(w, "offset_m", 0),
+                      get_num(w, "offset_m", 1), get_num(w, "offset_m", 2),
+                      get_num(w, "rate_mps", 0), get_num(w, "rate_mps", 1)});
+    }
+    scene.table("swaths",
+                std::string("Swaths: navigation offsets") + (drift ? " and drift rates" : ""),
+                {"swath", "first frame", "last frame", "t0 [s]", "t1 [s]", "points", "offset x [m]",
+                 "offset y [m]", "offset z [m]", "drift rate x [m/s]", "drift rate y [m/s]"},
+                rows);
+    scene.card("swaths", sm["swaths"].size());
+  }
+  if (sm.contains("ties")) {
+    require(sm["ties"].is_array(), "report: " + where + ": 'ties' must be an array");
+    json rows = json::array();
+    std::size_t used = 0;
+    for (std::size_t k = 0; k < sm["ties"].size(); ++k) {
+      const json& t = sm["ties"][k];
+      require(t.is_object(),
+              "report: " + where + ": ties[" + std::to_string(k) + "] must be an object");
+      const bool u = t.contains("used") && t["used"].is_boolean() && t["used"].get<bool>();
+      used += u ? 1 : 0;
+      rows.push_back({get_num(t, "reference", 0), get_num(t, "moving", 0),
+                      get_num(t, "time_reference_s", 0), get_num(t, "time_moving_s", 0),
+                      get_num(t, "shift_m", 0), get_num(t, "shift_m", 1), get_num(t, "shift_m", 2),
+                      get_num(t, "score_m", 0), get_num(t, "overlap_cells", 0),
+                      get_num(t, "confidence", 0), u ? "yes" : "no", get_num(t, "residual_m", 0)});
+    }
+    scene.table("ties", "Ties between swaths (registrations)",
+                {"reference swath", "moving swath", "t reference [s]", "t moving [s]",
+                 "shift x [m]", "shift y [m]", "shift z [m]", "score [m]", "overlap cells",
+                 "confidence", "used", "residual [m]"},
+                rows);
+    scene.card("ties used", std::to_string(used) + " of " + std::to_string(sm["ties"].size()));
+  }
+  // The navigation before (the dataset's, as logged) and after (corrected).
+  const fs::path after_path = dir / "navigation_corrected.tum";
+  fs::path before_path;
+  if (sm.contains("dataset") && sm["dataset"].is_string()) {
+    const fs::path ds = sm["dataset"].get<std::string>();
+    for (const fs::path& cand : {ds / "navigation.tum", dir.parent_path() / ds / "navigation.tum",
+                                 dir / ds / "navigation.tum"}) {
+      if (fs::is_regular_file(cand)) {
+        before_path = cand;
+        break;
+      }
+    }
+  }
+  if (!fs::is_regular_file(after_path)) return;
+  const Trajectory after = read_tum(after_path.string());
+  Trajectory before;
+  if (!before_path.empty()) {
+    before = read_tum(before_path.string());
+  } else {
+    warnings.push_back(
+        "the dataset's navigation.tum (summary.json's 'dataset') is not found: the "
+        "track picture shows the corrected navigation only");
+  }
+  // The correction at each corrected pose: its horizontal distance from the logged pose at the
+  // same time (logged navigation interpolated; outside its span, not compared).
+  std::vector<double> shift;
+  for (std::size_t k = 0; k < after.size() && !before.empty(); ++k) {
+    const double t = after.times[k];
+    if (t < before.times.front() || t > before.times.back()) continue;
+    shift.push_back(
+        (after.poses[k].translation() - before.interpolate(t).translation()).head<2>().norm());
+  }
+  std::string caption =
+      "Top view, world frame (x East, y North), metres; dashed: the navigation as logged (" +
+      (before_path.empty() ? std::string("not found") : before_path.string()) +
+      "), solid: corrected (" + after_path.string() + ").";
+  if (!shift.empty()) {
+    std::sort(shift.begin(), shift.end());
+    const double median = shift[shift.size() / 2], max = shift.back();
+    scene.card("navigation correction, median [m]", round_to(median, 0.001));
+    scene.card("navigation correction, max [m]", round_to(max, 0.001));
+    char buf[96];
+    std::snprintf(buf, sizeof buf, " Horizontal correction: median %.3f m, max %.3f m.", median,
+                  max);
+    caption += buf;
+  }
+  scene.figure("track", "Navigation before and after correction",
+               track_svg(track_xy(before), track_xy(after)), caption);
 }
 
 // A world model directory of `sonar3d world` (docs/formats.md, "World model directory").
@@ -593,6 +749,7 @@ ReportSummary write_scene_report(const fs::path& input, ReportInput kind, const 
     case ReportInput::Map: {
       const fs::path cloud = input / "merged.ply";
       build_map(cloud, read_any_ply(cloud), cfg, scene);
+      build_map_record(input, scene, summary.warnings);
       break;
     }
     case ReportInput::Ply:

@@ -3,7 +3,10 @@
 
 #include <Eigen/QR>
 #include <cmath>
+#include <exception>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/video/npz.hpp"
@@ -123,6 +126,57 @@ std::vector<NeusCamera> read_neus_cameras(const std::filesystem::path& npz, Neus
     }
   }
   return out;
+}
+
+Eigen::Isometry3d camera_world_transform(const std::string& spec) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (spec == "identity") return T;
+  if (spec == "aoneus" || spec == "holoocean") {
+    // Rows: x_c = −y_s, y_c = −z_s, z_c = x_s.
+    T.linear() << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+    return T;
+  }
+  std::string text = spec;
+  for (char& ch : text) {
+    if (ch == ',') ch = ' ';
+  }
+  std::istringstream in(text);
+  std::vector<double> v;
+  std::string tok;
+  const std::string what =
+      "camera world '" + spec +
+      "' must be identity, aoneus, holoocean, or 9, 12 or 16 numbers (a rotation or a rigid "
+      "3×4/4×4 matrix, row-major)";
+  while (in >> tok) {
+    std::size_t used = 0;
+    double x = 0;
+    try {
+      x = std::stod(tok, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    require(used == tok.size() && std::isfinite(x), what);
+    v.push_back(x);
+  }
+  require(v.size() == 9 || v.size() == 12 || v.size() == 16, what);
+  const int cols = v.size() == 9 ? 3 : 4;
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R(r, c) = v[static_cast<std::size_t>(r * cols + c)];
+  }
+  if (cols == 4) {
+    for (int r = 0; r < 3; ++r) T.translation()(r) = v[static_cast<std::size_t>(r * 4 + 3)];
+  }
+  if (v.size() == 16) {
+    require(std::abs(v[12]) + std::abs(v[13]) + std::abs(v[14]) + std::abs(v[15] - 1) < 1e-9,
+            "camera world '" + spec + "': a 4×4 matrix must end with the row 0 0 0 1");
+  }
+  require((R * R.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 && R.determinant() > 0,
+          "camera world '" + spec +
+              "': the 3×3 part is not a rotation (orthonormal, determinant +1); the camera "
+              "world may differ from the sonar's by a rotation and a translation only");
+  T.linear() = R;
+  return T;
 }
 
 CameraIntrinsics intrinsics_from_K(const Eigen::Matrix3d& K, int width, int height) {

@@ -11,6 +11,7 @@
 // camera centre C the right null vector of P; T_world_camera = (Rᵀ, C).
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "sonar3d/video/camera.hpp"
@@ -37,6 +38,18 @@ void decompose_projection(const Eigen::Matrix<double, 3, 4>& P, Eigen::Matrix3d*
 // entry.
 std::vector<NeusCamera> read_neus_cameras(const std::filesystem::path& npz,
                                           NeusFrame frame = NeusFrame::World);
+
+// How the poses' world (a NeuS or COLMAP reconstruction's "camera world") relates to the cloud's
+// world (the sonar's navigation frame), docs/video.md "Camera world": returns T_cameraworld_world,
+// p_cameraworld = T·p_world. `spec` is
+//   "identity"             the two worlds are one (the default);
+//   "aoneus", "holoocean"  AONeuS's convention for HoloOcean data, (x, y, z)_camera-world =
+//                          (−y, −z, x)_sonar-world (a rotation, no translation);
+//   9 numbers              a rotation matrix, row-major;
+//   12 or 16 numbers       a rigid 3×4 or 4×4 matrix, row-major (a 4×4 ends with 0 0 0 1);
+// numbers separated by commas and/or spaces. Throws Error when the matrix is not a rotation
+// (orthonormal within 1e-6, determinant +1) or the text none of these.
+Eigen::Isometry3d camera_world_transform(const std::string& spec);
 
 // Pinhole intrinsics from K for an image of width × height (no distortion: IDR/NeuS images are
 // undistorted). Throws when K has skew (|K(0,1)| > 1e-6·fx).

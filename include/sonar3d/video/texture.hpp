@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/video/camera.hpp"
 #include "sonar3d/video/render.hpp"
@@ -29,6 +30,27 @@ struct TextureConfig {
   int max_splat_px = 16;            // cap on a splat's half-width, pixels
   void validate() const;            // throws Error naming the field
 };
+
+template <class V>
+void describe(TextureConfig& c, V& v) {
+  using params::param;
+  v.field(c.point_spacing_m, param("point_spacing_m", "m",
+                                   "the cloud's point spacing (the splat size of the depth "
+                                   "test)")
+                                 .positive()
+                                 .flag("--point-spacing"));
+  v.field(c.depth_tolerance_m,
+          param("depth_tolerance_m", "m",
+                "a point is visible within this of the nearest depth at its pixel")
+              .non_negative()
+              .flag("--depth-tolerance"));
+  v.field(c.max_range_m,
+          param("max_range_m", "m", "points farther from a camera take no colour from it")
+              .positive()
+              .flag("--max-range"));
+  v.field(c.max_splat_px,
+          param("max_splat_px", "", "cap on a splat's half-width, pixels").range(0, 256));
+}
 
 struct TexturedCloud {
   std::vector<Eigen::Vector3f> color;  // per point: mean over the frames that saw it; 0 if none
