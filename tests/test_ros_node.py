@@ -60,7 +60,9 @@ objects:
   - {name: ball, primitive: {type: sphere, radius: 0.4}, pose: {translation: [2.8, 0.6, -0.5]}, reflectivity: 0.9}
 trajectory: {period: 0.1, type: straight, start: [0, 0, -0.3], end: [0, 0, 0.3], spacing: 0.05, rpy_deg: [3, -2, 8]}
 """
-SETTINGS = ['--voxel-size', '0.02']
+# The ghost filters on by default in `reconstruct` since issue 29 are off for both: the online
+# map and the batch carving compare like with like.
+SETTINGS = ['--voxel-size', '0.02', '--no-explain-returns', '--no-auto-min-bracket']
 
 
 def run(*args):

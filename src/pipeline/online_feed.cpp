@@ -138,12 +138,14 @@ struct OnlineFeed::Impl {
     OutputPolicy policy;
     policy.overwrite = overwrite || saved_once_;
     OutputFiles out(policy);
-    const auto ply = out.add(prefix + ".ply", OutputKind::PointCloud, "--save-prefix");
-    const auto tif = out.add(prefix + ".tif", OutputKind::GeoTiff, "--save-prefix");
     const PointCloud cloud = mapper_->cloud();
-    write_ply(ply.string(), cloud);
     const ElevationMap dem = mapper_->elevation();
-    if (!dem.empty()) write_elevation_geotiff(tif.string(), dem);
+    const auto ply = out.add(prefix + ".ply", OutputKind::PointCloud, "--save-prefix");
+    write_ply(ply.string(), cloud);
+    if (!dem.empty()) {  // an empty map: no GeoTIFF (the pair is the cloud alone)
+      const auto tif = out.add(prefix + ".tif", OutputKind::GeoTiff, "--save-prefix");
+      write_elevation_geotiff(tif.string(), dem);
+    }
     out.commit();
     saved_once_ = true;
     return fmt::format("wrote {} points to {}.ply{}", cloud.size(), prefix,
