@@ -103,16 +103,7 @@ void add_map(CLI::App& app, const GlobalOptions& g, Runner& run) {
                 "--known-poses needs --method global or drift (the consecutive method has no "
                 "adjustment to put them in)");
         if (!o->known_poses.empty()) {
-          cfg.known_poses = read_known_poses(o->known_poses);
-          cfg.known_poses_source = o->known_poses;
-          const PlacementsFile f = read_placements(o->placements);
-          for (std::size_t k = 0; k < f.placements.size(); ++k) {
-            cfg.recognised.push_back({f.placements[k].model,
-                                      f.placements[k].T_world_model.translation(),
-                                      static_cast<int>(k)});
-          }
-          cfg.recognised_source = o->placements;
-          cfg.recognised_navigation = read_tum(placements_navigation(f, o->placements_nav));
+          load_known_pose_inputs(cfg, o->known_poses, o->placements, o->placements_nav);
         }
         MpiSession mpi;  // rank 0 of 1 when not launched by mpirun
         const Dataset ds = read_dataset(o->dataset);

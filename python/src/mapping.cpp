@@ -139,18 +139,9 @@ void bind_mapping(py::module_& m) {
         require(placements_nav.is_none() || !placements.is_none(),
                 "placements_nav: give placements as well");
         if (!known_poses.is_none()) {  // as sonar3d map --known-poses
-          cfg.known_poses_source = known_poses.cast<std::string>();
-          cfg.known_poses = read_known_poses(cfg.known_poses_source);
-          cfg.recognised_source = placements.cast<std::string>();
-          const PlacementsFile f = read_placements(cfg.recognised_source);
-          for (std::size_t k = 0; k < f.placements.size(); ++k) {
-            cfg.recognised.push_back({f.placements[k].model,
-                                      f.placements[k].T_world_model.translation(),
-                                      static_cast<int>(k)});
-          }
-          const std::string nav =
-              placements_nav.is_none() ? std::string() : placements_nav.cast<std::string>();
-          cfg.recognised_navigation = read_tum(placements_navigation(f, nav));
+          load_known_pose_inputs(
+              cfg, known_poses.cast<std::string>(), placements.cast<std::string>(),
+              placements_nav.is_none() ? std::string() : placements_nav.cast<std::string>());
         }
         cfg.validate();
         ProgressArg p(progress);

@@ -7,6 +7,7 @@
 
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/trajectory.hpp"
 
 namespace sonar3d {
 
@@ -83,6 +84,20 @@ std::string placements_navigation(const PlacementsFile& f, const std::string& gi
   throw Error("--placements: '" + f.path + "' names the map '" + f.map +
               "', where no navigation_corrected.tum was found: give --placements-nav (the "
               "navigation_corrected.tum of the map the structures were recognised in)");
+}
+
+void load_known_pose_inputs(MapSurveyConfig& config, const std::string& known_poses,
+                            const std::string& placements, const std::string& placements_nav) {
+  config.known_poses = read_known_poses(known_poses);
+  config.known_poses_source = known_poses;
+  const PlacementsFile f = read_placements(placements);
+  config.recognised.clear();
+  for (std::size_t k = 0; k < f.placements.size(); ++k) {
+    config.recognised.push_back(
+        {f.placements[k].model, f.placements[k].T_world_model.translation(), static_cast<int>(k)});
+  }
+  config.recognised_source = placements;
+  config.recognised_navigation = read_tum(placements_navigation(f, placements_nav));
 }
 
 }  // namespace sonar3d

@@ -20,4 +20,11 @@ std::vector<KnownStructurePose> read_known_poses(const std::string& path);
 // the file when there is none.
 std::string placements_navigation(const PlacementsFile& f, const std::string& given);
 
+// Fills `config`'s known structure poses (read_known_poses(known_poses)), the structures
+// recognised in this survey's map (`placements`) and that map's navigation
+// (placements_navigation(…, placements_nav)), each source recorded: `sonar3d map --known-poses`
+// and Python's map_survey(known_poses=…) both.
+void load_known_pose_inputs(MapSurveyConfig& config, const std::string& known_poses,
+                            const std::string& placements, const std::string& placements_nav);
+
 }  // namespace sonar3d
