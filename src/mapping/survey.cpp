@@ -531,11 +531,8 @@ MapSurveyResult map_survey(const Dataset& dataset, const MapSurveyConfig& config
   // Carving one swath: the cost of field mapping, the part spread over MPI ranks.
   auto carve_swath = [&](int s) {
     Carver carver(dataset.spec, config.carve, dataset.noise);
-    for (int i = ranges[s].first; i <= ranges[s].second; ++i) {
-      carver.integrate(dataset.load_frame(i), dataset.T_world_sonar(i),
-                       "frame " + std::to_string(dataset.frames[i].index));
-      bar.add();
-    }
+    integrate_frames(carver, dataset, static_cast<std::size_t>(ranges[s].first),
+                     static_cast<std::size_t>(ranges[s].second), &bar);
     PointCloud cloud = carver.finalize();
     require(!cloud.empty(), fmt::format("field mapping: swath {} (frames {}–{}) reconstructs to "
                                         "no point: is the seabed within the sonar's range?",

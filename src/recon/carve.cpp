@@ -1257,12 +1257,22 @@ void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
     throw Error("dataset '" + ds.root.string() + "' has no frames: nothing to reconstruct");
   }
   Progress bar("carve", ds.size(), progress);
+  integrate_frames(carver, ds, 0, ds.size() - 1, &bar);
+  bar.finish();
+}
+
+void integrate_frames(Carver& carver, const Dataset& ds, std::size_t first, std::size_t last,
+                      Progress* bar) {
+  require(first <= last && last < ds.size(),
+          "integrate_frames: frames " + std::to_string(first) + "–" + std::to_string(last) +
+              " do not lie in dataset '" + ds.root.string() + "' (" + std::to_string(ds.size()) +
+              " frames)");
   struct Item {
     std::size_t i = 0;
     SonarImage image;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   };
-  std::size_t next = 0;
+  std::size_t next = first;
   const int threads = carver.config().num_threads;
   tbb::task_arena arena(threads > 0 ? threads : static_cast<int>(tbb::task_arena::automatic));
   // No exception may leave a filter: TBB then cancels the pipeline and leaks the items already
@@ -1285,7 +1295,7 @@ void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
         static_cast<std::size_t>(2 * arena.max_concurrency() + 2),
         tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
                                             [&](tbb::flow_control& fc) -> std::size_t {
-                                              if (failed || next >= ds.size()) {
+                                              if (failed || next > last) {
                                                 fc.stop();
                                                 return 0;
                                               }
@@ -1313,14 +1323,13 @@ void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
                     carver.integrate(item->image, item->T,
                                      "frame " + std::to_string(ds.frames[item->i].index) + " (" +
                                          ds.frames[item->i].file + ")");
-                    bar.add();
+                    if (bar) bar->add();
                   } catch (...) {
                     keep_error(item->i);
                   }
                 }));
   });
   if (error) std::rethrow_exception(error);
-  bar.finish();
 }
 
 std::size_t peak_rss_bytes() {

@@ -347,11 +347,8 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
     PointCloud cloud;
     {
       Carver carver(dataset.spec, carve, dataset.noise);
-      for (int i = sw.first_frame; i <= sw.last_frame; ++i) {
-        carver.integrate(dataset.load_frame(i), dataset.T_world_sonar(i),
-                         "frame " + std::to_string(dataset.frames[i].index));
-        bar.add();
-      }
+      integrate_frames(carver, dataset, static_cast<std::size_t>(sw.first_frame),
+                       static_cast<std::size_t>(sw.last_frame), &bar);
       cloud = carver.finalize();
     }
     require(!cloud.empty(), fmt::format("relocalize: swath {} (frames {}–{}) reconstructs to no "

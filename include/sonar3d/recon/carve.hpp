@@ -31,6 +31,8 @@
 
 namespace sonar3d {
 
+class Progress;  // core/progress.hpp
+
 // Throws Error naming `name` unless the box has finite corners and max > min on every axis.
 void validate_region(const Eigen::AlignedBox3d& region, const std::string& name);
 
@@ -248,6 +250,12 @@ class Carver {
 // with a progress bar when `progress` is set. Throws Error on an empty dataset or a frame without
 // pose (naming the frame).
 void integrate_dataset(Carver& carver, const Dataset& dataset, bool progress);
+
+// Integrates frames first…last (inclusive, in order) of a dataset the same way — the next frames
+// read and decoded in parallel while one is carved — counting each on `bar` when given (a swath
+// of `sonar3d map` or `relocalize`). Throws Error naming the first frame that fails.
+void integrate_frames(Carver& carver, const Dataset& dataset, std::size_t first, std::size_t last,
+                      Progress* bar);
 
 // Memory a carving of these poses will take (core/memory.hpp), estimated before anything is
 // allocated from the sonar's footprint, the poses, config.region and config.voxel_size: the map's
