@@ -1263,10 +1263,10 @@ void integrate_dataset(Carver& carver, const Dataset& ds, bool progress) {
 
 void integrate_frames(Carver& carver, const Dataset& ds, std::size_t first, std::size_t last,
                       Progress* bar) {
-  require(first <= last && last < ds.size(),
-          "integrate_frames: frames " + std::to_string(first) + "–" + std::to_string(last) +
-              " do not lie in dataset '" + ds.root.string() + "' (" + std::to_string(ds.size()) +
-              " frames)");
+  require(first <= last && last < ds.size(), "integrate_frames: frames " + std::to_string(first) +
+                                                 "–" + std::to_string(last) +
+                                                 " do not lie in dataset '" + ds.root.string() +
+                                                 "' (" + std::to_string(ds.size()) + " frames)");
   struct Item {
     std::size_t i = 0;
     SonarImage image;
