@@ -8,7 +8,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   sonar3d::fuzz::write_file(p, {reinterpret_cast<const char*>(data + 1), size - 1});
   sonar3d::NavCsvConfig c;
   c.convention = (data[0] & 1) ? sonar3d::NavConvention::Ned : sonar3d::NavConvention::Enu;
-  c.degrees = (data[0] & 2) == 0;
+  c.angles = (data[0] & 2) == 0 ? sonar3d::AngleUnit::Deg : sonar3d::AngleUnit::Rad;
   const char* format = (data[0] & 4) ? "tum" : "csv";
   sonar3d::fuzz::run([&] { sonar3d::read_navigation(p.string(), c, format).validate(p.string()); });
   return 0;

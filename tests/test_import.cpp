@@ -712,7 +712,7 @@ TEST(NavigationCsv, EnuIsOurWorldFrame) {
                                    "," + std::to_string(-20 * kDeg) + "," +
                                    std::to_string(30 * kDeg) + "\n");
   NavCsvConfig rad;
-  rad.degrees = false;
+  rad.angles = AngleUnit::Rad;
   EXPECT_TRUE(
       read_navigation_csv((root / "rad.csv").string(), rad).poses[0].isApprox(expected, 1e-6));
 }
@@ -829,7 +829,7 @@ TEST(FramesImport, PosesAreInterpolatedNavigationTimesMounting) {
   EXPECT_EQ(r.navigation_samples, 11u);
   const Dataset ds = read_dataset(fx.root / "ds");
   ASSERT_EQ(ds.size(), 5u);
-  const Trajectory nav = read_navigation_csv(cfg.navigation.string(), cfg.navigation_csv);
+  const Trajectory nav = read_navigation_csv(cfg.navigation, cfg.navigation_csv);
   for (int k = 0; k < 5; ++k) {
     const double t = 1.0 + 0.5 * k + 0.25;
     EXPECT_NEAR(ds.frames[k].timestamp, t, 1e-12);

@@ -249,7 +249,7 @@ TEST(ArisImport, SimulatedPassRoundTripsThroughTheFrameHeaders) {
   EXPECT_EQ(fs::file_size(root / "pass.aris"), 1024u + 6 * (1024u + 48 * 120));
 
   ArisImportConfig cfg;
-  cfg.T_vehicle_sonar = p.spec.T_vehicle_sonar;
+  cfg.mount = {0.3, 0, 0.5, 0, 5, 0};  // p.spec.T_vehicle_sonar
   const ArisImportResult r = import_aris(root / "pass.aris", root / "ds", cfg);
   EXPECT_EQ(r.frames, 6u);
   EXPECT_EQ(r.nav_source, ArisNavSource::Header);
@@ -288,7 +288,7 @@ TEST(ArisImport, NavigationFileAndStaticSonar) {
 
   ArisImportConfig cfg;
   cfg.navigation = root / "nav.tum";
-  cfg.T_vehicle_sonar = p.spec.T_vehicle_sonar;
+  cfg.mount = {0.3, 0, 0.5, 0, 5, 0};  // p.spec.T_vehicle_sonar
   const ArisImportResult r = import_aris(root / "pass.aris", root / "ds", cfg);
   EXPECT_EQ(r.nav_source, ArisNavSource::File);
   const Dataset ds = read_dataset(root / "ds");
@@ -832,7 +832,7 @@ TEST(RosbagImport, PredecessorPackageImageTopicAndPoseStamped) {
   RosbagImportConfig ic;
   ic.sonar_topic = "/sonar";
   ic.nav_topic = "/pose";
-  ic.T_vehicle_sonar = p.spec.T_vehicle_sonar;
+  ic.mount = {0.3, 0, 0.5, 0, 5, 0};  // p.spec.T_vehicle_sonar
   const RosbagImportResult r = import_rosbag(root / "posestamped", root / "ds", ic);
   EXPECT_EQ(r.sonar_type, "acoustic_msgs/msg/ProjectedSonarImage");
   EXPECT_EQ(r.mounting_source, "--mount");

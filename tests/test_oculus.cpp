@@ -300,7 +300,7 @@ TEST(Oculus, MirrorAndApertureTable) {
   write_all(dir / "s.raw", encode(make_ping(2, 1, false, 0)));
   OculusImportConfig cfg = static_config();
   cfg.mirror = true;
-  cfg.vertical_aperture_rad = 15 * kDeg;
+  cfg.vertical_aperture_deg = 15;
   import_oculus(dir / "s.raw", dir / "m", cfg);
   const Dataset ds = read_dataset(dir / "m");
   const double want[] = {-64, -25, 10, 60};

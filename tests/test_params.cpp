@@ -11,7 +11,12 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/params.hpp"
+#include "sonar3d/io/aris.hpp"
+#include "sonar3d/io/holoocean.hpp"
+#include "sonar3d/io/navigation.hpp"
+#include "sonar3d/io/oculus.hpp"
 #include "sonar3d/io/params_yaml.hpp"
+#include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
 #include "sonar3d/recog/recognize.hpp"
@@ -118,6 +123,33 @@ std::string reference() {
       "`--neus`/`--colmap` relate to the "
       "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
       params::rows(TextureFilesConfig()));
+  // The importers: `sonar3d import <kind>` prints its settings under `import:`.
+  const char* kImportIntro =
+      "`sonar3d import {} --print-config` prints these under `import:`; Python: `sonar3d.{}` and "
+      "`sonar3d.import_{}(..., config=cfg)` or keywords (docs/import.md).";
+  const auto intro = [&](const std::string& kind, const std::string& cls) {
+    std::string t = kImportIntro;
+    for (const std::string& v : {kind, cls, kind}) t.replace(t.find("{}"), 2, v);
+    return t;
+  };
+  out += "\n";
+  out += params::reference_markdown("import aris", intro("aris", "ArisImportConfig"),
+                                    params::rows(ArisImportConfig()));
+  out += "\n";
+  out += params::reference_markdown("import rosbag", intro("rosbag", "RosbagImportConfig"),
+                                    params::rows(RosbagImportConfig()));
+  out += "\n";
+  out += params::reference_markdown("import oculus", intro("oculus", "OculusImportConfig"),
+                                    params::rows(OculusImportConfig()));
+  out += "\n";
+  out += params::reference_markdown("import holoocean", intro("holoocean", "HoloOceanImportConfig"),
+                                    params::rows(HoloOceanImportConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "import frames",
+      intro("frames", "FrameImportConfig") +
+          " The sensor is not a setting: `--sonar sonar.yaml` (Python: `sonar=`).",
+      params::rows(FrameImportConfig()));
   return out;
 }
 
@@ -383,4 +415,124 @@ TEST(Params, ReferenceIsCurrent) {
   }
   EXPECT_EQ(read_all(path), want)
       << "docs/reference.md is not current: SONAR3D_UPDATE_REFERENCE=1 build/tests/test_params";
+}
+
+TEST(Params, ImportPrintConfigRunsBackByteForByte) {
+  // Every importer: enums, a mounting list, an optional aperture, switches, the CSV group.
+  const fs::path dir = tmp_dir();
+  struct Case {
+    std::string command;
+    std::vector<std::string> want;
+  };
+  const std::vector<Case> cases = {
+      {"import aris --nav-source static --clock sonar --mount 0.4,0,-0.2,0,20,0 "
+       "--vertical-aperture-deg 12 --angles rad --nav-convention ned --drop-partial "
+       "--time-offset 0.5",
+       {"nav_source: static", "clock: sonar", "mount: [0.4, 0, -0.2, 0, 20, 0]",
+        "vertical_aperture_deg: 12", "angles: rad", "convention: ned", "drop_partial: true",
+        "time_offset: 0.5"}},
+      {"import rosbag --sonar-topic /sonar --static --mount 0,0,0,0,90,0 --base-frame base_link "
+       "--drop-outside",
+       {"sonar_topic: \"/sonar\"", "static_sonar: true", "mount: [0, 0, 0, 0, 90, 0]",
+        "base_frame: \"base_link\"", "vertical_aperture_deg: ~", "drop_outside: true"}},
+      {"import oculus --static --clock rate --rate 10 --gains divide --mirror",
+       {"static_sonar: true", "clock: rate", "rate_hz: 10", "gains: divide", "mirror: true"}},
+      {"import holoocean --bins cell --rate 5 --pose-key P",
+       {"bins: cell", "frame_rate_hz: 5", "pose_key: \"P\""}},
+      {"import frames --images img --times t.csv --nav nav.csv --nav-format csv",
+       {"images_dir: \"img\"", "times_csv: \"t.csv\"", "navigation: \"nav.csv\"",
+        "navigation_format: \"csv\""}},
+  };
+  for (const Case& k : cases) {
+    const auto a = run_cli_captured(dir, k.command + " --print-config");
+    ASSERT_EQ(a.code, 0) << k.command << "\n" << a.err;
+    EXPECT_NE(a.out.find("import:"), std::string::npos) << a.out;
+    for (const std::string& w : k.want) {
+      EXPECT_NE(a.out.find(w), std::string::npos) << k.command << ": " << w << "\n" << a.out;
+    }
+    std::ofstream(dir / "cfg.yaml") << a.out;
+    const std::string kind = k.command.substr(0, k.command.find(' ', 7));
+    const auto b =
+        run_cli_captured(dir, kind + " --print-config --config " + (dir / "cfg.yaml").string());
+    ASSERT_EQ(b.code, 0) << b.err;
+    EXPECT_EQ(a.out, b.out) << kind;
+  }
+  // Flags override the file.
+  const auto o =
+      run_cli_captured(dir, "import oculus --print-config --clock ping --rate 0 --config " +
+                                (dir / "cfg.yaml").string());
+  // (cfg.yaml is the frames block now: an oculus run refuses its keys, naming them.)
+  EXPECT_NE(o.code, 0);
+  EXPECT_NE(o.err.find("images_dir"), std::string::npos) << o.err;
+  const auto p1 = run_cli_captured(dir, "import aris --print-config --clock sonar");
+  std::ofstream(dir / "aris.yaml") << p1.out;
+  const auto p2 = run_cli_captured(
+      dir, "import aris --print-config --clock pc --config " + (dir / "aris.yaml").string());
+  ASSERT_EQ(p2.code, 0) << p2.err;
+  EXPECT_NE(p2.out.find("clock: pc"), std::string::npos) << p2.out;
+  // Bad values name the flag (or the file, line and key).
+  const auto e1 = run_cli_captured(dir, "import aris --print-config --vertical-aperture-deg 200");
+  EXPECT_NE(e1.code, 0);
+  EXPECT_NE(e1.err.find("--vertical-aperture-deg must lie in [0.01, 180) deg"), std::string::npos)
+      << e1.err;
+  const auto e2 = run_cli_captured(dir, "import oculus --print-config --mount 1,2,3");
+  EXPECT_NE(e2.code, 0);
+  EXPECT_NE(e2.err.find("--mount"), std::string::npos) << e2.err;
+  const auto e3 = run_cli_captured(dir, "import aris --print-config --nav-format kml");
+  EXPECT_NE(e3.code, 0);
+  EXPECT_NE(e3.err.find("--nav-format must be tum, csv or empty"), std::string::npos) << e3.err;
+  std::ofstream(dir / "bad.yaml") << "import:\n  mount: [1, 2]\n";
+  const auto e4 =
+      run_cli_captured(dir, "import rosbag --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(e4.code, 0);
+  EXPECT_NE(e4.err.find("--mount must hold 6 numbers"), std::string::npos) << e4.err;
+  std::ofstream(dir / "bad2.yaml") << "import:\n  navigation_csv: {angles: grad}\n";
+  const auto e5 =
+      run_cli_captured(dir, "import aris --print-config --config " + (dir / "bad2.yaml").string());
+  EXPECT_NE(e5.code, 0);
+  EXPECT_NE(e5.err.find("bad2.yaml:2"), std::string::npos) << e5.err;
+  EXPECT_NE(e5.err.find("deg or rad"), std::string::npos) << e5.err;
+  // Without --print-config the recording and -o are required (usage error).
+  EXPECT_EQ(run_cli_captured(dir, "import aris").code, 2);
+  EXPECT_EQ(run_cli_captured(dir, "import frames -o x").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, ImportArisFromPrintedConfigWritesTheSameDataset) {
+  // A run from the configuration a run printed writes the same dataset, byte for byte.
+  const fs::path dir = tmp_dir();
+  std::vector<ArisWriteFrame> frames(3);
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    ArisFrameHeader& h = frames[k].header;
+    h.frame_index = static_cast<std::uint32_t>(k);
+    h.ping_mode = 1;  // 48 beams
+    h.sound_speed = 1500.0f;
+    h.sample_period_us = 20;
+    h.sample_start_delay_us = 1600;
+    h.samples_per_beam = 40;
+    h.frame_time_us = 1000000 + 100000 * k;
+    h.sonar_time_us = h.frame_time_us + 5000;
+    frames[k].samples.resize(48 * 40);
+    for (std::size_t i = 0; i < frames[k].samples.size(); ++i) {
+      frames[k].samples[i] = static_cast<std::uint8_t>((i * 7 + k * 13) % 256);
+    }
+  }
+  write_aris(dir / "f.aris", frames);
+  const std::string flags =
+      "--nav-source static --clock sonar --mount 0.4,0,-0.2,0,20,0 --vertical-aperture-deg 12";
+  const auto a = run_cli_captured(dir, "import aris " + (dir / "f.aris").string() + " -o " +
+                                           (dir / "a").string() + " " + flags);
+  ASSERT_EQ(a.code, 0) << a.err;
+  const auto p = run_cli_captured(dir, "import aris " + flags + " --print-config");
+  ASSERT_EQ(p.code, 0) << p.err;
+  std::ofstream(dir / "cfg.yaml") << p.out;
+  const auto b =
+      run_cli_captured(dir, "import aris " + (dir / "f.aris").string() + " -o " +
+                                (dir / "b").string() + " --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  for (const char* f : {"sonar.yaml", "frames.csv", "navigation.tum", "frames/000002.png"}) {
+    EXPECT_EQ(read_all(dir / "a" / f), read_all(dir / "b" / f)) << f;
+  }
+  EXPECT_NE(read_all(dir / "a" / "sonar.yaml").find("12"), std::string::npos);
+  fs::remove_all(dir);
 }

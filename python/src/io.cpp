@@ -1,10 +1,14 @@
-// Datasets (read, write), HoloOcean, frames + navigation and Oculus imports, navigation logs.
+// Datasets (read, write), the importers (HoloOcean, frames + navigation, ARIS, ROS bags, Oculus)
+// with their configuration classes, navigation logs.
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/core/output_dir.hpp"
+#include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
 #include "sonar3d/io/oculus.hpp"
+#include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/sim/simulation.hpp"
 
 namespace sonar3d::python {
@@ -13,6 +17,15 @@ using namespace pybind11::literals;
 namespace fs = std::filesystem;
 
 namespace {
+
+// An import's effective settings as a dict (its config's declared fields, groups nested).
+template <class C>
+py::dict settings_dict(const C& config) {
+  C copy = config;
+  DictWriter w;
+  describe(copy, w);
+  return w.out;
+}
 
 py::dict object_dict(const SceneObject& o) {
   py::dict d;
@@ -202,48 +215,12 @@ void bind_io(py::module_& m) {
       "(float32, lossless); optional noise statistics.");
 
   m.def(
-      "import_holoocean",
-      [](const std::string& dir, const std::string& output, const std::string& bins,
-         const std::string& sensor, double rate, const std::string& python,
-         const std::string& image_key, const std::string& pose_key, const py::object& progress,
-         bool overwrite) {
-        OutputPolicy policy;  // as the CLI: the recording is never the destination
-        policy.overwrite = overwrite;
-        policy.sources = {dir};
-        check_output_directory(output, OutputKind::Dataset, policy);
-        HoloOceanImportConfig cfg;
-        cfg.bins = parse_holoocean_bins(bins);
-        cfg.sensor = sensor;
-        cfg.frame_rate_hz = rate;
-        cfg.python = python;
-        cfg.image_key = image_key;
-        cfg.pose_key = pose_key;
-        ProgressArg p(progress);
-        const HoloOceanImportResult r =
-            p.run([&] { return import_holoocean(dir, output, cfg, p.terminal()); });
-        py::dict d;
-        d["frames"] = r.frames;
-        d["dtype"] = r.dtype;
-        d["frame_rate_hz"] = r.frame_rate_hz;
-        d["spec"] = r.spec;
-        d["warnings"] = r.warnings;
-        return d;
-      },
-      "dir"_a, "output"_a, "bins"_a = "sample", "sensor"_a = "", "rate"_a = 0.0, "python"_a = "",
-      "image_key"_a = "", "pose_key"_a = "PoseSensor", "progress"_a = py::none(),
-      "overwrite"_a = false,
-      "Imports a HoloOcean/neusis recording (Config.json + Data/N.pkl) into a dataset; see "
-      "docs/import.md. bins: 'sample' (neusis: row i at RangeMin + i·Δr) or 'cell' (HoloOcean's "
-      "renderer cells). Returns {frames, dtype, frame_rate_hz, spec, warnings}. progress: True "
-      "(terminal bar) or progress(done, total).");
-
-  m.def(
       "read_navigation",
       [](const std::string& path, const std::string& convention, bool degrees,
          const std::string& format) {
         NavCsvConfig c;
         c.convention = parse_nav_convention(convention);
-        c.degrees = degrees;
+        c.angles = degrees ? AngleUnit::Deg : AngleUnit::Rad;
         const Trajectory t = read_navigation(path, c, format);
         std::vector<double> times = t.times;
         const py::ssize_t n = static_cast<py::ssize_t>(times.size());
@@ -253,28 +230,87 @@ void bind_io(py::module_& m) {
       "Reads navigation (TUM, or CSV time,x,y,z,roll,pitch,yaw in the 'enu' or 'ned' convention) "
       "as (times, T_world_vehicle poses) in our world frame (z up).");
 
+  // The importers' configurations, one class each, generated from their one declaration
+  // (io/*.hpp, core/params.hpp): the same names, defaults, units and bounds as the command line's
+  // flags and the YAML of `sonar3d import <kind> --print-config`.
+  bind_config<NavCsvConfig>(m, "NavCsvConfig",
+                            "How a navigation CSV (time,x,y,z,roll,pitch,yaw) is read: its frame "
+                            "convention and angle unit (docs/import.md).");
+  bind_config<ArisImportConfig>(
+      m, "ArisImportConfig",
+      "Settings of import_aris (sonar3d import aris): where the poses come from, the clock, the "
+      "mounting, the vertical aperture (docs/import.md §6).")
+      .def("validate", &ArisImportConfig::validate);
+  bind_config<RosbagImportConfig>(
+      m, "RosbagImportConfig",
+      "Settings of import_rosbag (sonar3d import rosbag): topics (empty: found by message type), "
+      "mounting, sensor description (docs/import.md §7).");
+  bind_config<OculusImportConfig>(
+      m, "OculusImportConfig",
+      "Settings of import_oculus (sonar3d import oculus): navigation or a static sonar, clock, "
+      "gains, mounting, vertical aperture (docs/import.md §8).")
+      .def("validate", &OculusImportConfig::validate);
+  bind_config<HoloOceanImportConfig>(
+      m, "HoloOceanImportConfig",
+      "Settings of import_holoocean (sonar3d import holoocean): pixel convention, pickle keys, "
+      "frame rate (docs/import.md).")
+      .def("validate", &HoloOceanImportConfig::validate);
+  bind_config<FrameImportConfig>(
+      m, "FrameImportConfig",
+      "Settings of import_frames (sonar3d import frames): images, times, navigation and how it is "
+      "read (the sensor is import_frames' `sonar`; docs/import.md).");
+
+  m.def(
+      "import_holoocean",
+      [](const std::string& dir, const std::string& output, const py::object& config,
+         const py::object& progress, bool overwrite, const py::kwargs& settings) {
+        const HoloOceanImportConfig cfg =
+            config_with_settings<HoloOceanImportConfig>(config, settings, "import_holoocean");
+        cfg.validate();
+        OutputPolicy policy;  // as the CLI: the recording is never the destination
+        policy.overwrite = overwrite;
+        policy.sources = {dir};
+        check_output_directory(output, OutputKind::Dataset, policy);
+        ProgressArg p(progress);
+        const HoloOceanImportResult r =
+            p.run([&] { return import_holoocean(dir, output, cfg, p.terminal()); });
+        py::dict d;
+        d["frames"] = r.frames;
+        d["dtype"] = r.dtype;
+        d["frame_rate_hz"] = r.frame_rate_hz;
+        d["spec"] = r.spec;
+        d["warnings"] = r.warnings;
+        d["settings"] = settings_dict(cfg);
+        return d;
+      },
+      "dir"_a, "output"_a, "config"_a = py::none(), "progress"_a = py::none(),
+      "overwrite"_a = false,
+      "Imports a HoloOcean/neusis recording (Config.json + Data/N.pkl) into a dataset, as "
+      "`sonar3d import holoocean` (docs/import.md). `config`: a HoloOceanImportConfig (None: the "
+      "defaults); keywords set its fields (bins='sample' | 'cell', sensor, image_key, pose_key, "
+      "frame_rate_hz in Hz (0: the sensor's), python, rigid_tolerance). Returns {frames, dtype, "
+      "frame_rate_hz, spec, warnings, settings}. progress: True (terminal bar) or "
+      "progress(done, total).");
+
   m.def(
       "import_frames",
-      [](const std::string& images, const std::string& times, const std::string& navigation,
-         const py::object& sonar, const std::string& output, const std::string& convention,
-         bool degrees, const std::string& nav_format, double time_offset, bool drop_outside,
-         const py::object& progress, bool overwrite) {
-        OutputPolicy policy;  // as the CLI: no input is, holds or lies in the destination
-        policy.overwrite = overwrite;
-        policy.sources = {images, times, navigation};
-        check_output_directory(output, OutputKind::Dataset, policy);
-        FrameImportConfig cfg;
-        cfg.images_dir = images;
-        cfg.times_csv = times;
-        cfg.navigation = navigation;
-        cfg.navigation_format = nav_format;
-        cfg.navigation_csv.convention = parse_nav_convention(convention);
-        cfg.navigation_csv.degrees = degrees;
+      [](const py::object& images, const py::object& times, const py::object& navigation,
+         const py::object& sonar, const std::string& output, const py::object& config,
+         const py::object& progress, bool overwrite, const py::kwargs& settings) {
+        FrameImportConfig cfg =
+            config_with_settings<FrameImportConfig>(config, settings, "import_frames");
+        if (!images.is_none()) cfg.images_dir = py::str(images).cast<std::string>();
+        if (!times.is_none()) cfg.times_csv = py::str(times).cast<std::string>();
+        if (!navigation.is_none()) cfg.navigation = py::str(navigation).cast<std::string>();
+        if (sonar.is_none()) throw Error("import_frames: give the sensor (sonar=)");
         cfg.spec = py::isinstance<SonarSpec>(sonar)
                        ? sonar.cast<SonarSpec>()
                        : read_sonar_description(py::str(sonar).cast<std::string>());
-        cfg.time_offset = time_offset;
-        cfg.drop_outside = drop_outside;
+        cfg.validate();
+        OutputPolicy policy;  // as the CLI: no input is, holds or lies in the destination
+        policy.overwrite = overwrite;
+        policy.sources = {cfg.images_dir, cfg.times_csv, cfg.navigation};
+        check_output_directory(output, OutputKind::Dataset, policy);
         ProgressArg p(progress);
         const FrameImportResult r = p.run([&] { return import_frames(cfg, output, p.terminal()); });
         py::dict d;
@@ -283,44 +319,121 @@ void bind_io(py::module_& m) {
         d["navigation_samples"] = r.navigation_samples;
         d["first_time"] = r.first_time;
         d["last_time"] = r.last_time;
+        d["settings"] = settings_dict(cfg);
         return d;
       },
-      "images"_a, "times"_a, "navigation"_a, "sonar"_a, "output"_a, "convention"_a = "enu",
-      "degrees"_a = true, "nav_format"_a = "", "time_offset"_a = 0.0, "drop_outside"_a = false,
-      "progress"_a = py::none(), "overwrite"_a = false,
+      "images"_a = py::none(), "times"_a = py::none(), "navigation"_a = py::none(),
+      "sonar"_a = py::none(), "output"_a = "", "config"_a = py::none(), "progress"_a = py::none(),
+      "overwrite"_a = false,
       "Imports frame images + a 'timestamp,file' CSV + navigation (TUM or CSV) with the sensor "
-      "(a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a dataset. "
-      "Frames outside the navigation span raise sonar3d.Error, or are dropped and counted with "
-      "drop_outside=True. progress: True (terminal bar) or progress(done, total).");
+      "(`sonar`: a SonarSpec or a sensor YAML path; T_vehicle_sonar is the mounting) into a "
+      "dataset, as `sonar3d import frames`. images, times, navigation: paths (the config's "
+      "images_dir, times_csv, navigation). `config`: a FrameImportConfig; keywords set its fields "
+      "(navigation_format, navigation_csv=NavCsvConfig(convention='ned', angles='rad'), "
+      "time_offset in s, drop_outside). Frames outside the navigation span raise sonar3d.Error, "
+      "or are dropped and counted with drop_outside=True. Returns {frames, dropped, "
+      "navigation_samples, first_time, last_time, settings}. progress: True (terminal bar) or "
+      "progress(done, total).");
+
+  m.def(
+      "import_aris",
+      [](const std::string& file, const std::string& output, const py::object& config,
+         const py::object& progress, bool overwrite, const py::kwargs& settings) {
+        const ArisImportConfig cfg =
+            config_with_settings<ArisImportConfig>(config, settings, "import_aris");
+        cfg.validate();
+        OutputPolicy policy;  // as the CLI: the recording and the navigation are never the output
+        policy.overwrite = overwrite;
+        policy.sources = {file};
+        if (!cfg.navigation.empty()) policy.sources.push_back(cfg.navigation);
+        check_output_directory(output, OutputKind::Dataset, policy);
+        ProgressArg p(progress);
+        const ArisImportResult r =
+            p.run([&] { return import_aris(file, output, cfg, p.terminal()); });
+        py::dict d;
+        d["frames"] = r.frames;
+        d["dropped"] = r.dropped;
+        d["samples"] = r.info.samples;
+        d["beams"] = r.info.beams;
+        d["system"] = std::string(aris_system_name(r.info.system));
+        d["telephoto"] = r.info.telephoto;
+        d["nav_source"] = std::string(kArisNavSourceNames[static_cast<int>(r.nav_source)]);
+        d["first_time"] = r.first_time;
+        d["last_time"] = r.last_time;
+        d["spec"] = r.spec;
+        d["warnings"] = r.warnings;
+        d["settings"] = settings_dict(cfg);
+        return d;
+      },
+      "file"_a, "output"_a, "config"_a = py::none(), "progress"_a = py::none(),
+      "overwrite"_a = false,
+      "Imports a Sound Metrics ARIS recording (.aris) into a dataset, as `sonar3d import aris` "
+      "(docs/import.md §6). `config`: an ArisImportConfig (None: the defaults); keywords set its "
+      "fields: nav_source ('auto' | 'header' | 'file' | 'static'), navigation (a TUM or CSV "
+      "file), navigation_format, navigation_csv (NavCsvConfig), clock ('pc' | 'sonar'), "
+      "time_offset (s), drop_outside, drop_partial, mount ([x, y, z] m + [roll, pitch, yaw] "
+      "degrees: T_vehicle_sonar), vertical_aperture_deg (degrees; None: the model's). Returns "
+      "{frames, dropped, samples, beams, system, telephoto, nav_source (the one used), "
+      "first_time, last_time (s), spec, warnings, settings}. progress: True (terminal bar) or "
+      "progress(done, total).");
+
+  m.def(
+      "import_rosbag",
+      [](const std::string& bag, const std::string& output, const py::object& config,
+         const py::object& progress, bool overwrite, const py::kwargs& settings) {
+        RosbagImportConfig cfg =
+            config_with_settings<RosbagImportConfig>(config, settings, "import_rosbag");
+        params::check(cfg, "import_rosbag:");
+        OutputPolicy policy;  // as the CLI: the bag and the description are never the output
+        policy.overwrite = overwrite;
+        policy.sources = {bag};
+        if (!cfg.sonar_description.empty()) policy.sources.push_back(cfg.sonar_description);
+        check_output_directory(output, OutputKind::Dataset, policy);
+        ProgressArg p(progress);
+        std::vector<std::string> chosen;
+        const RosbagImportResult r = p.run([&] {
+          // Topics not named are found by message type when unambiguous, as the CLI does.
+          chosen = choose_rosbag_topics(bag, cfg);
+          return import_rosbag(bag, output, cfg, p.terminal());
+        });
+        py::dict d;
+        d["format"] = r.format;
+        d["sonar_type"] = r.sonar_type;
+        d["nav_type"] = r.nav_type;
+        d["frames"] = r.frames;
+        d["dropped"] = r.dropped;
+        d["navigation_samples"] = r.navigation_samples;
+        d["mounting_source"] = r.mounting_source;
+        d["topics"] = chosen;
+        d["spec"] = r.spec;
+        d["warnings"] = r.warnings;
+        d["settings"] = settings_dict(cfg);
+        return d;
+      },
+      "bag"_a, "output"_a, "config"_a = py::none(), "progress"_a = py::none(),
+      "overwrite"_a = false,
+      "Imports a ROS 2 bag (directory or .db3) or a ROS 1 bag (.bag) into a dataset, as `sonar3d "
+      "import rosbag` (docs/import.md §7). `config`: a RosbagImportConfig (None: the defaults); "
+      "keywords set its fields: sonar_topic, nav_topic (empty: the one topic of a sonar / "
+      "navigation type), static_sonar, tf_topic, base_frame, mount ([x, y, z] m + [roll, pitch, "
+      "yaw] degrees, instead of /tf_static), sonar_description (a sensor YAML path), "
+      "vertical_aperture_deg (degrees; None: the messages'), time_offset (s), drop_outside. "
+      "Returns {format, sonar_type, nav_type, frames, dropped, navigation_samples, "
+      "mounting_source, topics (the topics found by type), spec, warnings, settings (with the "
+      "topics used)}. progress: True (terminal bar) or progress(done, total).");
 
   m.def(
       "import_oculus",
-      [](const std::string& file, const std::string& output, const py::object& navigation,
-         bool static_sonar, const std::string& convention, bool degrees,
-         const std::string& nav_format, const std::string& clock, double rate, double time_offset,
-         bool drop_outside, const std::string& gains, bool mirror, const py::object& mount,
-         double vertical_aperture_deg, const py::object& progress, bool overwrite) {
+      [](const std::string& file, const std::string& output, const py::object& config,
+         const py::object& progress, bool overwrite, const py::kwargs& settings) {
+        const OculusImportConfig cfg =
+            config_with_settings<OculusImportConfig>(config, settings, "import_oculus");
+        cfg.validate();
         OutputPolicy policy;  // as the CLI: the stream and the navigation are never the output
         policy.overwrite = overwrite;
         policy.sources = {file};
-        OculusImportConfig cfg;
-        if (!navigation.is_none()) {
-          cfg.navigation = py::str(navigation).cast<std::string>();
-          policy.sources.push_back(cfg.navigation);
-        }
+        if (!cfg.navigation.empty()) policy.sources.push_back(cfg.navigation);
         check_output_directory(output, OutputKind::Dataset, policy);
-        cfg.static_sonar = static_sonar;
-        cfg.navigation_format = nav_format;
-        cfg.navigation_csv.convention = parse_nav_convention(convention);
-        cfg.navigation_csv.degrees = degrees;
-        cfg.clock = parse_oculus_clock(clock);
-        cfg.rate_hz = rate;
-        cfg.time_offset = time_offset;
-        cfg.drop_outside = drop_outside;
-        cfg.gains = parse_oculus_gains(gains);
-        cfg.mirror = mirror;
-        if (!mount.is_none()) cfg.T_vehicle_sonar = array_to_pose(mount.cast<carray<double>>());
-        cfg.vertical_aperture_rad = vertical_aperture_deg * M_PI / 180.0;
         ProgressArg p(progress);
         const OculusImportResult r =
             p.run([&] { return import_oculus(file, output, cfg, p.terminal()); });
@@ -338,22 +451,21 @@ void bind_io(py::module_& m) {
         d["last_time"] = r.last_time;
         d["spec"] = r.spec;
         d["warnings"] = r.warnings;
+        d["settings"] = settings_dict(cfg);
         return d;
       },
-      "file"_a, "output"_a, "navigation"_a = py::none(), "static"_a = false, "convention"_a = "enu",
-      "degrees"_a = true, "nav_format"_a = "", "clock"_a = "ping", "rate"_a = 0.0,
-      "time_offset"_a = 0.0, "drop_outside"_a = false, "gains"_a = "keep", "mirror"_a = false,
-      "mount"_a = py::none(), "vertical_aperture_deg"_a = 0.0, "progress"_a = py::none(),
+      "file"_a, "output"_a, "config"_a = py::none(), "progress"_a = py::none(),
       "overwrite"_a = false,
       "Imports a Blueprint Oculus raw ping stream (SimplePingResult v1/v2) into a dataset, as "
-      "`sonar3d import oculus` (docs/import.md §8). navigation: a TUM or CSV file "
-      "(T_world_vehicle), or static=True for a fixed sonar; clock 'ping' (pingStartTime) or "
-      "'rate' (i / rate, pings/s); time_offset in s; gains 'keep' or 'divide'; mirror=True when "
-      "bearings are positive to starboard; mount: 4x4 T_vehicle_sonar; vertical_aperture_deg: "
-      "full aperture in degrees (0 = the published one of the model). Returns {pings, frames, "
-      "dropped, dropped_bytes (a cut last message), other_messages, version, model, has_gains, "
-      "gains (min, max), first_time, last_time, spec, warnings}. progress: True or "
-      "progress(done, total).");
+      "`sonar3d import oculus` (docs/import.md §8). `config`: an OculusImportConfig (None: the "
+      "defaults); keywords set its fields: navigation (a TUM or CSV file, T_world_vehicle) or "
+      "static_sonar=True, navigation_format, navigation_csv (NavCsvConfig), clock ('ping' | "
+      "'rate'), rate_hz (pings/s), time_offset (s), drop_outside, gains ('keep' | 'divide'), "
+      "mirror (bearings positive to starboard), mount ([x, y, z] m + [roll, pitch, yaw] degrees: "
+      "T_vehicle_sonar), vertical_aperture_deg (degrees; None: the published one of the model). "
+      "Returns {pings, frames, dropped, dropped_bytes (a cut last message), other_messages, "
+      "version, model, has_gains, gains (min, max), first_time, last_time, spec, warnings, "
+      "settings}. progress: True or progress(done, total).");
 }
 
 }  // namespace sonar3d::python

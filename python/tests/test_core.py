@@ -8,7 +8,8 @@ import sonar3d
 def test_module_has_docstrings():
     assert "sonar" in sonar3d.__doc__
     for name in ["read_dataset", "write_dataset", "simulate", "denoise", "evaluate",
-                 "import_holoocean", "import_frames", "import_oculus", "read_navigation"]:
+                 "import_holoocean", "import_frames", "import_oculus", "import_aris", "import_rosbag",
+                 "read_navigation"]:
         assert getattr(sonar3d, name).__doc__, name
 
 

@@ -209,7 +209,7 @@ REAL_PINGS = os.path.join(os.path.dirname(__file__), "..", "..", "data", "oculus
 
 def test_import_oculus_real_pings(tmp_path):
     out = str(tmp_path / "ds")
-    r = sonar3d.import_oculus(REAL_PINGS, out, static=True)
+    r = sonar3d.import_oculus(REAL_PINGS, out, static_sonar=True)
     assert r["pings"] == 3 and r["frames"] == 3 and r["version"] == 1
     assert not r["has_gains"] and r["dropped_bytes"] == 0
     assert "M1200d" in r["model"]
@@ -224,7 +224,7 @@ def test_import_oculus_real_pings(tmp_path):
     # A cut stream keeps its whole pings; no navigation is an error.
     cut = tmp_path / "cut.raw"
     cut.write_bytes(raw[:-1000].tobytes())
-    r = sonar3d.import_oculus(str(cut), str(tmp_path / "cut"), static=True)
+    r = sonar3d.import_oculus(str(cut), str(tmp_path / "cut"), static_sonar=True)
     assert r["frames"] == 2 and r["dropped_bytes"] == 181016
     with pytest.raises(sonar3d.Error, match="--static"):
         sonar3d.import_oculus(REAL_PINGS, str(tmp_path / "x"))

@@ -400,20 +400,19 @@ SonarSpec aris_sonar_spec(const ArisFrameHeader& h, int beams, const std::string
 }
 
 void ArisImportConfig::validate() const {
+  params::check(*this, "ARIS import:");
   if (!std::isfinite(time_offset)) throw Error("ARIS import: 'time_offset' must be finite");
+  check_navigation_format(navigation_format, "ARIS import: navigation_format");
   if (nav_source == ArisNavSource::File && navigation.empty()) {
-    throw Error("ARIS import: navigation source 'file' needs a navigation file (--nav)");
+    throw Error("ARIS import: nav_source 'file' needs a navigation file");
   }
   if (!navigation.empty() && nav_source != ArisNavSource::File &&
       nav_source != ArisNavSource::Auto) {
-    throw Error("ARIS import: a navigation file is given but the navigation source is not 'file'");
+    throw Error("ARIS import: a navigation file is given but nav_source is '" +
+                std::string(kArisNavSourceNames[static_cast<int>(nav_source)]) +
+                "' (use auto or file)");
   }
-  if (vertical_aperture_rad != 0 &&
-      !(vertical_aperture_rad >= limits::kMinApertureDeg * kDeg && vertical_aperture_rad < M_PI)) {
-    throw Error("ARIS import: the vertical aperture must be in (0°, 180°)");
-  }
-  const Eigen::Isometry3d& T = T_vehicle_sonar;
-  if (!is_rigid(T)) throw Error("ARIS import: the mounting T_vehicle_sonar is not rigid");
+  mounting_from_list(mount, "ARIS import: mount");
 }
 
 ArisImportResult import_aris(const fs::path& file, const fs::path& out,
@@ -455,9 +454,9 @@ ArisImportResult import_aris(const fs::path& file, const fs::path& out,
   }
   const std::string where0 = at_offset(file, reader.frame_offset(0)) + ": frame 0";
   res.spec = aris_sonar_spec(headers[0], info.beams, where0);
-  if (config.vertical_aperture_rad > 0)
-    res.spec.vertical_aperture_rad = config.vertical_aperture_rad;
-  res.spec.T_vehicle_sonar = config.T_vehicle_sonar;
+  if (config.vertical_aperture_deg)
+    res.spec.vertical_aperture_rad = *config.vertical_aperture_deg * kDeg;
+  res.spec.T_vehicle_sonar = mounting_from_list(config.mount, "ARIS import: mount");
   res.spec.validate();
 
   std::vector<double> times(info.frames);
@@ -504,8 +503,7 @@ ArisImportResult import_aris(const fs::path& file, const fs::path& out,
   res.nav_source = src;
   Trajectory nav;
   if (src == ArisNavSource::File) {
-    nav = read_navigation(config.navigation.string(), config.navigation_csv,
-                          config.navigation_format);
+    nav = read_navigation(config.navigation, config.navigation_csv, config.navigation_format);
   } else if (src == ArisNavSource::Header) {
     const double lat0 = headers[0].latitude, lon0 = headers[0].longitude;
     for (std::size_t i = 0; i < info.frames; ++i) {
@@ -646,35 +644,7 @@ Eigen::Vector2d geodetic_from_enu(const Eigen::Vector2d& en, double lat0_deg, do
 }
 
 Eigen::Isometry3d parse_mounting(const std::string& text) {
-  std::vector<double> v;
-  std::string cell;
-  std::istringstream is(text);
-  while (std::getline(is, cell, ',')) {
-    std::size_t used = 0;
-    double x = 0;
-    try {
-      x = std::stod(cell, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    while (used < cell.size() && std::isspace(static_cast<unsigned char>(cell[used]))) ++used;
-    if (cell.empty() || used != cell.size() || !std::isfinite(x)) {
-      throw Error("mounting '" + printable(text) + "': '" + printable(cell) + "' is not a number");
-    }
-    v.push_back(x);
-  }
-  if (v.size() != 6) {
-    throw Error("mounting '" + printable(text) +
-                "': expected 6 numbers x,y,z,roll,pitch,yaw (m, degrees)");
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (std::abs(v[k]) > limits::kMaxCoordinate) {
-      throw Error("mounting '" + printable(text) + "': offset beyond " +
-                  fmt(limits::kMaxCoordinate) + " m");
-    }
-  }
-  return vehicle_pose_from_nav(Eigen::Vector3d(v[0], v[1], v[2]), v[3] * kDeg, v[4] * kDeg,
-                               v[5] * kDeg, NavConvention::Enu);
+  return mounting_from_list(parse_mounting_list(text), "mounting '" + printable(text) + "'");
 }
 
 }  // namespace sonar3d

@@ -344,6 +344,7 @@ HoloOceanBins parse_holoocean_bins(const std::string& s) {
 }
 
 void HoloOceanImportConfig::validate() const {
+  params::check(*this, "HoloOcean import:");
   if (!std::isfinite(frame_rate_hz) || frame_rate_hz < 0) {
     throw Error("HoloOcean import: 'frame_rate_hz' must be >= 0 (0 = the sensor's Hz)");
   }

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/units.hpp"
 #include "sonar3d/io/dataset.hpp"
@@ -119,7 +120,7 @@ Trajectory read_navigation_csv(const std::string& path, const NavCsvConfig& conf
       throw Error(where + ": time " + fmt_time(v[0]) + " s is not after the previous sample (" +
                   fmt_time(traj.times.back()) + " s): navigation timestamps must increase");
     }
-    const double s = config.degrees ? kDeg : 1.0;
+    const double s = config.angles == AngleUnit::Deg ? kDeg : 1.0;
     traj.push_back(v[0], vehicle_pose_from_nav(Eigen::Vector3d(v[1], v[2], v[3]), v[4] * s,
                                                v[5] * s, v[6] * s, config.convention));
   }
@@ -222,11 +223,69 @@ Error no_frame_inside_navigation(const Trajectory& nav, const std::string& sourc
                "] s: check the clocks (--time-offset)");
 }
 
+void check_navigation_format(const std::string& format, const std::string& what) {
+  if (!format.empty() && format != "tum" && format != "csv") {
+    throw Error(what + " must be tum, csv or empty (by the file's extension), got '" +
+                printable(format) + "'");
+  }
+}
+
+Eigen::Isometry3d mounting_from_list(const params::List& v, const std::string& what) {
+  if (v.size() != 6) {
+    throw Error(what + " must hold 6 numbers x,y,z,roll,pitch,yaw (m, degrees), got " +
+                std::to_string(v.size()));
+  }
+  for (int k = 0; k < 6; ++k) {
+    if (!std::isfinite(v[k]))
+      throw Error(what + ": position " + std::to_string(k + 1) + " is not a finite number");
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(v[k]) > limits::kMaxCoordinate) {
+      throw Error(what + ": offset beyond " + params::format_number(limits::kMaxCoordinate) + " m");
+    }
+  }
+  return vehicle_pose_from_nav(Eigen::Vector3d(v[0], v[1], v[2]), v[3] * kDeg, v[4] * kDeg,
+                               v[5] * kDeg, NavConvention::Enu);
+}
+
+params::List parse_mounting_list(const std::string& text) {
+  params::List v;
+  std::string cell;
+  std::istringstream is(text);
+  while (std::getline(is, cell, ',')) {
+    std::size_t used = 0;
+    double x = 0;
+    try {
+      x = std::stod(cell, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    while (used < cell.size() && std::isspace(static_cast<unsigned char>(cell[used]))) ++used;
+    if (cell.empty() || used != cell.size() || !std::isfinite(x)) {
+      throw Error("mounting '" + printable(text) + "': '" + printable(cell) + "' is not a number");
+    }
+    v.push_back(x);
+  }
+  if (v.size() != 6) {
+    throw Error("mounting '" + printable(text) +
+                "': expected 6 numbers x,y,z,roll,pitch,yaw (m, degrees)");
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(v[k]) > limits::kMaxCoordinate) {
+      throw Error("mounting '" + printable(text) + "': offset beyond " +
+                  params::format_number(limits::kMaxCoordinate) + " m");
+    }
+  }
+  return v;
+}
+
 void FrameImportConfig::validate() const {
+  params::check(*this, "frames import:");
   if (images_dir.empty()) throw Error("frames import: 'images_dir' is not set");
   if (times_csv.empty()) throw Error("frames import: 'times_csv' is not set");
   if (navigation.empty()) throw Error("frames import: 'navigation' is not set");
   if (!std::isfinite(time_offset)) throw Error("frames import: 'time_offset' must be finite");
+  check_navigation_format(navigation_format, "frames import: navigation_format");
   spec.validate();
 }
 
@@ -234,11 +293,11 @@ FrameImportResult import_frames(const FrameImportConfig& config, const fs::path&
                                 bool progress) {
   config.validate();
   if (!fs::is_directory(config.images_dir)) {
-    throw Error("images directory '" + config.images_dir.string() + "' does not exist");
+    throw Error("images directory '" + config.images_dir + "' does not exist");
   }
   const Trajectory nav =
-      read_navigation(config.navigation.string(), config.navigation_csv, config.navigation_format);
-  const std::vector<FrameTime> times = read_frame_times(config.times_csv.string());
+      read_navigation(config.navigation, config.navigation_csv, config.navigation_format);
+  const std::vector<FrameTime> times = read_frame_times(config.times_csv);
   bool tiff = false;
   for (const auto& ft : times) {
     const std::string ext = lower(fs::path(ft.file).extension().string());
@@ -251,14 +310,15 @@ FrameImportResult import_frames(const FrameImportConfig& config, const fs::path&
   Progress bar("import", times.size(), progress);
   for (const FrameTime& ft : times) {
     const double t = ft.timestamp + config.time_offset;
-    if (!frame_inside_navigation(nav, t, config.drop_outside,
-                                 config.times_csv.string() + ":" + std::to_string(ft.line) +
-                                     ": frame '" + ft.file + "'")) {
+    if (!frame_inside_navigation(
+            nav, t, config.drop_outside,
+            config.times_csv + ":" + std::to_string(ft.line) + ": frame '" + ft.file + "'")) {
       ++res.dropped;
       bar.add();
       continue;
     }
-    SonarImage img = read_sonar_image((config.images_dir / ft.file).string(), config.spec);
+    SonarImage img =
+        read_sonar_image((fs::path(config.images_dir) / ft.file).string(), config.spec);
     img.timestamp = t;
     writer.add_frame(img);
     if (res.frames == 0) res.first_time = t;
@@ -267,7 +327,7 @@ FrameImportResult import_frames(const FrameImportConfig& config, const fs::path&
     bar.add();
   }
   bar.finish();
-  if (res.frames == 0) throw no_frame_inside_navigation(nav, config.times_csv.string());
+  if (res.frames == 0) throw no_frame_inside_navigation(nav, config.times_csv);
   writer.set_navigation(nav);
   writer.commit();
   return res;

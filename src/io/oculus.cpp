@@ -348,6 +348,8 @@ OculusClock parse_oculus_clock(const std::string& s) {
 }
 
 void OculusImportConfig::validate() const {
+  params::check(*this, "Oculus import:");
+  check_navigation_format(navigation_format, "Oculus import: navigation_format");
   if (!std::isfinite(time_offset)) throw Error("Oculus import: 'time_offset' must be finite");
   if (static_sonar == !navigation.empty()) {
     throw Error(static_sonar ? "Oculus import: give a navigation file or a static sonar, not both"
@@ -360,13 +362,7 @@ void OculusImportConfig::validate() const {
   if (clock != OculusClock::Rate && rate_hz != 0) {
     throw Error("Oculus import: a rate is given but the clock is not 'rate'");
   }
-  if (vertical_aperture_rad != 0 &&
-      !(vertical_aperture_rad >= limits::kMinApertureDeg * kDeg && vertical_aperture_rad < M_PI)) {
-    throw Error("Oculus import: the vertical aperture must be in (0°, 180°)");
-  }
-  if (!is_rigid(T_vehicle_sonar)) {
-    throw Error("Oculus import: the mounting T_vehicle_sonar is not rigid");
-  }
+  mounting_from_list(mount, "Oculus import: mount");
 }
 
 OculusImportResult import_oculus(const fs::path& file, const fs::path& out,
@@ -452,13 +448,13 @@ OculusImportResult import_oculus(const fs::path& file, const fs::path& out,
                   " after version " + std::to_string(first.version) + " pings");
     }
   }
-  if (config.vertical_aperture_rad > 0)
-    res.spec.vertical_aperture_rad = config.vertical_aperture_rad;
+  if (config.vertical_aperture_deg)
+    res.spec.vertical_aperture_rad = *config.vertical_aperture_deg * kDeg;
   if (config.mirror) {
     std::reverse(res.spec.bearings_rad.begin(), res.spec.bearings_rad.end());
     for (double& b : res.spec.bearings_rad) b = -b;
   }
-  res.spec.T_vehicle_sonar = config.T_vehicle_sonar;
+  res.spec.T_vehicle_sonar = mounting_from_list(config.mount, "Oculus import: mount");
   res.spec.validate();
   const bool divide = config.gains == OculusGains::Divide && res.has_gains;
   if (config.gains == OculusGains::Divide && !res.has_gains) {
@@ -472,8 +468,7 @@ OculusImportResult import_oculus(const fs::path& file, const fs::path& out,
     nav.push_back(times.front(), Eigen::Isometry3d::Identity());
     if (times.back() > times.front()) nav.push_back(times.back(), Eigen::Isometry3d::Identity());
   } else {
-    nav = read_navigation(config.navigation.string(), config.navigation_csv,
-                          config.navigation_format);
+    nav = read_navigation(config.navigation, config.navigation_csv, config.navigation_format);
   }
 
   DatasetWriter writer(out, res.spec,

@@ -360,6 +360,7 @@ std::unique_ptr<BagReader> BagReader::open(const fs::path& bag) {
 }
 
 void RosbagImportConfig::validate() const {
+  params::check(*this, "rosbag import:");
   if (sonar_topic.empty()) throw Error("rosbag import: the sonar topic is not set");
   if (nav_topic.empty() && !static_sonar) {
     throw Error(
@@ -367,13 +368,12 @@ void RosbagImportConfig::validate() const {
         "sonar");
   }
   if (!std::isfinite(time_offset)) throw Error("rosbag import: 'time_offset' must be finite");
-  if (vertical_aperture_rad != 0 &&
-      !(vertical_aperture_rad >= limits::kMinApertureDeg * kDeg && vertical_aperture_rad < M_PI)) {
-    throw Error("rosbag import: the vertical aperture must be in (0°, 180°)");
-  }
-  if (T_vehicle_sonar && !is_rigid(*T_vehicle_sonar)) {
-    throw Error("rosbag import: the mounting is not a rigid transform");
-  }
+  T_vehicle_sonar();  // checks the mounting
+}
+
+std::optional<Eigen::Isometry3d> RosbagImportConfig::T_vehicle_sonar() const {
+  if (mount.empty()) return std::nullopt;
+  return mounting_from_list(mount, "rosbag import: mount");
 }
 
 SonarSpec sonar_spec_from_message(const RosSonarImage& m, const std::string& where,
@@ -530,7 +530,7 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   }
   std::optional<SonarSpec> described;
   if (!config.sonar_description.empty()) {
-    described = read_sonar_description(config.sonar_description.string());
+    described = read_sonar_description(config.sonar_description);
   }
 
   // Navigation: T_world_vehicle from the header stamps.
@@ -579,7 +579,8 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   const bool have_first = bag->read_first(
       sonar->name,
       [&](std::int64_t, const std::uint8_t* p, std::size_t n, const std::string& where) {
-        frames.emplace(sonar->type, wire, p, n, where, described, config.vertical_aperture_rad);
+        frames.emplace(sonar->type, wire, p, n, where, described,
+                       config.vertical_aperture_deg ? *config.vertical_aperture_deg * kDeg : 0.0);
       });
   if (!have_first) throw Error(src + ": topic '" + sonar->name + "' holds no message");
   const std::string sonar_frame = frames->frame_id();
@@ -589,7 +590,8 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   Eigen::Isometry3d T_vehicle_frame = Eigen::Isometry3d::Identity();
   res.mounting_source = "identity (no static transform)";
   bool from_tf = false;
-  if (config.T_vehicle_sonar) {
+  const std::optional<Eigen::Isometry3d> mount = config.T_vehicle_sonar();
+  if (mount) {
     res.mounting_source = "--mount";
   } else if (const BagTopic* tf = bag->find(config.tf_topic)) {
     if (ros_type_name(tf->type) != "tf2_msgs/TFMessage") {
@@ -612,7 +614,7 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   }
 
   // The sensor description.
-  const SonarSpec spec = frames->set_mounting(config.T_vehicle_sonar, T_vehicle_frame, from_tf,
+  const SonarSpec spec = frames->set_mounting(mount, T_vehicle_frame, from_tf,
                                               src + ": the messages of '" + sonar->name + "'");
   res.spec = spec;
 

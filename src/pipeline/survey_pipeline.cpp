@@ -385,9 +385,10 @@ void Survey::do_import(SurveyStageReport& r) {
   csv.convention = parse_nav_convention(c.nav_convention);
   require(c.angles == "deg" || c.angles == "rad",
           "import.angles must be deg or rad, not '" + c.angles + "'");
-  csv.degrees = c.angles == "deg";
-  const Eigen::Isometry3d mount =
-      parse_mounting(c.mount.empty() ? std::string("0,0,0,0,0,0") : c.mount);
+  csv.angles = c.angles == "deg" ? AngleUnit::Deg : AngleUnit::Rad;
+  const params::List mount = c.mount.empty() ? kNoMounting : parse_mounting_list(c.mount);
+  const params::Maybe aperture =
+      c.vertical_aperture_deg > 0 ? params::Maybe(c.vertical_aperture_deg) : params::Maybe();
   std::size_t frames = 0;
   std::vector<std::string> warnings;
   if (kind_ == "aris") {
@@ -397,8 +398,8 @@ void Survey::do_import(SurveyStageReport& r) {
     a.navigation_csv = csv;
     a.nav_source = parse_aris_nav_source(c.static_sonar ? "static" : c.nav_source);
     a.clock = parse_aris_clock(c.clock.empty() ? "pc" : c.clock);
-    a.T_vehicle_sonar = mount;
-    a.vertical_aperture_rad = c.vertical_aperture_deg * M_PI / 180;
+    a.mount = mount;
+    a.vertical_aperture_deg = aperture;
     a.time_offset = c.time_offset;
     a.drop_outside = c.drop_outside;
     a.drop_partial = c.drop_partial;
@@ -413,9 +414,9 @@ void Survey::do_import(SurveyStageReport& r) {
     b.static_sonar = c.static_sonar;
     b.tf_topic = c.tf_topic;
     b.base_frame = c.base_frame;
-    if (!c.mount.empty()) b.T_vehicle_sonar = mount;
+    if (!c.mount.empty()) b.mount = mount;
     b.sonar_description = c.sonar;
-    b.vertical_aperture_rad = c.vertical_aperture_deg * M_PI / 180;
+    b.vertical_aperture_deg = aperture;
     b.time_offset = c.time_offset;
     b.drop_outside = c.drop_outside;
     // Topics not named in the configuration are found by message type when unambiguous.
@@ -436,8 +437,8 @@ void Survey::do_import(SurveyStageReport& r) {
     u.time_offset = c.time_offset;
     u.drop_outside = c.drop_outside;
     u.gains = parse_oculus_gains(c.gains);
-    u.T_vehicle_sonar = mount;
-    u.vertical_aperture_rad = c.vertical_aperture_deg * M_PI / 180;
+    u.mount = mount;
+    u.vertical_aperture_deg = aperture;
     u.mirror = c.mirror;
     u.validate();
     const OculusImportResult res = import_oculus(o_.input, dest.staging(), u, o_.progress);

@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -65,8 +67,9 @@ struct ArisFrameHeader {
 };
 
 // Which frame clock gives the timestamps.
-enum class ArisClock { Pc, Sonar };                // FrameTime | sonarTimeStamp
-ArisClock parse_aris_clock(const std::string& s);  // "pc" | "sonar"
+enum class ArisClock { Pc, Sonar };                                // FrameTime | sonarTimeStamp
+ArisClock parse_aris_clock(const std::string& s);                  // "pc" | "sonar"
+inline constexpr const char* kArisClockNames[] = {"pc", "sonar"};  // by ArisClock
 
 // What the file holds, from its size, file header and first frame header.
 struct ArisFileInfo {
@@ -115,20 +118,71 @@ enum class ArisNavSource {
   Static,  // a fixed sonar: T_world_vehicle = identity for every frame
 };
 ArisNavSource parse_aris_nav_source(const std::string& s);  // auto | header | file | static
+inline constexpr const char* kArisNavSourceNames[] = {"auto", "header", "file",
+                                                      "static"};  // by ArisNavSource
 
 struct ArisImportConfig {
   ArisNavSource nav_source = ArisNavSource::Auto;
-  std::filesystem::path navigation;  // File: TUM or CSV
-  std::string navigation_format;     // "" (by extension), "tum" or "csv"
+  std::string navigation;         // File: TUM or CSV
+  std::string navigation_format;  // "" (by extension), "tum" or "csv"
   NavCsvConfig navigation_csv;
   ArisClock clock = ArisClock::Pc;
   double time_offset = 0;     // s added to frame times to reach the navigation clock
   bool drop_outside = false;  // frames outside the navigation span: dropped (true) or an error
   bool drop_partial = false;  // a trailing partial frame: ignored (true) or an error
-  Eigen::Isometry3d T_vehicle_sonar = Eigen::Isometry3d::Identity();
-  double vertical_aperture_rad = 0;  // 0 = the model's (aris_vertical_aperture)
-  void validate() const;             // throws Error naming the field
+  // T_vehicle_sonar: x, y, z (m), roll, pitch, yaw (degrees), as mounting_from_list reads it.
+  params::List mount = kNoMounting;
+  params::Maybe vertical_aperture_deg;  // none = the model's (aris_vertical_aperture)
+  void validate() const;                // throws Error naming the field
 };
+
+// The one declaration of ArisImportConfig's fields (core/params.hpp).
+template <class V>
+void describe(ArisImportConfig& c, V& v) {
+  using params::param;
+  v.field(c.nav_source,
+          param("nav_source", "",
+                "where the poses come from: 'auto' (the navigation file when given, else the "
+                "frame headers), 'header' (Latitude/Longitude/Depth/Heading/Pitch/Roll of each "
+                "frame header), 'file' (the navigation file) or 'static' (a fixed sonar: "
+                "identity poses)")
+              .choices(kArisNavSourceNames)
+              .flag("--nav-source"));
+  v.field(c.navigation,
+          param("navigation", "",
+                "navigation file: TUM (T_world_vehicle) or CSV (time,x,y,z,roll,pitch,yaw), "
+                "timed onto the frames as `import frames` does; empty: none")
+              .flag("--nav"));
+  v.field(c.navigation_format,
+          param("navigation_format", "", "tum or csv; empty: by the file's extension")
+              .flag("--nav-format"));
+  v.group("navigation_csv", c.navigation_csv);
+  v.field(c.clock, param("clock", "",
+                         "frame times from FrameTime ('pc', the recording PC) or sonarTimeStamp "
+                         "('sonar')")
+                       .choices(kArisClockNames)
+                       .flag("--clock"));
+  v.field(c.time_offset,
+          param("time_offset", "s", "added to frame times to reach the navigation clock")
+              .flag("--time-offset"));
+  v.field(c.drop_outside,
+          param("drop_outside", "",
+                "drop (and count) frames outside the navigation span instead of failing")
+              .flag("--drop-outside"));
+  v.field(c.drop_partial,
+          param("drop_partial", "",
+                "import the complete frames of a recording whose last frame was cut")
+              .flag("--drop-partial"));
+  v.field(c.mount, param("mount", "m, deg",
+                         "T_vehicle_sonar as x, y, z (m), roll, pitch, yaw (degrees; R = "
+                         "Rz(yaw)·Ry(pitch)·Rx(roll); vehicle x forward, y left, z up)")
+                       .flag("--mount"));
+  v.field(c.vertical_aperture_deg,
+          param("vertical_aperture_deg", "deg",
+                "full vertical aperture; none: the model's (14°, 3° with the telephoto lens)")
+              .range_open_high(limits::kMinApertureDeg, 180)
+              .flag("--vertical-aperture-deg"));
+}
 
 struct ArisImportResult {
   ArisFileInfo info;

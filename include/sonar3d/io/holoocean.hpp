@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 
 namespace sonar3d {
@@ -48,6 +49,7 @@ enum class HoloOceanBins {
 };
 const char* holoocean_bins_name(HoloOceanBins b);
 HoloOceanBins parse_holoocean_bins(const std::string& s);  // "sample" | "cell"; throws Error
+inline constexpr const char* kHoloOceanBinsNames[] = {"sample", "cell"};  // by HoloOceanBins
 
 struct HoloOceanImportConfig {
   HoloOceanBins bins = HoloOceanBins::Sample;
@@ -64,6 +66,40 @@ struct HoloOceanImportConfig {
   double rigid_tolerance = 1e-4;
   void validate() const;  // throws Error naming the field
 };
+
+// The one declaration of HoloOceanImportConfig's fields (core/params.hpp).
+template <class V>
+void describe(HoloOceanImportConfig& c, V& v) {
+  using params::param;
+  v.field(c.bins, param("bins", "",
+                        "pixel convention: 'sample' (neusis/AONeuS: row i at RangeMin + i·Δr, "
+                        "column j at −Azimuth/2 + j·Δa) or 'cell' (HoloOcean's renderer: row i "
+                        "is the cell [RangeMin + i·Δr, RangeMin + (i+1)·Δr))")
+                      .choices(kHoloOceanBinsNames)
+                      .flag("--bins"));
+  v.field(c.sensor,
+          param("sensor", "", "sensor_name of the ImagingSonar when Config.json has several")
+              .flag("--sensor"));
+  v.field(c.image_key, param("image_key", "", "pickle key of the image; empty: the sensor's name")
+                           .flag("--image-key"));
+  v.field(c.pose_key,
+          param("pose_key", "", "pickle key of the 4×4 sensor-to-world pose").flag("--pose-key"));
+  v.field(c.frame_rate_hz,
+          param("frame_rate_hz", "Hz",
+                "frames per second for the timestamps t = N / rate of Data/N.pkl; 0: the "
+                "sensor's Hz, else 1")
+              .non_negative()
+              .flag("--rate"));
+  v.field(c.python, param("python", "",
+                          "Python interpreter with numpy; empty: $SONAR3D_PYTHON, else "
+                          "/usr/bin/python3")
+                        .flag("--python"));
+  v.field(c.rigid_tolerance,
+          param("rigid_tolerance", "",
+                "a float32 pose rotation is accepted when every entry of RᵀR − I and det R − 1 "
+                "is within this")
+              .range_open(0, 0.1));
+}
 
 struct HoloOceanImportResult {
   HoloOceanSonar sonar;

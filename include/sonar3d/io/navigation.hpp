@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
 
@@ -29,11 +30,44 @@ enum class NavConvention {
 };
 NavConvention parse_nav_convention(const std::string& s);  // "enu" | "ned"; throws Error
 const char* nav_convention_name(NavConvention c);
+inline constexpr const char* kNavConventionNames[] = {"enu", "ned"};  // by NavConvention
+
+// The unit of a navigation CSV's roll, pitch and yaw.
+enum class AngleUnit { Deg, Rad };
+inline constexpr const char* kAngleUnitNames[] = {"deg", "rad"};  // by AngleUnit
 
 struct NavCsvConfig {
   NavConvention convention = NavConvention::Enu;
-  bool degrees = true;  // roll, pitch, yaw in degrees (true) or radians
+  AngleUnit angles = AngleUnit::Deg;  // of roll, pitch, yaw
 };
+
+// The one declaration of NavCsvConfig's fields (core/params.hpp).
+template <class V>
+void describe(NavCsvConfig& c, V& v) {
+  using params::param;
+  v.field(c.convention,
+          param("convention", "",
+                "frames of a navigation CSV: 'enu' (x east, y north, z up; vehicle x forward, y "
+                "left, z up; yaw counter-clockwise from east) or 'ned' (x north, y east, z down; "
+                "vehicle x forward, y starboard, z down; heading clockwise from north)")
+              .choices(kNavConventionNames)
+              .flag("--nav-convention"));
+  v.field(c.angles, param("angles", "", "unit of a navigation CSV's roll, pitch and yaw")
+                        .choices(kAngleUnitNames)
+                        .flag("--angles"));
+}
+
+// Navigation file formats: "" (by extension: .csv, else TUM), "tum" or "csv". Throws Error naming
+// `what` (the flag or key) for anything else.
+void check_navigation_format(const std::string& format, const std::string& what);
+
+// The sonar mounting T_vehicle_sonar declared as six numbers: x, y, z (m), roll, pitch, yaw
+// (degrees; R = Rz(yaw)·Ry(pitch)·Rx(roll), vehicle x forward, y left, z up). Throws Error naming
+// `what` (the flag or key) when it is not six finite numbers with offsets within reach.
+Eigen::Isometry3d mounting_from_list(const params::List& m, const std::string& what);
+// "x,y,z,roll,pitch,yaw" as that list. Throws Error naming the text.
+params::List parse_mounting_list(const std::string& text);
+inline const params::List kNoMounting = {0, 0, 0, 0, 0, 0};
 
 // T_world_vehicle (our world: z up, FLU vehicle) of one navigation sample given in `convention`;
 // angles in radians.
@@ -75,19 +109,48 @@ struct FrameTime {
 std::vector<FrameTime> read_frame_times(const std::string& path);
 
 struct FrameImportConfig {
-  std::filesystem::path images_dir;  // frame images: PNG (8/16-bit, scaled by the sensor's
-                                     // intensity scale) or float32 TIFF, range bins × beams
-  std::filesystem::path times_csv;   // timestamp,file per frame
-  std::filesystem::path navigation;  // TUM or CSV (T_world_vehicle)
-  std::string navigation_format;     // "" (by extension), "tum" or "csv"
+  std::string images_dir;         // frame images: PNG (8/16-bit, scaled by the sensor's
+                                  // intensity scale) or float32 TIFF, range bins × beams
+  std::string times_csv;          // timestamp,file per frame
+  std::string navigation;         // TUM or CSV (T_world_vehicle)
+  std::string navigation_format;  // "" (by extension), "tum" or "csv"
   NavCsvConfig navigation_csv;
-  SonarSpec spec;          // with the mounting T_vehicle_sonar
+  // The sensor (a sonar.yaml, with the mounting T_vehicle_sonar): not a declared setting, the
+  // command's --sonar file (read_sonar_description) or Python's `sonar`.
+  SonarSpec spec;
   double time_offset = 0;  // s added to frame timestamps to reach the navigation clock
   // Frames outside the navigation span: an error naming the first (false), or dropped and
   // counted (true). Poses are never extrapolated.
   bool drop_outside = false;
   void validate() const;  // throws Error naming the field
 };
+
+// The one declaration of FrameImportConfig's fields (core/params.hpp); `spec` is the sensor file.
+template <class V>
+void describe(FrameImportConfig& c, V& v) {
+  using params::param;
+  v.field(
+      c.images_dir,
+      param("images_dir", "", "directory of frame images (PNG or float32 TIFF)").flag("--images"));
+  v.field(
+      c.times_csv,
+      param("times_csv", "", "CSV 'timestamp,file' (file relative to images_dir)").flag("--times"));
+  v.field(c.navigation, param("navigation", "",
+                              "navigation: TUM (t tx ty tz qx qy qz qw, T_world_vehicle) or CSV "
+                              "(time,x,y,z,roll,pitch,yaw)")
+                            .flag("--nav"));
+  v.field(c.navigation_format,
+          param("navigation_format", "", "tum or csv; empty: by the file's extension")
+              .flag("--nav-format"));
+  v.group("navigation_csv", c.navigation_csv);
+  v.field(c.time_offset,
+          param("time_offset", "s", "added to frame timestamps to reach the navigation clock")
+              .flag("--time-offset"));
+  v.field(c.drop_outside,
+          param("drop_outside", "",
+                "drop (and count) frames outside the navigation span instead of failing")
+              .flag("--drop-outside"));
+}
 
 struct FrameImportResult {
   std::size_t frames = 0;   // written

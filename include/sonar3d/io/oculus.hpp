@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/io/navigation.hpp"
 
@@ -124,18 +126,20 @@ enum class OculusGains {
   Keep,    // samples as sent; the dataset keeps the sonar's 8/16-bit encoding
   Divide,  // sample / gain of its line, written as float32 TIFF frames
 };
-OculusGains parse_oculus_gains(const std::string& s);  // "keep" | "divide"
+OculusGains parse_oculus_gains(const std::string& s);                   // "keep" | "divide"
+inline constexpr const char* kOculusGainsNames[] = {"keep", "divide"};  // by OculusGains
 
 // Frame times.
 enum class OculusClock {
   Ping,  // pingStartTime: v2 seconds since power-up; v1 counter in ns, unwrapped at 2^32
   Rate,  // ping i (in stream order) at i / rate_hz
 };
-OculusClock parse_oculus_clock(const std::string& s);  // "ping" | "rate"
+OculusClock parse_oculus_clock(const std::string& s);                 // "ping" | "rate"
+inline constexpr const char* kOculusClockNames[] = {"ping", "rate"};  // by OculusClock
 
 struct OculusImportConfig {
-  std::filesystem::path navigation;  // TUM or CSV (T_world_vehicle); empty with static_sonar
-  std::string navigation_format;     // "" (by extension), "tum" or "csv"
+  std::string navigation;         // TUM or CSV (T_world_vehicle); empty with static_sonar
+  std::string navigation_format;  // "" (by extension), "tum" or "csv"
   NavCsvConfig navigation_csv;
   bool static_sonar = false;  // a fixed sonar: identity vehicle pose for every frame
   OculusClock clock = OculusClock::Ping;
@@ -143,11 +147,65 @@ struct OculusImportConfig {
   double time_offset = 0;     // s added to frame times to reach the navigation clock
   bool drop_outside = false;  // frames outside the navigation span: dropped (true) or an error
   OculusGains gains = OculusGains::Keep;
-  Eigen::Isometry3d T_vehicle_sonar = Eigen::Isometry3d::Identity();
-  double vertical_aperture_rad = 0;  // 0 = the published one (oculus_vertical_aperture)
+  // T_vehicle_sonar: x, y, z (m), roll, pitch, yaw (degrees), as mounting_from_list reads it.
+  params::List mount = kNoMounting;
+  params::Maybe vertical_aperture_deg;  // none = the published one (oculus_vertical_aperture)
   bool mirror = false;    // bearings positive to starboard: negate them (and reverse the columns)
   void validate() const;  // throws Error naming the field
 };
+
+// The one declaration of OculusImportConfig's fields (core/params.hpp).
+template <class V>
+void describe(OculusImportConfig& c, V& v) {
+  using params::param;
+  v.field(c.navigation,
+          param("navigation", "",
+                "navigation file: TUM (T_world_vehicle) or CSV (time,x,y,z,roll,pitch,yaw), "
+                "timed onto the pings as `import frames` does; empty with static_sonar")
+              .flag("--nav"));
+  v.field(
+      c.static_sonar,
+      param("static_sonar", "", "a fixed sonar: no navigation, identity poses").flag("--static"));
+  v.field(c.navigation_format,
+          param("navigation_format", "", "tum or csv; empty: by the file's extension")
+              .flag("--nav-format"));
+  v.group("navigation_csv", c.navigation_csv);
+  v.field(c.clock, param("clock", "",
+                         "ping times from pingStartTime ('ping': v2 seconds since power-up, v1 "
+                         "nanosecond counter) or from the ping order ('rate', with rate_hz)")
+                       .choices(kOculusClockNames)
+                       .flag("--clock"));
+  v.field(c.rate_hz, param("rate_hz", "Hz", "pings per second of the 'rate' clock; 0 otherwise")
+                         .range(0, 1e4)
+                         .flag("--rate"));
+  v.field(c.gains, param("gains", "",
+                         "per-line gains of pings that carry them: 'keep' the samples as sent, "
+                         "or 'divide' each line by its gain (float32 TIFF frames)")
+                       .choices(kOculusGainsNames)
+                       .flag("--gains"));
+  v.field(c.mirror,
+          param("mirror", "",
+                "the stream's bearings are positive to starboard: mirror them (default: positive "
+                "to port, docs/import.md §8)")
+              .flag("--mirror"));
+  v.field(c.mount, param("mount", "m, deg",
+                         "T_vehicle_sonar as x, y, z (m), roll, pitch, yaw (degrees; R = "
+                         "Rz(yaw)·Ry(pitch)·Rx(roll); vehicle x forward, y left, z up)")
+                       .flag("--mount"));
+  v.field(c.vertical_aperture_deg,
+          param("vertical_aperture_deg", "deg",
+                "full vertical aperture; none: the published one of the model and mode the ping "
+                "frequency identifies (20° or 12°)")
+              .range_open_high(limits::kMinApertureDeg, 180)
+              .flag("--vertical-aperture-deg"));
+  v.field(c.time_offset,
+          param("time_offset", "s", "added to ping times to reach the navigation clock")
+              .flag("--time-offset"));
+  v.field(c.drop_outside,
+          param("drop_outside", "",
+                "drop (and count) pings outside the navigation span instead of failing")
+              .flag("--drop-outside"));
+}
 
 struct OculusImportResult {
   SonarSpec spec;

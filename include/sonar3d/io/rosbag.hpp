@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_image.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/io/ros_msgs.hpp"
@@ -50,22 +52,76 @@ class BagReader {
 };
 
 struct RosbagImportConfig {
-  std::string sonar_topic;    // required
+  std::string sonar_topic;    // required (choose_rosbag_topics fills it by type when empty)
   std::string nav_topic;      // "" only with static_sonar
   bool static_sonar = false;  // no navigation: T_world_vehicle = identity
   std::string tf_topic = "/tf_static";
   // The vehicle frame the mounting is expressed in; "" = the Odometry child_frame_id when the
   // navigation has one, else the root of the static transform tree above the sonar frame.
   std::string base_frame;
-  std::optional<Eigen::Isometry3d> T_vehicle_sonar;  // --mount: overrides the static transforms
+  // --mount: T_vehicle_sonar as x, y, z (m), roll, pitch, yaw (degrees; mounting_from_list),
+  // overriding the static transforms; empty = from the static transforms.
+  params::List mount;
   // Sensor description (sonar.yaml fields): required for sensor_msgs/Image; for
   // ProjectedSonarImage it supplies what the message lacks (vertical aperture, beam pattern).
-  std::filesystem::path sonar_description;
-  double vertical_aperture_rad = 0;  // overrides the message's tx_beamwidths and the description
-  double time_offset = 0;            // s added to sonar stamps to reach the navigation clock
+  std::string sonar_description;
+  // Overrides the message's tx_beamwidths and the description; none = theirs.
+  params::Maybe vertical_aperture_deg;
+  double time_offset = 0;  // s added to sonar stamps to reach the navigation clock
   bool drop_outside = false;
   void validate() const;
+  // The mounting `mount` declares, when it declares one.
+  std::optional<Eigen::Isometry3d> T_vehicle_sonar() const;
 };
+
+// The one declaration of RosbagImportConfig's fields (core/params.hpp).
+template <class V>
+void describe(RosbagImportConfig& c, V& v) {
+  using params::param;
+  v.field(c.sonar_topic,
+          param("sonar_topic", "",
+                "topic of ProjectedSonarImage or sensor_msgs/Image messages; empty: the one "
+                "topic of such a type")
+              .flag("--sonar-topic"));
+  v.field(c.nav_topic,
+          param("nav_topic", "",
+                "topic of nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                "PoseWithCovarianceStamped (T_world_vehicle); empty: the one topic of such a "
+                "type")
+              .flag("--nav-topic"));
+  v.field(
+      c.static_sonar,
+      param("static_sonar", "", "a fixed sonar: no navigation, identity poses").flag("--static"));
+  v.field(c.tf_topic,
+          param("tf_topic", "", "static transforms (tf2_msgs/TFMessage)").flag("--tf-topic"));
+  v.field(c.base_frame,
+          param("base_frame", "",
+                "vehicle frame of the mounting; empty: the Odometry child_frame_id, else the root "
+                "of the static transforms above the sonar frame")
+              .flag("--base-frame"));
+  v.field(c.mount, param("mount", "m, deg",
+                         "T_vehicle_sonar as x, y, z (m), roll, pitch, yaw (degrees; R = "
+                         "Rz(yaw)·Ry(pitch)·Rx(roll); our FLU sonar frame), instead of the static "
+                         "transforms; empty: from the static transforms")
+                       .flag("--mount"));
+  v.field(c.sonar_description,
+          param("sonar_description", "",
+                "sensor YAML (sonar.yaml fields): required for sensor_msgs/Image; supplies the "
+                "vertical aperture and beam pattern a ProjectedSonarImage lacks")
+              .flag("--sonar"));
+  v.field(c.vertical_aperture_deg,
+          param("vertical_aperture_deg", "deg",
+                "full vertical aperture; none: the messages' tx_beamwidths, or the sensor YAML's")
+              .range_open_high(limits::kMinApertureDeg, 180)
+              .flag("--vertical-aperture-deg"));
+  v.field(c.time_offset,
+          param("time_offset", "s", "added to sonar stamps to reach the navigation clock")
+              .flag("--time-offset"));
+  v.field(c.drop_outside,
+          param("drop_outside", "",
+                "drop (and count) frames outside the navigation span instead of failing")
+              .flag("--drop-outside"));
+}
 
 struct RosbagImportResult {
   std::string format;
