@@ -86,9 +86,53 @@ struct Hit {
 constexpr std::uint32_t kInAperture = 0x80000000u;
 constexpr std::uint32_t kPointMask = 0x7fffffffu;
 
+// A frame's hits as kept between passes: the hits without their pixel (8 B instead of 12), in
+// (pixel, arc) order, and where each non-empty pixel's run begins (the pixels' own numbers are
+// never needed again: a pass only groups the hits by pixel). An open lattice's return pixels hold
+// tens of points each, so the runs cost little.
+struct Slot {
+  float arc;
+  std::uint32_t point;  // as Hit::point
+};
+struct FrameHits {
+  std::vector<Slot> slots;
+  std::vector<std::uint32_t> begin;  // run r: slots [begin[r], begin[r + 1]); one more entry
+  std::size_t bytes() const {
+    return slots.size() * sizeof(Slot) + begin.size() * sizeof(std::uint32_t);
+  }
+  void assign(const std::vector<Hit>& hits) {
+    slots.clear();
+    begin.clear();
+    slots.reserve(hits.size());
+    for (std::size_t k = 0; k < hits.size(); ++k) {
+      if (k == 0 || hits[k].pixel != hits[k - 1].pixel)
+        begin.push_back(static_cast<std::uint32_t>(k));
+      slots.push_back({hits[k].arc, hits[k].point});
+    }
+    begin.push_back(static_cast<std::uint32_t>(hits.size()));
+  }
+  // Drops the slots of dead points and the runs left empty.
+  void drop_dead(const std::vector<std::uint8_t>& alive) {
+    std::size_t out = 0, runs = 0;
+    for (std::size_t r = 0; r + 1 < begin.size(); ++r) {
+      const std::size_t start = out;
+      for (std::size_t k = begin[r]; k < begin[r + 1]; ++k) {
+        if (alive[slots[k].point & kPointMask]) slots[out++] = slots[k];
+      }
+      if (out > start) begin[runs++] = static_cast<std::uint32_t>(start);
+    }
+    slots.resize(out);
+    begin.resize(runs);
+    begin.push_back(static_cast<std::uint32_t>(out));
+    slots.shrink_to_fit();
+    begin.shrink_to_fit();
+  }
+};
+
 // Frames' hits kept between passes up to this many bytes (the rest are projected again in each
-// pass): a large open lattice holds ~10^8 hits (12 B each; the 7 × 6 m lattice of
-// data/scenes/lattice_seafloor.yaml at 1 cm peaked at 2.0 GB with all of them kept).
+// pass): a large open lattice holds ~10^8 hits (12 B each as projected, about 8 B as kept; the
+// 7 × 6 m lattice of data/scenes/lattice_seafloor.yaml at 1 cm peaked at 2.0 GB with all of them
+// kept at 12 B).
 constexpr std::size_t kHitCacheBytes = std::size_t{256} << 20;
 
 // Per frame, the hits sorted by (pixel, arc), kept while they fit kHitCacheBytes; per point, in
@@ -109,20 +153,11 @@ class ReturnHits {
     const std::size_t n_points = points_world.size();
     std::unique_ptr<std::atomic<int>[]> counts(new std::atomic<int>[n_points]);
     for (std::size_t n = 0; n < n_points; ++n) counts[n].store(0, std::memory_order_relaxed);
-    std::atomic<std::size_t> used{0};
     arena.execute([&] {
       tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
         std::vector<Hit> hits;
-        project(f, hits, counts.get());
-        // Which frames are kept depends on the threads' order; the passes' result does not.
-        const std::size_t bytes = hits.size() * sizeof(Hit);
-        if (used.fetch_add(bytes, std::memory_order_relaxed) + bytes <= kHitCacheBytes) {
-          hits.shrink_to_fit();
-          cache_[f] = std::move(hits);
-          cached_[f] = 1;
-        } else {
-          used.fetch_sub(bytes, std::memory_order_relaxed);
-        }
+        project(f, hits, counts.get(), nullptr);
+        offer(f, hits);
       });
     });
     in_return.resize(n_points);
@@ -130,18 +165,54 @@ class ReturnHits {
       in_return[n] = counts[n].load(std::memory_order_relaxed);
   }
   std::size_t frames() const { return frames_.size(); }
-  // The hits of frame f: the cached ones, or projected into `scratch`.
-  const std::vector<Hit>& of(std::size_t f, std::vector<Hit>& scratch) const {
+  // The hits of frame f of the points still `alive`: the cached ones (they may still hold dead
+  // points, which every pass skips), or projected into `scratch`, then kept when they fit.
+  // Different frames may be asked for at once from several threads, one frame by one thread.
+  // `projected` and `scratch` are the calling thread's buffers.
+  const FrameHits& of(std::size_t f, std::vector<Hit>& projected, FrameHits& scratch,
+                      const std::vector<std::uint8_t>& alive) {
     if (cached_[f]) return cache_[f];
-    scratch.clear();
-    project(f, scratch, nullptr);
+    projected.clear();
+    project(f, projected, nullptr, alive.data());
+    if (offer(f, projected)) return cache_[f];
+    scratch.assign(projected);
     return scratch;
+  }
+  // Drops the hits of points no longer alive from the kept frames (points only ever die: a dead
+  // point's hits never count again), so that more frames fit.
+  void compact(const std::vector<std::uint8_t>& alive, tbb::task_arena& arena) {
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, frames_.size(), [&](std::size_t f) {
+        if (!cached_[f]) return;
+        FrameHits& hits = cache_[f];
+        const std::size_t before = hits.bytes();
+        hits.drop_dead(alive);
+        used_.fetch_sub(before - hits.bytes(), std::memory_order_relaxed);
+      });
+    });
   }
   std::vector<int> in_return;
 
  private:
-  // Frame f's hits, sorted by (pixel, arc); counts the in-aperture ones per point when given.
-  void project(std::size_t f, std::vector<Hit>& hits, std::atomic<int>* counts) const {
+  // Keeps frame f's hits (taking them from `hits`) when they fit in kHitCacheBytes. Which frames
+  // are kept depends on the threads' order; the passes' result does not.
+  bool offer(std::size_t f, const std::vector<Hit>& hits) {
+    std::size_t runs = 0;
+    for (std::size_t k = 0; k < hits.size(); ++k)
+      runs += k == 0 || hits[k].pixel != hits[k - 1].pixel;
+    const std::size_t bytes = hits.size() * sizeof(Slot) + (runs + 1) * sizeof(std::uint32_t);
+    if (used_.fetch_add(bytes, std::memory_order_relaxed) + bytes > kHitCacheBytes) {
+      used_.fetch_sub(bytes, std::memory_order_relaxed);
+      return false;
+    }
+    cache_[f].assign(hits);
+    cached_[f] = 1;
+    return true;
+  }
+  // Frame f's hits, sorted by (pixel, arc), of every point or of those `alive` when given;
+  // counts the in-aperture ones per point when `counts` is given.
+  void project(std::size_t f, std::vector<Hit>& hits, std::atomic<int>* counts,
+               const std::uint8_t* alive) const {
     const detail::SonarGeometry& g = g_;
     const FrameReturns& fr = frames_[f];
     const detail::FrameFootprint fp(g, fr);
@@ -158,6 +229,7 @@ class ReturnHits {
     for (const PointBlock& b : blocks_) {
       if (outside_lobe(fp.to_sonar(b.centre), b.radius)) continue;
       for (std::uint32_t n : b.points) {
+        if (alive && !alive[n]) continue;
         const Eigen::Vector3d p = fp.to_sonar(points_.points[n].cast<double>());
         const double r2 = p.squaredNorm();
         if (!(r2 > 0) || r2 < g.r_min * g.r_min || r2 >= g.r_max * g.r_max) continue;
@@ -188,14 +260,15 @@ class ReturnHits {
   const detail::SonarGeometry& g_;
   double theta_lobe_;
   std::vector<PointBlock> blocks_;
-  std::vector<std::vector<Hit>> cache_;
+  std::vector<FrameHits> cache_;
   std::vector<std::uint8_t> cached_;
+  std::atomic<std::size_t> used_{0};  // bytes of hits kept
 };
 
 // The explanation's passes over cached hits (see explain_returns() in recon/visibility.hpp):
 // `alive` (in: the points taking part; out: ghosts cleared) and `pinned` (out) index the points
 // the hits were collected for. Returns the ghosts removed; `iterations` receives the passes.
-std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction,
+std::size_t explain_passes(ReturnHits& rh, double gap, double pin_fraction,
                            std::vector<std::uint8_t>& alive, std::vector<std::uint8_t>& pinned,
                            tbb::task_arena& arena, int* iterations) {
   const std::size_t n_points = alive.size();
@@ -204,7 +277,9 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
   // in one of them no other surface holds a pinned point.
   std::unique_ptr<std::atomic<int>[]> alone(new std::atomic<int>[n_points]);
   std::unique_ptr<std::atomic<std::uint8_t>[]> unexplained(new std::atomic<std::uint8_t>[n_points]);
-  tbb::enumerable_thread_specific<std::vector<Hit>> scratch;  // hits of frames not cached
+  // The hits of frames not cached: as projected, and as a pass reads them.
+  tbb::enumerable_thread_specific<std::vector<Hit>> projected;
+  tbb::enumerable_thread_specific<FrameHits> scratch;
   // One pass over every frame: per return pixel, the live points lying in it, split into surfaces
   // along the elevation arc. A surface alone in its pixel counts towards pinning its points
   // (`alone`); in a pixel holding several, a surface is explained away when another one holds a
@@ -216,12 +291,11 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
     }
     arena.execute([&] {
       tbb::parallel_for(std::size_t{0}, rh.frames(), [&](std::size_t f) {
-        const std::vector<Hit>& hits = rh.of(f, scratch.local());
-        const std::size_t H = hits.size();
+        const FrameHits& fh = rh.of(f, projected.local(), scratch.local(), alive);
+        const std::vector<Slot>& hits = fh.slots;
         auto live = [&](std::size_t k) { return alive[hits[k].point & kPointMask] != 0; };
-        for (std::size_t b = 0; b < H;) {
-          std::size_t e = b + 1;
-          while (e < H && hits[e].pixel == hits[b].pixel) ++e;
+        for (std::size_t r = 0; r + 1 < fh.begin.size(); ++r) {
+          const std::size_t b = fh.begin[r], e = fh.begin[r + 1];
           std::size_t pixel_pinned = 0, surfaces = 0;
           float prev = 0;
           for (std::size_t k = b; k < e; ++k) {
@@ -254,7 +328,6 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
               if (!explained_elsewhere) unexplained[n].store(1, std::memory_order_relaxed);
             }
           }
-          b = e;
         }
       });
     });
@@ -282,6 +355,7 @@ std::size_t explain_passes(const ReturnHits& rh, double gap, double pin_fraction
       }
     }
     if (!changed) break;
+    rh.compact(alive, arena);
   }
   if (iterations) *iterations = it;
   return removed;
@@ -325,7 +399,7 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
   if (n_points == 0 || frames.empty()) return alive;
   const detail::SonarGeometry g(spec);
   tbb::task_arena arena = make_arena(config);
-  const ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
   std::vector<std::uint8_t> pinned;
   int iterations = 0;
   const std::size_t removed =
@@ -368,7 +442,7 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
   // frames beyond are projected again in each pass): a round only removes points, so each pass
   // skips the dead ones (issue 29: 3-5x the 50 ms/frame target when every pass projected every
   // point into every frame again).
-  const ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
   const double gap = kExplainGapVoxels * config.voxel_size;
   std::vector<std::uint8_t> alive(points_world.size(), 1), pinned;
   for (int round = 0; round < kExplainMaxRounds; ++round) {
