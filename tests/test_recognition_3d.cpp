@@ -475,10 +475,8 @@ TEST(Recog3dPipeline, FindsAPartlyBuriedShellAndRefusesAModelStandingOnAnotherOb
   for (const Placement& p : res.placements) {
     ASSERT_EQ(p.model, "shell") << "nothing but the shell may be placed\n" << js;
     ++shells;
-    EXPECT_LT((p.T_world_model.translation() - T_shell.translation()).head<2>().norm(), 0.05)
-        << js;
-    EXPECT_LT(std::abs(p.T_world_model.translation().z() - T_shell.translation().z()), 0.05)
-        << js;
+    EXPECT_LT((p.T_world_model.translation() - T_shell.translation()).head<2>().norm(), 0.05) << js;
+    EXPECT_LT(std::abs(p.T_world_model.translation().z() - T_shell.translation().z()), 0.05) << js;
     const Eigen::Vector3d ax = p.T_world_model.linear().col(0);
     const double yaw = std::atan2(ax.y(), ax.x()) / kDeg;
     EXPECT_LT(std::abs(std::remainder(yaw - 35, 360)), 3.0) << js;

@@ -346,8 +346,8 @@ IcpResult refine_upright(const ModelIndex& model, const std::vector<V3f>& scene,
   IcpResult r = upright_icp(model, scene, T0, std::max(cfg.coarse_gate_m, cfg.icp.max_distance_m),
                             cfg.coarse_iterations, cfg.icp, bounds);
   try {
-    r = upright_icp(model, scene, r.T_world_model, cfg.icp.max_distance_m,
-                    cfg.icp.max_iterations, cfg.icp, bounds);
+    r = upright_icp(model, scene, r.T_world_model, cfg.icp.max_distance_m, cfg.icp.max_iterations,
+                    cfg.icp, bounds);
   } catch (const Error&) {
     return r;
   }
@@ -872,7 +872,8 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
                   "stands %.3f m above the seabed < relief_m + tol_m %.3f m: nothing to verify",
                   exposed, cfg.verification.relief_m + cfg.verification.tol_m);
   } else if (cfg.upright && -buried_fraction(m, c.T, w.ground_z) * m.height() > cfg.max_lift_m) {
-    std::snprintf(buf, sizeof buf, "base %.3f m above the seabed > %.3f m (stands on another object)",
+    std::snprintf(buf, sizeof buf,
+                  "base %.3f m above the seabed > %.3f m (stands on another object)",
                   -buried_fraction(m, c.T, w.ground_z) * m.height(), cfg.max_lift_m);
   } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
     std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
@@ -897,8 +898,8 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
                          const std::vector<V3f>& scene, const TopMap& top,
                          const std::vector<V3f>& sub, const Eigen::Vector3d& start_xy,
                          const Ground& ground, const ElevationMap& fine,
-                         const std::vector<uint8_t>& removed, double period_m,
-                         double dedup_m, const Recognition3dConfig& cfg) {
+                         const std::vector<uint8_t>& removed, double period_m, double dedup_m,
+                         const Recognition3dConfig& cfg) {
   Candidate c;
   // With the upright prior the model's horizontal extent about the start is known: the matching
   // uses the subspace's points within the model's horizontal radius (plus the coarse gate) of
@@ -957,10 +958,10 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
         if (std::hypot(ix * step, iy * step) > extent + 1e-9) continue;
         const Eigen::Vector2d o(cs.x() + ix * step, cs.y() + iy * step);
         std::vector<V3f> local;
-        for (std::size_t i : scene_index.within(
-                 V3f(static_cast<float>(o.x()), static_cast<float>(o.y()),
-                     static_cast<float>(cs.z())),
-                 static_cast<float>(reach + m.t->height()))) {
+        for (std::size_t i :
+             scene_index.within(V3f(static_cast<float>(o.x()), static_cast<float>(o.y()),
+                                    static_cast<float>(cs.z())),
+                                static_cast<float>(reach + m.t->height()))) {
           if ((scene[i].head<2>().cast<double>() - o).norm() <= reach) local.push_back(scene[i]);
         }
         if (local.size() < 6) continue;
@@ -989,8 +990,8 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
             T.translate(Eigen::Vector3d(-m.centroid.x(), -m.centroid.y(), 0));
             starts.push_back({T,
                               0.5 * (trimmed_mean_distance(*m.index, sweep, T, cfg.coarse_gate_m) +
-                                     trimmed_mean_distance(scene_index, seen_sweep,
-                                                           T.inverse(), cfg.coarse_gate_m)),
+                                     trimmed_mean_distance(scene_index, seen_sweep, T.inverse(),
+                                                           cfg.coarse_gate_m)),
                               sites.size()});
           }
         }
@@ -1600,7 +1601,8 @@ std::string placements_json_3d(const RecognitionResult& result,
                           {"translation", {t.x(), t.y(), t.z()}},
                           {"rpy_deg", rpy_deg_json(c.T_world_model)},
                           {"terms_3d", terms_json(c.terms)}};
-      e["confidence"] = std::isfinite(c.confidence) ? nlohmann::json(c.confidence) : nlohmann::json();
+      e["confidence"] =
+          std::isfinite(c.confidence) ? nlohmann::json(c.confidence) : nlohmann::json();
       e["start_score_m"] =
           std::isfinite(c.start_score_m) ? nlohmann::json(c.start_score_m) : nlohmann::json();
       cands.push_back(e);
