@@ -70,6 +70,7 @@ struct Recognition3dConfig {
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
   int coarse_iterations = 15;      // first ICP pass iterations
   std::size_t max_points = 1500;   // scene points per subspace used in the matching
+  std::size_t sweep_points = 300;  // scene points scoring each yaw-sweep start (upright)
   double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance (or
                                    // 0.1·r_model when larger: see match_subspace)
                                    // exceeds this is not refined, m
@@ -86,6 +87,10 @@ struct Recognition3dConfig {
   double map_cell_m = 0.02;
   VerificationConfig verification;
   double max_buried_fraction = 0.5;
+  // With the upright prior a structure stands on the seabed: its base at most this above the
+  // seabed ring around it (verify.hpp's ground_z). A model standing on another object's top
+  // (a BOP panel laid 0.25 m up on a debris plate, mixed_buried field) is refused. m.
+  double max_lift_m = 0.1;
   double max_overlap = 0.25;
   // The net explanation, verify.hpp's score_m3 (relief explained − contradicted − left
   // unexplained) over the model's relief relief_m3, at least this: a model with no relief of its
@@ -190,6 +195,8 @@ void describe(Recognition3dConfig& c, V& v) {
           param("coarse_iterations", "", "first ICP pass iterations").range(1, 10000));
   v.field(c.max_points,
           param("max_points", "", "scene points per subspace used in the matching").at_least(10));
+  v.field(c.sweep_points,
+          param("sweep_points", "", "scene points scoring each yaw-sweep start").at_least(10));
   v.field(c.max_start_score_m,
           param("max_start_score_m", "m", "a start scoring worse is not refined").positive());
   v.group("icp", c.icp);
@@ -202,6 +209,9 @@ void describe(Recognition3dConfig& c, V& v) {
   v.field(c.max_buried_fraction,
           param("max_buried_fraction", "", "at most this fraction of the model below the seabed")
               .range(0, 1));
+  v.field(c.max_lift_m,
+          param("max_lift_m", "m", "an upright model's base at most this above the seabed ring")
+              .non_negative());
   v.field(c.max_overlap,
           param("max_overlap", "", "at most this fraction of the footprint on accepted placements")
               .range(0, 1));
@@ -291,6 +301,17 @@ struct Verification3d {
   double tilt_deg = std::numeric_limits<double>::quiet_NaN();
 };
 
+// A matched candidate the method did not accept (its pose, the test that rejected it, its
+// terms): written to the JSON's "candidates" list so that every rejection can be labelled
+// against the truth (bench/recognition_fields.sh calib).
+struct Candidate3dRecord {
+  Eigen::Isometry3d T_world_model = Eigen::Isometry3d::Identity();
+  std::string reason;
+  Verification3d terms;
+  double confidence = std::numeric_limits<double>::quiet_NaN();  // NaN: not verified
+  double start_score_m = std::numeric_limits<double>::quiet_NaN();
+};
+
 // Per model: what the subspace analysis and the matching did.
 struct Search3dRecord {
   std::string model;
@@ -315,6 +336,7 @@ struct Search3dRecord {
   Verification3d nearest_miss_terms;
   double best_rejected_confidence = std::numeric_limits<double>::quiet_NaN();
   std::vector<Verification3d> accepted_terms;  // per accepted placement, in output order
+  std::vector<Candidate3dRecord> rejected;     // matched candidates not accepted
   double seconds_subspaces = 0, seconds_matching = 0;
 };
 
