@@ -874,73 +874,184 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     // and a partly buried one keeps the search's height.
     Eigen::Isometry3d T4 = Eigen::Isometry3d::Identity();
     Verification v4;
-    const Search4dResult* s4 = nullptr;
-    for (const Search4dResult& run : runs) {
-      if (!run.found) continue;
+    bool have4 = false;
+    double rms4 = 0;
+    // A pose and the same pose standing on the verification's seabed, kept when either explains
+    // the scene better than the best so far.
+    auto consider = [&](const Eigen::Isometry3d& T, double rms) {
       std::vector<std::pair<Eigen::Isometry3d, Verification>> poses;
-      poses.emplace_back(run.T_world_model, verify_placement(*m, run.T_world_model, fine,
-                                                             removed_fine, config.verification));
+      poses.emplace_back(T, verify_placement(*m, T, fine, removed_fine, config.verification));
       const Verification& vr = poses.front().second;
       if (std::isfinite(vr.ground_z)) {
-        Eigen::Isometry3d T_seated = run.T_world_model;
+        Eigen::Isometry3d T_seated = T;
         T_seated.translation().z() +=
             vr.ground_z -
             (T_seated * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z)).z();
         poses.emplace_back(T_seated,
                            verify_placement(*m, T_seated, fine, removed_fine, config.verification));
       }
-      for (const auto& [T, v] : poses) {
-        if (s4 && !(v.valid && v.score_m3 > v4.score_m3)) continue;
-        T4 = T;
+      for (const auto& [Tp, v] : poses) {
+        if (have4 && !(v.valid && v.score_m3 > v4.score_m3)) continue;
+        T4 = Tp;
         v4 = v;
-        s4 = &run;
+        rms4 = rms;
+        have4 = true;
+      }
+    };
+    for (const Search4dResult& run : runs) {
+      if (run.found) consider(run.T_world_model, run.rms_m);
+    }
+    // The tilt (beyond the thesis' upright eq. 6.9, RecognitionConfig::level_by_seabed): for a
+    // plane of normal n through `pivot` (z = pivot.z + a·(x − pivot.x) + b·(y − pivot.y), a =
+    // −n.x/n.z, b = −n.y/n.z) the scene maps are levelled by it (its height subtracted, a shear:
+    // the tilts allowed are small), the bounded search (eq. 6.9) runs again on them about the
+    // same patch, and its upright placement is turned onto the plane (the rotation taking the
+    // vertical to n, about the pivot). Returns the placement, or nothing.
+    auto level_search = [&](const Eigen::Vector3d& n,
+                            const Eigen::Vector3d& pivot) -> std::vector<Search4dResult> {
+      const double a = -n.x() / n.z(), b = -n.y() / n.z();
+      auto level = [&](const ElevationMap& map) {
+        ElevationMap out = map;
+        for (int r = 0; r < out.rows; ++r) {
+          for (int col = 0; col < out.cols; ++col) {
+            float& z = out.at(r, col);
+            if (z != z) continue;
+            const Eigen::Vector2d d = out.cell_center_xy(r, col) - pivot.head<2>();
+            z -= static_cast<float>(a * d.x() + b * d.y());
+          }
+        }
+        return out;
+      };
+      const ElevationMap coarse_lev = level(coarse_live), fine_lev = level(fine_live);
+      const Eigen::Matrix3d R =
+          Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n).toRotationMatrix();
+      Eigen::Isometry3d tilt = Eigen::Isometry3d::Identity();
+      tilt.linear() = R;
+      tilt.translation() = pivot - R * pivot;
+      // Both of step 1's searches, as on the scene as given (neither wins everywhere).
+      std::vector<Search4dResult> out;
+      Search4dConfig thesis = config.search;
+      thesis.seabed_ring_m = 0;
+      for (int k = 0; k < (config.search.seabed_ring_m > 0 ? 2 : 1); ++k) {
+        Search4dResult lev = search_4d(*m, coarse_lev, fine_lev, rec.scan.center_xy, period,
+                                       k == 0 ? config.search : thesis, config.max_buried_fraction);
+        if (!lev.found) continue;
+        lev.T_world_model = tilt * lev.T_world_model;
+        out.push_back(lev);
+      }
+      return out;
+    };
+    // A tilt matters when it lifts or sinks the model's rim more than the verification's
+    // tolerance (its radius · tan(tilt) > tol_m), and is searched only within max_tilt_deg (the
+    // tilt ICP may keep).
+    auto tilt_matters = [&](double tan_tilt) {
+      return tan_tilt * m->radius_m > config.verification.tol_m &&
+             std::atan(tan_tilt) <= config.max_tilt_deg * kDeg;
+    };
+    auto footprint_center = [&](const Eigen::Isometry3d& T) -> Eigen::Vector2d {
+      return (T * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
+    };
+    // First the seabed's tilt: the plane the verification fitted around the footprint of the
+    // best upright placement (a structure stands on the seabed); the verification judges the
+    // tilted placement against the upright ones.
+    if (config.level_by_seabed && have4 && v4.valid) {
+      const double a = v4.ground_dzdx, b = v4.ground_dzdy;
+      if (tilt_matters(std::hypot(a, b))) {
+        const Eigen::Vector2d c = footprint_center(T4);
+        for (const Search4dResult& lev : level_search(Eigen::Vector3d(-a, -b, 1).normalized(),
+                                                      Eigen::Vector3d(c.x(), c.y(), v4.ground_z))) {
+          consider(lev.T_world_model, lev.rms_m);
+        }
       }
     }
-    if (!s4) {
+    if (!have4) {
       rec.reason = "the 4D search found no placement with enough scene under the model";
       p.seconds = since(t0);
       return;
     }
-    p.T_world_model_4d = T4;
-    p.rms_4d_m = s4->rms_m;
     const double reach = m->radius_m * m->scale_max + config.icp.max_distance_m + 0.1;
-    const Eigen::Vector2d c4 =
-        (T4 * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
-    std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
-    // The structure's points only: those standing above the local seabed. Seabed points beside
-    // a wall or a footing would otherwise pull the model sideways and tilt it.
-    if (std::isfinite(v4.ground_z)) {
-      const float cut = static_cast<float>(v4.ground_z + config.ground_clearance_m);
-      local.erase(std::remove_if(local.begin(), local.end(),
-                                 [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
-                  local.end());
-    }
-    p.residual_4d = structure_residual(local, *m, T4);
-    p.T_world_model = T4;
-    p.residual = p.residual_4d;
-    p.set_verification(v4);
-    if (config.run_icp && local.size() >= 6 &&
-        buried_fraction(*m, T4, v4.ground_z) <= config.max_buried_fraction) {
-      // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
-      try {
-        if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
-        const IcpResult icp = trimmed_icp(*s.index, local, T4, config.icp);
-        p.icp_iterations = icp.iterations;
-        const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
-                                      0.5 * (m->base_z + m->top_z));
-        const double shift = (icp.T_world_model * c_model - T4 * c_model).norm();
-        if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg && shift <= config.max_icp_shift_m) {
-          const Verification vi =
-              verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
-          if (vi.confidence >= v4.confidence - 0.05) {
-            p.T_world_model = icp.T_world_model;
-            p.residual = structure_residual(local, *m, icp.T_world_model);
-            p.set_verification(vi);
-            p.icp_kept = true;
+    std::vector<Eigen::Vector3f> local;
+    // Step 2 from step 1's placement (T4, v4): fills p.
+    auto step2 = [&]() {
+      p.T_world_model_4d = T4;
+      p.rms_4d_m = rms4;
+      p.icp_kept = false;
+      p.icp_iterations = 0;
+      const Eigen::Vector2d c4 = footprint_center(T4);
+      local = points.near(scene_world, c4, reach, removed_coarse);
+      // The structure's points only: those standing above the local seabed. Seabed points beside
+      // a wall or a footing would otherwise pull the model sideways and tilt it. The seabed is
+      // the verification's plane about the footprint's centre c4 (on a slope a level cut would
+      // keep the uphill seabed).
+      if (std::isfinite(v4.ground_z)) {
+        const double a = v4.ground_dzdx, b = v4.ground_dzdy,
+                     g = v4.ground_z + config.ground_clearance_m;
+        local.erase(std::remove_if(local.begin(), local.end(),
+                                   [&](const Eigen::Vector3f& q) {
+                                     return q.z() < g + a * (q.x() - c4.x()) + b * (q.y() - c4.y());
+                                   }),
+                    local.end());
+      }
+      p.residual_4d = structure_residual(local, *m, T4);
+      p.T_world_model = T4;
+      p.residual = p.residual_4d;
+      p.set_verification(v4);
+      if (config.run_icp && local.size() >= 6 &&
+          buried_fraction(*m, T4, v4.ground_z) <= config.max_buried_fraction) {
+        // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
+        try {
+          if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
+          const IcpResult icp = trimmed_icp(*s.index, local, T4, config.icp);
+          p.icp_iterations = icp.iterations;
+          const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
+                                        0.5 * (m->base_z + m->top_z));
+          const double shift = (icp.T_world_model * c_model - T4 * c_model).norm();
+          if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
+              shift <= config.max_icp_shift_m) {
+            const Verification vi =
+                verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
+            if (vi.confidence >= v4.confidence - 0.05) {
+              p.T_world_model = icp.T_world_model;
+              p.residual = structure_residual(local, *m, icp.T_world_model);
+              p.set_verification(vi);
+              p.icp_kept = true;
+            }
+          }
+        } catch (const Error&) {
+          // No scene point near the model: keep the 4D placement (judged below).
+        }
+      }
+    };
+    step2();
+    // Then the structure's own tilt: when ICP turned the model away from step 1's tilt (a
+    // structure settled unevenly, not parallel to the seabed around it), the search runs again
+    // on the scene levelled by the plane of the model's base as ICP left it, and step 2 restarts
+    // from that placement when it explains the scene better than step 2's result (a search with
+    // the wrong tilt can slide a structure by one repeat of its parts).
+    if (config.level_by_seabed && p.icp_kept) {
+      const Eigen::Vector3d n = p.T_world_model.linear().col(2), n4 = T4.linear().col(2);
+      const double cos_d = std::clamp(n.dot(n4), -1.0, 1.0);
+      if (n.z() > 0 && tilt_matters(std::tan(std::acos(cos_d)))) {
+        const Eigen::Vector3d pivot =
+            p.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z);
+        if (const std::vector<Search4dResult> levs = level_search(n, pivot); !levs.empty()) {
+          const Placement before = p;
+          const Eigen::Isometry3d T4_before = T4;
+          const Verification v4_before = v4;
+          const double rms4_before = rms4;
+          const std::vector<Eigen::Vector3f> local_before = local;
+          have4 = false;
+          for (const Search4dResult& lev : levs) consider(lev.T_world_model, lev.rms_m);
+          if (have4 && v4.valid && v4.score_m3 > before.verification.score_m3) {
+            step2();
+          } else {
+            p = before;
+            T4 = T4_before;
+            v4 = v4_before;
+            rms4 = rms4_before;
+            local = local_before;
           }
         }
-      } catch (const Error&) {
-        // No scene point near the model: keep the 4D placement (judged below).
       }
     }
     if (m->scale_searched()) {
@@ -1234,6 +1345,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_rejections", config.max_rejections},
                    {"max_relief_proposals", config.max_relief_proposals},
                    {"relief_window_m", config.relief_window_m},
+                   {"level_by_seabed", config.level_by_seabed},
                    {"scale_search",
                     {{"coarse_step", config.scale.coarse_step},
                      {"tolerance", config.scale.tolerance},
