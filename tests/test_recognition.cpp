@@ -626,8 +626,9 @@ TEST(RecogPipeline, ABuriedStructureTheScanDoesNotProposeIsFoundFromItsRelief) {
 // 2.6 m manifold's ends lie 27 cm apart in height, and its three towers 0.8 m apart let an upright
 // search slide it by one tower. RecognitionConfig::level_by_seabed levels the scene by the seabed
 // plane under the placement, searches again and tilts the model onto the plane: placed within
-// 5 cm and 1° of its tilt. Also a manifold tilted across the slope (settled unevenly): found
-// from the tilt ICP gives it (the second levelling).
+// 5 cm and 1° of its tilt, step 1 already tilted. (On this clean scene ICP also recovers the
+// tilt from an upright start; on the benchmark's field, with marine growth and the manifold
+// tilted across the slope, it did not: docs/recognition.md, "After, recog28f".)
 namespace {
 ModelTemplate manifold_template() {
   TriangleMesh mesh;
@@ -670,6 +671,9 @@ TEST(RecogPipeline, AStructureOnASlopeIsFoundWithTheSeabedsTilt) {
   const Eigen::Vector3d c(manifold.center_xy.x(), manifold.center_xy.y(), 0.3);
   EXPECT_LT((p.T_world_model * c - truth * c).norm(), 0.05);
   EXPECT_LT(tilt_between_deg(p.T_world_model, truth), 1.0);
+  // Step 1 (the 4D search) already carries the seabed's tilt, so ICP starts right (upright, as
+  // with level_by_seabed off, it is 6° off).
+  EXPECT_LT(tilt_between_deg(p.T_world_model_4d, truth), 1.5);
   EXPECT_LT(yaw_error_deg(yaw_of(p.T_world_model), yaw_of(truth)), 1.0);
   EXPECT_GE(p.confidence, cfg.verification.min_confidence);
   if (std::getenv("RECOG_PRINT")) {
