@@ -636,7 +636,10 @@ struct ReliefBlob {
 // grey-scale opening (erosion then dilation, a square of window_m) of the map: anything narrower
 // than the window is lifted off it, slopes are followed within window_m · slope / 2. Cells
 // without data take no part.
-std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, double relief_m) {
+// `relief` (optional): every cell's height above that seabed (0 without data); `labels`
+// (optional): each cell's blob, 1 + its index in the result, 0 for none.
+std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, double relief_m,
+                                     cv::Mat* relief = nullptr, cv::Mat* labels_out = nullptr) {
   std::vector<ReliefBlob> out;
   if (map.empty()) return out;
   const float big = std::numeric_limits<float>::max();
@@ -654,10 +657,12 @@ std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, d
   low.setTo(-big, low >= big);  // no data within the window: never the maximum
   cv::dilate(low, ground, kernel, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
   cv::Mat mask = cv::Mat::zeros(map.rows, map.cols, CV_8U);
+  if (relief) *relief = cv::Mat::zeros(map.rows, map.cols, CV_32F);
   for (int r = 0; r < map.rows; ++r) {
     for (int c = 0; c < map.cols; ++c) {
       const float v = map.at(r, c), g = ground.at<float>(r, c);
       if (v == v && g > -big && v - g > relief_m) mask.at<uint8_t>(r, c) = 1;
+      if (relief && v == v && g > -big) relief->at<float>(r, c) = std::max(0.0f, v - g);
     }
   }
   cv::Mat labels, stats, centroids;
@@ -678,6 +683,73 @@ std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, d
     b.row = std::clamp(static_cast<int>(std::lround(centroids.at<double>(l, 1))), 0, map.rows - 1);
     b.center_xy = map.cell_center_xy(b.row, b.col);
   }
+  if (labels_out) *labels_out = labels;
+  return out;
+}
+
+// Blobs split by the model's footprint (recog28f): within a blob too large for the model (a
+// partly buried shell whose relief merged with a pipeline beside it), the centres where the
+// model's footprint best fits the relief — the local maxima of a footprint-sized matched filter:
+// per yaw of the symmetry's range, the mean relief (capped at the model's height) under the
+// footprint minus the mean relief in a ring one cell outside it (a pipeline running on past the
+// model's ends fills the ring; a model-sized body does not), the best yaw's — at least
+// r_model/2 apart, best first. `fp`: the model's footprint on the map's cells (yaw 0), its centre
+// at (cr, cc).
+std::vector<std::pair<double, ReliefBlob>> split_blob_centres(
+    const ElevationMap& map, const cv::Mat& relief, const cv::Mat& labels, int label,
+    const cv::Mat& fp, int cr, int cc, const std::vector<double>& yaws, double height,
+    double radius_m, std::size_t max_out) {
+  std::vector<std::pair<double, ReliefBlob>> out;
+  cv::Mat capped;
+  cv::min(relief, height, capped);
+  cv::Mat best(relief.size(), CV_32F, cv::Scalar(-1e9));
+  // The kernel square and large enough to hold the footprint turned about (cr, cc) and its ring.
+  const int half = std::max({cr, cc, fp.rows - 1 - cr, fp.cols - 1 - cc}) + 3;
+  const int n = 2 * half + 1;
+  cv::Mat base = cv::Mat::zeros(n, n, CV_8U);
+  fp.copyTo(base(cv::Rect(half - cc, half - cr, fp.cols, fp.rows)));
+  for (const double yaw : yaws) {
+    cv::Mat turned;
+    // Map rows grow southwards: a counter-clockwise turn of the model is clockwise on the image.
+    const cv::Mat rot = cv::getRotationMatrix2D(cv::Point2f(half, half), yaw / kDeg, 1.0);
+    cv::warpAffine(base, turned, rot, base.size(), cv::INTER_NEAREST);
+    cv::Mat grown1, grown2;
+    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+    cv::dilate(turned, grown1, k3);
+    cv::dilate(grown1, grown2, k3);
+    const cv::Mat ring = grown2 - grown1;
+    const int nf = cv::countNonZero(turned), nr = cv::countNonZero(ring);
+    if (nf == 0 || nr == 0) continue;
+    cv::Mat kernel;
+    turned.convertTo(kernel, CV_32F, 1.0 / nf);
+    cv::Mat kring;
+    ring.convertTo(kring, CV_32F, 1.0 / nr);
+    kernel -= kring;
+    cv::Mat response;
+    cv::filter2D(capped, response, CV_32F, kernel, cv::Point(half, half), 0, cv::BORDER_CONSTANT);
+    best = cv::max(best, response);
+  }
+  // Local maxima inside the blob, r_model/2 apart.
+  const int w = std::max(3, 2 * static_cast<int>(std::lround(0.5 * radius_m / map.cell_m)) + 1);
+  cv::Mat inside = labels == label;
+  cv::Mat masked = cv::Mat(best.size(), CV_32F, cv::Scalar(-1e9));
+  best.copyTo(masked, inside);
+  cv::Mat peak;
+  cv::dilate(masked, peak, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(w, w)));
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c < map.cols; ++c) {
+      const float v = masked.at<float>(r, c);
+      if (!inside.at<uint8_t>(r, c) || v <= 0 || v < peak.at<float>(r, c)) continue;
+      ReliefBlob b;
+      b.row = r;
+      b.col = c;
+      b.center_xy = map.cell_center_xy(r, c);
+      b.relief_m = v;
+      out.emplace_back(v, b);
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (out.size() > max_out) out.resize(max_out);
   return out;
 }
 
@@ -768,10 +840,13 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     }
   }
   // Relief proposals: the blobs of the scene as it was given, offered to the models they fit.
-  const std::vector<ReliefBlob> blobs =
+  cv::Mat relief_image, blob_labels;
+  std::vector<ReliefBlob> blobs =
       config.max_relief_proposals > 0
-          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m)
+          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m,
+                         &relief_image, &blob_labels)
           : std::vector<ReliefBlob>{};
+  const std::size_t whole_blobs = blobs.size();
   std::vector<ModelSearch> states(order.size());
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelSearch& s = states[k];
@@ -830,6 +905,32 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       }
       std::sort(fits.begin(), fits.end());
       for (const auto& f : fits) s.proposals.push_back(f.second);
+      // Then the blobs too large for the model, split by its footprint (split_blob_centres),
+      // when config.split_relief_blobs: their best centres, best first, after the blobs that fit.
+      if (config.split_relief_blobs) {
+        std::vector<std::pair<double, ReliefBlob>> split;
+        const std::vector<double> yaws =
+            yaw_range(s.m->symmetry, config.search.yaw_step_deg * 3 * kDeg);
+        for (std::size_t b = 0; b < whole_blobs; ++b) {
+          const double ratio = blobs[b].area_m2 / s.footprint_m2;
+          if (ratio <= 3 || blobs[b].relief_m < h_lo) continue;
+          for (auto& c :
+               split_blob_centres(coarse, relief_image, blob_labels, static_cast<int>(b) + 1,
+                                  fp_mask, vr, vc, yaws, hm, s.m->radius_m,
+                                  static_cast<std::size_t>(config.max_relief_proposals))) {
+            split.push_back(std::move(c));
+          }
+        }
+        std::stable_sort(split.begin(), split.end(),
+                         [](const auto& a, const auto& b) { return a.first > b.first; });
+        if (split.size() > static_cast<std::size_t>(config.max_relief_proposals)) {
+          split.resize(static_cast<std::size_t>(config.max_relief_proposals));
+        }
+        for (auto& c : split) {
+          blobs.push_back(c.second);
+          s.proposals.push_back(blobs.size() - 1);
+        }
+      }
     }
     s.wanted = s.m->expected >= 0 ? s.m->expected : config.max_instances;
     s.done = s.wanted == 0;
@@ -1345,6 +1446,7 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_rejections", config.max_rejections},
                    {"max_relief_proposals", config.max_relief_proposals},
                    {"relief_window_m", config.relief_window_m},
+                   {"split_relief_blobs", config.split_relief_blobs},
                    {"level_by_seabed", config.level_by_seabed},
                    {"scale_search",
                     {{"coarse_step", config.scale.coarse_step},

@@ -221,6 +221,11 @@ struct RecognitionConfig {
   // the benchmark's ordnance field: 4 per model find the buried cinder block and the upright
   // sonobuoy of mixed_buried that the scan never proposes (docs/recognition.md).
   int max_relief_proposals = 4;
+  // Blobs too large for the model (area above 3 × its footprint: a partly buried shell whose
+  // relief merged with the pipeline beside it) are split by the model's footprint: their centres
+  // where a footprint-sized matched filter peaks (recognition.cpp, split_blob_centres) are
+  // proposed after the blobs that fit, at most max_relief_proposals of them.
+  bool split_relief_blobs = true;
   double removal_margin_m = 0.1;  // area removed around a placed model's footprint
   // Scene points used by ICP and the residuals: those higher than the local seabed (median
   // scene height around the footprint) plus this, m.
@@ -305,6 +310,11 @@ void describe(RecognitionConfig& c, V& v) {
                 "(0: none)")
               .range(0, 1000)
               .flag("--max-relief-proposals"));
+  v.field(c.split_relief_blobs,
+          param("split_relief_blobs", "",
+                "blobs larger than 3 x the model's footprint are split: the peaks of a "
+                "footprint-sized matched filter in them are proposed too")
+              .flag("--no-split-blobs"));
   v.field(c.removal_margin_m,
           param("removal_margin_m", "m", "area removed around a placed model's footprint")
               .non_negative());
