@@ -474,6 +474,24 @@ def make_fields(meshes_dir, gen_dir):
     f.pipeline('pipeline', (-9, 5.5), (9, 4.5), 0.15, 0.5)
     cat(f, ['panel_frame', 'spool', 'erov', 'torpedo_mk48', 'box_panel', 'drum', 'tank', 'pillar'])
     fields.append(f)
+
+    # 8. Held out (recog28f; never tuned on): a 6.5° slope with a manifold, a BOP panel, a low
+    # hot stab lying and a 40 % buried mk46 among rocks, a pipeline, cinder blocks and debris;
+    # four distractors (its own random stream: the fields above are unchanged).
+    hr = random.Random(2808)
+    f = Field('heldout_slope', (16, 12), 18, relief=0.1, rocks=25, slope_deg=6.5,
+              note='held out (recog28f): 6.5° slope; manifold, bop_panel, hot_stab lying, torpedo_mk46 40 % buried; '
+                   'clutter: 25 rocks, a pipeline, 2 cinder blocks, 6 pieces of debris')
+    f.place('manifold', G('manifold'), (3.5, 2.0), -35, z_off=-0.04)
+    f.place('bop_panel', D('bop_panel'), (-4.0, 2.5), 150, z_off=-0.03)
+    f.place('hot_stab', D('hot_stab'), (0.5, -1.0), -20, z_off=0.056 - 0.01)
+    f.place('torpedo_mk46', D('torpedo_mk46'), (-3.0, -2.5), 80, z_off=0.162 - 0.4 * 0.324)
+    f.pipeline('pipeline', (-8, -5.0), (8, 0.0), 0.15, 0.5)
+    f.place('mossy_cinder_block', D('mossy_cinder_block'), (1.5, 3.5), 65, z_off=-0.05, refl=0.6, structure=False)
+    f.place('mossy_cinder_block', D('mossy_cinder_block'), (-0.5, -3.8), 15, z_off=-0.1, refl=0.6, structure=False)
+    wreck_pile(f, hr, -1.0, 1.5, n=6, spread=(2.0, 1.5), tag='debris')
+    cat(f, ['manifold', 'bop_panel', 'hot_stab', 'torpedo_mk46', 'manifold_b', 'drum', 'box_bop', 'tank'])
+    fields.append(f)
     return fields
 
 

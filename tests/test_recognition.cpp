@@ -42,10 +42,11 @@ double seabed(double x, double y) {
 }
 
 // A 2.5D scene seen from above: on a grid of `step`, the highest of the seabed and the placed
-// models, plus Gaussian noise. Rocks (small bumps) add clutter.
+// models, plus Gaussian noise. Rocks (small bumps) add clutter. `dzdx`: the seabed's slope.
 PointCloud synthetic_scene(
     const std::vector<std::pair<const ModelTemplate*, Eigen::Isometry3d>>& placed, double x0,
-    double y0, double x1, double y1, double step, double noise, unsigned seed = 1) {
+    double y0, double x1, double y1, double step, double noise, unsigned seed = 1,
+    double dzdx = 0) {
   ElevationMap top;
   top.cell_m = step;
   top.origin_xy = {x0, y1};
@@ -79,7 +80,7 @@ PointCloud synthetic_scene(
   for (int r = 0; r < top.rows; ++r) {
     for (int col = 0; col < top.cols; ++col) {
       const Eigen::Vector2d p = top.cell_center_xy(r, col);
-      double z = seabed(p.x(), p.y());
+      double z = seabed(p.x(), p.y()) + dzdx * p.x();
       for (const auto& k : rocks) {
         const double q = (p - Eigen::Vector2d(k[0], k[1])).squaredNorm();
         z += k[2] * std::exp(-q / (2 * 0.1 * 0.1));
@@ -619,6 +620,108 @@ TEST(RecogPipeline, ABuriedStructureTheScanDoesNotProposeIsFoundFromItsRelief) {
   EXPECT_GE(relief, 1u);
   // The JSON names where the candidate came from.
   EXPECT_NE(placements_json(r, "", "", cfg).find("\"proposal\": \"relief\""), std::string::npos);
+}
+
+// Issue 28, manifold_slope field (recog28f): eq. 6.9 searches an upright model; on a 6° slope a
+// 2.6 m manifold's ends lie 27 cm apart in height, and its three towers 0.8 m apart let an upright
+// search slide it by one tower. RecognitionConfig::level_by_seabed levels the scene by the seabed
+// plane under the placement, searches again and tilts the model onto the plane: placed within
+// 5 cm and 1° of its tilt, step 1 already tilted. (On this clean scene ICP also recovers the
+// tilt from an upright start; on the benchmark's field, with marine growth and the manifold
+// tilted across the slope, it did not: docs/recognition.md, "After, recog28f".)
+namespace {
+ModelTemplate manifold_template() {
+  TriangleMesh mesh;
+  auto part = [&](TriangleMesh b, double cx, double cy, double cz) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(cx, cy, cz);
+    b.transform(T);
+    mesh.append(b);
+  };
+  part(make_box(2.6, 1.8, 0.2), 0, 0, 0.1);
+  for (const double x : {-0.8, 0.0, 0.8}) part(make_cylinder(0.13, 0.7, 24), x, 0.5, 0.55);
+  for (const double x : {-0.9, 0.9}) part(make_box(0.2, 0.3, 0.24), x, -0.4, 0.32);
+  part(make_box(0.3, 0.4, 0.4), 1.05, 0.5, 0.4);
+  ModelSamplingConfig sc;
+  sc.spacing_m = 0.015;
+  return make_model_template("manifold", mesh, Symmetry::None, -1, sc);
+}
+double tilt_between_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return std::acos(std::clamp(a.linear().col(2).dot(b.linear().col(2)), -1.0, 1.0)) / kDeg;
+}
+}  // namespace
+
+TEST(RecogPipeline, AStructureOnASlopeIsFoundWithTheSeabedsTilt) {
+  const ModelTemplate manifold = manifold_template();
+  const double slope = std::tan(6 * kDeg);
+  const double x = 4.0, y = 3.2;
+  // On the slope: the model's vertical turned to the seabed's normal, its base on the seabed.
+  Eigen::Isometry3d truth = pose(x, y, 0, 110);
+  truth.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(),
+                                                      Eigen::Vector3d(-slope, 0, 1).normalized())
+                       .toRotationMatrix() *
+                   truth.linear();
+  truth.translation().z() = seabed(x, y) + slope * x - 0.03;
+  const PointCloud cloud =
+      synthetic_scene({{&manifold, truth}}, 0, 0, 8, 6.5, 0.02, 0.004, 5, slope);
+  RecognitionConfig cfg = test_config();
+  const RecognitionResult r = recognize_2d(cloud, {manifold}, cfg);
+  ASSERT_EQ(r.placements.size(), 1u) << placements_json(r, "", "", cfg);
+  const Placement& p = r.placements[0];
+  const Eigen::Vector3d c(manifold.center_xy.x(), manifold.center_xy.y(), 0.3);
+  EXPECT_LT((p.T_world_model * c - truth * c).norm(), 0.05);
+  EXPECT_LT(tilt_between_deg(p.T_world_model, truth), 1.0);
+  // Step 1 (the 4D search) already carries the seabed's tilt, so ICP starts right (upright, as
+  // with level_by_seabed off, it is 6° off).
+  EXPECT_LT(tilt_between_deg(p.T_world_model_4d, truth), 1.5);
+  EXPECT_LT(yaw_error_deg(yaw_of(p.T_world_model), yaw_of(truth)), 1.0);
+  EXPECT_GE(p.confidence, cfg.verification.min_confidence);
+  if (std::getenv("RECOG_PRINT")) {
+    cfg.level_by_seabed = false;
+    std::printf("%s", placements_json(recognize_2d(cloud, {manifold}, cfg), "", "", cfg).c_str());
+  }
+}
+
+// Issue 28, ordnance field (recog28f): a 35 %-buried shell touching a half-buried pipeline: their
+// relief is one blob, too large for the shell, so no whole blob is proposed to it
+// (RecognitionConfig::split_relief_blobs off: nothing found with the scan disabled). Split by
+// the shell's footprint, the matched filter's best peak lies on the shell, not along the pipe.
+TEST(RecogPipeline, ABlobMergedWithAPipelineIsSplitByTheModelsFootprint) {
+  auto lying_cylinder = [](const std::string& name, double radius, double length) {
+    TriangleMesh mesh = make_cylinder(radius, length, 32);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    T.translation() =
+        Eigen::Vector3d(-0.5 * length, 0, radius);  // lying on z = 0, centred, along x
+    mesh.transform(T);
+    ModelSamplingConfig sc;
+    sc.spacing_m = 0.015;
+    return make_model_template(name, mesh, Symmetry::Half, -1, sc);
+  };
+  const ModelTemplate shell = lying_cylinder("shell", 0.16, 2.6);
+  const ModelTemplate pipe = lying_cylinder("pipe", 0.15, 12.0);  // not in the catalogue
+  const Eigen::Isometry3d T_shell = pose(6.0, 3.3, -0.35 * 0.32, -60);
+  // The pipe runs along x across the scene, 60 % buried, across the shell's upper half.
+  const Eigen::Isometry3d T_pipe = pose(6.0, 4.0, -0.6 * 0.3, 0);
+  const PointCloud cloud =
+      synthetic_scene({{&shell, T_shell}, {&pipe, T_pipe}}, 0, 0, 12, 6, 0.02, 0.004, 13);
+  RecognitionConfig cfg = test_config();
+  cfg.max_relative_score = 1e-9;  // the scan proposes nothing
+  auto found_at_truth = [&](const RecognitionResult& r) {
+    for (const Placement& p : r.placements) {
+      if ((p.T_world_model.translation() - T_shell.translation()).head<2>().norm() < 0.1 &&
+          yaw_error_deg(yaw_of(p.T_world_model), yaw_of(T_shell), M_PI) < 2.0) {
+        return true;
+      }
+    }
+    return false;
+  };
+  cfg.split_relief_blobs = false;
+  const RecognitionResult off = recognize_2d(cloud, {shell}, cfg);
+  EXPECT_FALSE(found_at_truth(off)) << placements_json(off, "", "", cfg);
+  cfg.split_relief_blobs = true;
+  const RecognitionResult on = recognize_2d(cloud, {shell}, cfg);
+  EXPECT_TRUE(found_at_truth(on)) << placements_json(on, "", "", cfg);
 }
 
 // Issue 28 item 4 (thesis sec. 6.7: sizes off by ±10 %): structures built 8 % larger and smaller

@@ -636,7 +636,10 @@ struct ReliefBlob {
 // grey-scale opening (erosion then dilation, a square of window_m) of the map: anything narrower
 // than the window is lifted off it, slopes are followed within window_m · slope / 2. Cells
 // without data take no part.
-std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, double relief_m) {
+// `relief` (optional): every cell's height above that seabed (0 without data); `labels`
+// (optional): each cell's blob, 1 + its index in the result, 0 for none.
+std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, double relief_m,
+                                     cv::Mat* relief = nullptr, cv::Mat* labels_out = nullptr) {
   std::vector<ReliefBlob> out;
   if (map.empty()) return out;
   const float big = std::numeric_limits<float>::max();
@@ -654,10 +657,12 @@ std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, d
   low.setTo(-big, low >= big);  // no data within the window: never the maximum
   cv::dilate(low, ground, kernel, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
   cv::Mat mask = cv::Mat::zeros(map.rows, map.cols, CV_8U);
+  if (relief) *relief = cv::Mat::zeros(map.rows, map.cols, CV_32F);
   for (int r = 0; r < map.rows; ++r) {
     for (int c = 0; c < map.cols; ++c) {
       const float v = map.at(r, c), g = ground.at<float>(r, c);
       if (v == v && g > -big && v - g > relief_m) mask.at<uint8_t>(r, c) = 1;
+      if (relief && v == v && g > -big) relief->at<float>(r, c) = std::max(0.0f, v - g);
     }
   }
   cv::Mat labels, stats, centroids;
@@ -678,6 +683,73 @@ std::vector<ReliefBlob> relief_blobs(const ElevationMap& map, double window_m, d
     b.row = std::clamp(static_cast<int>(std::lround(centroids.at<double>(l, 1))), 0, map.rows - 1);
     b.center_xy = map.cell_center_xy(b.row, b.col);
   }
+  if (labels_out) *labels_out = labels;
+  return out;
+}
+
+// Blobs split by the model's footprint (recog28f): within a blob too large for the model (a
+// partly buried shell whose relief merged with a pipeline beside it), the centres where the
+// model's footprint best fits the relief — the local maxima of a footprint-sized matched filter:
+// per yaw of the symmetry's range, the mean relief (capped at the model's height) under the
+// footprint minus the mean relief in a ring one cell outside it (a pipeline running on past the
+// model's ends fills the ring; a model-sized body does not), the best yaw's — at least
+// r_model/2 apart, best first. `fp`: the model's footprint on the map's cells (yaw 0), its centre
+// at (cr, cc).
+std::vector<std::pair<double, ReliefBlob>> split_blob_centres(
+    const ElevationMap& map, const cv::Mat& relief, const cv::Mat& labels, int label,
+    const cv::Mat& fp, int cr, int cc, const std::vector<double>& yaws, double height,
+    double radius_m, std::size_t max_out) {
+  std::vector<std::pair<double, ReliefBlob>> out;
+  cv::Mat capped;
+  cv::min(relief, height, capped);
+  cv::Mat best(relief.size(), CV_32F, cv::Scalar(-1e9));
+  // The kernel square and large enough to hold the footprint turned about (cr, cc) and its ring.
+  const int half = std::max({cr, cc, fp.rows - 1 - cr, fp.cols - 1 - cc}) + 3;
+  const int n = 2 * half + 1;
+  cv::Mat base = cv::Mat::zeros(n, n, CV_8U);
+  fp.copyTo(base(cv::Rect(half - cc, half - cr, fp.cols, fp.rows)));
+  for (const double yaw : yaws) {
+    cv::Mat turned;
+    // Map rows grow southwards: a counter-clockwise turn of the model is clockwise on the image.
+    const cv::Mat rot = cv::getRotationMatrix2D(cv::Point2f(half, half), yaw / kDeg, 1.0);
+    cv::warpAffine(base, turned, rot, base.size(), cv::INTER_NEAREST);
+    cv::Mat grown1, grown2;
+    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+    cv::dilate(turned, grown1, k3);
+    cv::dilate(grown1, grown2, k3);
+    const cv::Mat ring = grown2 - grown1;
+    const int nf = cv::countNonZero(turned), nr = cv::countNonZero(ring);
+    if (nf == 0 || nr == 0) continue;
+    cv::Mat kernel;
+    turned.convertTo(kernel, CV_32F, 1.0 / nf);
+    cv::Mat kring;
+    ring.convertTo(kring, CV_32F, 1.0 / nr);
+    kernel -= kring;
+    cv::Mat response;
+    cv::filter2D(capped, response, CV_32F, kernel, cv::Point(half, half), 0, cv::BORDER_CONSTANT);
+    best = cv::max(best, response);
+  }
+  // Local maxima inside the blob, r_model/2 apart.
+  const int w = std::max(3, 2 * static_cast<int>(std::lround(0.5 * radius_m / map.cell_m)) + 1);
+  cv::Mat inside = labels == label;
+  cv::Mat masked = cv::Mat(best.size(), CV_32F, cv::Scalar(-1e9));
+  best.copyTo(masked, inside);
+  cv::Mat peak;
+  cv::dilate(masked, peak, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(w, w)));
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c < map.cols; ++c) {
+      const float v = masked.at<float>(r, c);
+      if (!inside.at<uint8_t>(r, c) || v <= 0 || v < peak.at<float>(r, c)) continue;
+      ReliefBlob b;
+      b.row = r;
+      b.col = c;
+      b.center_xy = map.cell_center_xy(r, c);
+      b.relief_m = v;
+      out.emplace_back(v, b);
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (out.size() > max_out) out.resize(max_out);
   return out;
 }
 
@@ -768,10 +840,13 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     }
   }
   // Relief proposals: the blobs of the scene as it was given, offered to the models they fit.
-  const std::vector<ReliefBlob> blobs =
+  cv::Mat relief_image, blob_labels;
+  std::vector<ReliefBlob> blobs =
       config.max_relief_proposals > 0
-          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m)
+          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m,
+                         &relief_image, &blob_labels)
           : std::vector<ReliefBlob>{};
+  const std::size_t whole_blobs = blobs.size();
   std::vector<ModelSearch> states(order.size());
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelSearch& s = states[k];
@@ -830,6 +905,32 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
       }
       std::sort(fits.begin(), fits.end());
       for (const auto& f : fits) s.proposals.push_back(f.second);
+      // Then the blobs too large for the model, split by its footprint (split_blob_centres),
+      // when config.split_relief_blobs: their best centres, best first, after the blobs that fit.
+      if (config.split_relief_blobs) {
+        std::vector<std::pair<double, ReliefBlob>> split;
+        const std::vector<double> yaws =
+            yaw_range(s.m->symmetry, config.search.yaw_step_deg * 3 * kDeg);
+        for (std::size_t b = 0; b < whole_blobs; ++b) {
+          const double ratio = blobs[b].area_m2 / s.footprint_m2;
+          if (ratio <= 3 || blobs[b].relief_m < h_lo) continue;
+          for (auto& c :
+               split_blob_centres(coarse, relief_image, blob_labels, static_cast<int>(b) + 1,
+                                  fp_mask, vr, vc, yaws, hm, s.m->radius_m,
+                                  static_cast<std::size_t>(config.max_relief_proposals))) {
+            split.push_back(std::move(c));
+          }
+        }
+        std::stable_sort(split.begin(), split.end(),
+                         [](const auto& a, const auto& b) { return a.first > b.first; });
+        if (split.size() > static_cast<std::size_t>(config.max_relief_proposals)) {
+          split.resize(static_cast<std::size_t>(config.max_relief_proposals));
+        }
+        for (auto& c : split) {
+          blobs.push_back(c.second);
+          s.proposals.push_back(blobs.size() - 1);
+        }
+      }
     }
     s.wanted = s.m->expected >= 0 ? s.m->expected : config.max_instances;
     s.done = s.wanted == 0;
@@ -874,73 +975,184 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     // and a partly buried one keeps the search's height.
     Eigen::Isometry3d T4 = Eigen::Isometry3d::Identity();
     Verification v4;
-    const Search4dResult* s4 = nullptr;
-    for (const Search4dResult& run : runs) {
-      if (!run.found) continue;
+    bool have4 = false;
+    double rms4 = 0;
+    // A pose and the same pose standing on the verification's seabed, kept when either explains
+    // the scene better than the best so far.
+    auto consider = [&](const Eigen::Isometry3d& T, double rms) {
       std::vector<std::pair<Eigen::Isometry3d, Verification>> poses;
-      poses.emplace_back(run.T_world_model, verify_placement(*m, run.T_world_model, fine,
-                                                             removed_fine, config.verification));
+      poses.emplace_back(T, verify_placement(*m, T, fine, removed_fine, config.verification));
       const Verification& vr = poses.front().second;
       if (std::isfinite(vr.ground_z)) {
-        Eigen::Isometry3d T_seated = run.T_world_model;
+        Eigen::Isometry3d T_seated = T;
         T_seated.translation().z() +=
             vr.ground_z -
             (T_seated * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z)).z();
         poses.emplace_back(T_seated,
                            verify_placement(*m, T_seated, fine, removed_fine, config.verification));
       }
-      for (const auto& [T, v] : poses) {
-        if (s4 && !(v.valid && v.score_m3 > v4.score_m3)) continue;
-        T4 = T;
+      for (const auto& [Tp, v] : poses) {
+        if (have4 && !(v.valid && v.score_m3 > v4.score_m3)) continue;
+        T4 = Tp;
         v4 = v;
-        s4 = &run;
+        rms4 = rms;
+        have4 = true;
+      }
+    };
+    for (const Search4dResult& run : runs) {
+      if (run.found) consider(run.T_world_model, run.rms_m);
+    }
+    // The tilt (beyond the thesis' upright eq. 6.9, RecognitionConfig::level_by_seabed): for a
+    // plane of normal n through `pivot` (z = pivot.z + a·(x − pivot.x) + b·(y − pivot.y), a =
+    // −n.x/n.z, b = −n.y/n.z) the scene maps are levelled by it (its height subtracted, a shear:
+    // the tilts allowed are small), the bounded search (eq. 6.9) runs again on them about the
+    // same patch, and its upright placement is turned onto the plane (the rotation taking the
+    // vertical to n, about the pivot). Returns the placement, or nothing.
+    auto level_search = [&](const Eigen::Vector3d& n,
+                            const Eigen::Vector3d& pivot) -> std::vector<Search4dResult> {
+      const double a = -n.x() / n.z(), b = -n.y() / n.z();
+      auto level = [&](const ElevationMap& map) {
+        ElevationMap out = map;
+        for (int r = 0; r < out.rows; ++r) {
+          for (int col = 0; col < out.cols; ++col) {
+            float& z = out.at(r, col);
+            if (z != z) continue;
+            const Eigen::Vector2d d = out.cell_center_xy(r, col) - pivot.head<2>();
+            z -= static_cast<float>(a * d.x() + b * d.y());
+          }
+        }
+        return out;
+      };
+      const ElevationMap coarse_lev = level(coarse_live), fine_lev = level(fine_live);
+      const Eigen::Matrix3d R =
+          Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n).toRotationMatrix();
+      Eigen::Isometry3d tilt = Eigen::Isometry3d::Identity();
+      tilt.linear() = R;
+      tilt.translation() = pivot - R * pivot;
+      // Both of step 1's searches, as on the scene as given (neither wins everywhere).
+      std::vector<Search4dResult> out;
+      Search4dConfig thesis = config.search;
+      thesis.seabed_ring_m = 0;
+      for (int k = 0; k < (config.search.seabed_ring_m > 0 ? 2 : 1); ++k) {
+        Search4dResult lev = search_4d(*m, coarse_lev, fine_lev, rec.scan.center_xy, period,
+                                       k == 0 ? config.search : thesis, config.max_buried_fraction);
+        if (!lev.found) continue;
+        lev.T_world_model = tilt * lev.T_world_model;
+        out.push_back(lev);
+      }
+      return out;
+    };
+    // A tilt matters when it lifts or sinks the model's rim more than the verification's
+    // tolerance (its radius · tan(tilt) > tol_m), and is searched only within max_tilt_deg (the
+    // tilt ICP may keep).
+    auto tilt_matters = [&](double tan_tilt) {
+      return tan_tilt * m->radius_m > config.verification.tol_m &&
+             std::atan(tan_tilt) <= config.max_tilt_deg * kDeg;
+    };
+    auto footprint_center = [&](const Eigen::Isometry3d& T) -> Eigen::Vector2d {
+      return (T * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
+    };
+    // First the seabed's tilt: the plane the verification fitted around the footprint of the
+    // best upright placement (a structure stands on the seabed); the verification judges the
+    // tilted placement against the upright ones.
+    if (config.level_by_seabed && have4 && v4.valid) {
+      const double a = v4.ground_dzdx, b = v4.ground_dzdy;
+      if (tilt_matters(std::hypot(a, b))) {
+        const Eigen::Vector2d c = footprint_center(T4);
+        for (const Search4dResult& lev : level_search(Eigen::Vector3d(-a, -b, 1).normalized(),
+                                                      Eigen::Vector3d(c.x(), c.y(), v4.ground_z))) {
+          consider(lev.T_world_model, lev.rms_m);
+        }
       }
     }
-    if (!s4) {
+    if (!have4) {
       rec.reason = "the 4D search found no placement with enough scene under the model";
       p.seconds = since(t0);
       return;
     }
-    p.T_world_model_4d = T4;
-    p.rms_4d_m = s4->rms_m;
     const double reach = m->radius_m * m->scale_max + config.icp.max_distance_m + 0.1;
-    const Eigen::Vector2d c4 =
-        (T4 * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), 0)).head<2>();
-    std::vector<Eigen::Vector3f> local = points.near(scene_world, c4, reach, removed_coarse);
-    // The structure's points only: those standing above the local seabed. Seabed points beside
-    // a wall or a footing would otherwise pull the model sideways and tilt it.
-    if (std::isfinite(v4.ground_z)) {
-      const float cut = static_cast<float>(v4.ground_z + config.ground_clearance_m);
-      local.erase(std::remove_if(local.begin(), local.end(),
-                                 [cut](const Eigen::Vector3f& q) { return q.z() < cut; }),
-                  local.end());
-    }
-    p.residual_4d = structure_residual(local, *m, T4);
-    p.T_world_model = T4;
-    p.residual = p.residual_4d;
-    p.set_verification(v4);
-    if (config.run_icp && local.size() >= 6 &&
-        buried_fraction(*m, T4, v4.ground_z) <= config.max_buried_fraction) {
-      // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
-      try {
-        if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
-        const IcpResult icp = trimmed_icp(*s.index, local, T4, config.icp);
-        p.icp_iterations = icp.iterations;
-        const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
-                                      0.5 * (m->base_z + m->top_z));
-        const double shift = (icp.T_world_model * c_model - T4 * c_model).norm();
-        if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg && shift <= config.max_icp_shift_m) {
-          const Verification vi =
-              verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
-          if (vi.confidence >= v4.confidence - 0.05) {
-            p.T_world_model = icp.T_world_model;
-            p.residual = structure_residual(local, *m, icp.T_world_model);
-            p.set_verification(vi);
-            p.icp_kept = true;
+    std::vector<Eigen::Vector3f> local;
+    // Step 2 from step 1's placement (T4, v4): fills p.
+    auto step2 = [&]() {
+      p.T_world_model_4d = T4;
+      p.rms_4d_m = rms4;
+      p.icp_kept = false;
+      p.icp_iterations = 0;
+      const Eigen::Vector2d c4 = footprint_center(T4);
+      local = points.near(scene_world, c4, reach, removed_coarse);
+      // The structure's points only: those standing above the local seabed. Seabed points beside
+      // a wall or a footing would otherwise pull the model sideways and tilt it. The seabed is
+      // the verification's plane about the footprint's centre c4 (on a slope a level cut would
+      // keep the uphill seabed).
+      if (std::isfinite(v4.ground_z)) {
+        const double a = v4.ground_dzdx, b = v4.ground_dzdy,
+                     g = v4.ground_z + config.ground_clearance_m;
+        local.erase(std::remove_if(local.begin(), local.end(),
+                                   [&](const Eigen::Vector3f& q) {
+                                     return q.z() < g + a * (q.x() - c4.x()) + b * (q.y() - c4.y());
+                                   }),
+                    local.end());
+      }
+      p.residual_4d = structure_residual(local, *m, T4);
+      p.T_world_model = T4;
+      p.residual = p.residual_4d;
+      p.set_verification(v4);
+      if (config.run_icp && local.size() >= 6 &&
+          buried_fraction(*m, T4, v4.ground_z) <= config.max_buried_fraction) {
+        // Step 2: trimmed ICP for the full 6D pose, kept when the verification does not drop.
+        try {
+          if (!s.index) s.index = std::make_unique<ModelIndex>(m->points, m->normals);
+          const IcpResult icp = trimmed_icp(*s.index, local, T4, config.icp);
+          p.icp_iterations = icp.iterations;
+          const Eigen::Vector3d c_model(m->center_xy.x(), m->center_xy.y(),
+                                        0.5 * (m->base_z + m->top_z));
+          const double shift = (icp.T_world_model * c_model - T4 * c_model).norm();
+          if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
+              shift <= config.max_icp_shift_m) {
+            const Verification vi =
+                verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
+            if (vi.confidence >= v4.confidence - 0.05) {
+              p.T_world_model = icp.T_world_model;
+              p.residual = structure_residual(local, *m, icp.T_world_model);
+              p.set_verification(vi);
+              p.icp_kept = true;
+            }
+          }
+        } catch (const Error&) {
+          // No scene point near the model: keep the 4D placement (judged below).
+        }
+      }
+    };
+    step2();
+    // Then the structure's own tilt: when ICP turned the model away from step 1's tilt (a
+    // structure settled unevenly, not parallel to the seabed around it), the search runs again
+    // on the scene levelled by the plane of the model's base as ICP left it, and step 2 restarts
+    // from that placement when it explains the scene better than step 2's result (a search with
+    // the wrong tilt can slide a structure by one repeat of its parts).
+    if (config.level_by_seabed && p.icp_kept) {
+      const Eigen::Vector3d n = p.T_world_model.linear().col(2), n4 = T4.linear().col(2);
+      const double cos_d = std::clamp(n.dot(n4), -1.0, 1.0);
+      if (n.z() > 0 && tilt_matters(std::tan(std::acos(cos_d)))) {
+        const Eigen::Vector3d pivot =
+            p.T_world_model * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z);
+        if (const std::vector<Search4dResult> levs = level_search(n, pivot); !levs.empty()) {
+          const Placement before = p;
+          const Eigen::Isometry3d T4_before = T4;
+          const Verification v4_before = v4;
+          const double rms4_before = rms4;
+          const std::vector<Eigen::Vector3f> local_before = local;
+          have4 = false;
+          for (const Search4dResult& lev : levs) consider(lev.T_world_model, lev.rms_m);
+          if (have4 && v4.valid && v4.score_m3 > before.verification.score_m3) {
+            step2();
+          } else {
+            p = before;
+            T4 = T4_before;
+            v4 = v4_before;
+            rms4 = rms4_before;
+            local = local_before;
           }
         }
-      } catch (const Error&) {
-        // No scene point near the model: keep the 4D placement (judged below).
       }
     }
     if (m->scale_searched()) {
@@ -1234,6 +1446,8 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"max_rejections", config.max_rejections},
                    {"max_relief_proposals", config.max_relief_proposals},
                    {"relief_window_m", config.relief_window_m},
+                   {"split_relief_blobs", config.split_relief_blobs},
+                   {"level_by_seabed", config.level_by_seabed},
                    {"scale_search",
                     {{"coarse_step", config.scale.coarse_step},
                      {"tolerance", config.scale.tolerance},

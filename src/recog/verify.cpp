@@ -138,6 +138,8 @@ Verification verify_placement(const ModelTemplate& m, const Eigen::Isometry3d& T
   }
   const double g = plane.x();
   out.ground_z = g;
+  out.ground_dzdx = plane.y();
+  out.ground_dzdy = plane.z();
   out.valid = true;
   auto ground_at = [&](int r, int c) {
     return g + plane.y() * (c - cc) * cell + plane.z() * (rc - r) * cell;

@@ -137,6 +137,10 @@ struct Verification {
   // Local seabed height (world z) at the footprint's centre, NaN when unobserved; relief is
   // measured above the seabed plane fitted to the ground ring (verify.cpp).
   double ground_z = 0;
+  // The seabed plane's gradient (dz/dx East, dz/dy North) about the footprint's centre: zero
+  // when the ring's median stood in for the plane (recog28f; the 2D method levels its search
+  // by it, RecognitionConfig::level_by_seabed).
+  double ground_dzdx = 0, ground_dzdy = 0;
   double relief_m3 = 0;  // the model's relief weight: Σ height above seabed · cell area
   double seen = 0, explained = 0, violation = 0, unexplained = 0, spill = 0;  // fractions, above
   double evidence = 0;   // relief evidence: the supported fraction of the model's whole relief
