@@ -315,7 +315,9 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   // The import block is the importers' own: their keys, their choices and bounds.
   { std::ofstream(dir / "e4.yaml") << "import:\n  nav: nav.tum\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e4.yaml").string()); },
-                              "e4.yaml:2: key 'import.nav': unknown key");
+                              "e4.yaml:2: key 'import.nav': the import block holds each "
+                              "importer's own settings under its kind (docs/survey.md): write "
+                              "import.aris.navigation, import.oculus.navigation");
   { std::ofstream(dir / "e5.yaml") << "import:\n  aris:\n    clock: gps\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e5.yaml").string()); },
                               "e5.yaml:3");

@@ -3,6 +3,7 @@
 // which the YAML reading, the printed configuration and the stage stamps all derive.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -185,6 +186,34 @@ std::string stage_settings(const SurveyConfig& c, const std::string& stage,
   throw Error("no survey stage '" + stage + "'");
 }
 
+// A key of the flat import block of earlier versions (`nav`, `static`, `rate`, ... : the import
+// flags' names) is an error that names where that setting lives now: the importers' fields whose
+// flag or name it is (`import.aris.navigation`, `import.oculus.navigation`).
+void check_import_keys(const YAML::Node& n, const std::string& file) {
+  if (!n.IsMap()) return;  // the reader says what is wrong
+  const std::vector<params::Row> rows = params::rows(SurveyImportOptions());
+  for (const auto& kv : n) {
+    const std::string k = kv.first.Scalar();
+    std::string now;
+    for (const params::Row& r : rows) {
+      if (r.path == k || r.path.rfind(k + ".", 0) == 0) {
+        now.clear();  // a key of the block
+        break;
+      }
+      std::string flag = r.flag.rfind("--", 0) == 0 ? r.flag.substr(2) : r.flag;
+      std::replace(flag.begin(), flag.end(), '-', '_');
+      const std::string leaf = r.path.substr(r.path.rfind('.') + 1);
+      if (flag == k || leaf == k) now += (now.empty() ? "" : ", ") + ("import." + r.path);
+    }
+    if (!now.empty()) {
+      throw Error(yaml::where(file, kv.first, "import." + k) +
+                  ": the import block holds each importer's own settings under its kind "
+                  "(docs/survey.md): write " +
+                  now);
+    }
+  }
+}
+
 }  // namespace survey_detail
 
 SurveyConfig load_survey_config(const std::string& path) {
@@ -195,6 +224,7 @@ SurveyConfig load_survey_config(const std::string& path) {
   yaml::check_keys(root, {"import", "map", "recognize", "world", "texture", "report"}, path);
   const fs::path base = fs::absolute(fs::path(path)).parent_path();
   if (const YAML::Node n = root["import"]; n && !n.IsNull()) {
+    check_import_keys(n, path);
     params::read_yaml(n, path, "import", c.import);
     // The importers' file paths: relative to the configuration file.
     for (std::string* p : {&c.import.aris.navigation, &c.import.oculus.navigation,
