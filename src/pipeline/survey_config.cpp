@@ -216,13 +216,14 @@ void check_import_keys(const YAML::Node& n, const std::string& file) {
 
 }  // namespace survey_detail
 
-SurveyConfig load_survey_config(const std::string& path) {
+SurveyConfig load_survey_config(const std::string& path, const fs::path& base_dir) {
   using namespace survey_detail;
   const YAML::Node root = yaml::load_file(path);
   SurveyConfig c;
   if (!root || root.IsNull()) return c;  // an empty file: every default
   yaml::check_keys(root, {"import", "map", "recognize", "world", "texture", "report"}, path);
-  const fs::path base = fs::absolute(fs::path(path)).parent_path();
+  const fs::path base =
+      base_dir.empty() ? fs::absolute(fs::path(path)).parent_path() : fs::absolute(base_dir);
   if (const YAML::Node n = root["import"]; n && !n.IsNull()) {
     check_import_keys(n, path);
     params::read_yaml(n, path, "import", c.import);

@@ -134,8 +134,10 @@ struct SurveyConfig {
 // Reads a survey YAML (stage keys import, map, recognize, world, texture, report; each optional):
 // unknown keys, wrong types and bad values are Errors naming file, line and key. Paths in it
 // (import.aris.navigation, import.oculus.navigation, import.rosbag.sonar_description,
-// world.connections, report.web_dir) are taken relative to the file's directory.
-SurveyConfig load_survey_config(const std::string& path);
+// world.connections, report.web_dir) are taken relative to `base_dir`, by default the file's
+// directory (Python's dict configurations: the working directory).
+SurveyConfig load_survey_config(const std::string& path,
+                                const std::filesystem::path& base_dir = {});
 // The whole configuration as that YAML (every key, defaults included): load_survey_config() of
 // it gives the same configuration.
 std::string survey_config_yaml(const SurveyConfig& config);
