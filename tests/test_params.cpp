@@ -125,11 +125,15 @@ std::string reference() {
       params::rows(TextureFilesConfig()));
   // The importers: `sonar3d import <kind>` prints its settings under `import:`.
   const char* kImportIntro =
-      "`sonar3d import {} --print-config` prints these under `import:`; Python: `sonar3d.{}` and "
-      "`sonar3d.import_{}(..., config=cfg)` or keywords (docs/import.md).";
-  const auto intro = [&](const std::string& kind, const std::string& cls) {
+      "`sonar3d import {} --print-config` prints these under `import:`{}; Python: `sonar3d.{}` "
+      "and `sonar3d.import_{}(..., config=cfg)` or keywords (docs/import.md).";
+  // The survey's import block holds one such block per kind of log (not frames).
+  const auto intro = [&](const std::string& kind, const std::string& cls, bool survey = true) {
     std::string t = kImportIntro;
-    for (const std::string& v : {kind, cls, kind}) t.replace(t.find("{}"), 2, v);
+    const std::string in_survey =
+        survey ? " (the survey's `import:` block takes them under `" + kind + ":`, docs/survey.md)"
+               : "";
+    for (const std::string& v : {kind, in_survey, cls, kind}) t.replace(t.find("{}"), 2, v);
     return t;
   };
   out += "\n";
@@ -147,7 +151,7 @@ std::string reference() {
   out += "\n";
   out += params::reference_markdown(
       "import frames",
-      intro("frames", "FrameImportConfig") +
+      intro("frames", "FrameImportConfig", false) +
           " The sensor is not a setting: `--sonar sonar.yaml` (Python: `sonar=`).",
       params::rows(FrameImportConfig()));
   return out;

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/io/dataset.hpp"
 #include "sonar3d/pipeline/survey_pipeline.hpp"
 #include "test_support.hpp"
 
@@ -266,7 +267,9 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   const fs::path dir = sonar3d::test::temp_dir("config");
   {
     std::ofstream(dir / "c.yaml")
-        << "import: {nav: nav.tum, mount: '0,0,0,0,90,0', static: true}\n"
+        << "import: {kind: oculus, oculus: {navigation: nav.tum, mount: [0, 0, 0, 0, 90, 0], "
+           "static_sonar: true, vertical_aperture_deg: 8}, rosbag: {sonar_description: "
+           "s.yaml}}\n"
            "map: {cell_m: 0.05, method: drift, split: {time_ranges_s: [0, 10, "
            "12, 20]}}\n"
            "recognize: {method: 3d, three_d: {yaw_step_deg: 7.5}, two_d: {run_icp: false}}\n"
@@ -275,8 +278,15 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
            "report: {title: 'a \"quoted\" title', seed: 7}\n";
   }
   const sonar3d::SurveyConfig c = sonar3d::load_survey_config((dir / "c.yaml").string());
-  EXPECT_EQ(c.import.nav, (dir / "nav.tum").string());
-  EXPECT_TRUE(c.import.static_sonar);
+  EXPECT_EQ(c.import.kind, "oculus");
+  EXPECT_EQ(c.import.oculus.navigation, (dir / "nav.tum").string());
+  EXPECT_EQ(c.import.rosbag.sonar_description, (dir / "s.yaml").string());
+  EXPECT_TRUE(c.import.oculus.static_sonar);
+  EXPECT_EQ(c.import.oculus.mount, (sonar3d::params::List{0, 0, 0, 0, 90, 0}));
+  ASSERT_TRUE(c.import.oculus.vertical_aperture_deg.has_value());
+  EXPECT_EQ(*c.import.oculus.vertical_aperture_deg, 8);
+  EXPECT_FALSE(c.import.aris.vertical_aperture_deg.has_value());  // the other kinds: defaults
+  EXPECT_EQ(c.import.holoocean.pose_key, sonar3d::HoloOceanImportConfig().pose_key);
   EXPECT_EQ(c.map.map.cell_m, 0.05);
   EXPECT_EQ(c.map.map.method, sonar3d::SwathAdjustMethod::Drift);
   EXPECT_EQ(c.map.map.carve.voxel_size, sonar3d::MapSurveyConfig().carve.voxel_size);  // default
@@ -302,6 +312,18 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   { std::ofstream(dir / "e2.yaml") << "world:\n  seabed:\n    margin_m: wide\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e2.yaml").string()); },
                               "e2.yaml:3");
+  // The import block is the importers' own: their keys, their choices and bounds.
+  { std::ofstream(dir / "e4.yaml") << "import:\n  nav: nav.tum\n"; }
+  sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e4.yaml").string()); },
+                              "e4.yaml:2: key 'import.nav': the import block holds each "
+                              "importer's own settings under its kind (docs/survey.md): write "
+                              "import.aris.navigation, import.oculus.navigation");
+  { std::ofstream(dir / "e5.yaml") << "import:\n  aris:\n    clock: gps\n"; }
+  sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e5.yaml").string()); },
+                              "e5.yaml:3");
+  { std::ofstream(dir / "e6.yaml") << "import: {kind: sonar}\n"; }
+  sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e6.yaml").string()); },
+                              "must be one of");
   { std::ofstream(dir / "e3.yaml") << "report: [1, 2]\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e3.yaml").string()); },
                               "expected a mapping");
@@ -363,9 +385,17 @@ trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5,
   r = run_cli(dir, "export rosbag --ros1 " + (dir / "ds").string() + " -o " +
                        (dir / "log.bag").string() + " -q");
   ASSERT_EQ(r.code, 0) << r.out;
+  // The import block is the importers' own configuration: a setting of the bag's importer
+  // reaches the imported dataset (the messages say 1°).
+  const auto write_bag_config = [&](const std::string& import) {
+    std::ofstream(dir / "bag.yaml")
+        << "import: " << import << "\n"
+        << "map: {region: [-1, -1, -0.6, 7, 6, 0.8], registration: {search_m: 0.3}}\n";
+  };
+  write_bag_config("{rosbag: {vertical_aperture_deg: 1.5}}");
   const std::string bag = "survey " + (dir / "log.bag").string() + " -o " +
-                          (dir / "bag_out").string() + " --config " +
-                          (dir / "survey.yaml").string() + " -q";
+                          (dir / "bag_out").string() + " --config " + (dir / "bag.yaml").string() +
+                          " -q";
   r = run_cli(dir, bag);
   ASSERT_EQ(r.code, 0) << r.out;
   s = read_json(dir / "bag_out/summary.json");
@@ -376,10 +406,23 @@ trajectory: {type: lawnmower, x: [0, 6], y: [0, 4.5], z: 3.0, line_spacing: 1.5,
   EXPECT_EQ(statuses(s)["texture"], "skipped");  // the bag carries no camera images
   EXPECT_TRUE(fs::is_regular_file(dir / "bag_out/dataset/sonar.yaml"));
   EXPECT_TRUE(fs::is_regular_file(dir / "bag_out/map/merged.ply"));
+  EXPECT_NEAR(sonar3d::read_dataset(dir / "bag_out/dataset").spec.vertical_aperture_rad,
+              1.5 * M_PI / 180, 1e-9);
+  // Another kind's block is not this import's setting: nothing re-runs.
+  write_bag_config("{rosbag: {vertical_aperture_deg: 1.5}, aris: {clock: sonar}}");
   r = run_cli(dir, bag);
   ASSERT_EQ(r.code, 0) << r.out;
   s = read_json(dir / "bag_out/summary.json");
   EXPECT_EQ(statuses(s)["import"], "unchanged");
   EXPECT_EQ(statuses(s)["map"], "unchanged");
+  // The bag importer's own setting changed: the import runs again (and the stages after it).
+  write_bag_config("{rosbag: {vertical_aperture_deg: 1}}");
+  r = run_cli(dir, bag);
+  ASSERT_EQ(r.code, 0) << r.out;
+  s = read_json(dir / "bag_out/summary.json");
+  EXPECT_EQ(statuses(s)["import"], "ran");
+  EXPECT_EQ(statuses(s)["map"], "ran");
+  EXPECT_NEAR(sonar3d::read_dataset(dir / "bag_out/dataset").spec.vertical_aperture_rad, M_PI / 180,
+              1e-9);
   fs::remove_all(dir);
 }

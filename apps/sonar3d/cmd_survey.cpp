@@ -37,8 +37,10 @@ void add_survey(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--config", o->config,
                   "survey YAML: stage keys import, map, recognize, world, texture, report, each "
-                  "with its command's options under the flag names ('-' written '_'; units as "
-                  "the flags: metres, seconds, degrees in *_deg)")
+                  "its command's configuration as its --print-config prints it (import: kind "
+                  "and one block per kind: aris, rosbag, oculus, holoocean); texture and report "
+                  "under their flag names ('-' written '_'); units: metres, seconds, degrees in "
+                  "*_deg")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--print-config", o->print_config,
                 "print the whole effective configuration as YAML (every option, defaults "

@@ -216,19 +216,21 @@ void bind_io(py::module_& m) {
 
   m.def(
       "read_navigation",
-      [](const std::string& path, const std::string& convention, bool degrees,
-         const std::string& format) {
-        NavCsvConfig c;
-        c.convention = parse_nav_convention(convention);
-        c.angles = degrees ? AngleUnit::Deg : AngleUnit::Rad;
+      [](const std::string& path, const py::object& config, const std::string& format,
+         const py::kwargs& settings) {
+        const NavCsvConfig c =
+            config_with_settings<NavCsvConfig>(config, settings, "read_navigation");
         const Trajectory t = read_navigation(path, c, format);
         std::vector<double> times = t.times;
         const py::ssize_t n = static_cast<py::ssize_t>(times.size());
         return py::make_tuple(adopt(std::move(times), {n}), poses_to_array(t.poses));
       },
-      "path"_a, "convention"_a = "enu", "degrees"_a = true, "format"_a = "",
-      "Reads navigation (TUM, or CSV time,x,y,z,roll,pitch,yaw in the 'enu' or 'ned' convention) "
-      "as (times, T_world_vehicle poses) in our world frame (z up).");
+      "path"_a, "config"_a = py::none(), "format"_a = "",
+      "Reads navigation: TUM (T_world_vehicle), or CSV time,x,y,z,roll,pitch,yaw read as "
+      "`config` says (a NavCsvConfig: convention 'enu' or 'ned', angles 'deg' or 'rad'; "
+      "keywords set its fields: read_navigation(path, convention='ned')), as (times, "
+      "T_world_vehicle poses) in our world frame (z up). format: 'tum', 'csv', or '' (by the "
+      "extension).");
 
   // The importers' configurations, one class each, generated from their one declaration
   // (io/*.hpp, core/params.hpp): the same names, defaults, units and bounds as the command line's

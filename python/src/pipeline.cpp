@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "common.hpp"
+#include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/pipeline/survey_pipeline.hpp"
 
 namespace sonar3d::python {
@@ -15,19 +16,78 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// A YAML node as Python values: maps, lists, and plain scalars as None, bools or numbers (quoted
+// scalars stay strings).
+py::object from_yaml(const YAML::Node& n) {
+  if (n.IsMap()) {
+    py::dict d;
+    for (const auto& kv : n) d[py::str(kv.first.Scalar())] = from_yaml(kv.second);
+    return d;
+  }
+  if (n.IsSequence()) {
+    py::list l;
+    for (const auto& e : n) l.append(from_yaml(e));
+    return l;
+  }
+  if (n.IsNull()) return py::none();
+  const std::string& s = n.Scalar();
+  if (n.Tag() == "?") {  // plain
+    if (s == "~" || s == "null") return py::none();
+    if (s == "true" || s == "false") return py::bool_(s == "true");
+    long long i = 0;
+    if (YAML::convert<long long>::decode(n, i)) return py::int_(i);
+    double d = 0;
+    if (YAML::convert<double>::decode(n, d)) return py::float_(d);
+  }
+  return py::str(s);
+}
+
+// A stage's configuration class as its block, exactly as --print-config writes it (a region as
+// six numbers, enums by name); nullopt when `o` is none of Cs.
+template <class... Cs>
+std::optional<py::object> stage_block(const py::object& o) {
+  std::optional<py::object> out;
+  const auto one = [&](auto tag) {
+    using C = typename decltype(tag)::type;
+    if (out || !py::isinstance<C>(o)) return;
+    YAML::Emitter e;
+    params::emit_yaml(e, o.cast<const C&>());
+    out = from_yaml(YAML::Load(e.c_str()));
+  };
+  (one(std::common_type<Cs>{}), ...);
+  return out;
+}
+
 // A configuration given as a dict: written as JSON (which is YAML) to a temporary file and read
-// by the same strict reader as a --config file, so its errors name the same keys.
+// by the same strict reader as a --config file, so its errors name the same keys. A block may be
+// the stage's configuration class ({'import': {'aris': sonar3d.ArisImportConfig(...)}, 'map':
+// sonar3d.MapSurveyConfig(...)}): written as its to_dict().
 SurveyConfig config_from_object(const py::object& config, fs::path* file) {
   if (config.is_none()) return {};
   if (py::isinstance<py::dict>(config)) {
-    const std::string text = py::module_::import("json").attr("dumps")(config).cast<std::string>();
+    const py::cpp_function as_json([](const py::object& o) -> py::object {
+      if (auto block = stage_block<ArisImportConfig, RosbagImportConfig, OculusImportConfig,
+                                   HoloOceanImportConfig, MapSurveyConfig, RecognizeConfig,
+                                   WorldModelConfig>(o)) {
+        return *block;
+      }
+      if (py::hasattr(o, "tolist")) return o.attr("tolist")();  // numpy arrays (regions)
+      if (py::isinstance<py::tuple>(o)) return py::list(o);
+      throw py::type_error("survey config: a " +
+                           py::type::of(o).attr("__name__").cast<std::string>() +
+                           " is no configuration value");
+    });
+    const std::string text = py::module_::import("json")
+                                 .attr("dumps")(config, "default"_a = as_json)
+                                 .cast<std::string>();
     static int counter = 0;
     const fs::path tmp =
         fs::temp_directory_path() / ("sonar3d-survey-config-" + std::to_string(::getpid()) + "-" +
                                      std::to_string(counter++) + ".yaml");
     { std::ofstream(tmp) << text << "\n"; }
     try {
-      SurveyConfig c = load_survey_config(tmp.string());
+      // Relative paths in a dict: from the working directory, as Python's own open() takes them.
+      SurveyConfig c = load_survey_config(tmp.string(), fs::current_path());
       fs::remove(tmp);
       return c;
     } catch (...) {
@@ -68,9 +128,11 @@ void bind_pipeline(py::module_& m) {
       "recognize (with `catalogue`, a catalogue YAML) -> world model -> texture (when the dataset "
       "has camera frames) -> report, into the directory `output` (new, empty, or an earlier "
       "survey's, which is resumed: unchanged stages are skipped). `config`: a survey YAML path, "
-      "or a dict of the same shape ({'map': {'resolution': 0.02}, 'recognize': {...}}; options "
-      "under their command's flag names, '-' written '_', units as the flags: metres, seconds, "
-      "degrees in *_deg; docs/survey.md). `progress`: None, True (terminal bars) or a callable "
+      "or a dict of the same shape ({'import': {'aris': {'navigation': 'nav.csv'}}, 'map': "
+      "{'cell_m': 0.05}, 'recognize': {...}}: each block as its command's --print-config prints "
+      "it; a block may be the stage's configuration class: {'import': {'aris': "
+      "sonar3d.ArisImportConfig(vertical_aperture_deg=10)}, 'map': sonar3d.MapSurveyConfig(...)}; "
+      "docs/survey.md). `progress`: None, True (terminal bars) or a callable "
       "progress(done, total) called for each stage and each of its steps. Returns the summary as "
       "a dict (output/summary.json: per stage its status, seconds, peak_memory_mb and figures) "
       "plus 'warnings'. Raises sonar3d.Error('survey: stage NAME failed: ...') on failure, the "

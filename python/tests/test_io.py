@@ -172,10 +172,25 @@ def test_import_holoocean_bad_pickles(tmp_path):
 def test_read_navigation_ned(tmp_path):
     path = tmp_path / "nav.csv"
     path.write_text("time,x,y,z,roll,pitch,yaw\n0,1,2,3,0,0,90\n1,2,2,3,0,0,90\n")
-    times, poses = sonar3d.read_navigation(str(path), convention="ned", degrees=True)
+    times, poses = sonar3d.read_navigation(
+        str(path), config=sonar3d.NavCsvConfig(convention="ned", angles="deg"))
     np.testing.assert_allclose(times, [0, 1])
     np.testing.assert_allclose(poses[0][:3, 3], [2, 1, -3])  # east, north, up
     np.testing.assert_allclose(poses[0][:3, 0], [1, 0, 0], atol=1e-12)  # heading 90°: east
+    # Keywords set the config's fields, as the importers' do.
+    _, same = sonar3d.read_navigation(str(path), convention="ned")
+    np.testing.assert_allclose(same, poses)
+    path.write_text("time,x,y,z,roll,pitch,yaw\n0,1,2,3,0,0,1.5707963267948966\n")
+    _, rad = sonar3d.read_navigation(str(path), convention="ned", angles="rad")
+    np.testing.assert_allclose(rad[0], poses[0], atol=1e-12)
+    with pytest.raises(sonar3d.Error, match="unknown setting 'degrees'"):
+        sonar3d.read_navigation(str(path), degrees=True)
+    # A TUM file needs no configuration.
+    tum = tmp_path / "nav.tum"
+    tum.write_text("0 1 2 3 0 0 0 1\n1 2 2 3 0 0 0 1\n")
+    times, poses = sonar3d.read_navigation(str(tum))
+    np.testing.assert_allclose(times, [0, 1])
+    np.testing.assert_allclose(poses[1][:3, 3], [2, 2, 3])
     path.write_text("time,x,y,z,roll,pitch,yaw\n1,0,0,0,0,0,0\n0,0,0,0,0,0,0\n")
     with pytest.raises(sonar3d.Error, match="nav.csv:3"):
         sonar3d.read_navigation(str(path))

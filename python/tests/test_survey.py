@@ -57,3 +57,28 @@ def test_survey_runs_resumes_and_returns_the_summary(tmp_path):
     with pytest.raises(sonar3d.Error, match="not a sonar3d survey directory"):
         sonar3d.survey(tmp_path / "ds", tmp_path / "mine")
     assert (tmp_path / "mine" / "notes.txt").read_text() == "mine"
+
+
+def test_survey_configuration_takes_the_stages_classes(tmp_path, monkeypatch):
+    # A block may be the stage's own configuration class: the same keys as the YAML, the region
+    # as six numbers, paths relative to the working directory.
+    monkeypatch.chdir(tmp_path)
+    config = {"import": {"kind": "aris",
+                         "aris": sonar3d.ArisImportConfig(navigation="nav.csv",
+                                                          vertical_aperture_deg=10,
+                                                          mount=[0, 0, 0, 0, 90, 0]),
+                         "rosbag": {"sonar_topic": "/sonar"}},
+              "map": sonar3d.MapSurveyConfig(method="drift",
+                                             region=((-1, -1, -1), (1, 1, 1)))}
+    text = sonar3d.survey_config(config)
+    assert f'navigation: "{tmp_path / "nav.csv"}"' in text
+    assert "vertical_aperture_deg: 10" in text
+    assert "mount: [0, 0, 0, 0, 90, 0]" in text
+    assert 'sonar_topic: "/sonar"' in text
+    assert "region: [-1, -1, -1, 1, 1, 1]" in text
+    assert "method: drift" in text
+    (tmp_path / "printed.yaml").write_text(text)
+    assert sonar3d.survey_config(str(tmp_path / "printed.yaml")) == text
+    # The earlier flat keys name where they live now.
+    with pytest.raises(sonar3d.Error, match="import.aris.navigation, import.oculus.navigation"):
+        sonar3d.survey_config({"import": {"nav": "nav.csv"}})

@@ -1,7 +1,9 @@
-// The survey's configuration: one declaration per option (survey_options.hpp's visit_*), from
+// The survey's configuration: one declaration per option (the commands' own describe() for
+// import, map, recognize and world; survey_options.hpp's visit() for texture and report), from
 // which the YAML reading, the printed configuration and the stage stamps all derive.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -152,8 +154,28 @@ std::string stage_yaml(const Opts& opts) {
   return e.out;
 }
 
-std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
-  if (stage == "import") return stage_yaml(c.import);
+// The importer's block of `kind` (none for a dataset), under the kind's key.
+template <class C>
+std::string import_block(const char* kind, const C& config) {
+  std::string out = std::string("  ") + kind + ":\n";
+  std::istringstream lines(params_yaml(config));
+  for (std::string line; std::getline(lines, line);) out += "  " + line + "\n";
+  return out;
+}
+
+std::string stage_settings(const SurveyConfig& c, const std::string& stage,
+                           const std::string& kind) {
+  if (stage == "import") {
+    // The importers' own declarations (io/*.hpp): the keys of `sonar3d import <kind>
+    // --print-config`, one block per kind. A stamp holds the block of the kind imported only.
+    if (kind.empty()) return params_yaml(c.import);
+    std::string s = "  kind: " + kind + "\n";
+    if (kind == "aris") s += import_block("aris", c.import.aris);
+    if (kind == "rosbag") s += import_block("rosbag", c.import.rosbag);
+    if (kind == "oculus") s += import_block("oculus", c.import.oculus);
+    if (kind == "holoocean") s += import_block("holoocean", c.import.holoocean);
+    return s;
+  }
   // The map's, the recognition's and the world's own declarations (core/params.hpp): the keys of
   // their commands' --print-config.
   if (stage == "recognize") return params_yaml(c.recognize);
@@ -164,16 +186,53 @@ std::string stage_settings(const SurveyConfig& c, const std::string& stage) {
   throw Error("no survey stage '" + stage + "'");
 }
 
+// A key of the flat import block of earlier versions (`nav`, `static`, `rate`, ... : the import
+// flags' names) is an error that names where that setting lives now: the importers' fields whose
+// flag or name it is (`import.aris.navigation`, `import.oculus.navigation`).
+void check_import_keys(const YAML::Node& n, const std::string& file) {
+  if (!n.IsMap()) return;  // the reader says what is wrong
+  const std::vector<params::Row> rows = params::rows(SurveyImportOptions());
+  for (const auto& kv : n) {
+    const std::string k = kv.first.Scalar();
+    std::string now;
+    for (const params::Row& r : rows) {
+      if (r.path == k || r.path.rfind(k + ".", 0) == 0) {
+        now.clear();  // a key of the block
+        break;
+      }
+      std::string flag = r.flag.rfind("--", 0) == 0 ? r.flag.substr(2) : r.flag;
+      std::replace(flag.begin(), flag.end(), '-', '_');
+      const std::string leaf = r.path.substr(r.path.rfind('.') + 1);
+      if (flag == k || leaf == k) now += (now.empty() ? "" : ", ") + ("import." + r.path);
+    }
+    if (!now.empty()) {
+      throw Error(yaml::where(file, kv.first, "import." + k) +
+                  ": the import block holds each importer's own settings under its kind "
+                  "(docs/survey.md): write " +
+                  now);
+    }
+  }
+}
+
 }  // namespace survey_detail
 
-SurveyConfig load_survey_config(const std::string& path) {
+SurveyConfig load_survey_config(const std::string& path, const fs::path& base_dir) {
   using namespace survey_detail;
   const YAML::Node root = yaml::load_file(path);
   SurveyConfig c;
   if (!root || root.IsNull()) return c;  // an empty file: every default
   yaml::check_keys(root, {"import", "map", "recognize", "world", "texture", "report"}, path);
-  const fs::path base = fs::absolute(fs::path(path)).parent_path();
-  load_stage(root, "import", path, base, c.import);
+  const fs::path base =
+      base_dir.empty() ? fs::absolute(fs::path(path)).parent_path() : fs::absolute(base_dir);
+  if (const YAML::Node n = root["import"]; n && !n.IsNull()) {
+    check_import_keys(n, path);
+    params::read_yaml(n, path, "import", c.import);
+    // The importers' file paths: relative to the configuration file.
+    for (std::string* p : {&c.import.aris.navigation, &c.import.oculus.navigation,
+                           &c.import.rosbag.sonar_description}) {
+      if (!p->empty() && fs::path(*p).is_relative()) *p = (base / *p).lexically_normal().string();
+    }
+  }
   if (const YAML::Node n = root["map"]; n && !n.IsNull()) {
     params::read_yaml(n, path, "map", c.map);
   }
@@ -195,8 +254,8 @@ SurveyConfig load_survey_config(const std::string& path) {
 std::string survey_config_yaml(const SurveyConfig& c) {
   using namespace survey_detail;
   std::string s =
-      "# sonar3d survey configuration (docs/survey.md): each stage's options under the names of "
-      "its command's flags\n";
+      "# sonar3d survey configuration (docs/survey.md): each stage's block as its command's "
+      "--print-config prints it\n";
   for (const char* stage : {"import", "map", "recognize", "world", "texture", "report"}) {
     s += std::string(stage) + ":\n" + stage_settings(c, stage);
   }

@@ -1,43 +1,15 @@
 #pragma once
-// Each survey option declared once: its YAML key (the command's flag without the dashes, '-'
-// written '_'). The YAML reader, the printed configuration and the stage stamps all visit these
-// lists, so the names cannot drift apart. `v.path(...)` marks a file path (relative paths in a
-// configuration file are taken from the file's directory).
+// The survey options whose commands' configurations are not declared with core/params.hpp yet
+// (texture, report), each declared once here: its YAML key (the command's flag without the
+// dashes, '-' written '_'). The import, map, recognize and world stages use their commands' own
+// declarations (survey_pipeline.hpp). The YAML reader, the printed configuration and the stage
+// stamps all visit these lists, so the names cannot drift apart. `v.path(...)` marks a file path
+// (relative paths in a configuration file are taken from the file's directory).
 #include <string>
 
 #include "sonar3d/pipeline/survey_pipeline.hpp"
 
 namespace sonar3d {
-
-template <class V>
-void visit(SurveyImportOptions& o, V& v) {
-  v("kind", o.kind);
-  v.path("nav", o.nav);
-  v("nav_format", o.nav_format);
-  v("nav_convention", o.nav_convention);
-  v("angles", o.angles);
-  v("mount", o.mount);
-  v("vertical_aperture_deg", o.vertical_aperture_deg);
-  v("time_offset", o.time_offset);
-  v("drop_outside", o.drop_outside);
-  v("static", o.static_sonar);
-  v("nav_source", o.nav_source);
-  v("clock", o.clock);
-  v("drop_partial", o.drop_partial);
-  v("sonar_topic", o.sonar_topic);
-  v("nav_topic", o.nav_topic);
-  v("tf_topic", o.tf_topic);
-  v("base_frame", o.base_frame);
-  v.path("sonar", o.sonar);
-  v("rate", o.rate);
-  v("gains", o.gains);
-  v("mirror", o.mirror);
-  v("bins", o.bins);
-  v("sensor", o.sensor);
-  v("image_key", o.image_key);
-  v("pose_key", o.pose_key);
-  v("python", o.python);
-}
 
 template <class V>
 void visit(SurveyTextureOptions& o, V& v) {
@@ -61,7 +33,9 @@ void visit(SurveyReportOptions& o, V& v) {
 
 namespace survey_detail {
 // The stage's options as YAML lines (its part of the printed configuration and of its stamp).
-std::string stage_settings(const SurveyConfig& config, const std::string& stage);
+// For import with `kind` given: the kind and that kind's block only (what the import uses).
+std::string stage_settings(const SurveyConfig& config, const std::string& stage,
+                           const std::string& kind = "");
 }  // namespace survey_detail
 
 }  // namespace sonar3d

@@ -205,7 +205,7 @@ class Survey {
     std::string k = "stage: " + stage + "\ninputs:\n";
     for (const fs::path& p : inputs) k += "  - " + identity(p) + "\n";
     if (!extra.empty()) k += extra + "\n";
-    k += "settings:\n" + survey_detail::stage_settings(o_.config, stage);
+    k += "settings:\n" + survey_detail::stage_settings(o_.config, stage, kind_);
     return k;
   }
   fs::path stamp_path(const std::string& stage) const {
@@ -372,53 +372,35 @@ void Survey::write_summary(const std::string& failed_stage, const std::string& e
 
 // ---- import ------------------------------------------------------------------------------------
 
+// The files an import reads besides the input: its navigation file, its sensor description.
+std::vector<fs::path> import_files(const SurveyImportOptions& c, const std::string& kind) {
+  std::vector<fs::path> files;
+  const std::string& f = kind == "aris"     ? c.aris.navigation
+                         : kind == "oculus" ? c.oculus.navigation
+                         : kind == "rosbag" ? c.rosbag.sonar_description
+                                            : std::string();
+  if (!f.empty()) files.emplace_back(f);
+  return files;
+}
+
 void Survey::do_import(SurveyStageReport& r) {
+  // The importer's own configuration, as `sonar3d import <kind>` runs it (each validates it).
   const SurveyImportOptions& c = o_.config.import;
   OutputPolicy policy;
   policy.overwrite = true;  // the survey's own dataset/ (a sonar3d dataset) is replaced
   policy.sources = {o_.input};
-  if (!c.nav.empty()) policy.sources.push_back(c.nav);
-  if (!c.sonar.empty()) policy.sources.push_back(c.sonar);
+  for (const fs::path& f : import_files(c, kind_)) policy.sources.push_back(f);
   policy.on_note = [this](const std::string& n) { warn(n); };
   OutputDirectory dest(dataset_, OutputKind::Dataset, policy);
-  NavCsvConfig csv;
-  csv.convention = parse_nav_convention(c.nav_convention);
-  require(c.angles == "deg" || c.angles == "rad",
-          "import.angles must be deg or rad, not '" + c.angles + "'");
-  csv.angles = c.angles == "deg" ? AngleUnit::Deg : AngleUnit::Rad;
-  const params::List mount = c.mount.empty() ? kNoMounting : parse_mounting_list(c.mount);
-  const params::Maybe aperture =
-      c.vertical_aperture_deg > 0 ? params::Maybe(c.vertical_aperture_deg) : params::Maybe();
   std::size_t frames = 0;
   std::vector<std::string> warnings;
   if (kind_ == "aris") {
-    ArisImportConfig a;
-    a.navigation = c.nav;
-    a.navigation_format = c.nav_format;
-    a.navigation_csv = csv;
-    a.nav_source = parse_aris_nav_source(c.static_sonar ? "static" : c.nav_source);
-    a.clock = parse_aris_clock(c.clock.empty() ? "pc" : c.clock);
-    a.mount = mount;
-    a.vertical_aperture_deg = aperture;
-    a.time_offset = c.time_offset;
-    a.drop_outside = c.drop_outside;
-    a.drop_partial = c.drop_partial;
-    const ArisImportResult res = import_aris(o_.input, dest.staging(), a, o_.progress);
+    const ArisImportResult res = import_aris(o_.input, dest.staging(), c.aris, o_.progress);
     frames = res.frames;
     warnings = res.warnings;
     r.figures.emplace_back("dropped", static_cast<double>(res.dropped));
   } else if (kind_ == "rosbag") {
-    RosbagImportConfig b;
-    b.sonar_topic = c.sonar_topic;
-    b.nav_topic = c.nav_topic;
-    b.static_sonar = c.static_sonar;
-    b.tf_topic = c.tf_topic;
-    b.base_frame = c.base_frame;
-    if (!c.mount.empty()) b.mount = mount;
-    b.sonar_description = c.sonar;
-    b.vertical_aperture_deg = aperture;
-    b.time_offset = c.time_offset;
-    b.drop_outside = c.drop_outside;
+    RosbagImportConfig b = c.rosbag;
     // Topics not named in the configuration are found by message type when unambiguous.
     for (const std::string& line : choose_rosbag_topics(o_.input, b)) r.note += line + "; ";
     const RosbagImportResult res = import_rosbag(o_.input, dest.staging(), b, o_.progress);
@@ -427,34 +409,14 @@ void Survey::do_import(SurveyStageReport& r) {
     r.figures.emplace_back("dropped", static_cast<double>(res.dropped));
     r.figures.emplace_back("navigation_samples", static_cast<double>(res.navigation_samples));
   } else if (kind_ == "oculus") {
-    OculusImportConfig u;
-    u.navigation = c.nav;
-    u.navigation_format = c.nav_format;
-    u.navigation_csv = csv;
-    u.static_sonar = c.static_sonar;
-    u.clock = parse_oculus_clock(c.clock.empty() ? "ping" : c.clock);
-    u.rate_hz = c.rate;
-    u.time_offset = c.time_offset;
-    u.drop_outside = c.drop_outside;
-    u.gains = parse_oculus_gains(c.gains);
-    u.mount = mount;
-    u.vertical_aperture_deg = aperture;
-    u.mirror = c.mirror;
-    u.validate();
-    const OculusImportResult res = import_oculus(o_.input, dest.staging(), u, o_.progress);
+    const OculusImportResult res = import_oculus(o_.input, dest.staging(), c.oculus, o_.progress);
     frames = res.frames;
     warnings = res.warnings;
     r.figures.emplace_back("pings", static_cast<double>(res.pings));
     r.figures.emplace_back("dropped", static_cast<double>(res.dropped));
   } else if (kind_ == "holoocean") {
-    HoloOceanImportConfig h;
-    h.bins = parse_holoocean_bins(c.bins);
-    h.sensor = c.sensor;
-    h.image_key = c.image_key;
-    h.pose_key = c.pose_key;
-    h.frame_rate_hz = c.rate;
-    h.python = c.python;
-    const HoloOceanImportResult res = import_holoocean(o_.input, dest.staging(), h, o_.progress);
+    const HoloOceanImportResult res =
+        import_holoocean(o_.input, dest.staging(), c.holoocean, o_.progress);
     frames = res.frames;
     warnings = res.warnings;
   } else {
@@ -663,11 +625,10 @@ SurveyResult Survey::run() {
     check_output(out_, OutputKind::Survey, policy, "-o");
   }
   kind_ = o_.config.import.kind == "auto" ? survey_input_kind(o_.input) : o_.config.import.kind;
-  static const std::set<std::string> kKinds = {"dataset", "aris", "rosbag", "holoocean", "oculus"};
-  require(kKinds.count(kind_) > 0,
-          "import.kind must be auto, dataset, aris, rosbag, holoocean "
-          "or oculus, not '" +
-              kind_ + "'");
+  require(
+      kind_ != "auto" && std::find(std::begin(kSurveyInputKinds), std::end(kSurveyInputKinds),
+                                   kind_) != std::end(kSurveyInputKinds),
+      "import.kind must be auto, dataset, aris, rosbag, holoocean or oculus, not '" + kind_ + "'");
   fs::create_directories(out_);
   dataset_ = kind_ == "dataset" ? o_.input : out_ / "dataset";
   write_summary();  // marks OUT as a survey directory from the start
@@ -677,8 +638,7 @@ SurveyResult Survey::run() {
     skip(1, "import", "the input is a dataset: used in place (read-only)", {out_ / "dataset"});
   } else {
     std::vector<fs::path> in = {o_.input};
-    if (!o_.config.import.nav.empty()) in.push_back(o_.config.import.nav);
-    if (!o_.config.import.sonar.empty()) in.push_back(o_.config.import.sonar);
+    for (const fs::path& f : import_files(o_.config.import, kind_)) in.push_back(f);
     // The dataset itself too: one removed or changed by hand is imported again.
     in.push_back(dataset_);
     stage(

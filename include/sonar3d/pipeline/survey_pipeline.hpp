@@ -29,43 +29,47 @@
 #include <utility>
 #include <vector>
 
+#include "sonar3d/io/aris.hpp"
+#include "sonar3d/io/holoocean.hpp"
+#include "sonar3d/io/oculus.hpp"
+#include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d {
 
-// Stage options (default-constructed: each as its command's defaults): the flags of the command
-// each stage runs, as YAML keys (flag name without the leading dashes, '-' written '_'). Units as
-// the flags have them.
+// Stage options (default-constructed: each as its command's defaults): each stage's block is its
+// command's own declared configuration (core/params.hpp) — the keys of that command's
+// `--print-config` — plus the few keys only the survey has.
+
+// The input kinds of `import.kind`: auto (by the input's content), or one of them.
+inline constexpr const char* kSurveyInputKinds[] = {"auto",   "dataset",   "aris",
+                                                    "rosbag", "holoocean", "oculus"};
+
+// sonar3d import <kind>: one block per kind of input, each the importer's own configuration (the
+// keys of `sonar3d import <kind> --print-config`), plus the kind. Only the block of the kind
+// imported is used (and stamped: changing another kind's block re-runs nothing).
 struct SurveyImportOptions {
-  // auto (by the input's content), dataset, aris, rosbag, holoocean or oculus.
   std::string kind = "auto";
-  // Shared by aris, rosbag, oculus (as `sonar3d import <kind>`).
-  std::string nav;                     // navigation file (TUM or CSV)
-  std::string nav_format;              // tum or csv ("" = by extension)
-  std::string nav_convention = "enu";  // CSV: enu or ned
-  std::string angles = "deg";          // CSV roll/pitch/yaw: deg or rad
-  std::string mount;                   // T_vehicle_sonar "x,y,z,roll,pitch,yaw" (m, degrees)
-  double vertical_aperture_deg = 0;    // 0: the sensor's own
-  double time_offset = 0;              // s added to frame times to reach the navigation clock
-  bool drop_outside = false;           // drop frames outside the navigation span
-  bool static_sonar = false;           // `static`: a fixed sonar (rosbag, oculus)
-  // aris
-  std::string nav_source = "auto";  // auto, header, file, static
-  std::string clock;                // aris: pc (default) or sonar; oculus: ping (default) or rate
-  bool drop_partial = false;
-  // rosbag
-  std::string sonar_topic, nav_topic, tf_topic = "/tf_static", base_frame;
-  std::string sonar;  // sensor YAML (rosbag sensor_msgs/Image)
-  // oculus
-  double rate = 0;             // pings per second (clock rate); holoocean: frames per second
-  std::string gains = "keep";  // keep or divide
-  bool mirror = false;
-  // holoocean
-  std::string bins = "sample";  // sample or cell
-  std::string sensor, image_key, pose_key = "PoseSensor", python;
+  ArisImportConfig aris;
+  RosbagImportConfig rosbag;
+  OculusImportConfig oculus;
+  HoloOceanImportConfig holoocean;
 };
+template <class V>
+void describe(SurveyImportOptions& o, V& v) {
+  using params::param;
+  v.field(o.kind, param("kind", "",
+                        "the input's kind: 'auto' (by its content), or 'dataset' (used in place), "
+                        "'aris', 'rosbag', 'holoocean', 'oculus'")
+                      .choices(kSurveyInputKinds));
+  // The importers' own keys (io/*.hpp), under the kind's name.
+  v.group("aris", o.aris);
+  v.group("rosbag", o.rosbag);
+  v.group("oculus", o.oculus);
+  v.group("holoocean", o.holoocean);
+}
 
 // sonar3d map: its configuration (the keys of `sonar3d map --print-config`), plus its memory
 // limit.
@@ -128,9 +132,12 @@ struct SurveyConfig {
 };
 
 // Reads a survey YAML (stage keys import, map, recognize, world, texture, report; each optional):
-// unknown keys, wrong types and bad values are Errors naming file, line and key. Paths in it are
-// taken relative to the file's directory.
-SurveyConfig load_survey_config(const std::string& path);
+// unknown keys, wrong types and bad values are Errors naming file, line and key. Paths in it
+// (import.aris.navigation, import.oculus.navigation, import.rosbag.sonar_description,
+// world.connections, report.web_dir) are taken relative to `base_dir`, by default the file's
+// directory (Python's dict configurations: the working directory).
+SurveyConfig load_survey_config(const std::string& path,
+                                const std::filesystem::path& base_dir = {});
 // The whole configuration as that YAML (every key, defaults included): load_survey_config() of
 // it gives the same configuration.
 std::string survey_config_yaml(const SurveyConfig& config);
