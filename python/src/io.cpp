@@ -45,6 +45,17 @@ std::optional<NoiseImages> noise_from(const py::object& mean, const py::object& 
   return n;
 }
 
+// The destination of an importer's dataset, checked as the CLI checks it: no input (`sources`:
+// the recording, a navigation or description file; empty paths skipped) is, holds or lies in it;
+// an existing dataset is replaced only with `overwrite`.
+void check_import_output(const std::string& output, bool overwrite,
+                         const std::vector<std::string>& sources) {
+  OutputPolicy policy;
+  policy.overwrite = overwrite;
+  for (const std::string& s : sources)
+    if (!s.empty()) policy.sources.push_back(s);
+  check_output_directory(output, OutputKind::Dataset, policy);
+}
 }  // namespace
 
 void bind_io(py::module_& m) {
@@ -269,10 +280,7 @@ void bind_io(py::module_& m) {
         const HoloOceanImportConfig cfg =
             config_with_settings<HoloOceanImportConfig>(config, settings, "import_holoocean");
         cfg.validate();
-        OutputPolicy policy;  // as the CLI: the recording is never the destination
-        policy.overwrite = overwrite;
-        policy.sources = {dir};
-        check_output_directory(output, OutputKind::Dataset, policy);
+        check_import_output(output, overwrite, {dir});
         ProgressArg p(progress);
         const HoloOceanImportResult r =
             p.run([&] { return import_holoocean(dir, output, cfg, p.terminal()); });
@@ -309,10 +317,7 @@ void bind_io(py::module_& m) {
                        ? sonar.cast<SonarSpec>()
                        : read_sonar_description(py::str(sonar).cast<std::string>());
         cfg.validate();
-        OutputPolicy policy;  // as the CLI: no input is, holds or lies in the destination
-        policy.overwrite = overwrite;
-        policy.sources = {cfg.images_dir, cfg.times_csv, cfg.navigation};
-        check_output_directory(output, OutputKind::Dataset, policy);
+        check_import_output(output, overwrite, {cfg.images_dir, cfg.times_csv, cfg.navigation});
         ProgressArg p(progress);
         const FrameImportResult r = p.run([&] { return import_frames(cfg, output, p.terminal()); });
         py::dict d;
@@ -344,11 +349,7 @@ void bind_io(py::module_& m) {
         const ArisImportConfig cfg =
             config_with_settings<ArisImportConfig>(config, settings, "import_aris");
         cfg.validate();
-        OutputPolicy policy;  // as the CLI: the recording and the navigation are never the output
-        policy.overwrite = overwrite;
-        policy.sources = {file};
-        if (!cfg.navigation.empty()) policy.sources.push_back(cfg.navigation);
-        check_output_directory(output, OutputKind::Dataset, policy);
+        check_import_output(output, overwrite, {file, cfg.navigation});
         ProgressArg p(progress);
         const ArisImportResult r =
             p.run([&] { return import_aris(file, output, cfg, p.terminal()); });
@@ -386,11 +387,7 @@ void bind_io(py::module_& m) {
         RosbagImportConfig cfg =
             config_with_settings<RosbagImportConfig>(config, settings, "import_rosbag");
         params::check(cfg, "import_rosbag:");
-        OutputPolicy policy;  // as the CLI: the bag and the description are never the output
-        policy.overwrite = overwrite;
-        policy.sources = {bag};
-        if (!cfg.sonar_description.empty()) policy.sources.push_back(cfg.sonar_description);
-        check_output_directory(output, OutputKind::Dataset, policy);
+        check_import_output(output, overwrite, {bag, cfg.sonar_description});
         ProgressArg p(progress);
         std::vector<std::string> chosen;
         const RosbagImportResult r = p.run([&] {
@@ -431,11 +428,7 @@ void bind_io(py::module_& m) {
         const OculusImportConfig cfg =
             config_with_settings<OculusImportConfig>(config, settings, "import_oculus");
         cfg.validate();
-        OutputPolicy policy;  // as the CLI: the stream and the navigation are never the output
-        policy.overwrite = overwrite;
-        policy.sources = {file};
-        if (!cfg.navigation.empty()) policy.sources.push_back(cfg.navigation);
-        check_output_directory(output, OutputKind::Dataset, policy);
+        check_import_output(output, overwrite, {file, cfg.navigation});
         ProgressArg p(progress);
         const OculusImportResult r =
             p.run([&] { return import_oculus(file, output, cfg, p.terminal()); });

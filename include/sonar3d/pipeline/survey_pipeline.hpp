@@ -5,8 +5,10 @@
 //   import → map → recognise → world model → texture → report
 //
 // Each stage is the library call its own command makes (`import`, `map`, `recognize`, `world`,
-// `texture`, `report`), with that command's options under the same names (flag names with '_'
-// for '-'). Outputs, under OUT:
+// `texture`, `report`). The import, map, recognise and world stages take their commands' declared
+// configurations (the same keys as the command's --print-config; import: one block per input
+// kind); texture and report still take their commands' flags under the same names ('_' for '-').
+// Outputs, under OUT:
 //   dataset/            the imported dataset (not when INPUT is already a dataset: used in place)
 //   map/                sonar3d map's directory (merged.ply, navigation_corrected.tum, ...)
 //   placements.json     with --catalogue: sonar3d recognize's placements, and placements.ply
