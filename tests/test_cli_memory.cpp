@@ -231,3 +231,51 @@ TEST_F(CliMemory, LibraryWordsBecomeOneLineNamingFileAndKey) {
   EXPECT_EQ(r.err.find("filesystem error"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
+
+// recognize, world and diff estimate their grids from their cell options and the map's extent
+// before allocating (issue 29 item 5): a cell given in the wrong unit is refused at once with the
+// estimate and the flag, and nothing is written.
+TEST_F(CliMemory, RecognizeWorldAndDiffRefuseGridsBeyondTheLimit) {
+  // A 20 x 20 m seabed sampled every 0.5 m, a catalogue of one model, one placement.
+  {
+    std::ofstream ply(dir / "map.ply");
+    ply << "ply\nformat ascii 1.0\nelement vertex 1681\nproperty float x\nproperty float y\n"
+           "property float z\nend_header\n";
+    for (int i = 0; i <= 40; ++i) {
+      for (int j = 0; j <= 40; ++j) ply << 0.5 * i << ' ' << 0.5 * j << " 0\n";
+    }
+  }
+  std::ofstream(dir / "cat.yaml") << "models:\n  - {name: tank, reference: tank}\n";
+  std::ofstream(dir / "p.json")
+      << R"({"format": "sonar3d-placements", "version": 1, "map": "m", "catalogue": "c",
+             "placements": [{"model": "tank", "T_world_model": [[1, 0, 0, 10], [0, 1, 0, 10],
+             [0, 0, 1, 0], [0, 0, 0, 1]], "score_m": 0.3, "residual_median_m": null}]})";
+  const std::string map = (dir / "map.ply").string(), cat = (dir / "cat.yaml").string();
+  auto refused = [&](const std::string& args, const std::string& flag, const fs::path& out) {
+    const CliRun r = run(dir, args + " -q");
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.err;
+    EXPECT_LT(r.cpu_seconds, 1.0) << args;
+    EXPECT_NE(r.err.find("needs an estimated"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(flag), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("--max-memory"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << out;
+  };
+  const fs::path p = dir / "found.json";
+  // 50 µm cells (millimetres meant as metres, twice over): 1.6e11 cells of the fine map.
+  refused("recognize " + map + " --catalogue " + cat + " -o " + p.string() + " --map-cell 0.00005",
+          "--map-cell", p);
+  refused("recognize " + map + " --catalogue " + cat + " -o " + p.string() +
+              " --method 3d --subsample 0.00005",
+          "--subsample", p);
+  refused("world " + map + " --placements " + (dir / "p.json").string() + " --catalogue " + cat +
+              " -o " + (dir / "W").string() + " --lod-cells 0.00005,0.0001",
+          "--lod-cells", dir / "W");
+  // diff: 5 mm change cells over 20 x 20 m fit the default limit but not 100 MB.
+  refused(
+      "diff " + map + " " + map + " -o " + (dir / "D").string() + " --cell 0.005 --max-memory 0.1",
+      "--cell", dir / "D");
+  // At their defaults all three fit the default limit: the estimates are not what refuses.
+  const CliRun ok = run(dir, "diff " + map + " " + map + " -o " + (dir / "D2").string() + " -q");
+  EXPECT_EQ(ok.err.find("needs an estimated"), std::string::npos) << ok.err;
+}

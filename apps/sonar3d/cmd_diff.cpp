@@ -25,6 +25,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
     std::string a, b, output, catalogue, placements_a, placements_b, colour_a, colour_b;
     std::unique_ptr<ConfigOptions<ChangeConfig>> config;
     RecognitionConfig recog;
+    double max_memory_gb = 0;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("a", o->a, "survey A (the reference): a map directory (sonar3d map) or a .ply")
@@ -43,6 +44,7 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
                  ->check(CLI::ExistingFile);
   pa->needs(pb);
   pb->needs(pa);
+  add_max_memory_option(cmd, o->max_memory_gb);
   auto* ca = cmd->add_option("--colour-a", o->colour_a,
                              "survey A's coloured cloud (.ply with red/green/blue, e.g. sonar3d "
                              "texture of A's cloud) in A's world: compares colour too")
@@ -106,6 +108,8 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
         check_colour_cloud(colour_b, "--colour-b '" + o->colour_b + "'");
       }
       const bool colour = !o->colour_a.empty();
+      check_memory(estimate_change_memory(a, b, cfg, colour), memory_limit_bytes(o->max_memory_gb),
+                   "diff");
       const ChangeResult r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &colour_a : nullptr,
                                           colour ? &colour_b : nullptr);
       write_change_directory(o->output, r);

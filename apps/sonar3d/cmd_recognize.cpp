@@ -6,11 +6,9 @@
 
 #include "commands.hpp"
 #include "params_cli.hpp"
-#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/io/dataset.hpp"
-#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recog/recognition.hpp"
 #include "sonar3d/recog/recognize.hpp"
@@ -23,7 +21,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // MAP: a cloud (.ply), a map directory (merged.ply), or a dataset (reconstructed by carving).
-PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, std::string* what) {
+PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, double limit_bytes,
+                      std::string* what) {
   if (fs::is_regular_file(map)) {
     *what = "cloud";
     return read_ply(map.string());
@@ -35,9 +34,12 @@ PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, std
   if (fs::is_directory(map) && fs::is_regular_file(map / "sonar.yaml")) {
     *what = "dataset, carved";
     const Dataset ds = read_dataset(map);
-    ReconstructOptions o;
+    ReconstructConfig o;
     o.progress = progress;
     o.voxel_size = voxel_size;
+    // The carving's memory, estimated before it allocates (core/memory.hpp).
+    const std::string warning = check_reconstruct_memory(ds, o, limit_bytes, "--voxel-size");
+    if (!warning.empty()) fmt::print(stderr, "warning: {}\n", warning);
     return reconstruct_dataset(ds, o).cloud;
   }
   throw Error("'" + map.string() +
@@ -59,6 +61,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
     std::string map, catalogue, output, mesh;
     bool overwrite = false;
     double voxel_size = 0.02;
+    double max_memory_gb = 0;
     std::unique_ptr<ConfigOptions<RecognizeConfig>> config;
   };
   auto o = std::make_shared<Opts>();
@@ -75,6 +78,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
   // and the YAML keys: docs/reference.md), with --print-config and --config.
   o->config = std::make_unique<ConfigOptions<RecognizeConfig>>(cmd);
   add_overwrite_flag(cmd, o->overwrite, "placements and mesh written by an earlier recognize");
+  add_max_memory_option(cmd, o->max_memory_gb);
   cmd->callback([&run, &g, o, cmd] {
     // A flag of the 2D method that, given, also sets the 3D method's own default.
     const bool yaw_given = cmd->get_option("--yaw-step-deg")->count() > 0;
@@ -89,16 +93,10 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       require(!o->catalogue.empty(), "recognize: give --catalogue CATALOGUE.yaml");
       require(!o->output.empty(), "recognize: give -o PLACEMENTS.json");
       const bool three_d = cfg.method == "3d";
-      const fs::path json_path = o->output;
-      const fs::path mesh_path =
-          o->mesh.empty() ? fs::path(json_path).replace_extension(".ply") : fs::path(o->mesh);
-      require(fs::path(mesh_path).extension() == ".ply", "--mesh: give a .ply path");
       // The output rule (core/output_dir.hpp): checked before the work; the placements and
       // their mesh appear together or not at all.
-      OutputFiles out(output_policy(o->overwrite, {o->map, o->catalogue}));
-      const fs::path json_tmp = out.add(json_path, OutputKind::PlacementsJson, "-o");
-      const fs::path mesh_tmp =
-          out.add(mesh_path, OutputKind::Mesh, o->mesh.empty() ? "-o, its .ply" : "--mesh");
+      RecognitionFiles files(o->output, o->mesh,
+                             output_policy(o->overwrite, {o->map, o->catalogue}), "-o", "--mesh");
       const Catalogue cat = read_catalogue(o->catalogue);
       std::vector<ModelTemplate> models;
       for (const auto& m : cat.models) {
@@ -106,14 +104,14 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
             make_catalogue_template(cat, m, three_d ? cfg.three_d.sampling : cfg.two_d.sampling));
       }
       std::string what;
-      const PointCloud scene = read_scene(o->map, o->voxel_size, !g.quiet, &what);
+      const double limit = memory_limit_bytes(o->max_memory_gb);
+      const PointCloud scene = read_scene(o->map, o->voxel_size, !g.quiet, limit, &what);
+      check_memory(estimate_recognition_memory(scene, models.size(), cfg), limit, "recognize");
       std::vector<Search3dRecord> searches3;
       const RecognitionResult r = recognize(scene, models, cfg, &searches3, !g.quiet);
       fmt::print("scene: {} ({} points); catalogue: {} models\n", what, scene.size(),
                  models.size());
-      save_mesh(mesh_tmp.string(), placed_models_mesh(models, r.placements));
-      write_text_file(json_tmp.string(), recognize_json(r, searches3, o->map, o->catalogue, cfg));
-      out.commit();
+      files.write(r, searches3, models, o->map, o->catalogue, cfg);
       for (const Placement& p : r.placements) {
         const Eigen::Vector3d t = p.T_world_model.translation();
         const Eigen::Matrix3d R = p.T_world_model.linear();
@@ -143,7 +141,7 @@ void add_recognize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       }
       fmt::print("{} placements{} in {:.2f} s -> {}, {}\n", r.placements.size(),
                  three_d ? "" : fmt::format(" ({} candidates rejected)", rejected), r.seconds,
-                 json_path.string(), mesh_path.string());
+                 files.json_path().string(), files.mesh_path().string());
       return 0;
     };
   });

@@ -30,6 +30,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
     std::unique_ptr<ConfigOptions<WorldModelConfig>> config;
     bool glb_all_lods = false;
     std::string connections, colours;
+    double max_memory_gb = 0;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("map", o->map,
@@ -52,6 +53,7 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
                   "the map's cloud as coloured by sonar3d texture (same points): its video "
                   "colours go onto the seabed")
       ->check(CLI::ExistingFile);
+  add_max_memory_option(cmd, o->max_memory_gb);
   cmd->add_flag("--glb-all-lods", o->glb_all_lods,
                 "world.glb carries every seabed level of detail (default: the coarsest)");
   cmd->add_option("--truth", o->truth,
@@ -92,6 +94,8 @@ void add_world(CLI::App& app, const GlobalOptions& /*g*/, Runner& run) {
       PointCloud cloud = read_ply(cloud_path.string());
       require(!cloud.empty(), "map '" + cloud_path.string() + "' holds no points");
       if (!o->colours.empty()) take_video_colours(cloud, read_ply(o->colours), o->colours);
+      check_memory(estimate_world_model_memory(cloud, cfg), memory_limit_bytes(o->max_memory_gb),
+                   "world");
       WorldModel w = build_world_model(cloud, std::move(objects), cfg);
       std::size_t unconfirmed = 0;
       for (const WorldObject& ob : w.objects) unconfirmed += !ob.confirmed;

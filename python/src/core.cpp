@@ -185,16 +185,32 @@ void bind_core(py::module_& m) {
   // ---- point clouds
   m.def(
       "read_ply",
-      [](const std::string& path) {
+      [](const std::string& path, bool all_fields) -> py::object {
         PointCloud c = read_ply(path);
+        const py::ssize_t n = static_cast<py::ssize_t>(c.points.size());
         py::object intensity = py::none();
-        if (c.has_intensity()) {
-          const py::ssize_t n = static_cast<py::ssize_t>(c.intensity.size());
-          intensity = adopt(std::move(c.intensity), {n});
-        }
-        return py::make_tuple(points_to_array(std::move(c.points)), intensity);
+        if (c.has_intensity()) intensity = adopt(std::move(c.intensity), {n});
+        if (!all_fields) return py::make_tuple(points_to_array(std::move(c.points)), intensity);
+        // Every field the cloud has: sonar3d's clouds carry intensity, texture's colours and
+        // its per-point scalars (e.g. `views`), deconvolution's and carving's own properties.
+        py::dict d;
+        d["points"] = points_to_array(std::move(c.points));
+        d["intensity"] = intensity;
+        py::object colors = py::none();
+        if (c.has_color())
+          colors = adopt<std::array<std::uint8_t, 3>, std::uint8_t>(std::move(c.color), {n, 3});
+        d["colors"] = colors;
+        py::dict props;
+        for (PointProperty& p : c.properties)
+          props[py::str(p.name)] = adopt(std::move(p.values), {n});
+        d["properties"] = props;
+        return std::move(d);
       },
-      "path"_a, "Reads a PLY point cloud: (points (N, 3) float32, intensity (N,) or None).");
+      "path"_a, "all_fields"_a = false,
+      "Reads a PLY point cloud: (points (N, 3) float32, intensity (N,) or None); with "
+      "all_fields=True a dict of every field the file has: points, intensity (N,) or None, colors "
+      "(N, 3) uint8 sRGB (PLY red green blue, as `sonar3d texture` writes them) or None, and "
+      "properties {name: (N,) float32} for every other per-point scalar (e.g. texture's views).");
   m.def(
       "write_ply",
       [](const std::string& path, const carray<float>& points, const py::object& intensity,

@@ -43,22 +43,36 @@ void bind_recog(py::module_& m) {
       "recognize",
       [](const carray<float>& points, const std::string& catalogue,
          const std::optional<RecognizeConfig>& config, const std::optional<std::string>& method,
-         const py::object& progress) {
+         const py::object& progress, const std::string& output, const std::string& mesh,
+         bool overwrite) {
         RecognizeConfig cfg = config ? *config : RecognizeConfig();
         if (method) cfg.method = *method;
         cfg.validate();
+        // The command's outputs, under its output rule: checked before the work.
+        std::optional<RecognitionFiles> files;
+        if (!output.empty()) {
+          OutputPolicy policy;
+          policy.overwrite = overwrite;
+          policy.sources.push_back(catalogue);
+          files.emplace(output, mesh, policy, "output", "mesh");
+        } else if (!mesh.empty()) {
+          throw Error("recognize: mesh is written beside output: give output too");
+        }
         PointCloud cloud;
         cloud.points = array_to_points(points);
         const Catalogue cat = read_catalogue(catalogue);
         std::vector<ModelTemplate> models;
         ProgressArg p(progress);
+        std::vector<Search3dRecord> searches3;
         const RecognitionResult r = p.run([&] {
           const ModelSamplingConfig& sampling =
               cfg.method == "3d" ? cfg.three_d.sampling : cfg.two_d.sampling;
           for (const auto& mo : cat.models) {
             models.push_back(make_catalogue_template(cat, mo, sampling));
           }
-          return recognize(cloud, models, cfg, nullptr, p.terminal());
+          RecognitionResult res = recognize(cloud, models, cfg, &searches3, p.terminal());
+          if (files) files->write(res, searches3, models, "(points)", catalogue, cfg);
+          return res;
         });
         py::list out;
         for (const Placement& p : r.placements) {
@@ -75,13 +89,17 @@ void bind_recog(py::module_& m) {
         return out;
       },
       "points"_a, "catalogue"_a, "config"_a = py::none(), "method"_a = py::none(),
-      "progress"_a = py::none(),
+      "progress"_a = py::none(), "output"_a = "", "mesh"_a = "", "overwrite"_a = false,
       "Find the catalogue's CAD models (a YAML file, docs/recognition.md) in an (N, 3) world-frame "
       "cloud and place them in 6D, as `sonar3d recognize` does: config a RecognizeConfig (every "
       "setting the command has; method overrides its method). method '2d' (sec. 6.3.2): ring "
       "descriptors on the elevation map, 4D search (eq. 6.9), trimmed ICP; method '3d' (sec. "
       "6.3.1): spherical subspaces filtered by eq. 6.4-6.7, yaw sweep + trimmed ICP in each. "
-      "progress: None, True (terminal bars) or a callable progress(done, total). "
+      "progress: None, True (terminal bars) or a callable progress(done, total). output: a "
+      "placements JSON to write as the command's -o does (what `sonar3d world` and world_model() "
+      "read), with the placed models as a PLY mesh beside it (mesh: another .ply path); an "
+      "existing file is replaced only with overwrite=True and only when sonar3d recognize wrote "
+      "it. "
       "Returns one dict per placement: model, method, T_world_model (4×4), scale (the placed "
       "model is T_world_model · scale · model; 1 unless the catalogue gives a scale_range), "
       "score_m, residual_median_m, residual_mean_m, support, confidence, verification (2d: seen, "

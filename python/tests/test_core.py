@@ -122,3 +122,24 @@ def test_meshes(tmp_path):
     with pytest.raises(sonar3d.Error, match="out of range"):
         sonar3d.Mesh(np.zeros((3, 3)), np.array([[0, 1, 3]]))
     assert set(sonar3d.reference_object_names()) >= {"sphere", "tank", "pillar", "riser"}
+
+
+def test_read_ply_all_fields(tmp_path):
+    # A cloud as `sonar3d texture` writes it: intensity, colours and a per-point scalar.
+    path = tmp_path / "coloured.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                    "property float z\nproperty float intensity\nproperty uchar red\n"
+                    "property uchar green\nproperty uchar blue\nproperty float views\n"
+                    "end_header\n0 1 2 0.5 10 20 30 3\n4 5 6 0.25 200 100 0 0\n")
+    pts, inten = sonar3d.read_ply(str(path))  # the tuple, as before
+    assert pts.shape == (2, 3) and inten.tolist() == [0.5, 0.25]
+    d = sonar3d.read_ply(str(path), all_fields=True)
+    np.testing.assert_array_equal(d["points"], [[0, 1, 2], [4, 5, 6]])
+    assert d["intensity"].tolist() == [0.5, 0.25]
+    assert d["colors"].dtype == np.uint8
+    assert d["colors"].tolist() == [[10, 20, 30], [200, 100, 0]]
+    assert d["properties"]["views"].tolist() == [3.0, 0.0]
+    plain = tmp_path / "plain.ply"
+    sonar3d.write_ply(str(plain), pts)
+    d = sonar3d.read_ply(str(plain), all_fields=True)
+    assert d["intensity"] is None and d["colors"] is None and d["properties"] == {}

@@ -129,3 +129,29 @@ def test_recognize_config_is_the_commands_configuration():
     cfg.method = "4d"
     with pytest.raises(sonar3d.Error, match="must be '2d' or '3d'"):
         cfg.validate()
+
+
+def test_recognize_writes_the_commands_outputs(tmp_path):
+    # output= writes the placements JSON and the placed models' mesh as `sonar3d recognize -o`
+    # does, under the same output rule.
+    pts = seabed_with_box(1.0, 0.6, 0.5).astype(np.float32)
+    cat = box_catalogue(tmp_path)
+    out = tmp_path / "placements.json"
+    found = sonar3d.recognize(pts, str(cat), output=str(out))
+    text = out.read_text()
+    assert '"format": "sonar3d-placements"' in text and '"model": "box"' in text
+    assert (tmp_path / "placements.ply").read_bytes().startswith(b"ply")
+    assert len(found) == 1
+    # world_model reads it as it reads the command's file.
+    w = sonar3d.world_model(pts, str(out), str(cat))
+    assert [o["model"] for o in w["objects"]] == ["box"]
+    # Replaced only with overwrite=True; a foreign file is never replaced.
+    with pytest.raises(sonar3d.Error, match="already holds a sonar3d placements file"):
+        sonar3d.recognize(pts, str(cat), output=str(out))
+    sonar3d.recognize(pts, str(cat), output=str(out), overwrite=True)
+    mine = tmp_path / "mine.json"
+    mine.write_text("{}")
+    with pytest.raises(sonar3d.Error):
+        sonar3d.recognize(pts, str(cat), output=str(mine), overwrite=True)
+    assert mine.read_text() == "{}"
+    assert not (tmp_path / "mine.ply").exists()

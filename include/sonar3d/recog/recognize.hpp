@@ -2,9 +2,13 @@
 // The recognition as one call, for the command, Python and the survey: the method chosen, the
 // settings the two methods share applied to both (docs/recognition.md). The configuration is the
 // one the command prints with `--print-config` and reads with `--config` (core/params.hpp).
+#include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/memory.hpp"
+#include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/recog/recognition.hpp"
@@ -39,10 +43,40 @@ RecognitionResult recognize(const PointCloud& scene_world, const std::vector<Mod
                             std::vector<Search3dRecord>* searches3 = nullptr,
                             bool progress = false);
 
+// Memory the configured method will allocate for this scene and `models` catalogue models
+// (core/memory.hpp), before anything is allocated (issue 29 item 5): the 2D method's fine and
+// coarse elevation maps with their working copies (the live, levelled and removal maps, the
+// relief and blob labels, the point grid), the 3D method's fine map, top map and the working
+// copies and index of the scene points. Each part names the flag (or YAML key) that scales it.
+MemoryEstimate estimate_recognition_memory(const PointCloud& scene_world, std::size_t models,
+                                           const RecognizeConfig& config);
+
 // The placements JSON of the configured method (placements_json or placements_json_3d).
 std::string recognize_json(const RecognitionResult& result,
                            const std::vector<Search3dRecord>& searches3,
                            const std::string& map_source, const std::string& catalogue_source,
                            const RecognizeConfig& config);
+
+// The recognition's outputs as `sonar3d recognize` (and Python's recognize(output=...)) write
+// them: the placements JSON (recognize_json) and the placed models as one binary PLY mesh
+// (placed_models_mesh; default path: the JSON's with .ply), under the output rule
+// (core/output_dir.hpp). The constructor checks both paths before any work (a foreign file, an
+// input, a special file is refused there, naming `json_flag` / `mesh_flag`); write() writes
+// both under temporary names and renames them together: both appear or neither does.
+class RecognitionFiles {
+ public:
+  RecognitionFiles(const std::filesystem::path& json_path, std::filesystem::path mesh_path,
+                   const OutputPolicy& policy, const std::string& json_flag = "-o",
+                   const std::string& mesh_flag = "--mesh");
+  const std::filesystem::path& json_path() const { return json_; }
+  const std::filesystem::path& mesh_path() const { return mesh_; }
+  void write(const RecognitionResult& result, const std::vector<Search3dRecord>& searches3,
+             const std::vector<ModelTemplate>& models, const std::string& map_source,
+             const std::string& catalogue_source, const RecognizeConfig& config);
+
+ private:
+  std::filesystem::path json_, mesh_, json_tmp_, mesh_tmp_;
+  std::unique_ptr<OutputFiles> out_;
+};
 
 }  // namespace sonar3d

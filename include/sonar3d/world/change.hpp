@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
@@ -478,6 +479,12 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
                                              const std::vector<SurveyPlacement>& b_in_a,
                                              const ObjectModels& models,
                                              const ChangeConfig& config);
+
+// Memory diff_surveys will take for these clouds (core/memory.hpp), before anything is
+// allocated: the registration's maps at --yaw-cell and --registration-cell, the height change
+// map at --cell and, with `colour`, the colour maps at --colour-cell, over both clouds' extent.
+MemoryEstimate estimate_change_memory(const PointCloud& a_world, const PointCloud& b_world,
+                                      const ChangeConfig& config, bool colour);
 
 // The whole comparison: B registered onto A, its placements (if any) moved into A's frame and
 // compared with A's, the height change map with its regions, and each object change weighed

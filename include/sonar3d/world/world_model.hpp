@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/memory.hpp"
 #include "sonar3d/core/mesh.hpp"
 #include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
@@ -310,6 +311,12 @@ void add_given_connections(WorldModel& world, const std::vector<GivenConnection>
 // texture`, read from `source` — into `cloud`. The two must hold the same points in the same
 // order (texture without --drop-uncoloured keeps them); otherwise an Error naming `source`.
 void take_video_colours(PointCloud& cloud, const PointCloud& coloured, const std::string& source);
+
+// Memory build_world_model and write_world_model will take for this cloud (core/memory.hpp),
+// before anything is allocated: each seabed level of detail's height field, mesh, colours and
+// the writers' copies over the cloud's horizontal extent (parts name --lod-cells).
+MemoryEstimate estimate_world_model_memory(const PointCloud& cloud_world,
+                                           const WorldModelConfig& config);
 
 // The whole world model from a world-frame cloud and its placed objects (confirmed ones explain
 // points and are connected; unconfirmed ones are only carried along). An empty cloud, or a cloud
