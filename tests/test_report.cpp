@@ -718,11 +718,15 @@ class SceneReportTest : public ::testing::Test {
     for (int j = 0; j < 40; ++j)
       for (int i = 0; i < 60; ++i) {
         cloud.points.emplace_back(0.1f * i, 0.1f * j, 0.05f * std::sin(0.3f * i));
+        cloud.intensity.push_back(0.2f + 0.6f * static_cast<float>(i) / 59);  // rising east
       }
     for (std::size_t k = 0; k < poses_.size(); ++k) {
       const TriangleMesh m =
           placed(models_[k] == "tank" ? make_reference_tank() : make_reference_sphere(), poses_[k]);
-      for (std::size_t v = 0; v < m.vertices.size(); v += 7) cloud.points.push_back(m.vertices[v]);
+      for (std::size_t v = 0; v < m.vertices.size(); v += 7) {
+        cloud.points.push_back(m.vertices[v]);
+        cloud.intensity.push_back(1.0f);  // the structures echo strongest
+      }
     }
     write_ply((d / "merged.ply").string(), cloud);
     map_points_ = cloud.size();
@@ -948,6 +952,12 @@ TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
   const json* cloud = layer(d, "cloud");
   ASSERT_NE(cloud, nullptr);
   EXPECT_EQ((*cloud)["count"].get<std::size_t>(), map_points_);
+  // The cloud's intensities go with its points: a colour mode of their own.
+  EXPECT_EQ((*cloud)["color_modes"], json({"height", "intensity"}));
+  const std::vector<float> in = floats((*cloud)["intensity"]);
+  ASSERT_EQ(in.size(), map_points_);
+  EXPECT_FLOAT_EQ(in[0], 0.2f);
+  EXPECT_FLOAT_EQ(in.back(), 1.0f);
   const PointCloud merged = read_ply((root_ / "map/merged.ply").string());
   const std::vector<float> xyz = floats((*cloud)["xyz"]);
   ASSERT_EQ(xyz.size(), 3 * merged.size());
@@ -998,6 +1008,7 @@ TEST_F(SceneReportTest, MapWithPlacementsShowsModelsOverTheCloud) {
                         {{{"layer", "placement_0"}, {"index", 0}, {"rgb", {31, 119, 180}}},
                          {{"layer", "placement_2"}, {"index", 0}, {"rgb", {214, 39, 40}}}}},
                        {"focus", {{"table", "placements"}, {"layer", "placement_0"}}},
+                       {"intensity", {{"layer", "cloud"}, {"low", 0}, {"high", map_points_ - 1}}},
                        {"mode_change", false}};
   run_scene_browser_test(s.output, expect, "map");
 }

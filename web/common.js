@@ -48,6 +48,8 @@
       '#6ece58', '#b5de2b', '#fde725'],
     turbo: ['#30123b', '#4662d7', '#36aaf9', '#1ae4b6', '#72fe5e', '#c8ef34', '#faba39',
       '#f66b19', '#ca2a04', '#7a0403'],
+    magma: ['#000004', '#1c1044', '#4f127b', '#812581', '#b5367a', '#e55964', '#fb8761',
+      '#fec287', '#fcfdbf'],
     diverging: ['#2166ac', '#4393c3', '#92c5de', '#d1e5f0', '#f7f7f7', '#fddbc7', '#f4a582',
       '#d6604d', '#b2182b'],
   };
@@ -103,7 +105,62 @@
     camera.add(sun);  // a head light: the scene is lit from wherever it is seen
     const controls = new T.OrbitControls(camera, renderer.domElement);
     const v = { T, renderer, scene, camera, controls };
-    v.render = () => renderer.render(scene, camera);
+    // A north arrow and a scale bar over the view (SVG), redrawn with every frame: the arrow
+    // points along world +y (North) as the camera shows it, the bar is a round length (1-2-5 ×
+    // 10^k m) at the depth of the orbit's centre.
+    const svgNs = 'http://www.w3.org/2000/svg';
+    const svg = (tag, attrs) => {
+      const e = document.createElementNS(svgNs, tag);
+      for (const [k, val] of Object.entries(attrs || {})) e.setAttribute(k, val);
+      return e;
+    };
+    const north = svg('svg', { class: 'north-arrow-3d', width: 44, height: 56,
+      viewBox: '-22 -30 44 56' });
+    const arrow = svg('g');
+    arrow.append(svg('polygon', { points: '0,-24 8,2 0,-4 -8,2' }),
+      svg('text', { x: 0, y: 20, 'text-anchor': 'middle' }));
+    arrow.lastChild.textContent = 'N';
+    north.append(arrow);
+    const scaleBox = el('div', { class: 'scale-bar-3d' });
+    const scaleBar = el('div', { class: 'bar' }), scaleLabel = el('span', { class: 'lab' });
+    scaleBox.append(scaleBar, scaleLabel);
+    box.append(north, scaleBox);
+    v.overlay = { northDeg: 0, scaleMetres: 0, scalePx: 0, axisLabels: 0 };
+    const updateOverlay = () => {
+      const w = box.clientWidth, h = box.clientHeight;
+      if (!w || !h) return;
+      camera.updateMatrixWorld();
+      const c = controls.target.clone();
+      const dist = Math.max(camera.position.distanceTo(c), 1e-6);
+      const toPx = (p) => {
+        const q = p.clone().project(camera);
+        return [(q.x + 1) * w / 2, (1 - q.y) * h / 2];
+      };
+      const c0 = toPx(c);
+      const n1 = toPx(c.clone().add(new T.Vector3(0, dist * 0.05, 0)));
+      const deg = Math.atan2(n1[0] - c0[0], -(n1[1] - c0[1])) * 180 / Math.PI;
+      if (!isFinite(deg)) return;  // no camera yet
+      arrow.setAttribute('transform', `rotate(${deg.toFixed(2)})`);
+      const right = new T.Vector3().setFromMatrixColumn(camera.matrixWorld, 0).normalize();
+      const r1 = toPx(c.clone().add(right));
+      const pxPerM = Math.hypot(r1[0] - c0[0], r1[1] - c0[1]);
+      let metres = 0;
+      if (pxPerM > 0 && isFinite(pxPerM)) {
+        const target = 100 / pxPerM;  // about 100 px long
+        const e = Math.pow(10, Math.floor(Math.log10(target)));
+        metres = [1, 2, 5, 10].map((m) => m * e).reduce((a, b) =>
+          Math.abs(Math.log(b / target)) < Math.abs(Math.log(a / target)) ? b : a);
+      }
+      scaleBar.style.width = `${(metres * pxPerM).toFixed(1)}px`;
+      scaleLabel.textContent = metres >= 1 ? `${fmtNum(metres)} m` : `${fmtNum(metres * 100)} cm`;
+      v.overlay.northDeg = deg;
+      v.overlay.scaleMetres = metres;
+      v.overlay.scalePx = metres * pxPerM;
+    };
+    v.render = () => {
+      updateOverlay();
+      renderer.render(scene, camera);
+    };
     controls.addEventListener('change', v.render);
     v.resize = () => {
       const w = box.clientWidth, h = box.clientHeight;
@@ -139,7 +196,55 @@
       grid.rotation.x = Math.PI / 2;  // three's grid lies in xz; ours is the world xy plane
       const ctr = bbox.getCenter(new T.Vector3());
       grid.position.set(ctr.x, ctr.y, bbox.min.z);
-      return grid;
+      // Axes in metres: grid lines labelled just south (East, x) and west (North, y) of the
+      // data, every line or every few so that at most 10 labels stand on each side.
+      const half = div * step / 2;
+      const labels = new T.Group();
+      const label = (text, x, y, size) => {
+        const cv = document.createElement('canvas');
+        const ctx = cv.getContext('2d');
+        const font = 'bold 40px sans-serif';
+        ctx.font = font;
+        cv.width = Math.ceil(ctx.measureText(text).width) + 16;
+        cv.height = 56;
+        ctx.font = font;
+        ctx.fillStyle = dark ? '#d8dee7' : '#3a424d';
+        ctx.textAlign = 'center';
+        ctx.textBaseline = 'middle';
+        ctx.fillText(text, cv.width / 2, cv.height / 2);
+        const tex = new T.CanvasTexture(cv);
+        const sp = new T.Sprite(new T.SpriteMaterial({ map: tex, depthTest: false,
+          transparent: true }));
+        sp.scale.set(size * cv.width / cv.height, size, 1);
+        sp.position.set(x, y, bbox.min.z);
+        sp.renderOrder = 3;
+        labels.add(sp);
+      };
+      const lines = (lo, hi, c0) => {  // grid line coordinates over [lo, hi], one step beyond
+        const out = [];
+        for (let k = 0; k <= div; k++) {
+          const u = c0 - half + k * step;
+          if (u >= lo - step && u <= hi + step) out.push(u);
+        }
+        const every = Math.ceil(out.length / 10);
+        return out.filter((_, i) => i % every === 0);
+      };
+      const xs = lines(bbox.min.x, bbox.max.x, ctr.x), ys = lines(bbox.min.y, bbox.max.y, ctr.y);
+      const lsize = Math.max(xs.length > 1 ? xs[1] - xs[0] : step,
+        ys.length > 1 ? ys[1] - ys[0] : step) * 0.16;
+      const south = bbox.min.y - step * 0.6, west = bbox.min.x - step * 0.6;
+      const fmtM = (m) => `${fmtNum(Math.round(m / step) * step)} m`;
+      for (const x of xs) label(fmtM(x), x, south, lsize);
+      for (const y of ys) label(fmtM(y), west - lsize, y, lsize);
+      // The axis names beyond the last label of each side.
+      const lastX = xs.length ? xs[xs.length - 1] : bbox.max.x;
+      const lastY = ys.length ? ys[ys.length - 1] : bbox.max.y;
+      label('East (x) →', lastX + 3.5 * lsize, south, lsize);
+      label('North (y) ↑', west - lsize, lastY + 2 * lsize, lsize);
+      v.overlay.axisLabels = labels.children.length;
+      const g = new T.Group();
+      g.add(grid, labels);
+      return g;
     };
     return v;
   }

@@ -107,6 +107,7 @@
         obj = new T.Points(g, new T.PointsMaterial({ size: 0.01, vertexColors: true,
           sizeAttenuation: true }));
         obj.userData.change = L.change ? decodeF32(L.change) : null;
+        obj.userData.intensity = L.intensity ? decodeF32(L.intensity) : null;
       } else if (L.type === 'mesh') {
         g.setIndex(new T.BufferAttribute(decodeU32(L.triangles), 1));
         g.computeVertexNormals();
@@ -143,7 +144,7 @@
     // Point colour modes offered: those any cloud has, the first of change, own colours, height.
     const modes = [];
     for (const L of LAYERS) for (const m of L.color_modes || []) if (!modes.includes(m)) modes.push(m);
-    const order = ['change', 'rgb', 'height'];
+    const order = ['change', 'rgb', 'height', 'intensity'];
     modes.sort((a, b) => order.indexOf(a) - order.indexOf(b));
     const state = { mode: modes[0] || 'height', size: 1 };
 
@@ -162,6 +163,21 @@
       return 10 * e;
     }
     const cTop = changeTop();
+    // Intensity colours span the 1st to 99th percentile of the intensities drawn.
+    function intensityRange() {
+      const all = [];
+      for (const L of LAYERS) {
+        const a = objs.get(L.id).userData.intensity;
+        if (!a) continue;
+        const step = Math.max(1, Math.floor(a.length / 100000));
+        for (let i = 0; i < a.length; i += step) if (isFinite(a[i])) all.push(a[i]);
+      }
+      if (!all.length) return [0, 1];
+      all.sort((a, b) => a - b);
+      return [all[Math.floor(0.01 * (all.length - 1))], all[Math.ceil(0.99 * (all.length - 1))]];
+    }
+    const iRange = intensityRange();
+    const magma = colormap('magma');
     const viridis = colormap('viridis');
     const diverging = colormap('diverging');
     const height = (z) => (z - zRange[0]) / Math.max(zRange[1] - zRange[0], 1e-9);
@@ -185,6 +201,9 @@
         for (let i = 0; i < n; i++) {
           if (how === 'rgb') {
             for (let c = 0; c < 3; c++) col[3 * i + c] = rgb[3 * i + c] / 255;
+          } else if (how === 'intensity') {
+            magma((obj.userData.intensity[i] - iRange[0]) / Math.max(iRange[1] - iRange[0], 1e-12),
+              col, 3 * i);
           } else if (how === 'change') {
             diverging(0.5 + 0.5 * obj.userData.change[i] / cTop, col, 3 * i);
           } else if (flat) {
@@ -210,6 +229,9 @@
       if (state.mode === 'change' && modes.includes('change')) {
         cb.append(el('span', { class: 'lab', text: `change z_B − z_A: −${fmtNum(cTop * 100)} cm` }),
           bar('diverging'), el('span', { class: 'lab', text: `+${fmtNum(cTop * 100)} cm` }));
+      } else if (state.mode === 'intensity' && modes.includes('intensity')) {
+        cb.append(el('span', { class: 'lab', text: `intensity: ≤ ${fmtNum(iRange[0])}` }),
+          bar('magma'), el('span', { class: 'lab', text: `≥ ${fmtNum(iRange[1])}` }));
       } else if (state.mode === 'rgb') {
         cb.append(el('span', { class: 'lab',
           text: 'points in their own colours (black: no camera saw them)' }));
@@ -238,7 +260,8 @@
 
     // Controls: point colouring, one selector per group (seabed levels of detail), point size.
     const controlsBox = document.getElementById('viewer-controls');
-    const MODE_TEXT = { change: 'change (z_B − z_A)', rgb: 'own colours', height: 'height (z)' };
+    const MODE_TEXT = { change: 'change (z_B − z_A)', rgb: 'own colours', height: 'height (z)',
+      intensity: 'intensity (echo strength)' };
     if (modes.length) {
       controlsBox.append(select('scene-color', 'colour points by',
         modes.map((m) => ({ value: m, label: MODE_TEXT[m] })), state.mode,
@@ -341,6 +364,11 @@
         colorize();
       },
       changeTop: cTop,
+      intensityRange: iRange,
+      colorModes: modes,
+      // The north arrow's angle on screen (degrees clockwise from up), the scale bar's length in
+      // metres and pixels, the number of axis labels in metres.
+      overlay() { return Object.assign({}, V.overlay); },
     });
     resize();
     setSize();

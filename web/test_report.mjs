@@ -410,6 +410,33 @@ async function checkScene(page, ex) {
   const canvas = await page.$('#viewer canvas');
   check(!!canvas, '3D viewer has a canvas');
   if (!canvas) return;
+  // The view's north arrow, scale bar and axes in metres. The first view looks from the
+  // south-west and above: North points up and to the left on screen.
+  const ov = await page.evaluate(() => window.sonar3dReport.overlay());
+  const overlayParts = await page.$$eval('#viewer .north-arrow-3d, #viewer .scale-bar-3d',
+    (e) => e.length);
+  check(overlayParts === 2, `3D view has its north arrow and scale bar (${overlayParts})`);
+  check(ov.northDeg < 0 && ov.northDeg > -90,
+    `north arrow points up-left in the first view (${ov.northDeg.toFixed(1)} deg)`);
+  const mant = ov.scaleMetres / Math.pow(10, Math.floor(Math.log10(ov.scaleMetres)));
+  check(ov.scaleMetres > 0 && [1, 2, 5].some((m) => Math.abs(mant - m) < 1e-6) &&
+    ov.scalePx > 40 && ov.scalePx < 250,
+    `scale bar is a round length (${ov.scaleMetres} m over ${ov.scalePx.toFixed(0)} px)`);
+  check(ov.axisLabels >= 6, `axes labelled in metres (${ov.axisLabels} labels)`);
+  if (ex.intensity) {
+    const modes = await page.evaluate(() => window.sonar3dReport.colorModes);
+    check(modes.includes('intensity'), `points can be coloured by intensity (${modes})`);
+    await page.evaluate(() => window.sonar3dReport.setColorMode('intensity'));
+    const c = ex.intensity;
+    const lo = await page.evaluate(([id, i]) => window.sonar3dReport.colorOf(id, i),
+      [c.layer, c.low]);
+    const hi = await page.evaluate(([id, i]) => window.sonar3dReport.colorOf(id, i),
+      [c.layer, c.high]);
+    const lum = (v) => 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+    check(lum(hi) > lum(lo) + 60,
+      `by intensity, the strongest echo is brighter than the weakest (${hi} vs ${lo})`);
+    await page.evaluate((m) => window.sonar3dReport.setColorMode(m), modes[0]);
+  }
   await canvas.scrollIntoViewIfNeeded();
   const box = await canvas.boundingBox();
   const shot = pixelStats(await page.screenshot({ clip: box }));

@@ -221,6 +221,12 @@ class Scene {
         modes.push_back("rgb");
       }
       modes.push_back("height");
+      if (p.cloud.has_intensity()) {
+        std::vector<float> in(idx.size());
+        for (std::size_t k = 0; k < idx.size(); ++k) in[k] = p.cloud.intensity[idx[k]];
+        j["intensity"] = base64(in.data(), in.size() * sizeof(float));
+        modes.push_back("intensity");
+      }
       j["color_modes"] = modes;
       j["count"] = idx.size();
       j["num_total"] = total;

@@ -4,7 +4,7 @@ import {
   AmbientLight, AxesHelper, Box3, BufferAttribute, BufferGeometry, Color, DirectionalLight,
   DoubleSide, Float32BufferAttribute, GridHelper, Mesh, MeshPhongMaterial, PerspectiveCamera,
   Points, PointsMaterial, Scene, Sphere, Vector3, WebGLRenderer, LineSegments, EdgesGeometry,
-  LineBasicMaterial,
+  LineBasicMaterial, Group, Sprite, SpriteMaterial, CanvasTexture,
 } from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 
@@ -12,5 +12,5 @@ window.THREE = {
   AmbientLight, AxesHelper, Box3, BufferAttribute, BufferGeometry, Color, DirectionalLight,
   DoubleSide, Float32BufferAttribute, GridHelper, Mesh, MeshPhongMaterial, PerspectiveCamera,
   Points, PointsMaterial, Scene, Sphere, Vector3, WebGLRenderer, LineSegments, EdgesGeometry,
-  LineBasicMaterial, OrbitControls,
+  LineBasicMaterial, Group, Sprite, SpriteMaterial, CanvasTexture, OrbitControls,
 };
