@@ -235,3 +235,30 @@ fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, voxel_m: 0.04, spacing_m:
     EXPECT_NE(msg.find(expected), std::string::npos) << msg;
   }
 }
+
+// A voxel the machine cannot hold (issue 29 item 5): the sweep is refused before anything runs or
+// is written, naming the estimate, the point and voxel_m; the same sweep at 4 cm runs.
+TEST(Plan, AVoxelBeyondTheMemoryLimitRefusesTheSweepBeforeItRuns) {
+  const fs::path dir = temp_dir("memory");
+  const std::string sweep = R"(
+seed: 3
+workers: 1
+elevation_step_deg: 0.1
+axes:
+  voxel_m: [0.04, 0.00005]
+fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04,
+        spacing_m: 0.1, standoff_m: 2.0}
+)";
+  write(dir / "s.yaml", sweep);
+  const fs::path out = dir / "out";
+  const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " +
+                          out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
+  EXPECT_NE(std::system(cmd.c_str()), 0);
+  const std::string log = read_text_file((dir / "log.txt").string());
+  EXPECT_NE(log.find("plan needs an estimated"), std::string::npos) << log;
+  EXPECT_NE(log.find("point p0001"), std::string::npos) << log;
+  EXPECT_NE(log.find("voxel_m"), std::string::npos) << log;
+  EXPECT_NE(log.find("--max-memory"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(out / "points")) << "nothing may run or be written";
+  EXPECT_FALSE(fs::exists(out / "results.json"));
+}

@@ -14,6 +14,7 @@
 #include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/params_yaml.hpp"
 #include "sonar3d/plan/sweep.hpp"
+#include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/sim/trajectory_gen.hpp"
@@ -141,6 +142,49 @@ double plan_noise_scale(const SimulationSetup& setup, double snr_db) {
   return (sum / n) / std::pow(10.0, snr_db / 20.0) / sigma;
 }
 
+ReconstructConfig plan_reconstruct_config(const SimulationSetup& setup,
+                                          const std::map<std::string, SweepValue>& params) {
+  ReconstructConfig ro;
+  ro.method = std::get<std::string>(params.at("method"));
+  ro.voxel_size = std::get<double>(params.at("voxel_m"));
+  // Any other setting of the reconstruction, by its dotted path (checked when the sweep was
+  // loaded): reconstruct.bracket.min_bracket, reconstruct.deconv.mode, ...
+  for (const auto& [name, value] : params) {
+    if (name.rfind("reconstruct.", 0) != 0) continue;
+    params::set_dotted(ro, name.substr(12), YAML::Node(to_string(value)), "sweep", "reconstruct");
+  }
+  // The object and a 0.3 m margin, but nothing more than 3 cm below its base: the reference
+  // objects stand on the seabed, which the simulated scene leaves out. Without this seabed
+  // prior the lowest frames of a pass (which start below the base to bracket it) see the
+  // underside of base plates, and both methods put their unbracketed elevation arcs below the
+  // seabed (docs/carving.md). The 3 cm keep surfaces lying on the seabed, which reconstruct on
+  // both sides of it (cutting at the base took the pillar's deconvolution coverage from 32 to
+  // 21 %). It also keeps the map (and memory) to the inspected volume.
+  const Eigen::AlignedBox3d box = setup.scene.objects[0].mesh_world.bounding_box().cast<double>();
+  Eigen::AlignedBox3d roi = box;
+  roi.extend(box.min() - Eigen::Vector3d(0.3, 0.3, 0.03));
+  roi.extend(box.max() + Eigen::Vector3d::Constant(0.3));
+  ro.region = roi;
+  return ro;
+}
+
+MemoryEstimate estimate_plan_point_memory(const SimulationSetup& setup,
+                                          const std::map<std::string, SweepValue>& params,
+                                          double limit_bytes) {
+  const ReconstructConfig ro = plan_reconstruct_config(setup, params);
+  MemoryEstimate e;
+  // As check_reconstruct_memory: the passes mode of the deconvolution allocates per column.
+  if (ro.method != "carve" && ro.effective_deconv().mode == DeconvConfig::Mode::Passes) return e;
+  std::vector<Eigen::Isometry3d> poses;
+  poses.reserve(setup.T_world_vehicle.size());
+  for (const auto& T : setup.T_world_vehicle.poses) poses.push_back(T * setup.spec.T_vehicle_sonar);
+  e = estimate_carve_memory(setup.spec, poses, ro.effective_carve(), limit_bytes);
+  for (auto& part : e.parts) {
+    if (part.option == "--voxel-size") part.option = "voxel_m";
+  }
+  return e;
+}
+
 void run_sweep_point(const fs::path& out_dir, std::size_t index) {
   const Sweep sweep = load_sweep((out_dir / "sweep.yaml").string());
   const auto params = sweep.point(index);
@@ -162,27 +206,7 @@ void run_sweep_point(const fs::path& out_dir, std::size_t index) {
         sweep, params, sweep.source.empty() ? out_dir : fs::path(sweep.source).parent_path());
     const SimulationStats sim = simulate_dataset(setup, ds_dir, false);
     const Dataset ds = read_dataset(ds_dir);
-    ReconstructOptions ro;
-    ro.method = std::get<std::string>(params.at("method"));
-    ro.voxel_size = std::get<double>(params.at("voxel_m"));
-    // Any other setting of the reconstruction, by its dotted path (checked when the sweep was
-    // loaded): reconstruct.bracket.min_bracket, reconstruct.deconv.mode, ...
-    for (const auto& [name, value] : params) {
-      if (name.rfind("reconstruct.", 0) != 0) continue;
-      params::set_dotted(ro, name.substr(12), YAML::Node(to_string(value)), "sweep", "reconstruct");
-    }
-    // The object and a 0.3 m margin, but nothing more than 3 cm below its base: the reference
-    // objects stand on the seabed, which the simulated scene leaves out. Without this seabed
-    // prior the lowest frames of a pass (which start below the base to bracket it) see the
-    // underside of base plates, and both methods put their unbracketed elevation arcs below the
-    // seabed (docs/carving.md). The 3 cm keep surfaces lying on the seabed, which reconstruct on
-    // both sides of it (cutting at the base took the pillar's deconvolution coverage from 32 to
-    // 21 %). It also keeps the map (and memory) to the inspected volume.
-    const Eigen::AlignedBox3d box = setup.scene.objects[0].mesh_world.bounding_box().cast<double>();
-    Eigen::AlignedBox3d roi = box;
-    roi.extend(box.min() - Eigen::Vector3d(0.3, 0.3, 0.03));
-    roi.extend(box.max() + Eigen::Vector3d::Constant(0.3));
-    ro.region = roi;
+    ReconstructConfig ro = plan_reconstruct_config(setup, params);
     ro.num_threads = plan_threads_per_point();
     const ReconstructResult rec = reconstruct_dataset(ds, ro);
     if (rec.cloud.empty()) {

@@ -207,11 +207,64 @@ void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rus
 
 }  // namespace
 
+namespace {
+
+// Refuses the sweep, before any point runs, when its largest point's reconstruction (estimated
+// from the point's simulated poses and its voxel, core/memory.hpp) times the workers that run
+// together exceeds the memory limit; the refusal names the point and its voxel_m.
+void check_sweep_memory(const Sweep& sweep, const PlanOptions& opt) {
+  const double limit =
+      opt.max_memory_bytes > 0 ? opt.max_memory_bytes : default_memory_limit_bytes();
+  // This rank's points within the constraints (finished ones included: a resumed sweep is
+  // judged as a new one would be), and the workers that run them together (as run_sweep).
+  std::vector<std::size_t> todo;
+  for (std::size_t i = 0; i < sweep.size(); ++i) {
+    if (static_cast<int>(i % opt.mpi_size) != opt.mpi_rank) continue;
+    const auto params = sweep.point(i);
+    bool violates = false;
+    for (const auto& c : sweep.constraints) violates |= !c.satisfied_by(params);
+    if (!violates) todo.push_back(i);
+  }
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int workers =
+      std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
+                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
+  const fs::path dir = sweep.source.empty() ? opt.out_dir : fs::path(sweep.source).parent_path();
+  MemoryEstimate largest;
+  std::size_t which = 0;
+  for (const std::size_t i : todo) {
+    const auto params = sweep.point(i);
+    MemoryEstimate e;
+    try {
+      e = estimate_plan_point_memory(plan_setup(sweep, params, dir), params,
+                                     limit / std::max(1, workers));
+    } catch (const Error&) {
+      continue;  // a configuration that cannot be set up fails as its own point, recorded
+    }
+    if (e.total() > largest.total()) largest = e, which = i;
+  }
+  if (largest.parts.empty()) return;
+  MemoryEstimate all;
+  for (const auto& p : largest.parts) {
+    all.add("point " + point_id(which) + ", " + std::to_string(workers) + " at a time: " + p.what,
+            p.bytes * workers, p.option);
+  }
+  std::string advice = largest.advice;  // "--voxel-size 0.0012 fits": the sweep's voxel_m
+  for (std::size_t k; (k = advice.find("--voxel-size")) != std::string::npos;) {
+    advice.replace(k, 12, "voxel_m");
+  }
+  all.advice = advice.empty() ? "or fewer workers" : advice + ", or fewer workers";
+  check_memory(all, limit, "plan");
+}
+
+}  // namespace
+
 PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   if (opt.worker_executable.empty() || !fs::exists(opt.worker_executable)) {
     throw Error("planner: worker executable '" + opt.worker_executable + "' not found");
   }
+  check_sweep_memory(sweep, opt);  // before anything is written
   fs::create_directories(opt.out_dir / "points");
   if (opt.mpi_rank == 0) {
     // The copy every worker reads: the sweep's own directory anchors relative mesh paths.

@@ -62,6 +62,10 @@ struct PlanOptions {
   std::string worker_executable;  // the sonar3d binary that runs single points (subprocesses)
   bool progress = true;
   int mpi_rank = 0, mpi_size = 1;  // set by the CLI when launched under mpirun
+  // Memory limit of the points running at once (core/memory.hpp), bytes; 0: the default limit.
+  // run_sweep refuses, before anything runs, a sweep whose largest point times the workers
+  // running together is estimated beyond it.
+  double max_memory_bytes = 0;
 };
 
 struct PlanSummary {
