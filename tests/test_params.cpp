@@ -874,7 +874,7 @@ trajectory: {period: 0.1, type: straight, start: [0, 0, -0.1], end: [0, 0, 0.1],
   fs::remove_all(dir);
 }
 
-TEST(Params, PlanPrintConfigRunsBack) {
+TEST(Params, PlanFromPrintedConfigKeepsItsSetting) {
   // The planner's own setting (the sweep file holds the rest).
   const fs::path dir = tmp_dir();
   const std::string printed =
@@ -886,6 +886,20 @@ TEST(Params, PlanPrintConfigRunsBack) {
   EXPECT_NE(e.code, 0);
   EXPECT_NE(e.err.find("bad.yaml:2"), std::string::npos) << e.err;
   EXPECT_EQ(run_cli_captured(dir, "plan").code, 2);
+  // A sweep whose one point fails: an error, unless the printed file says allow_empty.
+  std::ofstream(dir / "allow.yaml") << printed;
+  std::ofstream(dir / "s.yaml") << "seed: 3\nworkers: 1\nelevation_step_deg: 0.1\n"
+                                   "axes:\n  range_res_m: [1e-12]\n"
+                                   "fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, "
+                                   "voxel_m: 0.04, spacing_m: 0.5, path: orbit}\n";
+  const std::string sweep = "plan " + (dir / "s.yaml").string() + " -q -o ";
+  const auto r1 = run_cli_captured(dir, sweep + (dir / "p1").string());
+  EXPECT_EQ(r1.code, 1) << r1.err;
+  EXPECT_NE(r1.err.find("--allow-empty"), std::string::npos) << r1.err;
+  const auto r2 = run_cli_captured(
+      dir, sweep + (dir / "p2").string() + " --config " + (dir / "allow.yaml").string());
+  EXPECT_EQ(r2.code, 0) << r2.err;
+  EXPECT_TRUE(fs::exists(dir / "p2/results.csv"));
   fs::remove_all(dir);
 }
 
