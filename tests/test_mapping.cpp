@@ -139,7 +139,6 @@ TEST(ElevationMap, GeoTiffRoundTripFloatAndUInt16) {
   const std::string f32 = (dir / "map_f32.tif").string(), u16 = (dir / "map_u16.tif").string();
   sonar3d::write_elevation_geotiff(f32, m);
   sonar3d::ElevationWriteOptions q;
-  q.encoding = sonar3d::ElevationEncoding::UInt16;
   q.uint16_step_m = 0.001;
   sonar3d::write_elevation_geotiff(u16, m, q);
   for (const auto& [path, tol] : {std::pair{f32, 0.0}, std::pair{u16, 0.0005 + 1e-6}}) {

@@ -11,16 +11,26 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/params.hpp"
+#include "sonar3d/core/point_cloud.hpp"
+#include "sonar3d/core/reference_objects.hpp"
+#include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/holoocean.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/navigation.hpp"
 #include "sonar3d/io/oculus.hpp"
 #include "sonar3d/io/params_yaml.hpp"
+#include "sonar3d/io/preview.hpp"
 #include "sonar3d/io/rosbag.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/plan/sweep.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
+#include "sonar3d/report/report.hpp"
+#include "sonar3d/sim/benchmark.hpp"
+#include "sonar3d/sim/simulation.hpp"
 #include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/change.hpp"
 #include "sonar3d/world/relocalize.hpp"
@@ -58,6 +68,31 @@ fs::path tmp_dir() {
   return d;
 }
 
+// A 30 cm sphere's surface, sampled: a cloud to map, score and show.
+PointCloud sphere_cloud() {
+  PointCloud c;
+  const TriangleMesh m = make_sphere(0.3, 24);
+  for (const auto& v : m.vertices) c.points.push_back(v + Eigen::Vector3f(1, 2, 0));
+  c.intensity.assign(c.points.size(), 1.0f);
+  return c;
+}
+
+// The configuration `command` prints with `flags`, written to dir/cfg.yaml; checks that a run
+// from it prints it again, byte for byte, and that it holds each of `want`.
+std::string print_and_reread(const fs::path& dir, const std::string& command,
+                             const std::string& flags, const std::vector<std::string>& want) {
+  const auto a = run_cli_captured(dir, command + " --print-config " + flags);
+  EXPECT_EQ(a.code, 0) << a.err;
+  for (const std::string& w : want)
+    EXPECT_NE(a.out.find(w), std::string::npos) << w << "\n" << a.out;
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, command + " --print-config --config " + (dir / "cfg.yaml").string());
+  EXPECT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out) << command;
+  return a.out;
+}
+
 // The reference of every configuration declared with core/params.hpp.
 std::string reference() {
   std::string out =
@@ -87,6 +122,58 @@ std::string reference() {
       "`sonar3d relocalize --print-config` prints these under `relocalize:`; Python: "
       "`sonar3d.RelocalizeConfig` (docs/mapping.md \"Relocalisation\").",
       params::rows(RelocalizeConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "elevation",
+      "`sonar3d elevation --print-config` prints these under `elevation:`; Python: "
+      "`sonar3d.ElevationMapConfig` (`sonar3d.elevation_map(points, cell_m=0.05)`) and "
+      "`sonar3d.ElevationWriteOptions` (`sonar3d.write_elevation_geotiff(path, map, "
+      "uint16_step_m=0.001)`) (docs/mapping.md).",
+      params::rows(ElevationFileConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "evaluate",
+      "`sonar3d evaluate --print-config` prints these under `evaluate:`; Python: "
+      "`sonar3d.EvalConfig` and `sonar3d.evaluate(points, mesh, cfg)`, "
+      "`sonar3d.evaluate_dataset(points, dataset, cfg)` (thesis sec. 4.5.2.1; README.md).",
+      params::rows(EvalConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "report",
+      "`sonar3d report --print-config` prints these under `report:` (the survey's `report:` "
+      "block takes them too, with `web_dir`; docs/survey.md); the page's inputs (placements, "
+      "catalogue, overlays, -o) and --web-dir are flags only (docs/report.md).",
+      params::rows(ReportConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "simulate",
+      "`sonar3d simulate --print-config` prints these under `simulate:`; the scene file holds "
+      "everything else (docs/formats.md). Python: `sonar3d.simulate(scene, output, seed=None)`.",
+      params::rows(SimulateConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "plan",
+      "`sonar3d plan --print-config` prints these under `plan:`; the sweep file holds everything "
+      "the points run with (docs/planner.md).",
+      params::rows(PlanConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "export rosbag",
+      "`sonar3d export rosbag --print-config` prints these under `export:`; `--ros1` sets `wire` "
+      "to ros1 (docs/import.md).",
+      params::rows(RosbagExportConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "preview",
+      "`sonar3d preview --print-config` prints these under `preview:`; the frame (`--frame`) is "
+      "a flag only.",
+      params::rows(PreviewConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "bench",
+      "`sonar3d bench --print-config` prints these under `bench:`: the benchmark's sonar and run "
+      "on the thesis' pipeline scene (sec. 2.5.2; docs/performance.md).",
+      params::rows(SimBenchConfig()));
   out += "\n";
   out += params::reference_markdown(
       "diff",
@@ -538,5 +625,304 @@ TEST(Params, ImportArisFromPrintedConfigWritesTheSameDataset) {
     EXPECT_EQ(read_all(dir / "a" / f), read_all(dir / "b" / f)) << f;
   }
   EXPECT_NE(read_all(dir / "a" / "sonar.yaml").find("12"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(Params, RelocalizePrintConfigRunsBackByteForByte) {
+  // The registration nested (its threads are relocalize's), the swath split, a switch-less config.
+  const fs::path dir = tmp_dir();
+  const auto a = run_cli_captured(dir,
+                                  "relocalize --print-config --voxel-size 0.04 --search 0.6 "
+                                  "--yaw-search-deg 3 --min-overlap 0.4 --piece 0 --turn-deg 50 "
+                                  "--threads 1");
+  ASSERT_EQ(a.code, 0) << a.err;
+  for (const char* want :
+       {"relocalize:", "voxel_m: 0.04", "search_m: 0.6", "yaw_search_deg: 3",
+        "min_overlap_fraction: 0.4", "piece_m: 0", "turn_threshold_deg: 50", "num_threads: 1"}) {
+    EXPECT_NE(a.out.find(want), std::string::npos) << want << "\n" << a.out;
+  }
+  std::ofstream(dir / "cfg.yaml") << a.out;
+  const auto b =
+      run_cli_captured(dir, "relocalize --print-config --config " + (dir / "cfg.yaml").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(a.out, b.out);
+  RelocalizeConfig lib;
+  params::read_yaml(YAML::LoadFile((dir / "cfg.yaml").string())["relocalize"], "cfg.yaml",
+                    "relocalize", lib);
+  EXPECT_EQ(lib.voxel_m, 0.04);
+  EXPECT_EQ(lib.registration.search_m, 0.6);
+  EXPECT_EQ(lib.split.turn_threshold_deg, 50);
+  EXPECT_EQ(lib.piece_m, 0);
+  // Flags override the file.
+  const auto c = run_cli_captured(
+      dir, "relocalize --print-config --config " + (dir / "cfg.yaml").string() + " --piece 4");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("piece_m: 4"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("voxel_m: 0.04"), std::string::npos) << c.out;
+  // Errors name the user's flag: a bound, and a cross-field rule.
+  const auto d = run_cli_captured(dir, "relocalize --print-config --min-overlap 0");
+  EXPECT_NE(d.code, 0);
+  EXPECT_NE(d.err.find("--min-overlap"), std::string::npos) << d.err;
+  const auto e =
+      run_cli_captured(dir, "relocalize --print-config --search 0.05 --registration-cell 0.1");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--search must be at least one cell (--registration-cell)"),
+            std::string::npos)
+      << e.err;
+  // Without --print-config the dataset, --world and -o are required (usage error).
+  EXPECT_EQ(run_cli_captured(dir, "relocalize").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, ElevationFromPrintedConfigWritesTheSameGeoTiff) {
+  const fs::path dir = tmp_dir();
+  write_ply((dir / "c.ply").string(), sphere_cloud());
+  const std::string flags = "--cell-m 0.05 --uint16-step-m 0.002";
+  const std::string printed = print_and_reread(
+      dir, "elevation", flags, {"elevation:", "cell_m: 0.05", "uint16_step_m: 0.002"});
+  EXPECT_NE(print_and_reread(dir, "elevation", "", {"uint16_step_m: ~"}), printed);
+  std::ofstream(dir / "run.yaml") << printed;
+  const std::string c = (dir / "c.ply").string();
+  const auto a = run_cli_captured(dir, "elevation " + c + " -o " + (dir / "a.tif").string() + " " +
+                                           flags + " --png " + (dir / "a.png").string());
+  ASSERT_EQ(a.code, 0) << a.err;
+  const auto b =
+      run_cli_captured(dir, "elevation " + c + " -o " + (dir / "b.tif").string() + " --config " +
+                                (dir / "run.yaml").string() + " --png " + (dir / "b.png").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(read_all(dir / "a.tif"), read_all(dir / "b.tif"));
+  EXPECT_EQ(read_all(dir / "a.png"), read_all(dir / "b.png"));
+  const ElevationMap m = read_elevation_geotiff((dir / "b.tif").string());
+  EXPECT_DOUBLE_EQ(m.cell_m, 0.05);  // the file's cell, not the default
+  // A flag overrides the file; errors name the flag; the cloud and -o are required.
+  const auto d = run_cli_captured(
+      dir, "elevation --print-config --config " + (dir / "run.yaml").string() + " --cell-m 0.1");
+  EXPECT_NE(d.out.find("cell_m: 0.1"), std::string::npos) << d.out;
+  const auto e = run_cli_captured(dir, "elevation --print-config --cell-m 0");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--cell-m must be"), std::string::npos) << e.err;
+  const auto f = run_cli_captured(dir, "elevation --print-config --uint16-step-m -1");
+  EXPECT_NE(f.err.find("--uint16-step-m must be"), std::string::npos) << f.err;
+  EXPECT_EQ(run_cli_captured(dir, "elevation").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, EvaluateFromPrintedConfigWritesTheSameMetrics) {
+  const fs::path dir = tmp_dir();
+  write_ply((dir / "c.ply").string(), sphere_cloud());
+  TriangleMesh truth = make_sphere(0.31, 32);
+  for (auto& v : truth.vertices) v += Eigen::Vector3f(1, 2, 0);
+  save_mesh((dir / "truth.ply").string(), truth);
+  const std::string flags =
+      "--coverage-radius 0.02 --outlier-radius 0.05 --samples-per-cm2 2 --seed 9";
+  const std::string printed =
+      print_and_reread(dir, "evaluate", flags,
+                       {"evaluate:", "coverage_radius: 0.02", "outlier_radius: 0.05",
+                        "samples_per_cm2: 2", "seed: 9", "histogram_bins: 40"});
+  std::ofstream(dir / "run.yaml") << printed;
+  const std::string in = (dir / "c.ply").string() + " -t " + (dir / "truth.ply").string();
+  const auto a = run_cli_captured(
+      dir, "evaluate " + in + " " + flags + " --json " + (dir / "a.json").string());
+  ASSERT_EQ(a.code, 0) << a.err;
+  const auto b =
+      run_cli_captured(dir, "evaluate " + in + " --config " + (dir / "run.yaml").string() +
+                                " --json " + (dir / "b.json").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(read_all(dir / "a.json"), read_all(dir / "b.json"));
+  EXPECT_NE(read_all(dir / "a.json").find("0.02"), std::string::npos);  // r_c as given
+  EXPECT_EQ(a.out, b.out);
+  EvalConfig lib;
+  params::read_yaml(YAML::Load(printed)["evaluate"], "run.yaml", "evaluate", lib);
+  EXPECT_EQ(lib.seed, 9u);
+  EXPECT_EQ(lib.samples_per_cm2, 2);
+  const auto e = run_cli_captured(dir, "evaluate --print-config --outlier-radius -1");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--outlier-radius must be"), std::string::npos) << e.err;
+  std::ofstream(dir / "bad.yaml") << "evaluate:\n  histogram_bins: 0\n";
+  const auto f =
+      run_cli_captured(dir, "evaluate --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("bad.yaml:2"), std::string::npos) << f.err;
+  EXPECT_EQ(run_cli_captured(dir, "evaluate").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, ReportFromPrintedConfigWritesTheSamePage) {
+  const fs::path dir = tmp_dir();
+  write_ply((dir / "c.ply").string(), sphere_cloud());
+  const std::string flags =
+      "--max-points 500 --max-total-points 800 --max-mesh-triangles 1000 --color height "
+      "--error-max 0.05 --title \"a sphere\" --seed 3";
+  const std::string printed = print_and_reread(
+      dir, "report", flags,
+      {"report:", "max_points: 500", "max_total_points: 800", "max_mesh_triangles: 1000",
+       "color: height", "error_max: 0.05", "title: \"a sphere\"", "seed: 3"});
+  std::ofstream(dir / "run.yaml") << printed;
+  ReportConfig lib;
+  params::read_yaml(YAML::Load(printed)["report"], "run.yaml", "report", lib);
+  EXPECT_EQ(lib.color, ReportColor::Height);
+  EXPECT_EQ(lib.max_points_per_cloud, 500u);
+  // The web assets where sonar3d report finds them ($SONAR3D_WEB_DIR, else the source tree's).
+  const std::string web = " -q";
+  const std::string c = (dir / "c.ply").string();
+  const auto a =
+      run_cli_captured(dir, "report " + c + " -o " + (dir / "a.html").string() + " " + flags + web);
+  ASSERT_EQ(a.code, 0) << a.err;
+  const auto b = run_cli_captured(dir, "report " + c + " -o " + (dir / "b.html").string() +
+                                           " --config " + (dir / "run.yaml").string() + web);
+  ASSERT_EQ(b.code, 0) << b.err;
+  const std::string page = read_all(dir / "a.html");
+  EXPECT_EQ(page, read_all(dir / "b.html"));
+  EXPECT_NE(page.find("a sphere"), std::string::npos);  // the file's title
+  const auto e = run_cli_captured(dir, "report --print-config --max-mesh-triangles 10");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--max-mesh-triangles must be"), std::string::npos) << e.err;
+  EXPECT_NE(run_cli_captured(dir, "report --print-config --color hue").code, 0);
+  EXPECT_EQ(run_cli_captured(dir, "report").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, SimulateExportPreviewFromPrintedConfigWriteTheSameFiles) {
+  const fs::path dir = tmp_dir();
+  std::ofstream(dir / "scene.yaml") << R"(
+seed: 2
+sensor: {preset: sim-10deg, beams: 40, fov_deg: 40, range_bins: 200}
+simulation: {elevation_step_deg: 0.2}
+noise: {model: stripes}
+objects:
+  - {name: ball, primitive: {type: sphere, radius: 0.4}, pose: {translation: [2.5, 0, 0]}, reflectivity: 0.9}
+trajectory: {period: 0.1, type: straight, start: [0, 0, -0.1], end: [0, 0, 0.1], spacing: 0.1}
+)";
+  // simulate: a seed replacing the scene's (none: the scene's), a switch.
+  EXPECT_NE(
+      print_and_reread(dir, "simulate", "", {"simulate:", "seed: ~", "allow_empty: false"}).size(),
+      0u);
+  const std::string sim = print_and_reread(dir, "simulate", "--seed 17 --allow-empty",
+                                           {"seed: 17", "allow_empty: true"});
+  std::ofstream(dir / "sim.yaml") << sim;
+  const std::string scene = (dir / "scene.yaml").string();
+  const auto a = run_cli_captured(
+      dir, "simulate " + scene + " -o " + (dir / "a").string() + " --seed 17 --allow-empty -q");
+  ASSERT_EQ(a.code, 0) << a.err;
+  const auto b = run_cli_captured(dir, "simulate " + scene + " -o " + (dir / "b").string() +
+                                           " --config " + (dir / "sim.yaml").string() + " -q");
+  ASSERT_EQ(b.code, 0) << b.err;
+  const auto c = run_cli_captured(dir, "simulate " + scene + " -o " + (dir / "c").string() + " -q");
+  ASSERT_EQ(c.code, 0) << c.err;
+  for (const char* f : {"sonar.yaml", "frames.csv", "navigation.tum", "frames/000001.png"}) {
+    EXPECT_EQ(read_all(dir / "a" / f), read_all(dir / "b" / f)) << f;
+  }
+  // The seed is the noise's: the scene's own seed gives other frames.
+  EXPECT_NE(read_all(dir / "a/frames/000001.png"), read_all(dir / "c/frames/000001.png"));
+  const auto e = run_cli_captured(dir, "simulate --print-config --seed 1.5");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--seed must be a whole number"), std::string::npos) << e.err;
+  EXPECT_EQ(run_cli_captured(dir, "simulate").code, 2);
+
+  // export rosbag: the wire (--ros1), topics, frames, compression, package.
+  const std::string flags =
+      "--ros1 --compression lz4 --sonar-topic /s --nav-topic /n --package acoustic_msgs "
+      "--world-frame odom --base-frame vehicle --sonar-frame fls";
+  const std::string ex = print_and_reread(
+      dir, "export rosbag", flags,
+      {"export:", "wire: ros1", "ros1_compression: \"lz4\"", "sonar_topic: \"/s\"",
+       "nav_topic: \"/n\"", "message_package: \"acoustic_msgs\"", "world_frame: \"odom\"",
+       "base_frame: \"vehicle\"", "sonar_frame: \"fls\""});
+  std::ofstream(dir / "ex.yaml") << ex;
+  const auto x = run_cli_captured(dir, "export rosbag " + (dir / "a").string() + " -o " +
+                                           (dir / "x.bag").string() + " " + flags + " -q");
+  ASSERT_EQ(x.code, 0) << x.err;
+  const auto y = run_cli_captured(dir, "export rosbag " + (dir / "a").string() + " -o " +
+                                           (dir / "y.bag").string() + " --config " +
+                                           (dir / "ex.yaml").string() + " -q");
+  ASSERT_EQ(y.code, 0) << y.err;
+  const std::string bag = read_all(dir / "x.bag");
+  EXPECT_EQ(bag, read_all(dir / "y.bag"));
+  EXPECT_EQ(bag.rfind("#ROSBAG V2.0", 0), 0u);  // a ROS 1 bag: the file's wire
+  EXPECT_NE(bag.find("/s"), std::string::npos);
+  const auto f = run_cli_captured(dir, "export rosbag --print-config --compression zip");
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("--compression"), std::string::npos) << f.err;
+  const auto h = run_cli_captured(dir, "export rosbag --print-config --nav-topic \"\"");
+  EXPECT_NE(h.code, 0);
+  EXPECT_NE(h.err.find("--nav-topic must not be empty"), std::string::npos) << h.err;
+  EXPECT_EQ(run_cli_captured(dir, "export rosbag").code, 2);
+
+  // preview: switches turned by their flags (--polar, --grey), numbers.
+  const std::string pv_flags = "--polar --grey --max 0.5 --gamma 0.8";
+  const std::string pv = print_and_reread(
+      dir, "preview", pv_flags,
+      {"preview:", "fan: false", "colormap: false", "max_value: 0.5", "gamma: 0.8"});
+  std::ofstream(dir / "pv.yaml") << pv;
+  const std::string ds = (dir / "a").string();
+  ASSERT_EQ(run_cli_captured(
+                dir, "preview " + ds + " --frame 1 -o " + (dir / "p.png").string() + " " + pv_flags)
+                .code,
+            0);
+  ASSERT_EQ(run_cli_captured(dir, "preview " + ds + " --frame 1 -o " + (dir / "q.png").string() +
+                                      " --config " + (dir / "pv.yaml").string())
+                .code,
+            0);
+  ASSERT_EQ(
+      run_cli_captured(dir, "preview " + ds + " --frame 1 -o " + (dir / "r.png").string()).code, 0);
+  EXPECT_EQ(read_all(dir / "p.png"), read_all(dir / "q.png"));
+  EXPECT_NE(read_all(dir / "p.png"), read_all(dir / "r.png"));  // the fan, in colour
+  const auto pw = run_cli_captured(dir, "preview --print-config --width 8");
+  EXPECT_NE(pw.code, 0);
+  EXPECT_NE(pw.err.find("--width must lie in [16, 16384]"), std::string::npos) << pw.err;
+  EXPECT_EQ(run_cli_captured(dir, "preview").code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Params, PlanFromPrintedConfigKeepsItsSetting) {
+  // The planner's own setting (the sweep file holds the rest).
+  const fs::path dir = tmp_dir();
+  const std::string printed =
+      print_and_reread(dir, "plan", "--allow-empty", {"plan:", "allow_empty: true"});
+  EXPECT_NE(print_and_reread(dir, "plan", "", {"allow_empty: false"}), printed);
+  std::ofstream(dir / "bad.yaml") << "plan:\n  workers: 2\n";
+  const auto e =
+      run_cli_captured(dir, "plan --print-config --config " + (dir / "bad.yaml").string());
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("bad.yaml:2"), std::string::npos) << e.err;
+  EXPECT_EQ(run_cli_captured(dir, "plan").code, 2);
+  // A sweep whose one point fails: an error, unless the printed file says allow_empty.
+  std::ofstream(dir / "allow.yaml") << printed;
+  std::ofstream(dir / "s.yaml") << "seed: 3\nworkers: 1\nelevation_step_deg: 0.1\n"
+                                   "axes:\n  range_res_m: [1e-12]\n"
+                                   "fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, "
+                                   "voxel_m: 0.04, spacing_m: 0.5, path: orbit}\n";
+  const std::string sweep = "plan " + (dir / "s.yaml").string() + " -q -o ";
+  const auto r1 = run_cli_captured(dir, sweep + (dir / "p1").string());
+  EXPECT_EQ(r1.code, 1) << r1.err;
+  EXPECT_NE(r1.err.find("--allow-empty"), std::string::npos) << r1.err;
+  const auto r2 = run_cli_captured(
+      dir, sweep + (dir / "p2").string() + " --config " + (dir / "allow.yaml").string());
+  EXPECT_EQ(r2.code, 0) << r2.err;
+  EXPECT_TRUE(fs::exists(dir / "p2/results.csv"));
+  fs::remove_all(dir);
+}
+
+TEST(Params, BenchPrintConfigRunsBack) {
+  // The benchmark's sensor and run: the printed file runs the same benchmark (its timings differ).
+  const fs::path dir = tmp_dir();
+  const std::string flags =
+      "--fov-deg 20 --aperture-deg 4 --bearing-step-deg 1 --elevation-step-deg 0.5 "
+      "--range-max 5 --range-res 0.05 --frames 2 --threads 1";
+  const std::string printed = print_and_reread(
+      dir, "bench", flags,
+      {"bench:", "fov_deg: 20", "aperture_deg: 4", "bearing_step_deg: 1", "elevation_step_deg: 0.5",
+       "range_max_m: 5", "range_res_m: 0.05", "frames: 2", "num_threads: 1"});
+  std::ofstream(dir / "run.yaml") << printed;
+  const auto a = run_cli_captured(dir, "bench --config " + (dir / "run.yaml").string());
+  ASSERT_EQ(a.code, 0) << a.err;
+  EXPECT_NE(a.out.find("20 beams × 100 bins"), std::string::npos) << a.out;
+  EXPECT_NE(a.out.find("2 frames"), std::string::npos) << a.out;
+  const auto e = run_cli_captured(dir, "bench --print-config --frames 0");
+  EXPECT_NE(e.code, 0);
+  EXPECT_NE(e.err.find("--frames must be"), std::string::npos) << e.err;
+  const auto f = run_cli_captured(dir, "bench --print-config --fov-deg 10 --bearing-step-deg 30");
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("--bearing-step-deg is wider than --fov-deg"), std::string::npos) << f.err;
   fs::remove_all(dir);
 }

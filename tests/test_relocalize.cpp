@@ -217,5 +217,33 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
   r = run_cli(dir, "relocalize " + (dir / "b").string() + " --world " + (dir / "world").string() +
                        " -o " + (dir / "rb").string() + " -q --overwrite");
   EXPECT_EQ(r.code, 0) << r.out;
+
+  // A run from the configuration a run printed gives the same relocalisation: the same navigation,
+  // byte for byte, and the same relocalization.json but for its timings.
+  const std::string flags = " --piece 4 --search 0.8 --min-overlap 0.4 --threads 1";
+  r = run_cli(dir, "relocalize --print-config" + flags);
+  ASSERT_EQ(r.code, 0) << r.out;
+  { std::ofstream(dir / "reloc.yaml") << r.out; }
+  const std::string in =
+      "relocalize " + (dir / "b").string() + " --world " + (dir / "world").string() + " -q";
+  r = run_cli(dir, in + " -o " + (dir / "cfg_flags").string() + flags);
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_cli(dir, in + " -o " + (dir / "cfg_file").string() + " --config " +
+                       (dir / "reloc.yaml").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(sonar3d::test::read_all(dir / "cfg_flags/navigation.tum"),
+            sonar3d::test::read_all(dir / "cfg_file/navigation.tum"));
+  const auto without_timings = [](const fs::path& path) {
+    std::ifstream in(path);
+    nlohmann::json j = nlohmann::json::parse(in);
+    j.erase("seconds");
+    for (auto& s : j["swaths"]) s.erase("seconds");
+    return j;
+  };
+  const nlohmann::json jf = without_timings(dir / "cfg_flags/relocalization.json");
+  EXPECT_EQ(jf, without_timings(dir / "cfg_file/relocalization.json"));
+  EXPECT_EQ(jf["swaths"].size(), 1u);
+  EXPECT_EQ(jf["criterion"]["search_m"].get<double>(), 0.8);  // the file's, not the default
+  EXPECT_EQ(jf["criterion"]["min_overlap_fraction"].get<double>(), 0.4);
   fs::remove_all(dir);
 }

@@ -510,7 +510,7 @@ TEST_F(ReportTest, BadInputsGiveClearErrorsAndNoPage) {
   // Invalid config names the field.
   ReportConfig zero = cfg;
   zero.max_points_per_cloud = 0;
-  expect_error([&] { write_report(root_ / "plan", zero); }, {"max_points_per_cloud"});
+  expect_error([&] { write_report(root_ / "plan", zero); }, {"max_points", "--max-points", ">= 1"});
   expect_error([] { parse_report_color("rainbow"); }, {"rainbow", "error or height"});
 }
 

@@ -274,8 +274,8 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
            "12, 20]}}\n"
            "recognize: {method: 3d, three_d: {yaw_step_deg: 7.5}, two_d: {run_icp: false}}\n"
            "world: {seabed: {lod_cells_m: [0.1, 0.5]}, min_confidence: 0.3}\n"
-           "texture: {max_range: 12}\n"
-           "report: {title: 'a \"quoted\" title', seed: 7}\n";
+           "texture: {max_range_m: 12, warn_dark_share: 0.5, drop_uncoloured: true}\n"
+           "report: {title: 'a \"quoted\" title', seed: 7, color: height, web_dir: web}\n";
   }
   const sonar3d::SurveyConfig c = sonar3d::load_survey_config((dir / "c.yaml").string());
   EXPECT_EQ(c.import.kind, "oculus");
@@ -297,7 +297,15 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   EXPECT_EQ(c.recognize.three_d.max_residual_median_m,
             sonar3d::Recognition3dConfig().max_residual_median_m);  // default kept
   EXPECT_EQ(c.world.model.seabed.lod_cells_m, (std::vector<double>{0.1, 0.5}));
-  EXPECT_EQ(c.report.title, "a \"quoted\" title");
+  // The texture and report blocks: their commands' declarations (TextureFilesConfig,
+  // ReportConfig), plus the survey's drop_uncoloured and web_dir.
+  EXPECT_EQ(c.texture.texture.texture.max_range_m, 12);
+  EXPECT_EQ(c.texture.texture.poses.warn_dark_share, 0.5);
+  EXPECT_TRUE(c.texture.drop_uncoloured);
+  EXPECT_EQ(c.report.report.title, "a \"quoted\" title");
+  EXPECT_EQ(c.report.report.seed, 7u);
+  EXPECT_EQ(c.report.report.color, sonar3d::ReportColor::Height);
+  EXPECT_EQ(c.report.web_dir, (dir / "web").lexically_normal().string());
   const std::string printed = sonar3d::survey_config_yaml(c);
   { std::ofstream(dir / "printed.yaml") << printed; }
   const sonar3d::SurveyConfig back = sonar3d::load_survey_config((dir / "printed.yaml").string());
@@ -324,9 +332,18 @@ TEST(SurveyConfig, PrintedConfigurationReadsBackTheSame) {
   { std::ofstream(dir / "e6.yaml") << "import: {kind: sonar}\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e6.yaml").string()); },
                               "must be one of");
+  // The texture keys of earlier versions (the flags' names) name the key now.
+  { std::ofstream(dir / "e7.yaml") << "texture:\n  max_range: 12\n"; }
+  sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e7.yaml").string()); },
+                              "e7.yaml:2: key 'texture.max_range': the texture block holds the "
+                              "keys of `sonar3d texture --print-config` (docs/survey.md): write "
+                              "texture.max_range_m");
+  { std::ofstream(dir / "e8.yaml") << "report:\n  max_points: 0\n"; }
+  sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e8.yaml").string()); },
+                              "e8.yaml:2");
   { std::ofstream(dir / "e3.yaml") << "report: [1, 2]\n"; }
   sonar3d::test::expect_error([&] { sonar3d::load_survey_config((dir / "e3.yaml").string()); },
-                              "expected a mapping");
+                              "expected a map");
   fs::remove_all(dir);
 }
 

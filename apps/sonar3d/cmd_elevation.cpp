@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 
@@ -17,46 +18,48 @@ void add_elevation(CLI::App& app, const GlobalOptions&, Runner& run) {
       "horizontal cell, written as GeoTIFF (local ENU, metres; no-data for empty cells).");
   struct Opts {
     std::string cloud, output, png;
-    ElevationMapConfig cfg;
-    double uint16_step_m = 0;
+    std::unique_ptr<ConfigOptions<ElevationFileConfig>> config;
     bool overwrite = false;
     double max_memory_gb = 0;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("cloud", o->cloud, "point cloud (PLY, world frame: x East, y North, z up)")
-      ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output,
-                  "GeoTIFF to write (an existing one only if sonar3d wrote it, with --overwrite)")
-      ->required();
-  cmd->add_option("--cell-m", o->cfg.cell_m, "cell size, metres")->capture_default_str();
-  cmd->add_option("--uint16-step-m", o->uint16_step_m,
-                  "store heights as uint16 with this step, metres (default: float32)");
+                  "GeoTIFF to write (an existing one only if sonar3d wrote it, with --overwrite)");
   cmd->add_option("--png", o->png,
                   "also write a viewable PNG (colour map and colour bar); the GeoTIFF and the PNG "
                   "appear together or not at all");
   add_overwrite_flag(cmd, o->overwrite, "a GeoTIFF and PNG sonar3d wrote earlier");
   add_max_memory_option(cmd, o->max_memory_gb);
-  static const FlagNames kFlags = {{"cell_m", "--cell-m"}, {"uint16_step_m", "--uint16-step-m"}};
+  // Every setting (declared once, mapping/elevation_map.hpp): its flag, --print-config, --config.
+  o->config = std::make_unique<ConfigOptions<ElevationFileConfig>>(cmd);
   cmd->callback([&run, o] {
+    // The cloud and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->cloud.empty()) throw CLI::RequiredError("cloud");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o] {
-      return with_flag_names(kFlags, [&] {
+      // The library's errors name its fields ("cell_m"): the user reads the flag.
+      FlagNames names = o->config->flag_names();
+      names.insert(names.end(), {{"cell_m", "--cell-m"}, {"uint16_step_m", "--uint16-step-m"}});
+      return with_flag_names(names, [&] {
+        ElevationFileConfig cfg = o->config->resolve("elevation");
+        cfg.validate();
+        if (o->config->print_if_requested(cfg, "elevation", "elevation")) return 0;
         OutputFiles out(output_policy(o->overwrite, {o->cloud}));  // checked before the work
         const std::filesystem::path tif = out.add(o->output, OutputKind::GeoTiff, "-o");
         const std::filesystem::path png =
             o->png.empty() ? std::filesystem::path() : out.add(o->png, OutputKind::Png, "--png");
         const PointCloud cloud = read_ply(o->cloud);
-        ElevationWriteOptions w;
-        if (o->uint16_step_m != 0) {
-          w.encoding = ElevationEncoding::UInt16;
-          w.uint16_step_m = o->uint16_step_m;
-        }
+        const ElevationWriteOptions& w = cfg.geotiff;
         // The memory limit replaces the library's cell cap (the map indexes rows and columns as
         // int: beyond that, the estimate exceeds any default limit).
-        o->cfg.max_cells = static_cast<std::size_t>(std::numeric_limits<int>::max());
-        check_memory(estimate_elevation_memory(cloud, o->cfg, w, !o->png.empty(), "--cell-m"),
+        cfg.map.max_cells = static_cast<std::size_t>(std::numeric_limits<int>::max());
+        check_memory(estimate_elevation_memory(cloud, cfg.map, w, !o->png.empty(), "--cell-m"),
                      memory_limit_bytes(o->max_memory_gb), "elevation");
-        const ElevationMap map = elevation_map_from_points(cloud, o->cfg);
+        const ElevationMap map = elevation_map_from_points(cloud, cfg.map);
         write_elevation_geotiff(tif.string(), map, w);
         const auto tif_bytes = std::filesystem::file_size(tif);
         Eigen::Vector2f range(0, 0);

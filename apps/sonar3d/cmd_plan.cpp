@@ -2,8 +2,10 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/plan/mpi.hpp"
 #include "sonar3d/plan/sweep.hpp"
@@ -19,19 +21,27 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "Under `mpirun -np N` the points are spread over the ranks and rank 0 merges the results.");
   struct Opts {
     std::string sweep, out;
-    bool allow_empty = false;
+    std::unique_ptr<ConfigOptions<PlanConfig>> config;
   };
   auto o = std::make_shared<Opts>();
-  cmd->add_option("sweep", o->sweep, "sweep YAML file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("sweep", o->sweep, "sweep YAML file")->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->out,
                   "output directory: created, or an empty directory, or a plan directory of "
                   "sonar3d, which is resumed (finished points are kept); anything else is an "
-                  "error")
-      ->required();
-  cmd->add_flag("--allow-empty", o->allow_empty,
-                "exit with status 0 even when no point succeeded (by default an error)");
+                  "error");
+  // The command's own settings (declared once, plan/sweep.hpp; the sweep file holds what the
+  // points run with): --allow-empty, --print-config, --config FILE.
+  o->config = std::make_unique<ConfigOptions<PlanConfig>>(cmd);
   cmd->callback([&g, &run, o] {
+    // The sweep and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->sweep.empty()) throw CLI::RequiredError("sweep");
+      if (o->out.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [&g, o] {
+      const PlanConfig cfg =
+          with_flag_names(o->config->flag_names(), [&] { return o->config->resolve("plan"); });
+      if (o->config->print_if_requested(cfg, "plan", "plan")) return 0;
       // Resuming is what a plan directory is for: no --overwrite needed for sonar3d's own.
       check_output(o->out, OutputKind::Plan, output_policy(true, {o->sweep}), "-o");
       const Sweep sweep = load_sweep(o->sweep);
@@ -51,7 +61,7 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
             "{} failed) in {:.1f} s{}; results in {}/results.csv\n",
             s.points, s.ran, s.skipped_done, s.skipped_constraint, s.failed, s.seconds,
             mpi.size() > 1 ? fmt::format(" on {} ranks", mpi.size()) : "", o->out);
-        if (ok == 0 && !o->allow_empty) {
+        if (ok == 0 && !cfg.allow_empty) {
           throw Error(std::string("no point of the sweep succeeded, nothing is ranked: the ") +
                       "reasons are in the message column of " + o->out +
                       "/results.csv (pass --allow-empty to exit with status 0 anyway)");

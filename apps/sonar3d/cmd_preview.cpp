@@ -1,6 +1,9 @@
 #include <fmt/core.h>
 
+#include <memory>
+
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/io/preview.hpp"
@@ -15,26 +18,31 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
   struct Opts {
     std::string dataset, out;
     int frame = 0;
-    bool polar = false, grey = false, overwrite = false;
-    PreviewConfig cfg;
+    bool overwrite = false;
+    std::unique_ptr<ConfigOptions<PreviewConfig>> config;
   };
   auto o = std::make_shared<Opts>();
-  cmd->add_option("dataset", o->dataset, "dataset directory")->required();
+  cmd->add_option("dataset", o->dataset, "dataset directory");
   cmd->add_option("-o,--output", o->out,
-                  "PNG file to write (an existing one only if sonar3d wrote it, with --overwrite)")
-      ->required();
+                  "PNG file to write (an existing one only if sonar3d wrote it, with --overwrite)");
   add_overwrite_flag(cmd, o->overwrite, "a picture sonar3d wrote earlier");
   cmd->add_option("--frame", o->frame, "frame index (0-based)")->capture_default_str();
-  cmd->add_flag("--polar", o->polar,
-                "save the polar image (range bins × beams) instead of the fan");
-  cmd->add_flag("--grey", o->grey, "grey levels instead of the JET colour map");
-  cmd->add_option("--width", o->cfg.width, "fan picture width, pixels")->capture_default_str();
-  cmd->add_option("--max", o->cfg.max_value,
-                  "intensity at the top of the colour map (linear units; 0 = frame maximum)")
-      ->capture_default_str();
-  cmd->add_option("--gamma", o->cfg.gamma, "display gamma")->capture_default_str();
+  // The picture's settings (declared once, io/preview.hpp): --polar, --grey, --width, --max,
+  // --gamma, --print-config, --config FILE.
+  o->config = std::make_unique<ConfigOptions<PreviewConfig>>(cmd);
   cmd->callback([&run, o] {
+    // The dataset and -o are required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested()) {
+      if (o->dataset.empty()) throw CLI::RequiredError("dataset");
+      if (o->out.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o] {
+      const PreviewConfig cfg = with_flag_names(o->config->flag_names(), [&] {
+        const PreviewConfig c = o->config->resolve("preview");
+        params::check(c, "preview");
+        return c;
+      });
+      if (o->config->print_if_requested(cfg, "preview", "preview")) return 0;
       OutputFiles out(output_policy(o->overwrite, {o->dataset}));
       const std::filesystem::path png = out.add(o->out, OutputKind::Png, "-o");
       const Dataset ds = read_dataset(o->dataset);
@@ -42,9 +50,7 @@ void add_preview(CLI::App& app, const GlobalOptions& g, Runner& run) {
         throw Error("--frame " + std::to_string(o->frame) + " is out of range (dataset has " +
                     std::to_string(ds.size()) + " frames)");
       }
-      o->cfg.fan = !o->polar;
-      o->cfg.colormap = !o->grey;
-      write_preview_png(png.string(), ds.load_frame(o->frame), ds.spec, o->cfg);
+      write_preview_png(png.string(), ds.load_frame(o->frame), ds.spec, cfg);
       out.commit();
       fmt::print("wrote {}\n", o->out);
       return 0;

@@ -36,52 +36,58 @@ void add_relocalize(CLI::App& app, const GlobalOptions& g, Runner& run) {
   o->config = std::make_unique<ConfigOptions<RelocalizeConfig>>(cmd);
   add_overwrite_flag(cmd, o->overwrite, "a relocalisation directory of an earlier relocalize");
   cmd->callback([&run, &g, o] {
+    // The dataset, --world and -o are required unless --print-config: a usage error (exit 2).
+    if (!o->config->print_requested()) {
+      if (o->dataset.empty()) throw CLI::RequiredError("dataset");
+      if (o->world.empty()) throw CLI::RequiredError("--world");
+      if (o->output.empty()) throw CLI::RequiredError("-o,--output");
+    }
     run = [o, &g] {
-      RelocalizeConfig cfg = o->config->resolve("relocalize");
-      cfg.validate();
-      if (o->config->print_if_requested(cfg, "relocalize", "relocalize")) return 0;
-      require(!o->dataset.empty(), "relocalize: give DATASET (the new survey's dataset directory)");
-      require(!o->world.empty(), "relocalize: give --world WORLD_DIR (written by sonar3d world)");
-      require(!o->output.empty(), "relocalize: give -o OUTPUT (a directory to write)");
-      require(fs::is_directory(o->dataset),
-              "relocalize: dataset '" + o->dataset + "' is not a directory");
-      OutputDirectory out(o->output, OutputKind::Relocalization,
-                          output_policy(o->overwrite, {o->dataset, o->world}));
-      for (const std::string& n : out.notes()) print_note(n);
-      const WorldModelCloud world = read_world_model_cloud(o->world, cfg.model_spacing_m);
-      const Dataset ds = read_dataset(o->dataset);
-      RelocalizeResult r = relocalize(ds, world, cfg, !g.quiet);
-      r.dataset = o->dataset;
-      write_relocalization(out.staging(), r, cfg);
-      out.commit();
-      std::size_t found = 0;
-      for (const RelocalizedSwath& s : r.swaths) found += s.found;
-      if (!r.found) {
-        const std::string why = r.swaths.empty() ? "" : r.swaths.front().reason;
-        fmt::print(
-            "relocalize: NOT FOUND in {} ({} swath(s), none found: {}); {}/relocalization."
-            "json, {:.1f} s\n",
-            o->world, r.swaths.size(), why, o->output, r.seconds_total);
-        return 3;
-      }
-      const RelocalizedSwath* first = nullptr;
-      for (const RelocalizedSwath& s : r.swaths) {
-        if (s.found) {
-          first = &s;
-          break;
+      // The library's errors name its fields ("registration.search_m"): the user reads the flag.
+      return with_flag_names(o->config->flag_names(), [&] {
+        RelocalizeConfig cfg = o->config->resolve("relocalize");
+        cfg.validate();
+        if (o->config->print_if_requested(cfg, "relocalize", "relocalize")) return 0;
+        require(fs::is_directory(o->dataset),
+                "relocalize: dataset '" + o->dataset + "' is not a directory");
+        OutputDirectory out(o->output, OutputKind::Relocalization,
+                            output_policy(o->overwrite, {o->dataset, o->world}));
+        for (const std::string& n : out.notes()) print_note(n);
+        const WorldModelCloud world = read_world_model_cloud(o->world, cfg.model_spacing_m);
+        const Dataset ds = read_dataset(o->dataset);
+        RelocalizeResult r = relocalize(ds, world, cfg, !g.quiet);
+        r.dataset = o->dataset;
+        write_relocalization(out.staging(), r, cfg);
+        out.commit();
+        std::size_t found = 0;
+        for (const RelocalizedSwath& s : r.swaths) found += s.found;
+        if (!r.found) {
+          const std::string why = r.swaths.empty() ? "" : r.swaths.front().reason;
+          fmt::print(
+              "relocalize: NOT FOUND in {} ({} swath(s), none found: {}); {}/relocalization."
+              "json, {:.1f} s\n",
+              o->world, r.swaths.size(), why, o->output, r.seconds_total);
+          return 3;
         }
-      }
-      const Eigen::Vector3d t = first->T_model_survey.translation();
-      fmt::print(
-          "relocalize: found in {} ({}/{} swaths): shift E {:+.3f} N {:+.3f} U {:+.3f} m, yaw "
-          "{:+.2f} deg, sigma {:.3f} m horizontal, overlap {:.0f} %, residual {:.3f} m, "
-          "distinctiveness {:.2f}; {:.1f} s (carving {:.1f} s, registration {:.1f} s) -> "
-          "{}/navigation.tum\n",
-          o->world, found, r.swaths.size(), t.x(), t.y(), t.z(), first->yaw_deg,
-          r.sigma_horizontal_m, 100 * first->overlap_fraction, first->residual_m,
-          first->distinctiveness, r.seconds_total, r.seconds_carving, r.seconds_registration,
-          o->output);
-      return 0;
+        const RelocalizedSwath* first = nullptr;
+        for (const RelocalizedSwath& s : r.swaths) {
+          if (s.found) {
+            first = &s;
+            break;
+          }
+        }
+        const Eigen::Vector3d t = first->T_model_survey.translation();
+        fmt::print(
+            "relocalize: found in {} ({}/{} swaths): shift E {:+.3f} N {:+.3f} U {:+.3f} m, yaw "
+            "{:+.2f} deg, sigma {:.3f} m horizontal, overlap {:.0f} %, residual {:.3f} m, "
+            "distinctiveness {:.2f}; {:.1f} s (carving {:.1f} s, registration {:.1f} s) -> "
+            "{}/navigation.tum\n",
+            o->world, found, r.swaths.size(), t.x(), t.y(), t.z(), first->yaw_deg,
+            r.sigma_horizontal_m, 100 * first->overlap_fraction, first->residual_m,
+            first->distinctiveness, r.seconds_total, r.seconds_carving, r.seconds_registration,
+            o->output);
+        return 0;
+      });
     };
   });
 }

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "params_cli.hpp"
 #include "sonar3d/report/report.hpp"
 
 namespace sonar3d::cli {
@@ -18,15 +19,14 @@ void add_report(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "`sonar3d diff` directory or a PLY cloud/mesh (e.g. textured: in its colours). The input's "
       "kind is recognised by its content. Opens offline (the JavaScript libraries are inlined).");
   struct Opts {
-    std::string dir, output, web_dir, color = "error", placements, catalogue;
+    std::string dir, output, web_dir, placements, catalogue;
     std::vector<std::string> overlays;
-    ReportConfig cfg;
+    std::unique_ptr<ConfigOptions<ReportConfig>> config;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("input", o->dir,
                   "plan directory (results.json), map directory (merged.ply), world directory "
-                  "(graph.json), change directory (changes.json), or a PLY cloud or mesh")
-      ->required();
+                  "(graph.json), change directory (changes.json), or a PLY cloud or mesh");
   cmd->add_option("-o,--output", o->output,
                   "HTML file to write (default: INPUT/report.html; FILE.html beside a PLY)");
   cmd->add_option("--placements", o->placements,
@@ -37,37 +37,35 @@ void add_report(CLI::App& app, const GlobalOptions& g, Runner& run) {
   cmd->add_option("--overlay", o->overlays,
                   "a further PLY cloud or mesh drawn in the 3D view of a map, world, change or PLY "
                   "page (e.g. a `sonar3d texture` output); repeatable");
-  cmd->add_option("--max-points", o->cfg.max_points_per_cloud,
-                  "at most this many points shown per cloud (uniform random subsample)")
-      ->capture_default_str();
-  cmd->add_option("--max-total-points", o->cfg.max_points_total,
-                  "budget of points over all clouds of the page, shared evenly")
-      ->capture_default_str();
-  cmd->add_option("--max-mesh-triangles", o->cfg.max_mesh_triangles,
-                  "CAD meshes above this are simplified for display (errors use the full mesh)")
-      ->capture_default_str();
-  cmd->add_option("--color", o->color, "initial point colouring: error (distance to CAD) or height")
-      ->check(CLI::IsMember({"error", "height"}))
-      ->capture_default_str();
-  cmd->add_option("--error-max", o->cfg.error_color_max,
-                  "top of the error colour scale in metres (0: per cloud, its 95th percentile)")
-      ->capture_default_str();
-  cmd->add_option("--title", o->cfg.title, "page title (default: sonar3d sweep: <dir name>)");
   cmd->add_option(
       "--web-dir", o->web_dir,
       "web assets directory (default: $SONAR3D_WEB_DIR, else <prefix>/share/sonar3d/web "
       "when installed, else the source tree's web/)");
-  cmd->add_option("--seed", o->cfg.seed, "subsampling seed")->capture_default_str();
+  // Every setting (declared once, report/report.hpp): its flag, --print-config, --config FILE.
+  o->config = std::make_unique<ConfigOptions<ReportConfig>>(cmd);
   cmd->callback([&run, &g, o] {
+    // The input is required unless --print-config: a usage error (exit status 2).
+    if (!o->config->print_requested() && o->dir.empty()) throw CLI::RequiredError("input");
     run = [&g, o] {
-      o->cfg.output = o->output;
-      o->cfg.web_dir = o->web_dir;
-      o->cfg.color = parse_report_color(o->color);
-      o->cfg.progress = !g.quiet;
-      o->cfg.placements = o->placements;
-      o->cfg.catalogue = o->catalogue;
-      o->cfg.overlays.assign(o->overlays.begin(), o->overlays.end());
-      const ReportSummary s = write_report(o->dir, o->cfg);
+      // The library's errors name its fields ("max_points_per_cloud"): the user reads the flag.
+      FlagNames names = o->config->flag_names();
+      names.insert(names.end(), {{"max_points_per_cloud", "--max-points"},
+                                 {"max_points_total", "--max-total-points"},
+                                 {"error_color_max", "--error-max"}});
+      // Errors in the settings name the user's flag (or the file, line and key).
+      ReportConfig cfg = with_flag_names(names, [&] {
+        ReportConfig c = o->config->resolve("report");
+        c.validate();
+        return c;
+      });
+      if (o->config->print_if_requested(cfg, "report", "report")) return 0;
+      cfg.output = o->output;
+      cfg.web_dir = o->web_dir;
+      cfg.progress = !g.quiet;
+      cfg.placements = o->placements;
+      cfg.catalogue = o->catalogue;
+      cfg.overlays.assign(o->overlays.begin(), o->overlays.end());
+      const ReportSummary s = write_report(o->dir, cfg);
       for (const auto& w : s.warnings) fmt::print(stderr, "sonar3d: warning: {}\n", w);
       if (s.input != ReportInput::Sweep) {
         fmt::print(

@@ -1,5 +1,6 @@
 // Evaluation against CAD ground truth (thesis sec. 4.5.2.1).
 #include "common.hpp"
+#include "params_py.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/eval/per_object.hpp"
@@ -41,22 +42,10 @@ PointCloud cloud_from(const carray<float>& points) {
 }  // namespace
 
 void bind_eval(py::module_& m) {
-  py::class_<EvalConfig>(m, "EvalConfig",
-                         "Metric settings: coverage_radius r_c (m), outlier_radius r_o (m), "
-                         "samples_per_cm2, histogram_max (m), histogram_bins, seed.")
-      .def(py::init([](py::kwargs kw) {
-        EvalConfig c;
-        py::object o = py::cast(&c, py::return_value_policy::reference);
-        for (auto item : kw) py::setattr(o, item.first, item.second);
-        return c;
-      }))
-      .def_readwrite("coverage_radius", &EvalConfig::coverage_radius)
-      .def_readwrite("outlier_radius", &EvalConfig::outlier_radius)
-      .def_readwrite("samples_per_cm2", &EvalConfig::samples_per_cm2)
-      .def_readwrite("histogram_max", &EvalConfig::histogram_max)
-      .def_readwrite("histogram_bins", &EvalConfig::histogram_bins)
-      .def_readwrite("seed", &EvalConfig::seed)
-      .def("__repr__", &fields_repr)
+  bind_config<EvalConfig>(m, "EvalConfig",
+                          "Metric settings (sec. 4.5.2.1): r_c, r_o, surface samples, histogram, "
+                          "seed; sonar3d evaluate's flags and --print-config keys "
+                          "(docs/reference.md).")
       .def("validate", &EvalConfig::validate);
 
   m.def(

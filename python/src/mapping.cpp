@@ -47,29 +47,38 @@ void bind_mapping(py::module_& m) {
       .def("num_valid", &ElevationMap::num_valid)
       .def("__repr__", &fields_repr);
 
+  bind_config<ElevationMapConfig>(
+      m, "ElevationMapConfig",
+      "An elevation map's settings (sec. 6.2.1; sonar3d elevation's `map:` block, "
+      "docs/reference.md).")
+      .def("validate", &ElevationMapConfig::validate);
+  bind_config<ElevationWriteOptions>(
+      m, "ElevationWriteOptions",
+      "How an elevation map is stored in a GeoTIFF (sonar3d elevation's `geotiff:` block): "
+      "float32, or uint16 with uint16_step_m.");
   m.def(
       "elevation_map",
-      [](const carray<float>& points, double cell_m) {
+      [](const carray<float>& points, const py::object& config, const py::kwargs& settings) {
         PointCloud c;
         c.points = array_to_points(points);
-        ElevationMapConfig cfg;
-        cfg.cell_m = cell_m;
+        const ElevationMapConfig cfg =
+            config_with_settings<ElevationMapConfig>(config, settings, "elevation_map");
         return elevation_map_from_points(c, cfg);
       },
-      "points"_a, "cell_m"_a = 0.02,
-      "Elevation map of an (N, 3) world-frame cloud: the highest z per cell of cell_m metres.");
+      "points"_a, "config"_a = py::none(),
+      "Elevation map of an (N, 3) world-frame cloud: the highest z per cell (sec. 6.2.1). "
+      "config: an ElevationMapConfig, or its settings as keywords (cell_m=0.05).");
   m.def(
       "write_elevation_geotiff",
-      [](const std::string& path, const ElevationMap& map, std::optional<double> uint16_step_m) {
-        ElevationWriteOptions w;
-        if (uint16_step_m) {
-          w.encoding = ElevationEncoding::UInt16;
-          w.uint16_step_m = *uint16_step_m;
-        }
+      [](const std::string& path, const ElevationMap& map, const py::object& config,
+         const py::kwargs& settings) {
+        const ElevationWriteOptions w = config_with_settings<ElevationWriteOptions>(
+            config, settings, "write_elevation_geotiff");
         write_elevation_geotiff(path, map, w);
       },
-      "path"_a, "map"_a, "uint16_step_m"_a = py::none(),
-      "GeoTIFF (float32, or uint16 with this step in metres), written atomically.");
+      "path"_a, "map"_a, "config"_a = py::none(),
+      "GeoTIFF, written atomically: float32, or uint16 with uint16_step_m metres per step "
+      "(config: an ElevationWriteOptions, or uint16_step_m= as a keyword).");
   m.def("read_elevation_geotiff", &read_elevation_geotiff, "path"_a);
   m.def("write_elevation_png", &write_elevation_png, "path"_a, "map"_a,
         "A picture with a colour bar; returns the (min, max) height shown.");

@@ -119,6 +119,7 @@ double median_of(std::vector<double>& v) {
 }  // namespace
 
 void EvalConfig::validate() const {
+  params::check(*this, "evaluate");
   require_positive(coverage_radius, "coverage_radius", "m");
   require_positive(outlier_radius, "outlier_radius", "m");
   require_positive(samples_per_cm2, "samples_per_cm2", "per cm^2");

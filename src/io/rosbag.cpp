@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 #include "rosbag_internal.hpp"
 #include "sonar3d/core/atomic_file.hpp"
@@ -664,8 +665,20 @@ RosbagImportResult import_rosbag(const fs::path& bag_path, const fs::path& out,
   return res;
 }
 
+void RosbagExportConfig::validate() const {
+  params::check(*this, "export rosbag");
+  for (const auto& [value, name] : {std::pair{&sonar_topic, "sonar_topic"},
+                                    {&nav_topic, "nav_topic"},
+                                    {&world_frame, "world_frame"},
+                                    {&base_frame, "base_frame"},
+                                    {&sonar_frame, "sonar_frame"}}) {
+    require(!value->empty(), std::string("export rosbag: ") + name + " must not be empty");
+  }
+}
+
 RosbagExportResult export_rosbag(const fs::path& dataset, const fs::path& out,
                                  const RosbagExportConfig& config, bool progress) {
+  config.validate();
   const Dataset ds = read_dataset(dataset);
   if (ds.size() == 0) throw Error(dataset.string() + ": the dataset holds no frame");
   std::error_code ec;

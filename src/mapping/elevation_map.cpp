@@ -19,6 +19,11 @@
 
 namespace sonar3d {
 
+void ElevationFileConfig::validate() const {
+  params::check(*this, "elevation");
+  map.validate();
+}
+
 namespace {
 
 constexpr std::uint16_t kUInt16NoData = 65535;
@@ -121,7 +126,7 @@ MemoryEstimate estimate_elevation_memory(const PointCloud& cloud_world,
                 grid.rows(), config.cell_m);
   MemoryEstimate e;
   e.add(what, cells * sizeof(float), cell_option);
-  if (write.encoding == ElevationEncoding::UInt16) {
+  if (write.uint16_step_m) {
     e.add("its uint16 GeoTIFF band", cells * sizeof(std::uint16_t), cell_option);
   }
   // The picture: grey and validity masks, the colour-mapped image and the canvas (8-bit BGR),
@@ -169,16 +174,16 @@ void write_elevation_geotiff(const std::string& path, const ElevationMap& map,
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
   require(driver != nullptr, "cannot write '" + path + "': GDAL has no GTiff driver");
 
-  const bool quantised = options.encoding == ElevationEncoding::UInt16;
+  const bool quantised = options.uint16_step_m.has_value();
   double offset = 0, scale = 1;
   std::vector<std::uint16_t> q;
   if (quantised) {
-    require_positive(options.uint16_step_m, "uint16_step_m", "m");
+    require_positive(*options.uint16_step_m, "uint16_step_m", "m");
     float lo = std::numeric_limits<float>::infinity(), hi = -lo;
     for (float v : map.z) {
       if (v == v) lo = std::min(lo, v), hi = std::max(hi, v);
     }
-    scale = options.uint16_step_m;
+    scale = *options.uint16_step_m;
     offset = lo == lo && std::isfinite(lo) ? lo : 0.0;
     require(!std::isfinite(hi) || (hi - offset) / scale <= kUInt16NoData - 1,
             "cannot write '" + path + "' as uint16: the height range " +

@@ -556,9 +556,8 @@ void Survey::do_texture(SurveyStageReport& r) {
   job.dataset_dir = dataset_;
   // The corrected navigation places the video where the corrected map is.
   job.navigation_file = out_ / "map" / "navigation_corrected.tum";
-  job.config.point_spacing_m = c.point_spacing;
-  job.config.depth_tolerance_m = c.depth_tolerance;
-  job.config.max_range_m = c.max_range;
+  job.config = c.texture.texture;
+  job.poses = c.texture.poses;
   job.drop_uncoloured = c.drop_uncoloured;
   job.progress = o_.progress;
   const fs::path s = staging("texture");
@@ -574,19 +573,9 @@ void Survey::do_texture(SurveyStageReport& r) {
 
 void Survey::do_report(SurveyStageReport& r) {
   const SurveyReportOptions& c = o_.config.report;
-  require(c.max_points > 0 && c.max_total_points > 0 && c.max_mesh_triangles > 0,
-          "report.max_points, max_total_points and max_mesh_triangles must be > 0");
-  require(c.seed >= 0, "report.seed must be >= 0");
-  ReportConfig cfg;
-  cfg.max_points_per_cloud = static_cast<std::size_t>(c.max_points);
-  cfg.max_points_total = static_cast<std::size_t>(c.max_total_points);
-  cfg.max_mesh_triangles = static_cast<std::size_t>(c.max_mesh_triangles);
-  cfg.color = parse_report_color(c.color);
-  cfg.error_color_max = c.error_max;
-  cfg.title =
-      c.title.empty() ? "sonar3d survey: " + fs::absolute(out_).filename().string() : c.title;
+  ReportConfig cfg = c.report;
+  if (cfg.title.empty()) cfg.title = "sonar3d survey: " + fs::absolute(out_).filename().string();
   cfg.web_dir = c.web_dir;
-  cfg.seed = static_cast<unsigned long long>(c.seed);
   cfg.progress = o_.progress;
   std::error_code ec;
   if (fs::is_regular_file(out_ / "textured.ply", ec)) cfg.overlays.push_back(out_ / "textured.ply");

@@ -120,6 +120,7 @@ ReportColor parse_report_color(const std::string& name) {
 }
 
 void ReportConfig::validate() const {
+  params::check(*this, "report");
   require(max_points_per_cloud >= 1, "report: max_points_per_cloud must be >= 1");
   require(max_points_total >= 1, "report: max_points_total must be >= 1");
   require(max_mesh_triangles >= 100, "report: max_mesh_triangles must be >= 100");

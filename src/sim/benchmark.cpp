@@ -1,9 +1,11 @@
 #include "sonar3d/sim/benchmark.hpp"
 
 #include <chrono>
+#include <cmath>
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/reference_objects.hpp"
+#include "sonar3d/core/units.hpp"
 
 namespace sonar3d {
 
@@ -44,6 +46,35 @@ SimBenchResult benchmark_simulator(const SonarSpec& spec, const SimulatorConfig&
   r.rays_per_image = sim.rays_per_image();
   r.mrays_per_s = r.rays_per_image * r.hz * 1e-6;
   return r;
+}
+
+void SimBenchConfig::validate() const {
+  params::check(*this, "bench");
+  require(std::lround(fov_deg / bearing_step_deg) >= 1,
+          "bench: bearing_step_deg is wider than fov_deg: no beam");
+  require(std::lround(range_max_m / range_res_m) >= 1,
+          "bench: range_res_m is longer than range_max_m: no range bin");
+}
+
+SonarSpec bench_sonar_spec(const SimBenchConfig& c) {
+  c.validate();
+  SonarSpec spec;
+  spec.name = "bench";
+  spec.set_uniform_bearings(c.fov_deg * kDeg,
+                            static_cast<int>(std::lround(c.fov_deg / c.bearing_step_deg)));
+  spec.r_min = 0.0;
+  spec.r_max = c.range_max_m;
+  spec.range_bins = static_cast<int>(std::lround(c.range_max_m / c.range_res_m));
+  spec.vertical_aperture_rad = c.aperture_deg * kDeg;
+  return spec;
+}
+
+SimBenchResult benchmark_simulator(const SimBenchConfig& c) {
+  const SonarSpec spec = bench_sonar_spec(c);
+  SimulatorConfig sim;
+  sim.elevation_step_rad = c.elevation_step_deg * kDeg;
+  sim.num_threads = c.num_threads;
+  return benchmark_simulator(spec, sim, c.frames, c.pitch_down_deg * kDeg);
 }
 
 }  // namespace sonar3d

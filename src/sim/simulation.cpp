@@ -178,6 +178,12 @@ Trajectory load_segment(const YAML::Node& n, const std::string& file, const std:
 
 }  // namespace
 
+void SimulateConfig::validate() const {
+  params::check(*this, "simulate");
+  require(!seed || *seed == std::floor(*seed),
+          "simulate: seed must be a whole number, got " + params::format_number(*seed));
+}
+
 SimulationSetup load_simulation_setup(const std::string& path) {
   SimulationSetup setup;
   setup.source = path;

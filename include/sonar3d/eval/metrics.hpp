@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "sonar3d/core/mesh.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 
 namespace sonar3d {
@@ -20,6 +21,33 @@ struct EvalConfig {
   unsigned long long seed = 1;  // surface sampling seed
   void validate() const;        // throws Error naming the field
 };
+
+// The one declaration of EvalConfig's settings (core/params.hpp): sonar3d evaluate's flags and
+// its --print-config keys, the Python class sonar3d.EvalConfig.
+template <class V>
+void describe(EvalConfig& c, V& v) {
+  using params::param;
+  v.field(c.coverage_radius,
+          param("coverage_radius", "m", "r_c: a surface sample is covered with a point within it")
+              .positive()
+              .equation("sec. 4.5.2.1")
+              .flag("--coverage-radius"));
+  v.field(c.outlier_radius, param("outlier_radius", "m", "r_o: a point farther is an outlier")
+                                .positive()
+                                .equation("sec. 4.5.2.1")
+                                .flag("--outlier-radius"));
+  v.field(c.samples_per_cm2,
+          param("samples_per_cm2", "",
+                "uniform surface samples per cm^2 for coverage (never fewer than 1000)")
+              .positive()
+              .flag("--samples-per-cm2"));
+  v.field(c.histogram_max,
+          param("histogram_max", "m", "last edge of the error histogram (larger errors: last bin)")
+              .positive());
+  v.field(c.histogram_bins,
+          param("histogram_bins", "", "bins of the error histogram").range(1, 1e6));
+  v.field(c.seed, param("seed", "", "surface sampling seed").flag("--seed"));
+}
 
 // Units: metres for errors and radii, fractions in [0, 1] for coverage and outliers. An empty
 // cloud gives num_points 0, coverage 0, NaN outliers/median/mean/ratio (null in JSON).

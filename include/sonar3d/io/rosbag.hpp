@@ -219,7 +219,46 @@ struct RosbagExportConfig {
   std::string message_package = "marine_acoustic_msgs";  // or "acoustic_msgs"
   std::string world_frame = "map", base_frame = "base_link", sonar_frame = "sonar";
   std::string ros1_compression = "none";  // ROS 1 chunks: none, bz2 or lz4 (as rosbag --bz2/--lz4)
+  void validate() const;                  // throws Error naming the field
 };
+
+inline constexpr const char* kRosWireNames[] = {"ros2", "ros1"};  // RosWire: Cdr, Ros1
+inline constexpr const char* kRosMessagePackages[] = {"marine_acoustic_msgs", "acoustic_msgs"};
+inline constexpr const char* kRos1Compressions[] = {"none", "bz2", "lz4"};
+
+// The one declaration of RosbagExportConfig's settings (core/params.hpp): sonar3d export
+// rosbag's flags and --print-config keys. `wire` has no flag of its own: the command's --ros1
+// sets it to ros1.
+template <class V>
+void describe(RosbagExportConfig& c, V& v) {
+  using params::param;
+  v.field(c.wire, param("wire", "",
+                        "the bag: ros2 (a sqlite3 bag directory, CDR messages) or ros1 (a v2.0 "
+                        ".bag file)")
+                      .choices(kRosWireNames));
+  v.field(
+      c.sonar_topic,
+      param("sonar_topic", "", "topic of the ProjectedSonarImage messages").flag("--sonar-topic"));
+  v.field(
+      c.nav_topic,
+      param("nav_topic", "", "topic of the navigation (nav_msgs/Odometry)").flag("--nav-topic"));
+  v.field(c.message_package, param("message_package", "", "message package of ProjectedSonarImage")
+                                 .choices(kRosMessagePackages)
+                                 .flag("--package"));
+  v.field(c.world_frame, param("world_frame", "", "frame of the navigation's poses (the world)")
+                             .flag("--world-frame"));
+  v.field(
+      c.base_frame,
+      param("base_frame", "", "the vehicle's frame (the odometry's child)").flag("--base-frame"));
+  v.field(c.sonar_frame, param("sonar_frame", "",
+                               "the sonar's frame (the mounting on /tf_static: base_frame "
+                               "to sonar_frame)")
+                             .flag("--sonar-frame"));
+  v.field(c.ros1_compression,
+          param("ros1_compression", "", "ROS 1 chunk compression (as rosbag record --bz2/--lz4)")
+              .choices(kRos1Compressions)
+              .flag("--compression"));
+}
 
 struct RosbagExportResult {
   std::size_t frames = 0, navigation_samples = 0;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "sonar3d/core/memory.hpp"
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/point_cloud.hpp"
 
 namespace sonar3d {
@@ -51,21 +52,49 @@ struct ElevationMapConfig {
   void validate() const;  // throws Error naming the parameter
 };
 
+// The one declaration of ElevationMapConfig's settings (core/params.hpp). The region (two 2D
+// corners) and max_cells are the caller's: sonar3d elevation replaces the cell cap by its memory
+// limit (--max-memory).
+template <class V>
+void describe(ElevationMapConfig& c, V& v) {
+  v.field(c.cell_m, params::param("cell_m", "m", "cell size of the map (the thesis maps at 2 cm)")
+                        .positive()
+                        .equation("sec. 6.2.1")
+                        .flag("--cell-m"));
+}
+
 // Sec. 6.2.1: each cell keeps the highest z of the points that fall in it (a downward-looking
 // sonar sees the top of what is below it); cells without points hold no data. Non-finite points
 // are an error naming their index.
 ElevationMap elevation_map_from_points(const PointCloud& cloud_world,
                                        const ElevationMapConfig& config);
 
-enum class ElevationEncoding {
-  Float32,  // heights as float32, no-data = NaN (GDAL's no-data tag set to nan)
-  UInt16    // quantised: z = offset + scale·q, q ∈ [0, 65534], q = 65535 = no data
-};
-
+// How a map is stored in a GeoTIFF. Absent uint16_step_m: heights as float32, no-data = NaN
+// (GDAL's no-data tag set to nan). Given: quantised to uint16, z = offset + scale·q with scale =
+// uint16_step_m, q ∈ [0, 65534], q = 65535 = no data.
 struct ElevationWriteOptions {
-  ElevationEncoding encoding = ElevationEncoding::Float32;
-  double uint16_step_m = 0.001;  // quantisation step of UInt16 (the scale), m
+  params::Maybe uint16_step_m;  // m
 };
+template <class V>
+void describe(ElevationWriteOptions& c, V& v) {
+  v.field(c.uint16_step_m,
+          params::param("uint16_step_m", "m",
+                        "store heights as uint16 with this step (none: float32, NaN for no data)")
+              .positive()
+              .flag("--uint16-step-m"));
+}
+
+// sonar3d elevation's settings: the map, and how it is stored.
+struct ElevationFileConfig {
+  ElevationMapConfig map;
+  ElevationWriteOptions geotiff;
+  void validate() const;  // throws Error naming the parameter
+};
+template <class V>
+void describe(ElevationFileConfig& c, V& v) {
+  v.group("map", c.map);
+  v.group("geotiff", c.geotiff);
+}
 
 // GeoTIFF through GDAL: geotransform (origin, cell size, north-up), the no-data value, and for
 // UInt16 the band's offset and scale; the CRS is a local engineering frame (local ENU, metres).

@@ -5,9 +5,9 @@
 //   import → map → recognise → world model → texture → report
 //
 // Each stage is the library call its own command makes (`import`, `map`, `recognize`, `world`,
-// `texture`, `report`). The import, map, recognise and world stages take their commands' declared
-// configurations (the same keys as the command's --print-config; import: one block per input
-// kind); texture and report still take their commands' flags under the same names ('_' for '-').
+// `texture`, `report`), and takes its command's declared configuration (the same keys as the
+// command's --print-config; import: one block per input kind), plus the few keys only the
+// survey has.
 // Outputs, under OUT:
 //   dataset/            the imported dataset (not when INPUT is already a dataset: used in place)
 //   map/                sonar3d map's directory (merged.ply, navigation_corrected.tum, ...)
@@ -37,6 +37,8 @@
 #include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/recog/recognize.hpp"
+#include "sonar3d/report/report.hpp"
+#include "sonar3d/video/texture_files.hpp"
 #include "sonar3d/world/world_model.hpp"
 
 namespace sonar3d {
@@ -108,20 +110,33 @@ void describe(SurveyWorldOptions& o, V& v) {
                                 "coarsest)"));
 }
 
-struct SurveyTextureOptions {  // sonar3d texture --dataset (defaults: TextureConfig's)
-  SurveyTextureOptions();
-  double point_spacing = 0, depth_tolerance = 0, max_range = 0;
+// sonar3d texture (--dataset: the dataset's camera frames on the corrected navigation): its
+// configuration (the keys of `sonar3d texture --print-config`), plus its --drop-uncoloured.
+struct SurveyTextureOptions {
+  TextureFilesConfig texture;
   bool drop_uncoloured = false;
 };
+template <class V>
+void describe(SurveyTextureOptions& o, V& v) {
+  describe(o.texture, v);  // the texture's own keys, at the stage's level
+  v.field(o.drop_uncoloured,
+          params::param("drop_uncoloured", "",
+                        "leave out the points no frame saw (else they are black)"));
+}
 
-struct SurveyReportOptions {  // sonar3d report (defaults: ReportConfig's)
-  SurveyReportOptions();
-  long long max_points = 0, max_total_points = 0, max_mesh_triangles = 0;
-  std::string color = "error";
-  double error_max = 0;
-  std::string title, web_dir;
-  long long seed = 1;
+// sonar3d report: its configuration (the keys of `sonar3d report --print-config`), plus its
+// --web-dir. An empty title is "sonar3d survey: <OUT's name>".
+struct SurveyReportOptions {
+  ReportConfig report;
+  std::string web_dir;  // relative: to the survey file
 };
+template <class V>
+void describe(SurveyReportOptions& o, V& v) {
+  describe(o.report, v);  // the report's own keys, at the stage's level
+  v.field(o.web_dir, params::param("web_dir", "",
+                                   "web assets directory (empty: as sonar3d report finds it); "
+                                   "relative to the survey file"));
+}
 
 struct SurveyConfig {
   SurveyImportOptions import;

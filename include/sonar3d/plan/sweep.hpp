@@ -10,6 +10,7 @@
 #include <variant>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 
 namespace sonar3d {
@@ -67,6 +68,18 @@ struct PlanOptions {
   // running together is estimated beyond it.
   double max_memory_bytes = 0;
 };
+
+// sonar3d plan's own settings (the sweep file holds everything the points run with).
+struct PlanConfig {
+  bool allow_empty = false;  // exit status 0 even when no point succeeded
+};
+template <class V>
+void describe(PlanConfig& c, V& v) {
+  v.field(c.allow_empty, params::param("allow_empty", "",
+                                       "exit with status 0 even when no point of the sweep "
+                                       "succeeded (else an error: nothing is ranked)")
+                             .flag("--allow-empty"));
+}
 
 struct PlanSummary {
   std::size_t points = 0, ran = 0, skipped_done = 0, skipped_constraint = 0, failed = 0;

@@ -17,9 +17,12 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
+
 namespace sonar3d {
 
 enum class ReportColor { Error, Height };
+inline constexpr const char* kReportColorNames[] = {"error", "height"};
 
 // Parses "error" | "height"; throws Error listing the names.
 ReportColor parse_report_color(const std::string& name);
@@ -59,6 +62,41 @@ struct ReportConfig {
   bool progress = false;          // progress bar on a terminal (stderr)
   void validate() const;          // throws Error naming the field
 };
+
+// The one declaration of the page's settings (core/params.hpp): sonar3d report's flags and its
+// --print-config keys, the survey's `report:` block. The keys are the flags' names (as the
+// survey's report block always had them). What the page is made of (input, output, placements,
+// catalogue, overlays), where the web assets are and the progress bar are the caller's.
+template <class V>
+void describe(ReportConfig& c, V& v) {
+  using params::param;
+  v.field(c.max_points_per_cloud, param("max_points", "",
+                                        "at most this many points shown per cloud (uniform random "
+                                        "subsample, seeded)")
+                                      .at_least(1)
+                                      .flag("--max-points"));
+  v.field(c.max_points_total, param("max_total_points", "",
+                                    "budget of points over all clouds of the page, shared "
+                                    "evenly")
+                                  .at_least(1)
+                                  .flag("--max-total-points"));
+  v.field(c.max_mesh_triangles,
+          param("max_mesh_triangles", "",
+                "CAD meshes above this are simplified for display (errors use the full mesh)")
+              .at_least(100)
+              .flag("--max-mesh-triangles"));
+  v.field(c.color, param("color", "", "initial point colouring: distance to CAD, or height")
+                       .choices(kReportColorNames)
+                       .flag("--color"));
+  v.field(
+      c.error_color_max,
+      param("error_max", "m", "top of the error colour scale (0: per cloud, its 95th percentile)")
+          .non_negative()
+          .flag("--error-max"));
+  v.field(c.title,
+          param("title", "", "page title (empty: sonar3d <kind>: <input name>)").flag("--title"));
+  v.field(c.seed, param("seed", "", "subsampling seed").flag("--seed"));
+}
 
 struct ReportSummary {
   std::filesystem::path output;

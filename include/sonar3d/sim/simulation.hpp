@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "sonar3d/core/params.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -49,6 +50,27 @@ struct SimulationSetup {
   std::optional<SimulatedCamera> camera;
   unsigned long long seed = 1;
 };
+
+// sonar3d simulate's settings beside the scene file: a seed replacing the scene's, and whether a
+// dataset in which no object is ever in view is written.
+struct SimulateConfig {
+  params::Maybe seed;  // none: the scene's seed; a whole number
+  bool allow_empty = false;
+  void validate() const;  // throws Error naming the field
+};
+template <class V>
+void describe(SimulateConfig& c, V& v) {
+  using params::param;
+  v.field(c.seed, param("seed", "",
+                        "random seed of the jitter and noise, a whole number (none: the scene's "
+                        "seed)")
+                      .range(0, 9007199254740992.0)
+                      .flag("--seed"));
+  v.field(c.allow_empty, param("allow_empty", "",
+                               "write the dataset even when no object is ever in view (else an "
+                               "error)")
+                             .flag("--allow-empty"));
+}
 
 // Parses and validates a scene file; errors name the file, line and key.
 SimulationSetup load_simulation_setup(const std::string& scene_yaml);
