@@ -766,14 +766,18 @@ BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
 
 }  // namespace deconv_detail
 
-PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
-                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
-                             const SonarSpec& spec, const DeconvConfig& config,
-                             DeconvReport* report_out, bool progress) {
-  using namespace deconv_detail;
-  const auto t_start = std::chrono::steady_clock::now();
-  config.validate();
-  spec.validate();
+// Driver: deconvolve_frames and its stages (thesis ch. 5), in the order it runs them: check the
+// frames, choose the mode (auto), plan the passes (eq. 5.25–5.26), summarise free space, then per
+// pass: its report (eq. 5.21, 5.25), its column stack, the NNLS solve (eq. 5.28), de-ringing and
+// the second pass (sec. 5.6.7); last, the occlusion resolution (sec. 5.6.7.3).
+
+namespace {
+
+using namespace deconv_detail;  // PassData, LayerPoint, the solvers (deconvolve_internal.hpp)
+
+// The frames are as many as the poses and each is the sonar's size.
+void check_frames(const std::vector<SonarImage>& denoised,
+                  const std::vector<Eigen::Isometry3d>& T_world_sonar, const SonarSpec& spec) {
   require(denoised.size() == T_world_sonar.size(),
           "deconvolve: " + std::to_string(denoised.size()) + " frames but " +
               std::to_string(T_world_sonar.size()) + " poses");
@@ -785,37 +789,377 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
                   " range bins × " + std::to_string(spec.beams()) + " beams");
     }
   }
-  if (config.mode == DeconvConfig::Mode::Auto) {
-    // The passes mode when the frames form regular passes, the voxel mode otherwise: decided
-    // first from the poses alone (auto_mode_reason), then, should the passes mode still refuse
-    // (e.g. too few frames for a footprint) or leave frames out, by its outcome.
-    std::string why = auto_mode_reason(T_world_sonar, config);
-    if (why.empty()) {
-      DeconvConfig pc = config;
-      pc.mode = DeconvConfig::Mode::Passes;
-      DeconvReport pr;
-      try {
-        PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
-        std::size_t in_passes = 0;
-        for (const PassReport& p : pr.passes) in_passes += p.frames;
-        if (in_passes == denoised.size()) {
-          if (report_out) *report_out = std::move(pr);
-          return cloud;
+}
+
+// The farthest range bin within max_range (the whole range when max_range is 0).
+int farthest_bin(const SonarSpec& spec, const DeconvConfig& config) {
+  const double r_far_limit =
+      config.max_range > 0 ? std::min(config.max_range, spec.r_max) : spec.r_max;
+  int bin_hi = spec.range_bins - 1;
+  while (bin_hi >= 0 && spec.range_of_bin(bin_hi) > r_far_limit) --bin_hi;
+  require(bin_hi >= 0, "deconv.max_range (" + fmt(config.max_range) +
+                           " m) is below the sonar's first range bin (" +
+                           fmt(spec.range_of_bin(0)) + " m)");
+  return bin_hi;
+}
+
+// A pass to reconstruct: its frames, geometry (analyze_pass), layer height and range window.
+struct PassPlan {
+  std::size_t first, count;
+  std::string label;
+  PassGeometry geo;
+  double dz;
+  int bin_hi;  // farthest range bin holding a return (within max_range)
+};
+
+// The farthest range bin (≤ bin_hi) holding a return in any of the pass's frames, −1 for none:
+// columns beyond it hold nothing, the window ends there.
+int last_return_bin(const std::vector<SonarImage>& denoised, std::size_t first, std::size_t count,
+                    int bin_hi) {
+  std::vector<int> last_bin(count, -1);
+  tbb::parallel_for(std::size_t{0}, count, [&](std::size_t k) {
+    const SonarImage& im = denoised[first + k];
+    for (int i = bin_hi; i >= 0 && last_bin[k] < 0; --i) {
+      const float* row = im.row_ptr(i);
+      for (int j = 0; j < im.cols; ++j) {
+        if (row[j] > 0.0f) {
+          last_bin[k] = i;
+          break;
         }
-        why = std::to_string(denoised.size() - in_passes) + " of " +
-              std::to_string(denoised.size()) + " frames in no reconstructed pass";
-      } catch (const Error& e) {
-        why = e.what();
       }
     }
-    DeconvConfig vc = config;
-    vc.mode = DeconvConfig::Mode::Voxel;
-    DeconvReport vr;
-    PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
-    vr.mode_note = "deconvolution mode auto: voxel mode, the passes mode does not apply (" + why +
-                   "); --deconv-mode passes forces it";
-    if (report_out) *report_out = std::move(vr);
-    return cloud;
+  });
+  int out = -1;
+  for (int b : last_bin) out = std::max(out, b);
+  return out;
+}
+
+// The passes (split_passes, or all frames as one), each checked before the heavy work so that a
+// bad pass fails fast: too short ones and ones without a return are skipped with a warning; one
+// too short for its footprint at the far range (eq. 5.25–5.26) is an error.
+std::vector<PassPlan> plan_passes(const std::vector<SonarImage>& denoised,
+                                  const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                                  const SonarSpec& spec, const DeconvConfig& config, int bin_hi,
+                                  DeconvReport& report) {
+  const double theta3 = spec.theta_3db();
+  const double dr = spec.range_resolution();
+  std::vector<std::pair<std::size_t, std::size_t>> ranges =
+      config.split_passes
+          ? split_passes(T_world_sonar, config)
+          : std::vector<std::pair<std::size_t, std::size_t>>{{0, T_world_sonar.size()}};
+  std::vector<PassPlan> plans;
+  for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
+    const std::size_t first = ranges[pi].first, last = ranges[pi].second;
+    const std::string label = frames_label(pi, first, last - first);
+    if (static_cast<int>(last - first) < config.min_pass_frames) {
+      report.warnings.push_back(
+          label + ": skipped, only " + std::to_string(last - first) +
+          " frames (min_pass_frames = " + std::to_string(config.min_pass_frames) + ")");
+      continue;
+    }
+    std::vector<Eigen::Isometry3d> poses(T_world_sonar.begin() + first,
+                                         T_world_sonar.begin() + last);
+    PassPlan plan{first, last - first, label, analyze_pass(poses, config, label), 0.0, -1};
+    plan.dz = config.layer_spacing > 0 ? config.layer_spacing : plan.geo.spacing;
+    // Columns beyond the farthest return hold nothing: the window ends there.
+    plan.bin_hi = last_return_bin(denoised, first, plan.count, bin_hi);
+    if (plan.bin_hi < 0) {
+      report.warnings.push_back(label + ": skipped, no return in any frame after denoising");
+      continue;
+    }
+    if (config.exact) {
+      // A cell seen off-centre lands up to r·(1/cos θ_3dB − 1) farther: keep those empty
+      // bins, they constrain the far cells.
+      const double r = spec.range_of_bin(plan.bin_hi);
+      plan.bin_hi = std::min(
+          bin_hi,
+          plan.bin_hi + 1 + static_cast<int>(std::ceil(r * (1.0 / std::cos(theta3) - 1.0) / dr)));
+    }
+    // eq. 5.25–5.26: the far range needs K frames to be seen by a full footprint.
+    const double r_far = spec.range_of_bin(plan.bin_hi);
+    const int K_far = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
+    if (static_cast<int>(plan.count) < K_far) {
+      const double r_ok = plan.count * plan.dz / (2.0 * std::tan(theta3));
+      throw Error(label + ": too few frames for the footprint: at r = " + fmt(r_far, 2) +
+                  " m the aperture of " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
+                  "° spans K = " + std::to_string(K_far) + " layers of " + fmt(plan.dz * 100, 2) +
+                  " cm (eq. 5.25) but the pass has " + std::to_string(plan.count) +
+                  " frames; record a longer pass or limit the "
+                  "range with max_range ≤ " +
+                  fmt(r_ok, 2) + " m (the farthest return is at " + fmt(r_far, 2) + " m)");
+    }
+    plans.push_back(std::move(plan));
+  }
+  return plans;
+}
+
+// A pass's report before solving: its geometry, footprint sizes (eq. 5.25) and the rectilinear
+// approximation's mismatch (eq. 5.21), with a warning for each that does not hold.
+PassReport pass_report(const PassPlan& plan, const SonarSpec& spec, const DeconvConfig& config) {
+  const double theta3 = spec.theta_3db();
+  const double dr = spec.range_resolution();
+  PassReport pr;
+  pr.first_frame = plan.first;
+  pr.frames = plan.count;
+  const PassGeometry& g = plan.geo;
+  pr.spacing = g.spacing;
+  pr.axis_angle_deg = g.axis_angle_rad / kDeg;
+  pr.max_rotation_deg = g.max_rotation_rad / kDeg;
+  pr.max_lateral = g.max_lateral;
+  pr.rms_lateral = g.rms_lateral;
+  pr.max_spacing_error = g.max_spacing_error;
+  pr.rms_spacing_error = g.rms_spacing_error;
+  pr.warnings = g.warnings;
+  const double r_far = spec.range_of_bin(plan.bin_hi);
+  pr.K_min = footprint_layers(spec.range_of_bin(0), spec.vertical_aperture_rad, plan.dz);
+  pr.K_max = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
+  pr.rectilinear_mismatch_bins = rectilinear_mismatch(r_far, theta3) / dr;
+  pr.rectilinear_max_aperture_deg = rectilinear_max_aperture(r_far, dr) / kDeg;
+  if (g.max_lateral > 0.5 * dr) {
+    pr.warnings.push_back(plan.label + ": frames deviate up to " + fmt(g.max_lateral * 100, 2) +
+                          " cm (rms " + fmt(g.rms_lateral * 100, 2) +
+                          " cm) from the pass axis, more than half a range bin (" +
+                          fmt(0.5 * dr * 100, 2) + " cm): returns shift between columns");
+  }
+  if (!config.exact && pr.rectilinear_mismatch_bins > config.rectilinear_warn_bins) {
+    // eq. 5.21 gives the largest range where the approximation holds for this aperture.
+    const double r_ok = 0.5 * dr / (1.0 - std::cos(theta3));
+    pr.warnings.push_back(
+        plan.label +
+        ": the rectilinear approximation (eq. 5.21) is violated beyond r = " + fmt(r_ok, 2) +
+        " m: at r = " + fmt(r_far, 2) + " m the " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
+        "° aperture bends the footprint by " + fmt(pr.rectilinear_mismatch_bins, 2) +
+        " range bins at its edge (eq. 5.21 allows " + fmt(pr.rectilinear_max_aperture_deg, 1) +
+        "° here); vertical surfaces may show gaps (Fig. 5.14) — the exact mode avoids them");
+  }
+  if (pr.K_max < 2) {
+    pr.warnings.push_back(plan.label +
+                          ": footprints do not overlap (K = " + std::to_string(pr.K_max) +
+                          " at the far range): deconvolution reduces to a reprojection");
+  }
+  return pr;
+}
+
+// A pass's column stack (sec. 5.5): its frames ordered by height, their model heights (measured,
+// or the thesis' uniform z_0 + k·Δz), the intensities transposed into (bin, beam) columns along
+// the frames, and each frame's first return per beam. `returns`: the frames' free-space summaries
+// (empty when not needed).
+PassData column_stack(const PassPlan& plan, const std::vector<SonarImage>& denoised,
+                      const std::vector<Eigen::Isometry3d>& T_world_sonar, const SonarSpec& spec,
+                      const DeconvConfig& config, const std::vector<FrameReturns>& returns) {
+  const bool need_returns = config.dering || config.resolve_occlusions;
+  const PassGeometry& g = plan.geo;
+  PassData pd;
+  pd.spec = &spec;
+  pd.geo = g;
+  pd.dz = plan.dz;
+  pd.theta_3db = spec.theta_3db();
+  pd.n = static_cast<int>(plan.count);
+  pd.bin_lo = 0;
+  pd.bin_hi = plan.bin_hi;
+  pd.bins = plan.bin_hi + 1;
+  pd.beams = spec.beams();
+  if (config.use_measured_heights) {
+    pd.heights = g.heights;
+  } else {
+    // The thesis' model: uniform z_0 + k·Δz (from the least-squares fit).
+    pd.heights.resize(pd.n);
+    double mean_h = 0;
+    for (double v : g.heights) mean_h += v;
+    mean_h /= pd.n;
+    for (int k = 0; k < pd.n; ++k) pd.heights[k] = mean_h + (k - 0.5 * (pd.n - 1)) * g.spacing;
+  }
+  pd.stack.assign(static_cast<std::size_t>(pd.beams) * pd.bins * pd.n, 0.0f);
+  pd.bin_has_data.assign(pd.bins, 0);
+  pd.T_world_sonar.resize(pd.n);
+  if (need_returns) pd.returns.resize(pd.n);
+  std::vector<const SonarImage*> by_height(pd.n);
+  for (int k = 0; k < pd.n; ++k) {
+    const std::size_t f = plan.first + g.frames[k];
+    by_height[k] = &denoised[f];
+    pd.T_world_sonar[k] = T_world_sonar[f];
+    if (need_returns) pd.returns[k] = &returns[f];
+  }
+  // Transpose to columns bin by bin: contiguous writes along the frames, one streaming read
+  // per frame row.
+  tbb::parallel_for(0, pd.bins, [&](int i) {
+    bool any = false;
+    for (int j = 0; j < pd.beams; ++j) {
+      float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
+      for (int k = 0; k < pd.n; ++k) {
+        const float v = by_height[k]->row_ptr(i)[j];
+        col[k] = v;
+        any = any || v > 0.0f;
+      }
+    }
+    pd.bin_has_data[i] = any;
+  });
+  pd.first_return.assign(static_cast<std::size_t>(pd.beams) * pd.n, pd.bins);
+  tbb::parallel_for(0, pd.beams, [&](int j) {
+    for (int i = 0; i < pd.bins; ++i) {
+      const float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
+      for (int k = 0; k < pd.n; ++k) {
+        int& f = pd.first_return[static_cast<std::size_t>(j) * pd.n + k];
+        if (f == pd.bins && col[k] > 0.0f) f = i;
+      }
+    }
+  });
+  return pd;
+}
+
+// A pass's layers: the per-column NNLS (eq. 5.28; the exact geometry mode, or the rectilinear
+// approximation of eq. 5.27), layers beyond max_extrapolation dropped, de-ringing (sec. 5.5.4)
+// and, with a kernel other than plain, the second pass whose kernel the first reconstruction
+// scales (sec. 5.6.7). Fills `pr` and the timing of `report`.
+std::vector<LayerPoint> solve_pass(const PassData& pd, const DeconvConfig& config,
+                                   const BeamPattern& pattern, PassReport& pr, DeconvReport& report,
+                                   Progress& bar) {
+  auto t0 = std::chrono::steady_clock::now();
+  std::vector<LayerPoint> points;
+  if (config.exact) {
+    solve_exact(pd, config, pattern, pr, points, &bar);
+  } else {
+    solve_approx(pd, config, pattern, nullptr, pr, points, &bar);
+  }
+  report.seconds_solve += seconds_since(t0);
+  if (config.max_extrapolation >= 0) {
+    const double lo = pd.heights.front() - config.max_extrapolation;
+    const double hi = pd.heights.back() + config.max_extrapolation;
+    points.erase(
+        std::remove_if(points.begin(), points.end(),
+                       [&](const LayerPoint& lp) { return lp.height < lo || lp.height > hi; }),
+        points.end());
+  }
+  pr.points_solved = points.size();
+  t0 = std::chrono::steady_clock::now();
+  if (config.dering) pr.points_deringed = dering(pd, points);
+  report.seconds_dering += seconds_since(t0);
+
+  if (config.kernel != DeconvConfig::Kernel::Plain) {
+    // sec. 5.6.7: the first reconstruction provides normals / occlusions for a second pass.
+    t0 = std::chrono::steady_clock::now();
+    const std::unique_ptr<KernelScaler> scaler = make_multipass_scaler(pd, config, points);
+    std::vector<LayerPoint> second;
+    PassReport pr2;
+    solve_approx(pd, config, pattern, scaler.get(), pr2, second, &bar);
+    pr.unconverged += pr2.unconverged;
+    pr.max_iterations = std::max(pr.max_iterations, pr2.max_iterations);
+    pr.points_solved = second.size();
+    if (config.dering) pr.points_deringed = dering(pd, second);
+    points.swap(second);
+    report.seconds_multipass += seconds_since(t0);
+  }
+  return points;
+}
+
+// The auto mode: the passes mode when the frames form regular passes, the voxel mode otherwise:
+// decided first from the poses alone (auto_mode_reason), then, should the passes mode still refuse
+// (e.g. too few frames for a footprint) or leave frames out, by its outcome.
+PointCloud deconvolve_auto(const std::vector<SonarImage>& denoised,
+                           const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                           const SonarSpec& spec, const DeconvConfig& config,
+                           DeconvReport* report_out, bool progress) {
+  std::string why = auto_mode_reason(T_world_sonar, config);
+  if (why.empty()) {
+    DeconvConfig pc = config;
+    pc.mode = DeconvConfig::Mode::Passes;
+    DeconvReport pr;
+    try {
+      PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
+      std::size_t in_passes = 0;
+      for (const PassReport& p : pr.passes) in_passes += p.frames;
+      if (in_passes == denoised.size()) {
+        if (report_out) *report_out = std::move(pr);
+        return cloud;
+      }
+      why = std::to_string(denoised.size() - in_passes) + " of " + std::to_string(denoised.size()) +
+            " frames in no reconstructed pass";
+    } catch (const Error& e) {
+      why = e.what();
+    }
+  }
+  DeconvConfig vc = config;
+  vc.mode = DeconvConfig::Mode::Voxel;
+  DeconvReport vr;
+  PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
+  vr.mode_note = "deconvolution mode auto: voxel mode, the passes mode does not apply (" + why +
+                 "); --deconv-mode passes forces it";
+  if (report_out) *report_out = std::move(vr);
+  return cloud;
+}
+
+// The passes mode: plan the passes, summarise every frame's free space (de-ringing, occlusion
+// resolution), reconstruct pass by pass (report, column stack, solve), then keep the front
+// surfaces (sec. 5.6.7.3, as carving does, sec. 4.4.5). Runs in the caller's task arena.
+PointCloud deconvolve_passes(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config, int bin_hi,
+                             DeconvReport& report, bool progress) {
+  const BeamPattern pattern = kernel_pattern(config, spec);
+  // Split and check every pass before the heavy work: a bad pass fails fast.
+  const std::vector<PassPlan> plans =
+      plan_passes(denoised, T_world_sonar, spec, config, bin_hi, report);
+
+  // Free-space summaries of every frame (de-ringing, occlusion resolution).
+  std::vector<FrameReturns> returns;
+  if (config.dering || config.resolve_occlusions) {
+    returns.resize(denoised.size());
+    tbb::parallel_for(std::size_t{0}, denoised.size(), [&](std::size_t f) {
+      returns[f] = summarize_frame(denoised[f], T_world_sonar[f], spec);
+    });
+  }
+
+  std::size_t units = 0;
+  for (const auto& p : plans) {
+    units += static_cast<std::size_t>(config.exact ? spec.beams() : p.bin_hi + 1);
+  }
+  if (config.kernel != DeconvConfig::Kernel::Plain) units *= 2;
+  Progress bar("deconvolve", units, progress);
+
+  PointCloud cloud;
+  for (const PassPlan& plan : plans) {
+    PassReport pr = pass_report(plan, spec, config);
+    const PassData pd = column_stack(plan, denoised, T_world_sonar, spec, config, returns);
+    for (const LayerPoint& lp : solve_pass(pd, config, pattern, pr, report, bar)) {
+      cloud.points.push_back(lp.p_world);
+      cloud.intensity.push_back(lp.value);
+    }
+    for (const auto& w : pr.warnings) report.warnings.push_back(w);
+    report.passes.push_back(std::move(pr));
+  }
+  bar.finish();
+
+  report.points_before_occlusion = cloud.size();
+  if (config.resolve_occlusions && !cloud.empty()) {
+    // sec. 5.6.7.3: keep the front surfaces, as carving does (sec. 4.4.5).
+    const auto t0 = std::chrono::steady_clock::now();
+    OcclusionConfig oc = config.occlusion;
+    if (oc.num_threads == 0) oc.num_threads = config.num_threads;
+    if (config.occlusion_auto_voxel) {
+      oc.voxel_size = spec.range_resolution();
+      for (const PassPlan& p : plans) oc.voxel_size = std::min(oc.voxel_size, p.dz);
+    }
+    cloud = resolve_occlusions(cloud, returns, spec, oc);
+    report.seconds_occlusion = seconds_since(t0);
+  }
+  return cloud;
+}
+
+}  // namespace
+
+// The pipeline of deconvolution (thesis ch. 5): checks, the mode (auto: passes or voxel), then
+// the passes mode's stages above (deconvolve_passes) in a task arena of num_threads.
+PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config,
+                             DeconvReport* report_out, bool progress) {
+  using namespace deconv_detail;
+  const auto t_start = std::chrono::steady_clock::now();
+  config.validate();
+  spec.validate();
+  check_frames(denoised, T_world_sonar, spec);
+  if (config.mode == DeconvConfig::Mode::Auto) {
+    return deconvolve_auto(denoised, T_world_sonar, spec, config, report_out, progress);
   }
   DeconvReport report;
   report.frames = denoised.size();
@@ -828,263 +1172,10 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
     if (report_out) *report_out = std::move(report);
     return cloud;
   }
-  const BeamPattern pattern = kernel_pattern(config, spec);
-  const double theta3 = spec.theta_3db();
-  const double dr = spec.range_resolution();
-  const double r_far_limit =
-      config.max_range > 0 ? std::min(config.max_range, spec.r_max) : spec.r_max;
-  int bin_hi = spec.range_bins - 1;
-  while (bin_hi >= 0 && spec.range_of_bin(bin_hi) > r_far_limit) --bin_hi;
-  require(bin_hi >= 0, "deconv.max_range (" + fmt(config.max_range) +
-                           " m) is below the sonar's first range bin (" +
-                           fmt(spec.range_of_bin(0)) + " m)");
-
+  const int bin_hi = farthest_bin(spec, config);
   tbb::task_arena arena(config.num_threads > 0 ? config.num_threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    // Split and check every pass before the heavy work: a bad pass fails fast.
-    std::vector<std::pair<std::size_t, std::size_t>> ranges =
-        config.split_passes
-            ? split_passes(T_world_sonar, config)
-            : std::vector<std::pair<std::size_t, std::size_t>>{{0, T_world_sonar.size()}};
-    struct PassPlan {
-      std::size_t first, count;
-      std::string label;
-      PassGeometry geo;
-      double dz;
-      int bin_hi;  // farthest range bin holding a return (within max_range)
-    };
-    std::vector<PassPlan> plans;
-    for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
-      // Not a structured binding: C++17 lambdas cannot capture those (clang rejects it).
-      const std::size_t first = ranges[pi].first, last = ranges[pi].second;
-      const std::string label = frames_label(pi, first, last - first);
-      if (static_cast<int>(last - first) < config.min_pass_frames) {
-        report.warnings.push_back(
-            label + ": skipped, only " + std::to_string(last - first) +
-            " frames (min_pass_frames = " + std::to_string(config.min_pass_frames) + ")");
-        continue;
-      }
-      std::vector<Eigen::Isometry3d> poses(T_world_sonar.begin() + first,
-                                           T_world_sonar.begin() + last);
-      PassPlan plan{first, last - first, label, analyze_pass(poses, config, label), 0.0, -1};
-      plan.dz = config.layer_spacing > 0 ? config.layer_spacing : plan.geo.spacing;
-      // Columns beyond the farthest return hold nothing: the window ends there.
-      std::vector<int> last_bin(plan.count, -1);
-      tbb::parallel_for(std::size_t{0}, plan.count, [&](std::size_t k) {
-        const SonarImage& im = denoised[first + k];
-        for (int i = bin_hi; i >= 0 && last_bin[k] < 0; --i) {
-          const float* row = im.row_ptr(i);
-          for (int j = 0; j < im.cols; ++j) {
-            if (row[j] > 0.0f) {
-              last_bin[k] = i;
-              break;
-            }
-          }
-        }
-      });
-      for (int b : last_bin) plan.bin_hi = std::max(plan.bin_hi, b);
-      if (plan.bin_hi < 0) {
-        report.warnings.push_back(label + ": skipped, no return in any frame after denoising");
-        continue;
-      }
-      if (config.exact) {
-        // A cell seen off-centre lands up to r·(1/cos θ_3dB − 1) farther: keep those empty
-        // bins, they constrain the far cells.
-        const double r = spec.range_of_bin(plan.bin_hi);
-        plan.bin_hi = std::min(
-            bin_hi,
-            plan.bin_hi + 1 + static_cast<int>(std::ceil(r * (1.0 / std::cos(theta3) - 1.0) / dr)));
-      }
-      // eq. 5.25–5.26: the far range needs K frames to be seen by a full footprint.
-      const double r_far = spec.range_of_bin(plan.bin_hi);
-      const int K_far = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
-      if (static_cast<int>(plan.count) < K_far) {
-        const double r_ok = plan.count * plan.dz / (2.0 * std::tan(theta3));
-        throw Error(label + ": too few frames for the footprint: at r = " + fmt(r_far, 2) +
-                    " m the aperture of " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
-                    "° spans K = " + std::to_string(K_far) + " layers of " + fmt(plan.dz * 100, 2) +
-                    " cm (eq. 5.25) but the pass has " + std::to_string(plan.count) +
-                    " frames; record a longer pass or limit the "
-                    "range with max_range ≤ " +
-                    fmt(r_ok, 2) + " m (the farthest return is at " + fmt(r_far, 2) + " m)");
-      }
-      plans.push_back(std::move(plan));
-    }
-
-    // Free-space summaries of every frame (de-ringing, occlusion resolution).
-    std::vector<FrameReturns> returns;
-    const bool need_returns = config.dering || config.resolve_occlusions;
-    if (need_returns) {
-      returns.resize(denoised.size());
-      tbb::parallel_for(std::size_t{0}, denoised.size(), [&](std::size_t f) {
-        returns[f] = summarize_frame(denoised[f], T_world_sonar[f], spec);
-      });
-    }
-
-    std::size_t units = 0;
-    for (const auto& p : plans) {
-      units += static_cast<std::size_t>(config.exact ? spec.beams() : p.bin_hi + 1);
-    }
-    if (config.kernel != DeconvConfig::Kernel::Plain) units *= 2;
-    Progress bar("deconvolve", units, progress);
-
-    for (const PassPlan& plan : plans) {
-      PassReport pr;
-      pr.first_frame = plan.first;
-      pr.frames = plan.count;
-      const PassGeometry& g = plan.geo;
-      pr.spacing = g.spacing;
-      pr.axis_angle_deg = g.axis_angle_rad / kDeg;
-      pr.max_rotation_deg = g.max_rotation_rad / kDeg;
-      pr.max_lateral = g.max_lateral;
-      pr.rms_lateral = g.rms_lateral;
-      pr.max_spacing_error = g.max_spacing_error;
-      pr.rms_spacing_error = g.rms_spacing_error;
-      pr.warnings = g.warnings;
-      const int bin_hi_pass = plan.bin_hi;
-      const double r_far = spec.range_of_bin(bin_hi_pass);
-      pr.K_min = footprint_layers(spec.range_of_bin(0), spec.vertical_aperture_rad, plan.dz);
-      pr.K_max = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
-      pr.rectilinear_mismatch_bins = rectilinear_mismatch(r_far, theta3) / dr;
-      pr.rectilinear_max_aperture_deg = rectilinear_max_aperture(r_far, dr) / kDeg;
-      if (g.max_lateral > 0.5 * dr) {
-        pr.warnings.push_back(plan.label + ": frames deviate up to " + fmt(g.max_lateral * 100, 2) +
-                              " cm (rms " + fmt(g.rms_lateral * 100, 2) +
-                              " cm) from the pass axis, more than half a range bin (" +
-                              fmt(0.5 * dr * 100, 2) + " cm): returns shift between columns");
-      }
-      if (!config.exact && pr.rectilinear_mismatch_bins > config.rectilinear_warn_bins) {
-        // eq. 5.21 gives the largest range where the approximation holds for this aperture.
-        const double r_ok = 0.5 * dr / (1.0 - std::cos(theta3));
-        pr.warnings.push_back(
-            plan.label +
-            ": the rectilinear approximation (eq. 5.21) is violated beyond r = " + fmt(r_ok, 2) +
-            " m: at r = " + fmt(r_far, 2) + " m the " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
-            "° aperture bends the footprint by " + fmt(pr.rectilinear_mismatch_bins, 2) +
-            " range bins at its edge (eq. 5.21 allows " + fmt(pr.rectilinear_max_aperture_deg, 1) +
-            "° here); vertical surfaces may show gaps (Fig. 5.14) — the exact mode avoids them");
-      }
-      if (pr.K_max < 2) {
-        pr.warnings.push_back(plan.label +
-                              ": footprints do not overlap (K = " + std::to_string(pr.K_max) +
-                              " at the far range): deconvolution reduces to a reprojection");
-      }
-
-      // Column stack, frames by height.
-      PassData pd;
-      pd.spec = &spec;
-      pd.geo = g;
-      pd.dz = plan.dz;
-      pd.theta_3db = theta3;
-      pd.n = static_cast<int>(plan.count);
-      pd.bin_lo = 0;
-      pd.bin_hi = bin_hi_pass;
-      pd.bins = bin_hi_pass + 1;
-      pd.beams = spec.beams();
-      if (config.use_measured_heights) {
-        pd.heights = g.heights;
-      } else {
-        // The thesis' model: uniform z_0 + k·Δz (from the least-squares fit).
-        pd.heights.resize(pd.n);
-        double mean_h = 0;
-        for (double v : g.heights) mean_h += v;
-        mean_h /= pd.n;
-        for (int k = 0; k < pd.n; ++k) pd.heights[k] = mean_h + (k - 0.5 * (pd.n - 1)) * g.spacing;
-      }
-      pd.stack.assign(static_cast<std::size_t>(pd.beams) * pd.bins * pd.n, 0.0f);
-      pd.bin_has_data.assign(pd.bins, 0);
-      pd.T_world_sonar.resize(pd.n);
-      if (need_returns) pd.returns.resize(pd.n);
-      std::vector<const SonarImage*> by_height(pd.n);
-      for (int k = 0; k < pd.n; ++k) {
-        const std::size_t f = plan.first + g.frames[k];
-        by_height[k] = &denoised[f];
-        pd.T_world_sonar[k] = T_world_sonar[f];
-        if (need_returns) pd.returns[k] = &returns[f];
-      }
-      // Transpose to columns bin by bin: contiguous writes along the frames, one streaming read
-      // per frame row.
-      tbb::parallel_for(0, pd.bins, [&](int i) {
-        bool any = false;
-        for (int j = 0; j < pd.beams; ++j) {
-          float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
-          for (int k = 0; k < pd.n; ++k) {
-            const float v = by_height[k]->row_ptr(i)[j];
-            col[k] = v;
-            any = any || v > 0.0f;
-          }
-        }
-        pd.bin_has_data[i] = any;
-      });
-      pd.first_return.assign(static_cast<std::size_t>(pd.beams) * pd.n, pd.bins);
-      tbb::parallel_for(0, pd.beams, [&](int j) {
-        for (int i = 0; i < pd.bins; ++i) {
-          const float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
-          for (int k = 0; k < pd.n; ++k) {
-            int& f = pd.first_return[static_cast<std::size_t>(j) * pd.n + k];
-            if (f == pd.bins && col[k] > 0.0f) f = i;
-          }
-        }
-      });
-
-      auto t0 = std::chrono::steady_clock::now();
-      std::vector<LayerPoint> points;
-      if (config.exact) {
-        solve_exact(pd, config, pattern, pr, points, &bar);
-      } else {
-        solve_approx(pd, config, pattern, nullptr, pr, points, &bar);
-      }
-      report.seconds_solve += seconds_since(t0);
-      if (config.max_extrapolation >= 0) {
-        const double lo = pd.heights.front() - config.max_extrapolation;
-        const double hi = pd.heights.back() + config.max_extrapolation;
-        points.erase(
-            std::remove_if(points.begin(), points.end(),
-                           [&](const LayerPoint& lp) { return lp.height < lo || lp.height > hi; }),
-            points.end());
-      }
-      pr.points_solved = points.size();
-      t0 = std::chrono::steady_clock::now();
-      if (config.dering) pr.points_deringed = dering(pd, points);
-      report.seconds_dering += seconds_since(t0);
-
-      if (config.kernel != DeconvConfig::Kernel::Plain) {
-        // sec. 5.6.7: the first reconstruction provides normals / occlusions for a second pass.
-        t0 = std::chrono::steady_clock::now();
-        const std::unique_ptr<KernelScaler> scaler = make_multipass_scaler(pd, config, points);
-        std::vector<LayerPoint> second;
-        PassReport pr2;
-        solve_approx(pd, config, pattern, scaler.get(), pr2, second, &bar);
-        pr.unconverged += pr2.unconverged;
-        pr.max_iterations = std::max(pr.max_iterations, pr2.max_iterations);
-        pr.points_solved = second.size();
-        if (config.dering) pr.points_deringed = dering(pd, second);
-        points.swap(second);
-        report.seconds_multipass += seconds_since(t0);
-      }
-
-      for (const LayerPoint& lp : points) {
-        cloud.points.push_back(lp.p_world);
-        cloud.intensity.push_back(lp.value);
-      }
-      for (const auto& w : pr.warnings) report.warnings.push_back(w);
-      report.passes.push_back(std::move(pr));
-    }
-    bar.finish();
-
-    report.points_before_occlusion = cloud.size();
-    if (config.resolve_occlusions && !cloud.empty()) {
-      // sec. 5.6.7.3: keep the front surfaces, as carving does (sec. 4.4.5).
-      const auto t0 = std::chrono::steady_clock::now();
-      OcclusionConfig oc = config.occlusion;
-      if (oc.num_threads == 0) oc.num_threads = config.num_threads;
-      if (config.occlusion_auto_voxel) {
-        oc.voxel_size = dr;
-        for (const PassPlan& p : plans) oc.voxel_size = std::min(oc.voxel_size, p.dz);
-      }
-      cloud = resolve_occlusions(cloud, returns, spec, oc);
-      report.seconds_occlusion = seconds_since(t0);
-    }
+    cloud = deconvolve_passes(denoised, T_world_sonar, spec, config, bin_hi, report, progress);
   });
   if (report.passes.empty()) {
     report.warnings.push_back("no pass was reconstructed");
