@@ -197,142 +197,161 @@ const char* object_status_name(ObjectStatus s) {
   return "?";
 }
 
-ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
-                                    const ChangeRegistrationConfig& config) {
-  config.validate();
-  const auto t0 = std::chrono::steady_clock::now();
-  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
-  // B turns about the centre of its extent.
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// The stages of register_surveys, in the order it runs them: B's pivot, the maps of the yaw
+// search, every yaw of the window on coarse maps (sec. 6.2.2.1, eq. 6.1–6.2), the shift refined
+// at cell_m, then beyond the thesis a trimmed Gauss-Newton of B's heights onto A's (yaw, shift,
+// height), kept only where it does better than the search.
+
+// The turn by `yaw` about the vertical through `pivot`.
+Eigen::Isometry3d turn_about(const Eigen::Vector3d& pivot, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = pivot - T.linear() * pivot;
+  return T;
+}
+
+// B turns about the centre of its extent (at z = 0); every point of B must be finite.
+Eigen::Vector3d survey_pivot(const PointCloud& b_world) {
   Eigen::Vector3f lo = b_world.points[0], hi = lo;
   for (const auto& p : b_world.points) {
     if (!p.allFinite()) throw Error("change detection: survey B has a point that is not finite");
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
-  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
-  // The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells
-  // (on a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m.
-  const double observed_m2 =
-      static_cast<double>(a_fine.num_valid()) * config.cell_m * config.cell_m;
-  const double yaw_cell =
-      std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
-  const ElevationMap a_coarse = map_of(a_world, yaw_cell, "A");
-  // The yaw search turns B's map at a fifth of its cell as points (one per cell: its highest),
-  // not every point of B (4.4 M on the field; the map keeps only the highest per cell anyway).
-  PointCloud b_thin;
-  {
-    const ElevationMap m = map_of(b_world, yaw_cell / 5, "B");
-    for (int r = 0; r < m.rows; ++r) {
-      for (int c = 0; c < m.cols; ++c) {
-        if (!m.valid(r, c)) continue;
-        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
-        b_thin.points.emplace_back(static_cast<float>(xy.x()), static_cast<float>(xy.y()),
-                                   m.at(r, c));
-      }
-    }
-  }
+  return Eigen::Vector3d(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
+}
 
-  struct Trial {
-    double yaw = 0, cost = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
-    std::size_t overlap = 0;
-  };
-  std::string last_error;
-  auto turn = [&](double yaw) {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    T.translation() = pivot - T.linear() * pivot;
-    return T;
-  };
-  // B turned by `yaw`, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's search
-  // (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
-  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior, double search) {
-    Trial tr;
-    tr.yaw = yaw;
-    Eigen::Isometry3d T = turn(yaw);
-    T.translation() += prior;
-    const ElevationMap b =
-        map_of(transformed(&a == &a_coarse ? b_thin : b_world, T), a.cell_m, "B");
-    if (!maps_may_overlap(a, b, search)) {
-      last_error = "their extents do not meet";
-      return tr;
+// A map's observed cells as points: each cell's centre at its height (its highest point).
+std::vector<Eigen::Vector3d> cell_points(const ElevationMap& m) {
+  std::vector<Eigen::Vector3d> out;
+  for (int r = 0; r < m.rows; ++r) {
+    for (int c = 0; c < m.cols; ++c) {
+      if (!m.valid(r, c)) continue;
+      const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+      out.emplace_back(xy.x(), xy.y(), m.at(r, c));
     }
-    SwathRegistrationConfig sw;
-    sw.search_m = search;
-    sw.min_overlap_cells = config.min_overlap_cells;
-    sw.coarse_factor = config.coarse_factor;
-    sw.num_threads = config.num_threads;
-    // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
-    // fine stage refines the shift); on small sites the yaw cell is cell_m.
-    sw.subcell = a.cell_m <= config.cell_m;
-    try {
-      const SwathTie tie = register_elevation_maps(a, b, sw);
-      tr.t = prior + tie.t;
-      tr.cost = registered_cost(a, b, tie.t, config.inlier_fraction, &tr.overlap);
-    } catch (const Error& e) {
-      last_error = e.what();
-    }
-    return tr;
-  };
-  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
-  Trial best;
-  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
-  for (int k = -n; k <= n; ++k) {
-    const Trial tr =
-        trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(), config.search_m);
-    if (tr.cost < best.cost) best = tr;
   }
-  require(std::isfinite(best.cost),
-          "change detection: the surveys do not overlap (no yaw within ±" +
-              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
-              std::to_string(config.search_m) + " m leaves " +
-              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
-              ")");
-  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
-  best = trial(a_fine, best.yaw, best.t, yaw_cell);
-  require(std::isfinite(best.cost),
-          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
-  // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
-  // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
-  // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
-  // inlier_fraction of |r| kept each iteration.
+  return out;
+}
+
+// The maps the yaw search works on.
+struct YawSearchMaps {
+  ElevationMap a_fine;    // A at cell_m
+  double yaw_cell = 0;    // the yaw search's cell, m
+  ElevationMap a_coarse;  // A at yaw_cell
+  PointCloud b_thin;      // B's map at yaw_cell / 5, one point per cell
+};
+
+// The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells (on
+// a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m. The search
+// turns B's map at a fifth of its cell as points (one per cell: its highest), not every point of
+// B (4.4 M on the field; the map keeps only the highest per cell anyway).
+YawSearchMaps yaw_search_maps(const PointCloud& a_world, const PointCloud& b_world,
+                              const ChangeRegistrationConfig& config) {
+  YawSearchMaps m;
+  m.a_fine = map_of(a_world, config.cell_m, "A");
+  const double observed_m2 =
+      static_cast<double>(m.a_fine.num_valid()) * config.cell_m * config.cell_m;
+  m.yaw_cell = std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
+  m.a_coarse = map_of(a_world, m.yaw_cell, "A");
+  for (const Eigen::Vector3d& p : cell_points(map_of(b_world, m.yaw_cell / 5, "B"))) {
+    m.b_thin.points.push_back(p.cast<float>());
+  }
+  return m;
+}
+
+// One yaw tried: its cost (infinite when the maps do not register), the total shift after the
+// turn and the overlap.
+struct Trial {
+  double yaw = 0, cost = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
+  std::size_t overlap = 0;
+};
+
+// B turned by `yaw` about the pivot, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's
+// search (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
+// `last_error`: why the last failed trial failed.
+Trial shift_trial(const ElevationMap& a, const PointCloud& b, const Eigen::Vector3d& pivot,
+                  double yaw, const Eigen::Vector3d& prior, double search,
+                  const ChangeRegistrationConfig& config, std::string& last_error) {
+  Trial tr;
+  tr.yaw = yaw;
+  Eigen::Isometry3d T = turn_about(pivot, yaw);
+  T.translation() += prior;
+  const ElevationMap bm = map_of(transformed(b, T), a.cell_m, "B");
+  if (!maps_may_overlap(a, bm, search)) {
+    last_error = "their extents do not meet";
+    return tr;
+  }
+  SwathRegistrationConfig sw;
+  sw.search_m = search;
+  sw.min_overlap_cells = config.min_overlap_cells;
+  sw.coarse_factor = config.coarse_factor;
+  sw.num_threads = config.num_threads;
+  // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
+  // fine stage refines the shift); on small sites the yaw cell is cell_m.
+  sw.subcell = a.cell_m <= config.cell_m;
+  try {
+    const SwathTie tie = register_elevation_maps(a, bm, sw);
+    tr.t = prior + tie.t;
+    tr.cost = registered_cost(a, bm, tie.t, config.inlier_fraction, &tr.overlap);
+  } catch (const Error& e) {
+    last_error = e.what();
+  }
+  return tr;
+}
+
+// A's height and gradient at (x, y), bilinear between the four surrounding cell centres of `a`
+// (cell `cell`); false outside A or next to an unobserved cell.
+bool sample_height(const ElevationMap& a, double cell, double x, double y, double* z,
+                   Eigen::Vector2d* g) {
+  const double u = (x - a.origin_xy.x()) / cell - 0.5;
+  const double v = (a.origin_xy.y() - y) / cell - 0.5;
+  const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
+  if (c0 < 0 || r0 < 0 || c0 + 1 >= a.cols || r0 + 1 >= a.rows) return false;
+  const float z00 = a.at(r0, c0), z01 = a.at(r0, c0 + 1), z10 = a.at(r0 + 1, c0),
+              z11 = a.at(r0 + 1, c0 + 1);
+  if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
+  const double fu = u - c0, fv = v - r0;
+  *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
+  const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
+  const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
+  *g = {dzdu / cell, -dzdv / cell};  // rows run southward
+  return true;
+}
+
+// The Gauss-Newton's solution: yaw, shift and height, its cost and cells, its covariance.
+struct HeightFit {
+  double yaw = 0;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  double cost = 0;
+  std::size_t used = 0;
+  Eigen::Matrix4d cov = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+};
+
+// Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights onto
+// A's height field (an ICP of the seabed on the elevation maps, point to surface), at half of
+// cell_m, from the search's solution `best`: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over
+// B's cells, the smallest inlier_fraction of |r| kept each iteration; steps bounded by the basin of
+// the coarse search (a yaw cell, a yaw step).
+HeightFit refine_heights(const PointCloud& a_world, const PointCloud& b_world,
+                         const Eigen::Vector3d& pivot, const Trial& best, double yaw_cell,
+                         const ChangeRegistrationConfig& config) {
   const double gn_cell = 0.5 * config.cell_m;
   const ElevationMap a_gn = map_of(a_world, gn_cell, "A");
-  std::vector<Eigen::Vector3d> pts;
-  {
-    const ElevationMap m = map_of(b_world, gn_cell, "B");
-    for (int r = 0; r < m.rows; ++r) {
-      for (int c = 0; c < m.cols; ++c) {
-        if (!m.valid(r, c)) continue;
-        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
-        pts.emplace_back(xy.x(), xy.y(), m.at(r, c));
-      }
-    }
-  }
-  // A's height and gradient at (x, y), bilinear between the four surrounding cell centres.
-  auto sample = [&](double x, double y, double* z, Eigen::Vector2d* g) {
-    const double u = (x - a_gn.origin_xy.x()) / gn_cell - 0.5;
-    const double v = (a_gn.origin_xy.y() - y) / gn_cell - 0.5;
-    const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
-    if (c0 < 0 || r0 < 0 || c0 + 1 >= a_gn.cols || r0 + 1 >= a_gn.rows) return false;
-    const float z00 = a_gn.at(r0, c0), z01 = a_gn.at(r0, c0 + 1), z10 = a_gn.at(r0 + 1, c0),
-                z11 = a_gn.at(r0 + 1, c0 + 1);
-    if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
-    const double fu = u - c0, fv = v - r0;
-    *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
-    const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
-    const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
-    *g = {dzdu / gn_cell, -dzdv / gn_cell};  // rows run southward
-    return true;
-  };
-  double yaw = best.yaw;
-  Eigen::Vector3d t = best.t;
+  const std::vector<Eigen::Vector3d> pts = cell_points(map_of(b_world, gn_cell, "B"));
+  HeightFit fit;
+  double& yaw = fit.yaw;
+  Eigen::Vector3d& t = fit.t;
+  yaw = best.yaw;
+  t = best.t;
   // B's points were turned about the pivot, then shifted: q = R(ψ)(p − c) + c + t.
   std::vector<double> absr;
-  double gn_cost = best.cost;
-  std::size_t gn_used = 0;
-  Eigen::Matrix4d gn_cov = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+  fit.cost = best.cost;
+  fit.used = 0;
   for (int it = 0; it < 30; ++it) {
     const double cs = std::cos(yaw), sn = std::sin(yaw);
     struct Row {
@@ -347,7 +366,7 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       const double qy = sn * dx + cs * dy + pivot.y() + t.y();
       double za;
       Eigen::Vector2d g;
-      if (!sample(qx, qy, &za, &g)) continue;
+      if (!sample_height(a_gn, gn_cell, qx, qy, &za, &g)) continue;
       const double dqx = -sn * dx - cs * dy, dqy = cs * dx - sn * dy;  // ∂q/∂ψ
       rows.push_back(
           {Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1), za - (p.z() + t.z())});
@@ -372,12 +391,12 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       sum2 += row.r * row.r;
       ++used;
     }
-    gn_cost = sum / static_cast<double>(used);
-    gn_used = used;
+    fit.cost = sum / static_cast<double>(used);
+    fit.used = used;
     // The covariance at this iterate, s²·H⁻¹ (the last one is kept: at convergence, the
     // solution's).
     if (used > 4 && H.fullPivLu().rank() == 4) {
-      gn_cov = (sum2 / static_cast<double>(used - 4)) * H.inverse();
+      fit.cov = (sum2 / static_cast<double>(used - 4)) * H.inverse();
     }
     H.diagonal() += Eigen::Vector4d::Constant(1e-9 * H.trace() + 1e-12);  // a flat seabed
     const Eigen::Vector4d delta = H.ldlt().solve(rhs);
@@ -390,33 +409,70 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
                          std::clamp(delta[2], -yaw_cell, yaw_cell), delta[3]);
     if (std::abs(step_yaw) < 1e-6 && delta.segment<3>(1).norm() < 1e-4) break;
   }
+  return fit;
+}
+
+}  // namespace
+
+// The pipeline of survey registration (stages above): pivot, yaw search on coarse maps, shift
+// refined at cell_m, Gauss-Newton of the heights, the better of the last two.
+ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                                    const ChangeRegistrationConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
+  const Eigen::Vector3d pivot = survey_pivot(b_world);
+  const YawSearchMaps maps = yaw_search_maps(a_world, b_world, config);
+  const double yaw_cell = maps.yaw_cell;
+  std::string last_error;
+  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
+  Trial best;
+  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
+  for (int k = -n; k <= n; ++k) {
+    const Trial tr = shift_trial(maps.a_coarse, maps.b_thin, pivot, k * config.yaw_step_deg * kDeg,
+                                 Eigen::Vector3d::Zero(), config.search_m, config, last_error);
+    if (tr.cost < best.cost) best = tr;
+  }
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap (no yaw within ±" +
+              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
+              std::to_string(config.search_m) + " m leaves " +
+              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
+              ")");
+  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
+  best = shift_trial(maps.a_fine, b_world, pivot, best.yaw, best.t, yaw_cell, config, last_error);
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
+  // 3. Beyond the thesis: trimmed Gauss-Newton of the heights (refine_heights).
+  HeightFit gn = refine_heights(a_world, b_world, pivot, best, yaw_cell, config);
   // Kept only when it stays within the coarse search's basin and lowers the shift search's own
   // cost (mean |A − B| over the inlier fraction at cell_m): on maps that are not rigidly alike
   // (dead reckoning distorts each survey differently), the least-squares optimum can sit
   // elsewhere than the robust one.
-  bool refined = gn_used > 0 && std::abs(yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
-                 (t - best.t).head<2>().norm() <= yaw_cell;
+  bool refined = gn.used > 0 && std::abs(gn.yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
+                 (gn.t - best.t).head<2>().norm() <= yaw_cell;
   if (refined) {
-    Eigen::Isometry3d T = turn(yaw);
-    T.translation() += t;
+    Eigen::Isometry3d T = turn_about(pivot, gn.yaw);
+    T.translation() += gn.t;
     std::size_t overlap = 0;
-    const double cost = registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
-                                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
+    const double cost =
+        registered_cost(maps.a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
+                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
     refined = cost < best.cost;
-    if (refined) gn_cost = cost, gn_used = overlap;
+    if (refined) gn.cost = cost, gn.used = overlap;
   }
   ChangeRegistration out;
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
-  shift.translation() = refined ? t : best.t;
-  out.T_a_b = shift * turn(refined ? yaw : best.yaw);
+  shift.translation() = refined ? gn.t : best.t;
+  out.T_a_b = shift * turn_about(pivot, refined ? gn.yaw : best.yaw);
   out.method = refined ? "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, then "
                          "trimmed Gauss-Newton of heights (yaw, shift, height)"
                        : "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
-  out.yaw_deg = (refined ? yaw : best.yaw) / kDeg;
-  out.rms_m = refined ? gn_cost : best.cost;
-  out.overlap_cells = refined ? gn_used : best.overlap;
-  out.covariance = gn_cov;
-  out.covariance_cells = gn_used;
+  out.yaw_deg = (refined ? gn.yaw : best.yaw) / kDeg;
+  out.rms_m = refined ? gn.cost : best.cost;
+  out.overlap_cells = refined ? gn.used : best.overlap;
+  out.covariance = gn.cov;
+  out.covariance_cells = gn.used;
   out.pivot = pivot;
   out.seconds = seconds_since(t0);
   return out;
