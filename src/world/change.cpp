@@ -518,6 +518,131 @@ RegistrationFit registration_fit(const ElevationMap& a, const PointCloud& b_worl
   return fit;
 }
 
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// The stages of compare_placements: each placement's model, centre and match radius; pairs of
+// one model within the radius, nearest first; then one change per placement of A (unchanged,
+// moved or removed) and per unpaired placement of B (added).
+
+// One survey's placements as compare_placements sees them: each one's catalogue model, centre
+// and match radius.
+struct PlacedSide {
+  std::vector<ObjectModel> models;
+  std::vector<Eigen::Vector2d> centres;
+};
+
+// The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
+double match_radius(const ObjectModel& m, const ChangeConfig& config) {
+  return m.has_size()
+             ? std::max(config.min_match_radius_m, config.match_radius_factor * m.radius_m())
+             : config.match_radius_m;
+}
+
+// Each placement's catalogue model (an empty model without a catalogue; a model the catalogue
+// does not list is an error) and centre: its footprint's centre placed (a CAD origin may sit at a
+// corner of a frame, where a turn alone would read as a shift), or its origin when the size is
+// unknown.
+PlacedSide placed_side(const std::vector<SurveyPlacement>& placements, const ObjectModels& models,
+                       const char* which) {
+  PlacedSide side;
+  side.models.resize(placements.size());
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const SurveyPlacement& p = placements[i];
+    if (models.empty()) continue;
+    const auto it = models.find(p.model);
+    require(it != models.end(), std::string("placements of survey ") + which + ": placement " +
+                                    std::to_string(i) + " is a model '" + printable(p.model) +
+                                    "' that the catalogue does not list");
+    side.models[i] = it->second;
+  }
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const SurveyPlacement& p = placements[i];
+    const ObjectModel& m = side.models[i];
+    if (!m.has_size()) {
+      side.centres.push_back(p.T_world_model.translation().head<2>());
+      continue;
+    }
+    const Eigen::Vector2d c = m.footprint.center();
+    side.centres.push_back(
+        (p.T_world_model * Eigen::Vector3d(p.scale * c.x(), p.scale * c.y(), 0)).head<2>());
+  }
+  return side;
+}
+
+// Identity (same model) and pose (centres within the radius): nearest pairs first, the distance
+// relative to the radius (a large structure's 1 m and a small one's 10 cm weigh alike). Fills
+// match_a[i] (the placement of B paired with A's i, −1 for none) and match_b alike.
+void pair_placements(const std::vector<SurveyPlacement>& a, const PlacedSide& sa,
+                     const std::vector<SurveyPlacement>& b_in_a, const PlacedSide& sb,
+                     const ChangeConfig& config, std::vector<long>& match_a,
+                     std::vector<long>& match_b) {
+  struct Pair {
+    double d;
+    std::size_t i, j;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double rad = match_radius(sa.models[i], config);
+    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+      if (a[i].model != b_in_a[j].model) continue;
+      const double d = (sa.centres[i] - sb.centres[j]).norm();
+      if (d <= rad) pairs.push_back({d / rad, i, j});
+    }
+  }
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
+  match_a.assign(a.size(), -1);
+  match_b.assign(b_in_a.size(), -1);
+  for (const Pair& p : pairs) {
+    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
+    match_a[p.i] = static_cast<long>(p.j);
+    match_b[p.j] = static_cast<long>(p.i);
+  }
+}
+
+// The model the other survey placed over an unpaired placement (another model, unpaired too,
+// within the larger of the two radii): the recognitions disagree on what stands there.
+std::string other_over(const Eigen::Vector2d& c, const std::string& model, double rad,
+                       const std::vector<SurveyPlacement>& others, const PlacedSide& other_side,
+                       const std::vector<long>& matched, const ChangeConfig& config) {
+  std::string best;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < others.size(); ++k) {
+    if (matched[k] >= 0 || others[k].model == model) continue;
+    const double d = (other_side.centres[k] - c).norm();
+    if (d <= std::max(rad, match_radius(other_side.models[k], config)) && d < best_d) {
+      best_d = d;
+      best = others[k].model;
+    }
+  }
+  return best;
+}
+
+// A paired placement's change: the shift of its centre and the turn modulo the model's symmetry
+// about the vertical (sec. 6.3.2.5's yaw ranges); unchanged within the tolerances, moved beyond.
+void measure_move(const SurveyPlacement& a, const Eigen::Vector2d& ca, const ObjectModel& ma,
+                  const SurveyPlacement& b, const Eigen::Vector2d& cb, const ChangeConfig& config,
+                  ObjectChange& c) {
+  c.in_b = true;
+  c.T_world_model_b_in_a = b.T_world_model;
+  c.confidence_b = b.confidence;
+  c.shift_m = (cb - ca).norm();
+  // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
+  const Symmetry sym = ma.symmetry;
+  const double period = sym == Symmetry::Half ? 180 : 360;
+  double turn =
+      std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a.T_world_model)) / kDeg, period);
+  turn = std::min(turn, period - turn);
+  c.turn_deg = sym == Symmetry::Full ? 0 : turn;
+  c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
+                 ? ObjectStatus::Unchanged
+                 : ObjectStatus::Moved;
+}
+
+}  // namespace
+
+// The pipeline of placement comparison (stages above).
 std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
                                              const std::vector<SurveyPlacement>& b_in_a,
                                              const ObjectModels& models,
@@ -527,76 +652,10 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
   require(a.size() <= kMaxComparedPlacements && b_in_a.size() <= kMaxComparedPlacements,
           "change detection: at most " + std::to_string(kMaxComparedPlacements) +
               " placements per survey are compared");
-  auto model_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
-    if (models.empty()) return ObjectModel{};
-    const auto it = models.find(p.model);
-    require(it != models.end(), std::string("placements of survey ") + which + ": placement " +
-                                    std::to_string(i) + " is a model '" + printable(p.model) +
-                                    "' that the catalogue does not list");
-    return it->second;
-  };
-  std::vector<ObjectModel> ma(a.size()), mb(b_in_a.size());
-  for (std::size_t i = 0; i < a.size(); ++i) ma[i] = model_of(a[i], "A", i);
-  for (std::size_t j = 0; j < b_in_a.size(); ++j) mb[j] = model_of(b_in_a[j], "B", j);
-  // The centre of a placement: its footprint's centre placed (a CAD origin may sit at a corner
-  // of a frame, where a turn alone would read as a shift), or its origin when the size is unknown.
-  auto centre = [](const SurveyPlacement& p, const ObjectModel& m) -> Eigen::Vector2d {
-    if (!m.has_size()) return p.T_world_model.translation().head<2>();
-    const Eigen::Vector2d c = m.footprint.center();
-    return (p.T_world_model * Eigen::Vector3d(p.scale * c.x(), p.scale * c.y(), 0)).head<2>();
-  };
-  // The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
-  auto radius = [&](const ObjectModel& m) {
-    return m.has_size()
-               ? std::max(config.min_match_radius_m, config.match_radius_factor * m.radius_m())
-               : config.match_radius_m;
-  };
-  std::vector<Eigen::Vector2d> ca(a.size()), cb(b_in_a.size());
-  for (std::size_t i = 0; i < a.size(); ++i) ca[i] = centre(a[i], ma[i]);
-  for (std::size_t j = 0; j < b_in_a.size(); ++j) cb[j] = centre(b_in_a[j], mb[j]);
-
-  // Identity (same model) and pose (centres within the radius): nearest pairs first, the
-  // distance relative to the radius (a large structure's 1 m and a small one's 10 cm weigh
-  // alike).
-  struct Pair {
-    double d;
-    std::size_t i, j;
-  };
-  std::vector<Pair> pairs;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const double rad = radius(ma[i]);
-    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
-      if (a[i].model != b_in_a[j].model) continue;
-      const double d = (ca[i] - cb[j]).norm();
-      if (d <= rad) pairs.push_back({d / rad, i, j});
-    }
-  }
-  std::stable_sort(pairs.begin(), pairs.end(),
-                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
-  std::vector<long> match_a(a.size(), -1), match_b(b_in_a.size(), -1);
-  for (const Pair& p : pairs) {
-    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
-    match_a[p.i] = static_cast<long>(p.j);
-    match_b[p.j] = static_cast<long>(p.i);
-  }
-  // The model the other survey placed over an unpaired placement (another model, unpaired too,
-  // within the larger of the two radii): the recognitions disagree on what stands there.
-  auto other_over =
-      [&](const Eigen::Vector2d& c, const std::string& model, double rad,
-          const std::vector<SurveyPlacement>& others, const std::vector<Eigen::Vector2d>& centres,
-          const std::vector<ObjectModel>& other_models, const std::vector<long>& matched) {
-        std::string best;
-        double best_d = std::numeric_limits<double>::infinity();
-        for (std::size_t k = 0; k < others.size(); ++k) {
-          if (matched[k] >= 0 || others[k].model == model) continue;
-          const double d = (centres[k] - c).norm();
-          if (d <= std::max(rad, radius(other_models[k])) && d < best_d) {
-            best_d = d;
-            best = others[k].model;
-          }
-        }
-        return best;
-      };
+  const PlacedSide sa = placed_side(a, models, "A");
+  const PlacedSide sb = placed_side(b_in_a, models, "B");
+  std::vector<long> match_a, match_b;
+  pair_placements(a, sa, b_in_a, sb, config, match_a, match_b);
   std::map<std::string, int> count;
   std::vector<ObjectChange> out;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -606,27 +665,14 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.in_a = true;
     c.T_world_model_a = a[i].T_world_model;
     c.confidence_a = a[i].confidence;
-    c.match_radius_m = radius(ma[i]);
+    c.match_radius_m = match_radius(sa.models[i], config);
     if (match_a[i] < 0) {
       c.status = ObjectStatus::Removed;
-      c.other_model = other_over(ca[i], a[i].model, c.match_radius_m, b_in_a, cb, mb, match_b);
+      c.other_model =
+          other_over(sa.centres[i], a[i].model, c.match_radius_m, b_in_a, sb, match_b, config);
     } else {
       const std::size_t j = static_cast<std::size_t>(match_a[i]);
-      const SurveyPlacement& b = b_in_a[j];
-      c.in_b = true;
-      c.T_world_model_b_in_a = b.T_world_model;
-      c.confidence_b = b.confidence;
-      c.shift_m = (cb[j] - ca[i]).norm();
-      // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
-      const Symmetry sym = ma[i].symmetry;
-      const double period = sym == Symmetry::Half ? 180 : 360;
-      double turn =
-          std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
-      turn = std::min(turn, period - turn);
-      c.turn_deg = sym == Symmetry::Full ? 0 : turn;
-      c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
-                     ? ObjectStatus::Unchanged
-                     : ObjectStatus::Moved;
+      measure_move(a[i], sa.centres[i], sa.models[i], b_in_a[j], sb.centres[j], config, c);
     }
     out.push_back(c);
   }
@@ -639,8 +685,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.in_b = true;
     c.T_world_model_b_in_a = b_in_a[j].T_world_model;
     c.confidence_b = b_in_a[j].confidence;
-    c.match_radius_m = radius(mb[j]);
-    c.other_model = other_over(cb[j], c.model, c.match_radius_m, a, ca, ma, match_a);
+    c.match_radius_m = match_radius(sb.models[j], config);
+    c.other_model = other_over(sb.centres[j], c.model, c.match_radius_m, a, sa, match_a, config);
     out.push_back(c);
   }
   return out;
@@ -831,6 +877,130 @@ ColourGrid bin_colours(const PointCloud& cloud, const ElevationMap& grid, double
   return g;
 }
 
+// ---------------------------------------------------------------------------------------------
+// The stages of compare_colour, in the order it runs them: both clouds binned on A's colour grid,
+// each cell's colour in the space, the survey-wide offset and the robust sigma, the cells that
+// changed beyond the threshold, and their connected regions.
+
+// A survey's cells in the colour space (chromaticity in percentage points, or CIELAB), and which
+// are valid: min_points coloured points and, for chromaticity, any light at all.
+struct SpaceColours {
+  std::vector<Eigen::Vector3d> v;
+  std::vector<char> ok;
+};
+
+SpaceColours space_colours(const ColourGrid& g, const ColourChangeConfig& config) {
+  SpaceColours s;
+  s.v.assign(g.rgb.size(), Eigen::Vector3d::Zero());
+  s.ok.assign(g.rgb.size(), 0);
+  for (std::size_t k = 0; k < g.rgb.size(); ++k) {
+    if (g.count[k] < config.min_points) continue;
+    const Eigen::Vector3d& c = g.rgb[k];
+    if (config.space == ColourSpace::Lab) {
+      s.v[k] = linear_rgb_to_lab(c);
+    } else {
+      const double sum = c.sum();
+      if (!(sum > 1e-6)) continue;
+      s.v[k] = Eigen::Vector3d(100 * c.x() / sum, 100 * c.y() / sum, 0);
+    }
+    s.ok[k] = 1;
+  }
+  return s;
+}
+
+// The offset: the median of B − A per component over the cells both observed (a lighting or white
+// balance shift of the whole survey); the sigma: robust, of the length of what is left (chi with
+// `dims` components); the threshold k_sigma·sigma. Fills `out`; returns the offset.
+Eigen::Vector3d colour_offset(const SpaceColours& a, const SpaceColours& b,
+                              const std::vector<std::size_t>& both, int dims,
+                              const ColourChangeConfig& config, ColourChange& out) {
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  std::vector<float> values(both.size());
+  for (int c = 0; c < dims; ++c) {
+    for (std::size_t n = 0; n < both.size(); ++n) {
+      values[n] = static_cast<float>(b.v[both[n]][c] - a.v[both[n]][c]);
+    }
+    offset[c] = quantile(values, 0.5);
+    out.offset.push_back(offset[c]);
+  }
+  for (std::size_t n = 0; n < both.size(); ++n) {
+    values[n] = static_cast<float>((b.v[both[n]] - offset - a.v[both[n]]).norm());
+  }
+  out.sigma = std::max(config.min_sigma, quantile(values, config.sigma_quantile) /
+                                             chi_quantile(config.sigma_quantile, dims));
+  out.threshold = config.k_sigma * out.sigma;
+  return offset;
+}
+
+// The cells that changed: B's colour (offset removed) differs from every colour of A within
+// tolerance_m (at least the 3×3 cells) by more than the threshold, or A's from every one of B's —
+// a colour edge that the maps place less than that apart is no change. Writes |B − A − offset| of
+// the cells both observed into `delta` (no data elsewhere).
+std::vector<int8_t> changed_colour_cells(const ElevationMap& grid, const SpaceColours& a,
+                                         const SpaceColours& b,
+                                         const std::vector<std::size_t>& both,
+                                         const Eigen::Vector3d& offset, double threshold,
+                                         const ColourChangeConfig& config, ElevationMap& delta) {
+  std::fill(delta.z.begin(), delta.z.end(), ElevationMap::kNoData);
+  const int rows = grid.rows, cols = grid.cols;
+  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
+  std::vector<int8_t> changed(a.v.size(), 0);
+  for (const std::size_t k : both) {
+    delta.z[k] = static_cast<float>((b.v[k] - offset - a.v[k]).norm());
+    const int row = static_cast<int>(k / static_cast<std::size_t>(cols));
+    const int col = static_cast<int>(k % static_cast<std::size_t>(cols));
+    double to_a = std::numeric_limits<double>::infinity(), to_b = to_a;
+    for (int dr = -reach; dr <= reach; ++dr) {
+      for (int dc = -reach; dc <= reach; ++dc) {
+        const int rr = row + dr, cc = col + dc;
+        if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+        const std::size_t j = grid.index(rr, cc);
+        if (a.ok[j]) to_a = std::min(to_a, (b.v[k] - offset - a.v[j]).norm());
+        if (b.ok[j]) to_b = std::min(to_b, (a.v[k] + offset - b.v[j]).norm());
+      }
+    }
+    if (to_a > threshold || to_b > threshold) changed[k] = 1;
+  }
+  return changed;
+}
+
+// The changed cells linked within link_m into regions; those of at least min_area_m2 reported
+// with their centroid, mean and largest change and both surveys' mean colours. Fills `out`.
+void colour_regions(const ElevationMap& grid, const ColourGrid& ga, const ColourGrid& gb,
+                    const ElevationMap& delta, const std::vector<int8_t>& changed,
+                    const ColourChangeConfig& config, ColourChange& out) {
+  const int rows = grid.rows, cols = grid.cols;
+  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
+  const double cell_area = config.cell_m * config.cell_m;
+  for (const std::vector<std::size_t>& comp : sign_components(changed, rows, cols, link)) {
+    out.significant_cells += comp.size();
+    ColourRegion reg;
+    reg.cells = comp.size();
+    reg.area_m2 = static_cast<double>(comp.size()) * cell_area;
+    if (reg.area_m2 < config.min_area_m2) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), rgb_a = sum, rgb_b = sum;
+    double sd = 0;
+    for (const std::size_t k : comp) {
+      const Eigen::Vector2d c =
+          grid.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cols)),
+                              static_cast<int>(k % static_cast<std::size_t>(cols)));
+      sum += Eigen::Vector3d(c.x(), c.y(), 0.5 * (ga.z[k] + gb.z[k]));
+      rgb_a += ga.rgb[k];
+      rgb_b += gb.rgb[k];
+      sd += delta.z[k];
+      reg.max_delta = std::max(reg.max_delta, static_cast<double>(delta.z[k]));
+    }
+    const double n = static_cast<double>(comp.size());
+    reg.centroid = sum / n;
+    reg.mean_delta = sd / n;
+    reg.colour_a = linear_to_srgb8((rgb_a / n).cast<float>());
+    reg.colour_b = linear_to_srgb8((rgb_b / n).cast<float>());
+    reg.cell_indices = comp;
+    reg.id = static_cast<int>(out.regions.size());
+    out.regions.push_back(reg);
+  }
+}
+
 }  // namespace
 
 void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
@@ -863,7 +1033,8 @@ void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
 }
 
 // Colour change (issue 13 item 4, beyond the thesis, whose sec. 6.4 maps video onto the sonar
-// cloud; here the two surveys' mapped colours are compared like the heights of compare_geometry).
+// cloud; here the two surveys' mapped colours are compared like the heights of compare_geometry):
+// the pipeline of the stages above.
 ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour_b_in_a,
                             const ColourChangeConfig& config) {
   config.validate();
@@ -890,31 +1061,10 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
   const ColourGrid ga = bin_colours(colour_a, grid, config.top_layer_m),
                    gb = bin_colours(colour_b_in_a, grid, config.top_layer_m);
   const int dims = config.space == ColourSpace::Lab ? 3 : 2;
-  // Each cell's colour in the space (chromaticity in percentage points); valid when the cell has
-  // min_points coloured points and, for chromaticity, any light at all.
-  auto to_space = [&](const ColourGrid& g, std::vector<Eigen::Vector3d>* v, std::vector<char>* ok) {
-    v->assign(g.rgb.size(), Eigen::Vector3d::Zero());
-    ok->assign(g.rgb.size(), 0);
-    for (std::size_t k = 0; k < g.rgb.size(); ++k) {
-      if (g.count[k] < config.min_points) continue;
-      const Eigen::Vector3d& c = g.rgb[k];
-      if (config.space == ColourSpace::Lab) {
-        (*v)[k] = linear_rgb_to_lab(c);
-      } else {
-        const double sum = c.sum();
-        if (!(sum > 1e-6)) continue;
-        (*v)[k] = Eigen::Vector3d(100 * c.x() / sum, 100 * c.y() / sum, 0);
-      }
-      (*ok)[k] = 1;
-    }
-  };
-  std::vector<Eigen::Vector3d> va, vb;
-  std::vector<char> oka, okb;
-  to_space(ga, &va, &oka);
-  to_space(gb, &vb, &okb);
+  const SpaceColours a = space_colours(ga, config), b = space_colours(gb, config);
   std::vector<std::size_t> both;
-  for (std::size_t k = 0; k < va.size(); ++k) {
-    if (oka[k] && okb[k]) both.push_back(k);
+  for (std::size_t k = 0; k < a.v.size(); ++k) {
+    if (a.ok[k] && b.ok[k]) both.push_back(k);
   }
   out.compared_cells = both.size();
   require(both.size() >= static_cast<std::size_t>(config.min_overlap_cells),
@@ -923,76 +1073,11 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
               std::to_string(config.min_points) + " coloured points in each (colour " +
               "min_overlap_cells = " + std::to_string(config.min_overlap_cells) +
               "): do they cover the same site, each in its own survey's world frame?");
-  // The offset: the median of B − A per component (a lighting or white balance shift of the
-  // whole survey); the sigma: robust, of the length of what is left (chi with `dims` components).
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
-  std::vector<float> values(both.size());
-  for (int c = 0; c < dims; ++c) {
-    for (std::size_t n = 0; n < both.size(); ++n) {
-      values[n] = static_cast<float>(vb[both[n]][c] - va[both[n]][c]);
-    }
-    offset[c] = quantile(values, 0.5);
-    out.offset.push_back(offset[c]);
-  }
-  for (std::size_t n = 0; n < both.size(); ++n) {
-    values[n] = static_cast<float>((vb[both[n]] - offset - va[both[n]]).norm());
-  }
-  out.sigma = std::max(config.min_sigma, quantile(values, config.sigma_quantile) /
-                                             chi_quantile(config.sigma_quantile, dims));
-  out.threshold = config.k_sigma * out.sigma;
-  // A cell changed when B's colour (offset removed) differs from every colour of A within
-  // tolerance_m (at least the 3×3 cells) by more than the threshold, or A's from every one of B's:
-  // a colour edge that the maps place less than that apart is no change.
+  const Eigen::Vector3d offset = colour_offset(a, b, both, dims, config, out);
   ElevationMap delta = grid;
-  std::fill(delta.z.begin(), delta.z.end(), ElevationMap::kNoData);
-  const int rows = grid.rows, cols = grid.cols;
-  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
-  std::vector<int8_t> changed(va.size(), 0);
-  for (const std::size_t k : both) {
-    delta.z[k] = static_cast<float>((vb[k] - offset - va[k]).norm());
-    const int row = static_cast<int>(k / static_cast<std::size_t>(cols));
-    const int col = static_cast<int>(k % static_cast<std::size_t>(cols));
-    double to_a = std::numeric_limits<double>::infinity(), to_b = to_a;
-    for (int dr = -reach; dr <= reach; ++dr) {
-      for (int dc = -reach; dc <= reach; ++dc) {
-        const int rr = row + dr, cc = col + dc;
-        if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
-        const std::size_t j = grid.index(rr, cc);
-        if (oka[j]) to_a = std::min(to_a, (vb[k] - offset - va[j]).norm());
-        if (okb[j]) to_b = std::min(to_b, (va[k] + offset - vb[j]).norm());
-      }
-    }
-    if (to_a > out.threshold || to_b > out.threshold) changed[k] = 1;
-  }
-  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
-  const double cell_area = config.cell_m * config.cell_m;
-  for (const std::vector<std::size_t>& comp : sign_components(changed, rows, cols, link)) {
-    out.significant_cells += comp.size();
-    ColourRegion reg;
-    reg.cells = comp.size();
-    reg.area_m2 = static_cast<double>(comp.size()) * cell_area;
-    if (reg.area_m2 < config.min_area_m2) continue;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), rgb_a = sum, rgb_b = sum;
-    double sd = 0;
-    for (const std::size_t k : comp) {
-      const Eigen::Vector2d c =
-          grid.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cols)),
-                              static_cast<int>(k % static_cast<std::size_t>(cols)));
-      sum += Eigen::Vector3d(c.x(), c.y(), 0.5 * (ga.z[k] + gb.z[k]));
-      rgb_a += ga.rgb[k];
-      rgb_b += gb.rgb[k];
-      sd += delta.z[k];
-      reg.max_delta = std::max(reg.max_delta, static_cast<double>(delta.z[k]));
-    }
-    const double n = static_cast<double>(comp.size());
-    reg.centroid = sum / n;
-    reg.mean_delta = sd / n;
-    reg.colour_a = linear_to_srgb8((rgb_a / n).cast<float>());
-    reg.colour_b = linear_to_srgb8((rgb_b / n).cast<float>());
-    reg.cell_indices = comp;
-    reg.id = static_cast<int>(out.regions.size());
-    out.regions.push_back(reg);
-  }
+  const std::vector<int8_t> changed =
+      changed_colour_cells(grid, a, b, both, offset, out.threshold, config, delta);
+  colour_regions(grid, ga, gb, delta, changed, config, out);
   out.delta_map = std::move(delta);
   return out;
 }
