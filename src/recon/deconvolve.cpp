@@ -231,6 +231,82 @@ std::vector<std::pair<std::size_t, std::size_t>> split_passes(
   return out;
 }
 
+namespace {
+
+// The uniform model of the sensor heights z_i of a pass (sec. 5.4): z_k ≈ z_0 + k·Δz fitted by
+// least squares to the pass's sorted heights; sets g.spacing and the largest and rms departures.
+void fit_uniform_spacing(PassGeometry& g) {
+  const std::size_t n = g.heights.size();
+  double sk = 0, sz = 0, skk = 0, skz = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    sk += k;
+    sz += g.heights[k];
+    skk += static_cast<double>(k) * k;
+    skz += k * g.heights[k];
+  }
+  const double den = n * skk - sk * sk;
+  g.spacing = den > 0 ? (n * skz - sk * sz) / den : 0.0;
+  const double z0 = (sz - g.spacing * sk) / n;
+  double sum_e2 = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double e = g.heights[k] - (z0 + k * g.spacing);
+    g.max_spacing_error = std::max(g.max_spacing_error, std::abs(e));
+    sum_e2 += e * e;
+  }
+  g.rms_spacing_error = std::sqrt(sum_e2 / n);
+}
+
+// The pass's geometry against the tolerances of DeconvConfig: an error naming the measured figures
+// when the orientation turns, the motion leaves the sonar's z axis, a frame lies off the axis or
+// the spacing is not uniform; a warning when the spacing is uneven but within tolerance.
+void check_pass_geometry(PassGeometry& g, const DeconvConfig& config, const std::string& where) {
+  const std::string figures =
+      " (measured: axis " + fmt(g.axis_angle_rad / kDeg, 2) + "° from the sonar z, lateral max " +
+      fmt(g.max_lateral * 100, 2) + " cm / rms " + fmt(g.rms_lateral * 100, 2) + " cm, spacing " +
+      fmt(g.spacing * 100, 3) + " cm ± max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
+      fmt(g.rms_spacing_error * 100, 2) + " cm, orientation max " +
+      fmt(g.max_rotation_rad / kDeg, 2) + "°)";
+  if (g.max_rotation_rad > config.max_rotation_deg * kDeg) {
+    throw Error(
+        where + ": the sonar orientation changes by " + fmt(g.max_rotation_rad / kDeg, 2) +
+        "° during the pass (tolerance max_rotation_deg = " + fmt(config.max_rotation_deg, 2) +
+        "°); deconvolution needs a pure translation along the sonar's z axis" + figures);
+  }
+  if (g.axis_angle_rad > config.max_axis_angle_deg * kDeg) {
+    throw Error(
+        where + ": the motion is not along the sonar's z axis: the positions fit a line " +
+        fmt(g.axis_angle_rad / kDeg, 2) +
+        "° away from it (tolerance max_axis_angle_deg = " + fmt(config.max_axis_angle_deg, 2) +
+        "°); deconvolution needs a pass along the vertical aperture — use carving for "
+        "other trajectories" +
+        figures);
+  }
+  if (g.max_lateral > config.max_lateral_deviation) {
+    throw Error(where + ": a frame lies " + fmt(g.max_lateral * 100, 2) +
+                " cm from the pass axis (tolerance max_lateral_deviation = " +
+                fmt(config.max_lateral_deviation * 100, 2) + " cm)" + figures);
+  }
+  if (!(g.spacing > 1e-6)) {
+    throw Error(where + ": the frames do not advance along the sonar's z axis (fitted spacing " +
+                fmt(g.spacing * 1000, 4) + " mm)" + figures);
+  }
+  if (g.max_spacing_error > config.max_spacing_deviation * g.spacing) {
+    throw Error(where + ": the frame spacing is not uniform: a frame is " +
+                fmt(g.max_spacing_error * 100, 2) + " cm off the uniform grid of spacing " +
+                fmt(g.spacing * 100, 3) + " cm (tolerance max_spacing_deviation = " +
+                fmt(config.max_spacing_deviation, 2) + " × spacing)" + figures);
+  }
+  if (g.max_spacing_error > 0.25 * g.spacing) {
+    g.warnings.push_back(
+        where + ": non-uniform spacing, max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
+        fmt(g.rms_spacing_error * 100, 2) + " cm off the " + fmt(g.spacing * 100, 3) + " cm grid" +
+        (config.use_measured_heights ? " (modelled: the kernel uses each frame's measured height)"
+                                     : " (ignored: use_measured_heights is off)"));
+  }
+}
+
+}  // namespace
+
 PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
                           const DeconvConfig& config, const std::string& where) {
   const std::size_t n = T_world_sonar.size();
@@ -293,68 +369,8 @@ PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
   g.heights.resize(n);
   for (std::size_t k = 0; k < n; ++k) g.heights[k] = h[g.frames[k]];
 
-  // Uniform fit z_k ≈ z_0 + k·Δz (least squares over the sorted heights).
-  double sk = 0, sz = 0, skk = 0, skz = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    sk += k;
-    sz += g.heights[k];
-    skk += static_cast<double>(k) * k;
-    skz += k * g.heights[k];
-  }
-  const double den = n * skk - sk * sk;
-  g.spacing = den > 0 ? (n * skz - sk * sz) / den : 0.0;
-  const double z0 = (sz - g.spacing * sk) / n;
-  double sum_e2 = 0.0;
-  for (std::size_t k = 0; k < n; ++k) {
-    const double e = g.heights[k] - (z0 + k * g.spacing);
-    g.max_spacing_error = std::max(g.max_spacing_error, std::abs(e));
-    sum_e2 += e * e;
-  }
-  g.rms_spacing_error = std::sqrt(sum_e2 / n);
-
-  const std::string figures =
-      " (measured: axis " + fmt(g.axis_angle_rad / kDeg, 2) + "° from the sonar z, lateral max " +
-      fmt(g.max_lateral * 100, 2) + " cm / rms " + fmt(g.rms_lateral * 100, 2) + " cm, spacing " +
-      fmt(g.spacing * 100, 3) + " cm ± max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
-      fmt(g.rms_spacing_error * 100, 2) + " cm, orientation max " +
-      fmt(g.max_rotation_rad / kDeg, 2) + "°)";
-  if (g.max_rotation_rad > config.max_rotation_deg * kDeg) {
-    throw Error(
-        where + ": the sonar orientation changes by " + fmt(g.max_rotation_rad / kDeg, 2) +
-        "° during the pass (tolerance max_rotation_deg = " + fmt(config.max_rotation_deg, 2) +
-        "°); deconvolution needs a pure translation along the sonar's z axis" + figures);
-  }
-  if (g.axis_angle_rad > config.max_axis_angle_deg * kDeg) {
-    throw Error(
-        where + ": the motion is not along the sonar's z axis: the positions fit a line " +
-        fmt(g.axis_angle_rad / kDeg, 2) +
-        "° away from it (tolerance max_axis_angle_deg = " + fmt(config.max_axis_angle_deg, 2) +
-        "°); deconvolution needs a pass along the vertical aperture — use carving for "
-        "other trajectories" +
-        figures);
-  }
-  if (g.max_lateral > config.max_lateral_deviation) {
-    throw Error(where + ": a frame lies " + fmt(g.max_lateral * 100, 2) +
-                " cm from the pass axis (tolerance max_lateral_deviation = " +
-                fmt(config.max_lateral_deviation * 100, 2) + " cm)" + figures);
-  }
-  if (!(g.spacing > 1e-6)) {
-    throw Error(where + ": the frames do not advance along the sonar's z axis (fitted spacing " +
-                fmt(g.spacing * 1000, 4) + " mm)" + figures);
-  }
-  if (g.max_spacing_error > config.max_spacing_deviation * g.spacing) {
-    throw Error(where + ": the frame spacing is not uniform: a frame is " +
-                fmt(g.max_spacing_error * 100, 2) + " cm off the uniform grid of spacing " +
-                fmt(g.spacing * 100, 3) + " cm (tolerance max_spacing_deviation = " +
-                fmt(config.max_spacing_deviation, 2) + " × spacing)" + figures);
-  }
-  if (g.max_spacing_error > 0.25 * g.spacing) {
-    g.warnings.push_back(
-        where + ": non-uniform spacing, max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
-        fmt(g.rms_spacing_error * 100, 2) + " cm off the " + fmt(g.spacing * 100, 3) + " cm grid" +
-        (config.use_measured_heights ? " (modelled: the kernel uses each frame's measured height)"
-                                     : " (ignored: use_measured_heights is off)"));
-  }
+  fit_uniform_spacing(g);
+  check_pass_geometry(g, config, where);
   return g;
 }
 
