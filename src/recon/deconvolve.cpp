@@ -552,6 +552,118 @@ ColumnKernel build_column_kernel(double range, const std::vector<double>& height
 
 namespace deconv_detail {
 
+namespace {
+
+// The row view of a bin's kernel A* for ignore_shadowed_zeros: row k (frame k by height) holds the
+// layers row_first[k] .. + row_count[k] − 1 (at most K + 1), their values in row_val; per layer
+// its number of rows. Per-task scratch of solve_approx, reused across its bins and beams.
+struct KernelRows {
+  std::vector<int> row_first, row_count, layer_rows, rows_left;
+  std::vector<double> row_val;
+  std::vector<char> drop;  // per frame: a zero pixel behind its beam's first return (left out)
+
+  void build(const ColumnKernel& ker, int n) {
+    const int P = ker.layers;
+    row_first.assign(n, P);
+    row_count.assign(n, 0);
+    layer_rows.assign(P, 0);
+    rows_left.resize(P);
+    drop.assign(n, 0);
+    for (int p = 0; p < P; ++p) {
+      layer_rows[p] = ker.A.start[p + 1] - ker.A.start[p];
+      for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
+        const int k = ker.A.row[e];
+        row_first[k] = std::min(row_first[k], p);
+        ++row_count[k];
+      }
+    }
+    row_val.assign(static_cast<std::size_t>(n) * (ker.K + 1), 0.0);
+    for (int p = 0; p < P; ++p) {
+      for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
+        const int k = ker.A.row[e];
+        row_val[static_cast<std::size_t>(k) * (ker.K + 1) + (p - row_first[k])] = ker.A.value[e];
+      }
+    }
+  }
+};
+
+// The Gram matrix of a column without its dropped rows, into shadow.gram: Q' = Q − Σ_dropped
+// a_k a_kᵀ (c is unchanged: dropped rows have y = 0). A layer left without rows gets an exactly
+// zero column so that rounding cannot revive it.
+void drop_shadowed_rows(const ColumnKernel& ker, int n, KernelRows& rows, ColumnKernel& shadow) {
+  const int P = ker.layers;
+  shadow.gram = ker.gram;
+  std::copy(rows.layer_rows.begin(), rows.layer_rows.end(), rows.rows_left.begin());
+  for (int k = 0; k < n; ++k) {
+    if (!rows.drop[k]) continue;
+    const double* a = &rows.row_val[static_cast<std::size_t>(k) * (ker.K + 1)];
+    const int p0 = rows.row_first[k], m = rows.row_count[k];
+    for (int u = 0; u < m; ++u) {
+      --rows.rows_left[p0 + u];
+      for (int v = u; v < m; ++v) shadow.gram.upper(p0 + u, v - u) -= a[u] * a[v];
+    }
+  }
+  const int bw = shadow.gram.bandwidth();
+  for (int p = 0; p < P; ++p) {
+    if (rows.rows_left[p] > 0) continue;
+    for (int d = 0; d <= bw && p + d < P; ++d) shadow.gram.upper(p, d) = 0.0;
+    for (int d = 1; d <= bw && p - d >= 0; ++d) shadow.gram.upper(p - d, d) = 0.0;
+  }
+}
+
+// sec. 5.6.7: one column's kernel for the second pass, into `scaled`: A*_kp scaled by the
+// second-pass factor of frame k and layer p (the dropped rows zeroed when `dropped`), and its
+// Gram matrix.
+void scale_column_kernel(const PassData& pd, const ColumnKernel& ker, const KernelScaler& scaler,
+                         int beam, double r, double phi, const std::vector<char>& drop, int dropped,
+                         ColumnKernel& scaled) {
+  scaled.A = ker.A;
+  for (int p = 0; p < ker.layers; ++p) {
+    const Eigen::Vector3d pw = pd.to_world(r, phi, ker.layer_height(p));
+    const int e0 = scaled.A.start[p];
+    scaler.scale(beam, pw, &scaled.A.row[e0], scaled.A.start[p + 1] - e0, &scaled.A.value[e0]);
+    if (dropped) {
+      for (int e = e0; e < scaled.A.start[p + 1]; ++e) {
+        if (drop[scaled.A.row[e]]) scaled.A.value[e] = 0.0f;
+      }
+    }
+  }
+  scaled.gram = BandMatrix::gram(scaled.A);
+}
+
+// The layers of a solved column (b) kept as points: b_p above min_intensity and, with
+// min_relative_intensity, explaining at least that fraction of the column's brightest pixel ymax
+// through its largest kernel entry; placed at horizontal distance r, bearing phi and the layer's
+// height in the pass frame.
+void keep_layers(const PassData& pd, const DeconvConfig& cfg, const ColumnKernel& ker,
+                 const SparseColumns& A_col, const std::vector<double>& b, float ymax, double r,
+                 double phi, int beam, int bin, std::vector<LayerPoint>& pts) {
+  const double min_contribution = cfg.min_relative_intensity * ymax;
+  for (int p = 0; p < ker.layers; ++p) {
+    if (!(b[p] > cfg.min_intensity)) continue;
+    if (min_contribution > 0) {
+      double amax = 0.0;
+      for (int e = A_col.start[p]; e < A_col.start[p + 1]; ++e) {
+        amax = std::max(amax, static_cast<double>(A_col.value[e]));
+      }
+      if (b[p] * amax < min_contribution) continue;
+    }
+    LayerPoint lp;
+    const double u = ker.layer_height(p);
+    lp.p_world = pd.to_world(r, phi, u).cast<float>();
+    lp.value = static_cast<float>(b[p]);
+    lp.rho = static_cast<float>(r);
+    lp.height = static_cast<float>(u);
+    lp.beam = beam;
+    lp.bin = bin;
+    pts.push_back(lp);
+  }
+}
+
+}  // namespace
+
+// One NNLS per (range, bearing) column (eq. 5.28) with the column kernel A* of its range (eq.
+// 5.27), bins in parallel; each task keeps its solver and kernel copies across its bins.
 void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern& pattern,
                   const KernelScaler* scaler, PassReport& report, std::vector<LayerPoint>& out,
                   Progress* progress) {
@@ -567,9 +679,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
         std::vector<double> y(n), c, b;
         ColumnKernel scaled;  // multipass: per-column copy of the kernel
         ColumnKernel shadow;  // ignore_shadowed_zeros: per-column Gram without the shadowed rows
-        std::vector<int> row_first, row_count, layer_rows, rows_left;
-        std::vector<double> row_val;
-        std::vector<char> drop;
+        KernelRows rows;      // ignore_shadowed_zeros: the kernel's row view
         for (int bin = rg.begin(); bin < rg.end(); ++bin) {
           if (!pd.bin_has_data[bin - pd.bin_lo]) {
             if (progress) progress->add();
@@ -581,31 +691,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
           const int P = ker.layers;
           c.resize(P);
           b.resize(P);
-          if (cfg.ignore_shadowed_zeros) {
-            // Row view of A*: row k holds layers row_first[k] .. + row_count[k] − 1 (at most K +
-            // 1).
-            row_first.assign(n, P);
-            row_count.assign(n, 0);
-            layer_rows.assign(P, 0);
-            rows_left.resize(P);
-            drop.assign(n, 0);
-            for (int p = 0; p < P; ++p) {
-              layer_rows[p] = ker.A.start[p + 1] - ker.A.start[p];
-              for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
-                const int k = ker.A.row[e];
-                row_first[k] = std::min(row_first[k], p);
-                ++row_count[k];
-              }
-            }
-            row_val.assign(static_cast<std::size_t>(n) * (ker.K + 1), 0.0);
-            for (int p = 0; p < P; ++p) {
-              for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
-                const int k = ker.A.row[e];
-                row_val[static_cast<std::size_t>(k) * (ker.K + 1) + (p - row_first[k])] =
-                    ker.A.value[e];
-              }
-            }
-          }
+          if (cfg.ignore_shadowed_zeros) rows.build(ker, n);
           std::vector<LayerPoint>& pts = per_bin[bin - pd.bin_lo];
           for (int beam = 0; beam < pd.beams; ++beam) {
             const float* col = pd.column(bin, beam);
@@ -624,47 +710,16 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
             if (cfg.ignore_shadowed_zeros) {
               const int* fr = &pd.first_return[static_cast<std::size_t>(beam) * n];
               for (int k = 0; k < n; ++k) {
-                drop[k] = y[k] == 0.0 && fr[k] < bin;
-                dropped += drop[k];
+                rows.drop[k] = y[k] == 0.0 && fr[k] < bin;
+                dropped += rows.drop[k];
               }
             }
             if (scaler) {
-              // sec. 5.6.7: scale A*_kp by the second-pass factor of frame k and layer p.
-              scaled.A = ker.A;
-              for (int p = 0; p < P; ++p) {
-                const Eigen::Vector3d pw = pd.to_world(r, phi, ker.layer_height(p));
-                const int e0 = scaled.A.start[p];
-                scaler->scale(beam, pw, &scaled.A.row[e0], scaled.A.start[p + 1] - e0,
-                              &scaled.A.value[e0]);
-                if (dropped) {
-                  for (int e = e0; e < scaled.A.start[p + 1]; ++e) {
-                    if (drop[scaled.A.row[e]]) scaled.A.value[e] = 0.0f;
-                  }
-                }
-              }
-              scaled.gram = BandMatrix::gram(scaled.A);
+              scale_column_kernel(pd, ker, *scaler, beam, r, phi, rows.drop, dropped, scaled);
               A_col = &scaled.A;
               Q_col = &scaled.gram;
             } else if (dropped) {
-              // Q' = Q − Σ_dropped a_k a_kᵀ (c is unchanged: dropped rows have y = 0). A layer left
-              // without rows gets an exactly zero column so that rounding cannot revive it.
-              shadow.gram = ker.gram;
-              std::copy(layer_rows.begin(), layer_rows.end(), rows_left.begin());
-              for (int k = 0; k < n; ++k) {
-                if (!drop[k]) continue;
-                const double* a = &row_val[static_cast<std::size_t>(k) * (ker.K + 1)];
-                const int p0 = row_first[k], m = row_count[k];
-                for (int u = 0; u < m; ++u) {
-                  --rows_left[p0 + u];
-                  for (int v = u; v < m; ++v) shadow.gram.upper(p0 + u, v - u) -= a[u] * a[v];
-                }
-              }
-              const int bw = shadow.gram.bandwidth();
-              for (int p = 0; p < P; ++p) {
-                if (rows_left[p] > 0) continue;
-                for (int d = 0; d <= bw && p + d < P; ++d) shadow.gram.upper(p, d) = 0.0;
-                for (int d = 1; d <= bw && p - d >= 0; ++d) shadow.gram.upper(p - d, d) = 0.0;
-              }
+              drop_shadowed_rows(ker, n, rows, shadow);
               Q_col = &shadow.gram;
             }
             A_col->transpose_times(y.data(), c.data());
@@ -681,26 +736,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
             int cur = max_iter.load();
             while (st.iterations > cur && !max_iter.compare_exchange_weak(cur, st.iterations)) {
             }
-            const double min_contribution = cfg.min_relative_intensity * ymax;
-            for (int p = 0; p < P; ++p) {
-              if (!(b[p] > cfg.min_intensity)) continue;
-              if (min_contribution > 0) {
-                double amax = 0.0;
-                for (int e = A_col->start[p]; e < A_col->start[p + 1]; ++e) {
-                  amax = std::max(amax, static_cast<double>(A_col->value[e]));
-                }
-                if (b[p] * amax < min_contribution) continue;
-              }
-              LayerPoint lp;
-              const double u = ker.layer_height(p);
-              lp.p_world = pd.to_world(r, phi, u).cast<float>();
-              lp.value = static_cast<float>(b[p]);
-              lp.rho = static_cast<float>(r);
-              lp.height = static_cast<float>(u);
-              lp.beam = beam;
-              lp.bin = bin;
-              pts.push_back(lp);
-            }
+            keep_layers(pd, cfg, ker, *A_col, b, ymax, r, phi, beam, bin, pts);
           }
           if (progress) progress->add();
         }
