@@ -231,6 +231,82 @@ std::vector<std::pair<std::size_t, std::size_t>> split_passes(
   return out;
 }
 
+namespace {
+
+// The uniform model of the sensor heights z_i of a pass (sec. 5.4): z_k ≈ z_0 + k·Δz fitted by
+// least squares to the pass's sorted heights; sets g.spacing and the largest and rms departures.
+void fit_uniform_spacing(PassGeometry& g) {
+  const std::size_t n = g.heights.size();
+  double sk = 0, sz = 0, skk = 0, skz = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    sk += k;
+    sz += g.heights[k];
+    skk += static_cast<double>(k) * k;
+    skz += k * g.heights[k];
+  }
+  const double den = n * skk - sk * sk;
+  g.spacing = den > 0 ? (n * skz - sk * sz) / den : 0.0;
+  const double z0 = (sz - g.spacing * sk) / n;
+  double sum_e2 = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double e = g.heights[k] - (z0 + k * g.spacing);
+    g.max_spacing_error = std::max(g.max_spacing_error, std::abs(e));
+    sum_e2 += e * e;
+  }
+  g.rms_spacing_error = std::sqrt(sum_e2 / n);
+}
+
+// The pass's geometry against the tolerances of DeconvConfig: an error naming the measured figures
+// when the orientation turns, the motion leaves the sonar's z axis, a frame lies off the axis or
+// the spacing is not uniform; a warning when the spacing is uneven but within tolerance.
+void check_pass_geometry(PassGeometry& g, const DeconvConfig& config, const std::string& where) {
+  const std::string figures =
+      " (measured: axis " + fmt(g.axis_angle_rad / kDeg, 2) + "° from the sonar z, lateral max " +
+      fmt(g.max_lateral * 100, 2) + " cm / rms " + fmt(g.rms_lateral * 100, 2) + " cm, spacing " +
+      fmt(g.spacing * 100, 3) + " cm ± max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
+      fmt(g.rms_spacing_error * 100, 2) + " cm, orientation max " +
+      fmt(g.max_rotation_rad / kDeg, 2) + "°)";
+  if (g.max_rotation_rad > config.max_rotation_deg * kDeg) {
+    throw Error(
+        where + ": the sonar orientation changes by " + fmt(g.max_rotation_rad / kDeg, 2) +
+        "° during the pass (tolerance max_rotation_deg = " + fmt(config.max_rotation_deg, 2) +
+        "°); deconvolution needs a pure translation along the sonar's z axis" + figures);
+  }
+  if (g.axis_angle_rad > config.max_axis_angle_deg * kDeg) {
+    throw Error(
+        where + ": the motion is not along the sonar's z axis: the positions fit a line " +
+        fmt(g.axis_angle_rad / kDeg, 2) +
+        "° away from it (tolerance max_axis_angle_deg = " + fmt(config.max_axis_angle_deg, 2) +
+        "°); deconvolution needs a pass along the vertical aperture — use carving for "
+        "other trajectories" +
+        figures);
+  }
+  if (g.max_lateral > config.max_lateral_deviation) {
+    throw Error(where + ": a frame lies " + fmt(g.max_lateral * 100, 2) +
+                " cm from the pass axis (tolerance max_lateral_deviation = " +
+                fmt(config.max_lateral_deviation * 100, 2) + " cm)" + figures);
+  }
+  if (!(g.spacing > 1e-6)) {
+    throw Error(where + ": the frames do not advance along the sonar's z axis (fitted spacing " +
+                fmt(g.spacing * 1000, 4) + " mm)" + figures);
+  }
+  if (g.max_spacing_error > config.max_spacing_deviation * g.spacing) {
+    throw Error(where + ": the frame spacing is not uniform: a frame is " +
+                fmt(g.max_spacing_error * 100, 2) + " cm off the uniform grid of spacing " +
+                fmt(g.spacing * 100, 3) + " cm (tolerance max_spacing_deviation = " +
+                fmt(config.max_spacing_deviation, 2) + " × spacing)" + figures);
+  }
+  if (g.max_spacing_error > 0.25 * g.spacing) {
+    g.warnings.push_back(
+        where + ": non-uniform spacing, max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
+        fmt(g.rms_spacing_error * 100, 2) + " cm off the " + fmt(g.spacing * 100, 3) + " cm grid" +
+        (config.use_measured_heights ? " (modelled: the kernel uses each frame's measured height)"
+                                     : " (ignored: use_measured_heights is off)"));
+  }
+}
+
+}  // namespace
+
 PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
                           const DeconvConfig& config, const std::string& where) {
   const std::size_t n = T_world_sonar.size();
@@ -293,68 +369,8 @@ PassGeometry analyze_pass(const std::vector<Eigen::Isometry3d>& T_world_sonar,
   g.heights.resize(n);
   for (std::size_t k = 0; k < n; ++k) g.heights[k] = h[g.frames[k]];
 
-  // Uniform fit z_k ≈ z_0 + k·Δz (least squares over the sorted heights).
-  double sk = 0, sz = 0, skk = 0, skz = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    sk += k;
-    sz += g.heights[k];
-    skk += static_cast<double>(k) * k;
-    skz += k * g.heights[k];
-  }
-  const double den = n * skk - sk * sk;
-  g.spacing = den > 0 ? (n * skz - sk * sz) / den : 0.0;
-  const double z0 = (sz - g.spacing * sk) / n;
-  double sum_e2 = 0.0;
-  for (std::size_t k = 0; k < n; ++k) {
-    const double e = g.heights[k] - (z0 + k * g.spacing);
-    g.max_spacing_error = std::max(g.max_spacing_error, std::abs(e));
-    sum_e2 += e * e;
-  }
-  g.rms_spacing_error = std::sqrt(sum_e2 / n);
-
-  const std::string figures =
-      " (measured: axis " + fmt(g.axis_angle_rad / kDeg, 2) + "° from the sonar z, lateral max " +
-      fmt(g.max_lateral * 100, 2) + " cm / rms " + fmt(g.rms_lateral * 100, 2) + " cm, spacing " +
-      fmt(g.spacing * 100, 3) + " cm ± max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
-      fmt(g.rms_spacing_error * 100, 2) + " cm, orientation max " +
-      fmt(g.max_rotation_rad / kDeg, 2) + "°)";
-  if (g.max_rotation_rad > config.max_rotation_deg * kDeg) {
-    throw Error(
-        where + ": the sonar orientation changes by " + fmt(g.max_rotation_rad / kDeg, 2) +
-        "° during the pass (tolerance max_rotation_deg = " + fmt(config.max_rotation_deg, 2) +
-        "°); deconvolution needs a pure translation along the sonar's z axis" + figures);
-  }
-  if (g.axis_angle_rad > config.max_axis_angle_deg * kDeg) {
-    throw Error(
-        where + ": the motion is not along the sonar's z axis: the positions fit a line " +
-        fmt(g.axis_angle_rad / kDeg, 2) +
-        "° away from it (tolerance max_axis_angle_deg = " + fmt(config.max_axis_angle_deg, 2) +
-        "°); deconvolution needs a pass along the vertical aperture — use carving for "
-        "other trajectories" +
-        figures);
-  }
-  if (g.max_lateral > config.max_lateral_deviation) {
-    throw Error(where + ": a frame lies " + fmt(g.max_lateral * 100, 2) +
-                " cm from the pass axis (tolerance max_lateral_deviation = " +
-                fmt(config.max_lateral_deviation * 100, 2) + " cm)" + figures);
-  }
-  if (!(g.spacing > 1e-6)) {
-    throw Error(where + ": the frames do not advance along the sonar's z axis (fitted spacing " +
-                fmt(g.spacing * 1000, 4) + " mm)" + figures);
-  }
-  if (g.max_spacing_error > config.max_spacing_deviation * g.spacing) {
-    throw Error(where + ": the frame spacing is not uniform: a frame is " +
-                fmt(g.max_spacing_error * 100, 2) + " cm off the uniform grid of spacing " +
-                fmt(g.spacing * 100, 3) + " cm (tolerance max_spacing_deviation = " +
-                fmt(config.max_spacing_deviation, 2) + " × spacing)" + figures);
-  }
-  if (g.max_spacing_error > 0.25 * g.spacing) {
-    g.warnings.push_back(
-        where + ": non-uniform spacing, max " + fmt(g.max_spacing_error * 100, 2) + " cm / rms " +
-        fmt(g.rms_spacing_error * 100, 2) + " cm off the " + fmt(g.spacing * 100, 3) + " cm grid" +
-        (config.use_measured_heights ? " (modelled: the kernel uses each frame's measured height)"
-                                     : " (ignored: use_measured_heights is off)"));
-  }
+  fit_uniform_spacing(g);
+  check_pass_geometry(g, config, where);
   return g;
 }
 
@@ -536,6 +552,118 @@ ColumnKernel build_column_kernel(double range, const std::vector<double>& height
 
 namespace deconv_detail {
 
+namespace {
+
+// The row view of a bin's kernel A* for ignore_shadowed_zeros: row k (frame k by height) holds the
+// layers row_first[k] .. + row_count[k] − 1 (at most K + 1), their values in row_val; per layer
+// its number of rows. Per-task scratch of solve_approx, reused across its bins and beams.
+struct KernelRows {
+  std::vector<int> row_first, row_count, layer_rows, rows_left;
+  std::vector<double> row_val;
+  std::vector<char> drop;  // per frame: a zero pixel behind its beam's first return (left out)
+
+  void build(const ColumnKernel& ker, int n) {
+    const int P = ker.layers;
+    row_first.assign(n, P);
+    row_count.assign(n, 0);
+    layer_rows.assign(P, 0);
+    rows_left.resize(P);
+    drop.assign(n, 0);
+    for (int p = 0; p < P; ++p) {
+      layer_rows[p] = ker.A.start[p + 1] - ker.A.start[p];
+      for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
+        const int k = ker.A.row[e];
+        row_first[k] = std::min(row_first[k], p);
+        ++row_count[k];
+      }
+    }
+    row_val.assign(static_cast<std::size_t>(n) * (ker.K + 1), 0.0);
+    for (int p = 0; p < P; ++p) {
+      for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
+        const int k = ker.A.row[e];
+        row_val[static_cast<std::size_t>(k) * (ker.K + 1) + (p - row_first[k])] = ker.A.value[e];
+      }
+    }
+  }
+};
+
+// The Gram matrix of a column without its dropped rows, into shadow.gram: Q' = Q − Σ_dropped
+// a_k a_kᵀ (c is unchanged: dropped rows have y = 0). A layer left without rows gets an exactly
+// zero column so that rounding cannot revive it.
+void drop_shadowed_rows(const ColumnKernel& ker, int n, KernelRows& rows, ColumnKernel& shadow) {
+  const int P = ker.layers;
+  shadow.gram = ker.gram;
+  std::copy(rows.layer_rows.begin(), rows.layer_rows.end(), rows.rows_left.begin());
+  for (int k = 0; k < n; ++k) {
+    if (!rows.drop[k]) continue;
+    const double* a = &rows.row_val[static_cast<std::size_t>(k) * (ker.K + 1)];
+    const int p0 = rows.row_first[k], m = rows.row_count[k];
+    for (int u = 0; u < m; ++u) {
+      --rows.rows_left[p0 + u];
+      for (int v = u; v < m; ++v) shadow.gram.upper(p0 + u, v - u) -= a[u] * a[v];
+    }
+  }
+  const int bw = shadow.gram.bandwidth();
+  for (int p = 0; p < P; ++p) {
+    if (rows.rows_left[p] > 0) continue;
+    for (int d = 0; d <= bw && p + d < P; ++d) shadow.gram.upper(p, d) = 0.0;
+    for (int d = 1; d <= bw && p - d >= 0; ++d) shadow.gram.upper(p - d, d) = 0.0;
+  }
+}
+
+// sec. 5.6.7: one column's kernel for the second pass, into `scaled`: A*_kp scaled by the
+// second-pass factor of frame k and layer p (the dropped rows zeroed when `dropped`), and its
+// Gram matrix.
+void scale_column_kernel(const PassData& pd, const ColumnKernel& ker, const KernelScaler& scaler,
+                         int beam, double r, double phi, const std::vector<char>& drop, int dropped,
+                         ColumnKernel& scaled) {
+  scaled.A = ker.A;
+  for (int p = 0; p < ker.layers; ++p) {
+    const Eigen::Vector3d pw = pd.to_world(r, phi, ker.layer_height(p));
+    const int e0 = scaled.A.start[p];
+    scaler.scale(beam, pw, &scaled.A.row[e0], scaled.A.start[p + 1] - e0, &scaled.A.value[e0]);
+    if (dropped) {
+      for (int e = e0; e < scaled.A.start[p + 1]; ++e) {
+        if (drop[scaled.A.row[e]]) scaled.A.value[e] = 0.0f;
+      }
+    }
+  }
+  scaled.gram = BandMatrix::gram(scaled.A);
+}
+
+// The layers of a solved column (b) kept as points: b_p above min_intensity and, with
+// min_relative_intensity, explaining at least that fraction of the column's brightest pixel ymax
+// through its largest kernel entry; placed at horizontal distance r, bearing phi and the layer's
+// height in the pass frame.
+void keep_layers(const PassData& pd, const DeconvConfig& cfg, const ColumnKernel& ker,
+                 const SparseColumns& A_col, const std::vector<double>& b, float ymax, double r,
+                 double phi, int beam, int bin, std::vector<LayerPoint>& pts) {
+  const double min_contribution = cfg.min_relative_intensity * ymax;
+  for (int p = 0; p < ker.layers; ++p) {
+    if (!(b[p] > cfg.min_intensity)) continue;
+    if (min_contribution > 0) {
+      double amax = 0.0;
+      for (int e = A_col.start[p]; e < A_col.start[p + 1]; ++e) {
+        amax = std::max(amax, static_cast<double>(A_col.value[e]));
+      }
+      if (b[p] * amax < min_contribution) continue;
+    }
+    LayerPoint lp;
+    const double u = ker.layer_height(p);
+    lp.p_world = pd.to_world(r, phi, u).cast<float>();
+    lp.value = static_cast<float>(b[p]);
+    lp.rho = static_cast<float>(r);
+    lp.height = static_cast<float>(u);
+    lp.beam = beam;
+    lp.bin = bin;
+    pts.push_back(lp);
+  }
+}
+
+}  // namespace
+
+// One NNLS per (range, bearing) column (eq. 5.28) with the column kernel A* of its range (eq.
+// 5.27), bins in parallel; each task keeps its solver and kernel copies across its bins.
 void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern& pattern,
                   const KernelScaler* scaler, PassReport& report, std::vector<LayerPoint>& out,
                   Progress* progress) {
@@ -551,9 +679,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
         std::vector<double> y(n), c, b;
         ColumnKernel scaled;  // multipass: per-column copy of the kernel
         ColumnKernel shadow;  // ignore_shadowed_zeros: per-column Gram without the shadowed rows
-        std::vector<int> row_first, row_count, layer_rows, rows_left;
-        std::vector<double> row_val;
-        std::vector<char> drop;
+        KernelRows rows;      // ignore_shadowed_zeros: the kernel's row view
         for (int bin = rg.begin(); bin < rg.end(); ++bin) {
           if (!pd.bin_has_data[bin - pd.bin_lo]) {
             if (progress) progress->add();
@@ -565,31 +691,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
           const int P = ker.layers;
           c.resize(P);
           b.resize(P);
-          if (cfg.ignore_shadowed_zeros) {
-            // Row view of A*: row k holds layers row_first[k] .. + row_count[k] − 1 (at most K +
-            // 1).
-            row_first.assign(n, P);
-            row_count.assign(n, 0);
-            layer_rows.assign(P, 0);
-            rows_left.resize(P);
-            drop.assign(n, 0);
-            for (int p = 0; p < P; ++p) {
-              layer_rows[p] = ker.A.start[p + 1] - ker.A.start[p];
-              for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
-                const int k = ker.A.row[e];
-                row_first[k] = std::min(row_first[k], p);
-                ++row_count[k];
-              }
-            }
-            row_val.assign(static_cast<std::size_t>(n) * (ker.K + 1), 0.0);
-            for (int p = 0; p < P; ++p) {
-              for (int e = ker.A.start[p]; e < ker.A.start[p + 1]; ++e) {
-                const int k = ker.A.row[e];
-                row_val[static_cast<std::size_t>(k) * (ker.K + 1) + (p - row_first[k])] =
-                    ker.A.value[e];
-              }
-            }
-          }
+          if (cfg.ignore_shadowed_zeros) rows.build(ker, n);
           std::vector<LayerPoint>& pts = per_bin[bin - pd.bin_lo];
           for (int beam = 0; beam < pd.beams; ++beam) {
             const float* col = pd.column(bin, beam);
@@ -608,47 +710,16 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
             if (cfg.ignore_shadowed_zeros) {
               const int* fr = &pd.first_return[static_cast<std::size_t>(beam) * n];
               for (int k = 0; k < n; ++k) {
-                drop[k] = y[k] == 0.0 && fr[k] < bin;
-                dropped += drop[k];
+                rows.drop[k] = y[k] == 0.0 && fr[k] < bin;
+                dropped += rows.drop[k];
               }
             }
             if (scaler) {
-              // sec. 5.6.7: scale A*_kp by the second-pass factor of frame k and layer p.
-              scaled.A = ker.A;
-              for (int p = 0; p < P; ++p) {
-                const Eigen::Vector3d pw = pd.to_world(r, phi, ker.layer_height(p));
-                const int e0 = scaled.A.start[p];
-                scaler->scale(beam, pw, &scaled.A.row[e0], scaled.A.start[p + 1] - e0,
-                              &scaled.A.value[e0]);
-                if (dropped) {
-                  for (int e = e0; e < scaled.A.start[p + 1]; ++e) {
-                    if (drop[scaled.A.row[e]]) scaled.A.value[e] = 0.0f;
-                  }
-                }
-              }
-              scaled.gram = BandMatrix::gram(scaled.A);
+              scale_column_kernel(pd, ker, *scaler, beam, r, phi, rows.drop, dropped, scaled);
               A_col = &scaled.A;
               Q_col = &scaled.gram;
             } else if (dropped) {
-              // Q' = Q − Σ_dropped a_k a_kᵀ (c is unchanged: dropped rows have y = 0). A layer left
-              // without rows gets an exactly zero column so that rounding cannot revive it.
-              shadow.gram = ker.gram;
-              std::copy(layer_rows.begin(), layer_rows.end(), rows_left.begin());
-              for (int k = 0; k < n; ++k) {
-                if (!drop[k]) continue;
-                const double* a = &row_val[static_cast<std::size_t>(k) * (ker.K + 1)];
-                const int p0 = row_first[k], m = row_count[k];
-                for (int u = 0; u < m; ++u) {
-                  --rows_left[p0 + u];
-                  for (int v = u; v < m; ++v) shadow.gram.upper(p0 + u, v - u) -= a[u] * a[v];
-                }
-              }
-              const int bw = shadow.gram.bandwidth();
-              for (int p = 0; p < P; ++p) {
-                if (rows_left[p] > 0) continue;
-                for (int d = 0; d <= bw && p + d < P; ++d) shadow.gram.upper(p, d) = 0.0;
-                for (int d = 1; d <= bw && p - d >= 0; ++d) shadow.gram.upper(p - d, d) = 0.0;
-              }
+              drop_shadowed_rows(ker, n, rows, shadow);
               Q_col = &shadow.gram;
             }
             A_col->transpose_times(y.data(), c.data());
@@ -665,26 +736,7 @@ void solve_approx(const PassData& pd, const DeconvConfig& cfg, const BeamPattern
             int cur = max_iter.load();
             while (st.iterations > cur && !max_iter.compare_exchange_weak(cur, st.iterations)) {
             }
-            const double min_contribution = cfg.min_relative_intensity * ymax;
-            for (int p = 0; p < P; ++p) {
-              if (!(b[p] > cfg.min_intensity)) continue;
-              if (min_contribution > 0) {
-                double amax = 0.0;
-                for (int e = A_col->start[p]; e < A_col->start[p + 1]; ++e) {
-                  amax = std::max(amax, static_cast<double>(A_col->value[e]));
-                }
-                if (b[p] * amax < min_contribution) continue;
-              }
-              LayerPoint lp;
-              const double u = ker.layer_height(p);
-              lp.p_world = pd.to_world(r, phi, u).cast<float>();
-              lp.value = static_cast<float>(b[p]);
-              lp.rho = static_cast<float>(r);
-              lp.height = static_cast<float>(u);
-              lp.beam = beam;
-              lp.bin = bin;
-              pts.push_back(lp);
-            }
+            keep_layers(pd, cfg, ker, *A_col, b, ymax, r, phi, beam, bin, pts);
           }
           if (progress) progress->add();
         }
@@ -766,14 +818,18 @@ BeamPattern kernel_pattern(const DeconvConfig& cfg, const SonarSpec& spec) {
 
 }  // namespace deconv_detail
 
-PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
-                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
-                             const SonarSpec& spec, const DeconvConfig& config,
-                             DeconvReport* report_out, bool progress) {
-  using namespace deconv_detail;
-  const auto t_start = std::chrono::steady_clock::now();
-  config.validate();
-  spec.validate();
+// Driver: deconvolve_frames and its stages (thesis ch. 5), in the order it runs them: check the
+// frames, choose the mode (auto), plan the passes (eq. 5.25–5.26), summarise free space, then per
+// pass: its report (eq. 5.21, 5.25), its column stack, the NNLS solve (eq. 5.28), de-ringing and
+// the second pass (sec. 5.6.7); last, the occlusion resolution (sec. 5.6.7.3).
+
+namespace {
+
+using namespace deconv_detail;  // PassData, LayerPoint, the solvers (deconvolve_internal.hpp)
+
+// The frames are as many as the poses and each is the sonar's size.
+void check_frames(const std::vector<SonarImage>& denoised,
+                  const std::vector<Eigen::Isometry3d>& T_world_sonar, const SonarSpec& spec) {
   require(denoised.size() == T_world_sonar.size(),
           "deconvolve: " + std::to_string(denoised.size()) + " frames but " +
               std::to_string(T_world_sonar.size()) + " poses");
@@ -785,37 +841,377 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
                   " range bins × " + std::to_string(spec.beams()) + " beams");
     }
   }
-  if (config.mode == DeconvConfig::Mode::Auto) {
-    // The passes mode when the frames form regular passes, the voxel mode otherwise: decided
-    // first from the poses alone (auto_mode_reason), then, should the passes mode still refuse
-    // (e.g. too few frames for a footprint) or leave frames out, by its outcome.
-    std::string why = auto_mode_reason(T_world_sonar, config);
-    if (why.empty()) {
-      DeconvConfig pc = config;
-      pc.mode = DeconvConfig::Mode::Passes;
-      DeconvReport pr;
-      try {
-        PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
-        std::size_t in_passes = 0;
-        for (const PassReport& p : pr.passes) in_passes += p.frames;
-        if (in_passes == denoised.size()) {
-          if (report_out) *report_out = std::move(pr);
-          return cloud;
+}
+
+// The farthest range bin within max_range (the whole range when max_range is 0).
+int farthest_bin(const SonarSpec& spec, const DeconvConfig& config) {
+  const double r_far_limit =
+      config.max_range > 0 ? std::min(config.max_range, spec.r_max) : spec.r_max;
+  int bin_hi = spec.range_bins - 1;
+  while (bin_hi >= 0 && spec.range_of_bin(bin_hi) > r_far_limit) --bin_hi;
+  require(bin_hi >= 0, "deconv.max_range (" + fmt(config.max_range) +
+                           " m) is below the sonar's first range bin (" +
+                           fmt(spec.range_of_bin(0)) + " m)");
+  return bin_hi;
+}
+
+// A pass to reconstruct: its frames, geometry (analyze_pass), layer height and range window.
+struct PassPlan {
+  std::size_t first, count;
+  std::string label;
+  PassGeometry geo;
+  double dz;
+  int bin_hi;  // farthest range bin holding a return (within max_range)
+};
+
+// The farthest range bin (≤ bin_hi) holding a return in any of the pass's frames, −1 for none:
+// columns beyond it hold nothing, the window ends there.
+int last_return_bin(const std::vector<SonarImage>& denoised, std::size_t first, std::size_t count,
+                    int bin_hi) {
+  std::vector<int> last_bin(count, -1);
+  tbb::parallel_for(std::size_t{0}, count, [&](std::size_t k) {
+    const SonarImage& im = denoised[first + k];
+    for (int i = bin_hi; i >= 0 && last_bin[k] < 0; --i) {
+      const float* row = im.row_ptr(i);
+      for (int j = 0; j < im.cols; ++j) {
+        if (row[j] > 0.0f) {
+          last_bin[k] = i;
+          break;
         }
-        why = std::to_string(denoised.size() - in_passes) + " of " +
-              std::to_string(denoised.size()) + " frames in no reconstructed pass";
-      } catch (const Error& e) {
-        why = e.what();
       }
     }
-    DeconvConfig vc = config;
-    vc.mode = DeconvConfig::Mode::Voxel;
-    DeconvReport vr;
-    PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
-    vr.mode_note = "deconvolution mode auto: voxel mode, the passes mode does not apply (" + why +
-                   "); --deconv-mode passes forces it";
-    if (report_out) *report_out = std::move(vr);
-    return cloud;
+  });
+  int out = -1;
+  for (int b : last_bin) out = std::max(out, b);
+  return out;
+}
+
+// The passes (split_passes, or all frames as one), each checked before the heavy work so that a
+// bad pass fails fast: too short ones and ones without a return are skipped with a warning; one
+// too short for its footprint at the far range (eq. 5.25–5.26) is an error.
+std::vector<PassPlan> plan_passes(const std::vector<SonarImage>& denoised,
+                                  const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                                  const SonarSpec& spec, const DeconvConfig& config, int bin_hi,
+                                  DeconvReport& report) {
+  const double theta3 = spec.theta_3db();
+  const double dr = spec.range_resolution();
+  std::vector<std::pair<std::size_t, std::size_t>> ranges =
+      config.split_passes
+          ? split_passes(T_world_sonar, config)
+          : std::vector<std::pair<std::size_t, std::size_t>>{{0, T_world_sonar.size()}};
+  std::vector<PassPlan> plans;
+  for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
+    const std::size_t first = ranges[pi].first, last = ranges[pi].second;
+    const std::string label = frames_label(pi, first, last - first);
+    if (static_cast<int>(last - first) < config.min_pass_frames) {
+      report.warnings.push_back(
+          label + ": skipped, only " + std::to_string(last - first) +
+          " frames (min_pass_frames = " + std::to_string(config.min_pass_frames) + ")");
+      continue;
+    }
+    std::vector<Eigen::Isometry3d> poses(T_world_sonar.begin() + first,
+                                         T_world_sonar.begin() + last);
+    PassPlan plan{first, last - first, label, analyze_pass(poses, config, label), 0.0, -1};
+    plan.dz = config.layer_spacing > 0 ? config.layer_spacing : plan.geo.spacing;
+    // Columns beyond the farthest return hold nothing: the window ends there.
+    plan.bin_hi = last_return_bin(denoised, first, plan.count, bin_hi);
+    if (plan.bin_hi < 0) {
+      report.warnings.push_back(label + ": skipped, no return in any frame after denoising");
+      continue;
+    }
+    if (config.exact) {
+      // A cell seen off-centre lands up to r·(1/cos θ_3dB − 1) farther: keep those empty
+      // bins, they constrain the far cells.
+      const double r = spec.range_of_bin(plan.bin_hi);
+      plan.bin_hi = std::min(
+          bin_hi,
+          plan.bin_hi + 1 + static_cast<int>(std::ceil(r * (1.0 / std::cos(theta3) - 1.0) / dr)));
+    }
+    // eq. 5.25–5.26: the far range needs K frames to be seen by a full footprint.
+    const double r_far = spec.range_of_bin(plan.bin_hi);
+    const int K_far = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
+    if (static_cast<int>(plan.count) < K_far) {
+      const double r_ok = plan.count * plan.dz / (2.0 * std::tan(theta3));
+      throw Error(label + ": too few frames for the footprint: at r = " + fmt(r_far, 2) +
+                  " m the aperture of " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
+                  "° spans K = " + std::to_string(K_far) + " layers of " + fmt(plan.dz * 100, 2) +
+                  " cm (eq. 5.25) but the pass has " + std::to_string(plan.count) +
+                  " frames; record a longer pass or limit the "
+                  "range with max_range ≤ " +
+                  fmt(r_ok, 2) + " m (the farthest return is at " + fmt(r_far, 2) + " m)");
+    }
+    plans.push_back(std::move(plan));
+  }
+  return plans;
+}
+
+// A pass's report before solving: its geometry, footprint sizes (eq. 5.25) and the rectilinear
+// approximation's mismatch (eq. 5.21), with a warning for each that does not hold.
+PassReport pass_report(const PassPlan& plan, const SonarSpec& spec, const DeconvConfig& config) {
+  const double theta3 = spec.theta_3db();
+  const double dr = spec.range_resolution();
+  PassReport pr;
+  pr.first_frame = plan.first;
+  pr.frames = plan.count;
+  const PassGeometry& g = plan.geo;
+  pr.spacing = g.spacing;
+  pr.axis_angle_deg = g.axis_angle_rad / kDeg;
+  pr.max_rotation_deg = g.max_rotation_rad / kDeg;
+  pr.max_lateral = g.max_lateral;
+  pr.rms_lateral = g.rms_lateral;
+  pr.max_spacing_error = g.max_spacing_error;
+  pr.rms_spacing_error = g.rms_spacing_error;
+  pr.warnings = g.warnings;
+  const double r_far = spec.range_of_bin(plan.bin_hi);
+  pr.K_min = footprint_layers(spec.range_of_bin(0), spec.vertical_aperture_rad, plan.dz);
+  pr.K_max = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
+  pr.rectilinear_mismatch_bins = rectilinear_mismatch(r_far, theta3) / dr;
+  pr.rectilinear_max_aperture_deg = rectilinear_max_aperture(r_far, dr) / kDeg;
+  if (g.max_lateral > 0.5 * dr) {
+    pr.warnings.push_back(plan.label + ": frames deviate up to " + fmt(g.max_lateral * 100, 2) +
+                          " cm (rms " + fmt(g.rms_lateral * 100, 2) +
+                          " cm) from the pass axis, more than half a range bin (" +
+                          fmt(0.5 * dr * 100, 2) + " cm): returns shift between columns");
+  }
+  if (!config.exact && pr.rectilinear_mismatch_bins > config.rectilinear_warn_bins) {
+    // eq. 5.21 gives the largest range where the approximation holds for this aperture.
+    const double r_ok = 0.5 * dr / (1.0 - std::cos(theta3));
+    pr.warnings.push_back(
+        plan.label +
+        ": the rectilinear approximation (eq. 5.21) is violated beyond r = " + fmt(r_ok, 2) +
+        " m: at r = " + fmt(r_far, 2) + " m the " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
+        "° aperture bends the footprint by " + fmt(pr.rectilinear_mismatch_bins, 2) +
+        " range bins at its edge (eq. 5.21 allows " + fmt(pr.rectilinear_max_aperture_deg, 1) +
+        "° here); vertical surfaces may show gaps (Fig. 5.14) — the exact mode avoids them");
+  }
+  if (pr.K_max < 2) {
+    pr.warnings.push_back(plan.label +
+                          ": footprints do not overlap (K = " + std::to_string(pr.K_max) +
+                          " at the far range): deconvolution reduces to a reprojection");
+  }
+  return pr;
+}
+
+// A pass's column stack (sec. 5.5): its frames ordered by height, their model heights (measured,
+// or the thesis' uniform z_0 + k·Δz), the intensities transposed into (bin, beam) columns along
+// the frames, and each frame's first return per beam. `returns`: the frames' free-space summaries
+// (empty when not needed).
+PassData column_stack(const PassPlan& plan, const std::vector<SonarImage>& denoised,
+                      const std::vector<Eigen::Isometry3d>& T_world_sonar, const SonarSpec& spec,
+                      const DeconvConfig& config, const std::vector<FrameReturns>& returns) {
+  const bool need_returns = config.dering || config.resolve_occlusions;
+  const PassGeometry& g = plan.geo;
+  PassData pd;
+  pd.spec = &spec;
+  pd.geo = g;
+  pd.dz = plan.dz;
+  pd.theta_3db = spec.theta_3db();
+  pd.n = static_cast<int>(plan.count);
+  pd.bin_lo = 0;
+  pd.bin_hi = plan.bin_hi;
+  pd.bins = plan.bin_hi + 1;
+  pd.beams = spec.beams();
+  if (config.use_measured_heights) {
+    pd.heights = g.heights;
+  } else {
+    // The thesis' model: uniform z_0 + k·Δz (from the least-squares fit).
+    pd.heights.resize(pd.n);
+    double mean_h = 0;
+    for (double v : g.heights) mean_h += v;
+    mean_h /= pd.n;
+    for (int k = 0; k < pd.n; ++k) pd.heights[k] = mean_h + (k - 0.5 * (pd.n - 1)) * g.spacing;
+  }
+  pd.stack.assign(static_cast<std::size_t>(pd.beams) * pd.bins * pd.n, 0.0f);
+  pd.bin_has_data.assign(pd.bins, 0);
+  pd.T_world_sonar.resize(pd.n);
+  if (need_returns) pd.returns.resize(pd.n);
+  std::vector<const SonarImage*> by_height(pd.n);
+  for (int k = 0; k < pd.n; ++k) {
+    const std::size_t f = plan.first + g.frames[k];
+    by_height[k] = &denoised[f];
+    pd.T_world_sonar[k] = T_world_sonar[f];
+    if (need_returns) pd.returns[k] = &returns[f];
+  }
+  // Transpose to columns bin by bin: contiguous writes along the frames, one streaming read
+  // per frame row.
+  tbb::parallel_for(0, pd.bins, [&](int i) {
+    bool any = false;
+    for (int j = 0; j < pd.beams; ++j) {
+      float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
+      for (int k = 0; k < pd.n; ++k) {
+        const float v = by_height[k]->row_ptr(i)[j];
+        col[k] = v;
+        any = any || v > 0.0f;
+      }
+    }
+    pd.bin_has_data[i] = any;
+  });
+  pd.first_return.assign(static_cast<std::size_t>(pd.beams) * pd.n, pd.bins);
+  tbb::parallel_for(0, pd.beams, [&](int j) {
+    for (int i = 0; i < pd.bins; ++i) {
+      const float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
+      for (int k = 0; k < pd.n; ++k) {
+        int& f = pd.first_return[static_cast<std::size_t>(j) * pd.n + k];
+        if (f == pd.bins && col[k] > 0.0f) f = i;
+      }
+    }
+  });
+  return pd;
+}
+
+// A pass's layers: the per-column NNLS (eq. 5.28; the exact geometry mode, or the rectilinear
+// approximation of eq. 5.27), layers beyond max_extrapolation dropped, de-ringing (sec. 5.5.4)
+// and, with a kernel other than plain, the second pass whose kernel the first reconstruction
+// scales (sec. 5.6.7). Fills `pr` and the timing of `report`.
+std::vector<LayerPoint> solve_pass(const PassData& pd, const DeconvConfig& config,
+                                   const BeamPattern& pattern, PassReport& pr, DeconvReport& report,
+                                   Progress& bar) {
+  auto t0 = std::chrono::steady_clock::now();
+  std::vector<LayerPoint> points;
+  if (config.exact) {
+    solve_exact(pd, config, pattern, pr, points, &bar);
+  } else {
+    solve_approx(pd, config, pattern, nullptr, pr, points, &bar);
+  }
+  report.seconds_solve += seconds_since(t0);
+  if (config.max_extrapolation >= 0) {
+    const double lo = pd.heights.front() - config.max_extrapolation;
+    const double hi = pd.heights.back() + config.max_extrapolation;
+    points.erase(
+        std::remove_if(points.begin(), points.end(),
+                       [&](const LayerPoint& lp) { return lp.height < lo || lp.height > hi; }),
+        points.end());
+  }
+  pr.points_solved = points.size();
+  t0 = std::chrono::steady_clock::now();
+  if (config.dering) pr.points_deringed = dering(pd, points);
+  report.seconds_dering += seconds_since(t0);
+
+  if (config.kernel != DeconvConfig::Kernel::Plain) {
+    // sec. 5.6.7: the first reconstruction provides normals / occlusions for a second pass.
+    t0 = std::chrono::steady_clock::now();
+    const std::unique_ptr<KernelScaler> scaler = make_multipass_scaler(pd, config, points);
+    std::vector<LayerPoint> second;
+    PassReport pr2;
+    solve_approx(pd, config, pattern, scaler.get(), pr2, second, &bar);
+    pr.unconverged += pr2.unconverged;
+    pr.max_iterations = std::max(pr.max_iterations, pr2.max_iterations);
+    pr.points_solved = second.size();
+    if (config.dering) pr.points_deringed = dering(pd, second);
+    points.swap(second);
+    report.seconds_multipass += seconds_since(t0);
+  }
+  return points;
+}
+
+// The auto mode: the passes mode when the frames form regular passes, the voxel mode otherwise:
+// decided first from the poses alone (auto_mode_reason), then, should the passes mode still refuse
+// (e.g. too few frames for a footprint) or leave frames out, by its outcome.
+PointCloud deconvolve_auto(const std::vector<SonarImage>& denoised,
+                           const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                           const SonarSpec& spec, const DeconvConfig& config,
+                           DeconvReport* report_out, bool progress) {
+  std::string why = auto_mode_reason(T_world_sonar, config);
+  if (why.empty()) {
+    DeconvConfig pc = config;
+    pc.mode = DeconvConfig::Mode::Passes;
+    DeconvReport pr;
+    try {
+      PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, pc, &pr, progress);
+      std::size_t in_passes = 0;
+      for (const PassReport& p : pr.passes) in_passes += p.frames;
+      if (in_passes == denoised.size()) {
+        if (report_out) *report_out = std::move(pr);
+        return cloud;
+      }
+      why = std::to_string(denoised.size() - in_passes) + " of " + std::to_string(denoised.size()) +
+            " frames in no reconstructed pass";
+    } catch (const Error& e) {
+      why = e.what();
+    }
+  }
+  DeconvConfig vc = config;
+  vc.mode = DeconvConfig::Mode::Voxel;
+  DeconvReport vr;
+  PointCloud cloud = deconvolve_frames(denoised, T_world_sonar, spec, vc, &vr, progress);
+  vr.mode_note = "deconvolution mode auto: voxel mode, the passes mode does not apply (" + why +
+                 "); --deconv-mode passes forces it";
+  if (report_out) *report_out = std::move(vr);
+  return cloud;
+}
+
+// The passes mode: plan the passes, summarise every frame's free space (de-ringing, occlusion
+// resolution), reconstruct pass by pass (report, column stack, solve), then keep the front
+// surfaces (sec. 5.6.7.3, as carving does, sec. 4.4.5). Runs in the caller's task arena.
+PointCloud deconvolve_passes(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config, int bin_hi,
+                             DeconvReport& report, bool progress) {
+  const BeamPattern pattern = kernel_pattern(config, spec);
+  // Split and check every pass before the heavy work: a bad pass fails fast.
+  const std::vector<PassPlan> plans =
+      plan_passes(denoised, T_world_sonar, spec, config, bin_hi, report);
+
+  // Free-space summaries of every frame (de-ringing, occlusion resolution).
+  std::vector<FrameReturns> returns;
+  if (config.dering || config.resolve_occlusions) {
+    returns.resize(denoised.size());
+    tbb::parallel_for(std::size_t{0}, denoised.size(), [&](std::size_t f) {
+      returns[f] = summarize_frame(denoised[f], T_world_sonar[f], spec);
+    });
+  }
+
+  std::size_t units = 0;
+  for (const auto& p : plans) {
+    units += static_cast<std::size_t>(config.exact ? spec.beams() : p.bin_hi + 1);
+  }
+  if (config.kernel != DeconvConfig::Kernel::Plain) units *= 2;
+  Progress bar("deconvolve", units, progress);
+
+  PointCloud cloud;
+  for (const PassPlan& plan : plans) {
+    PassReport pr = pass_report(plan, spec, config);
+    const PassData pd = column_stack(plan, denoised, T_world_sonar, spec, config, returns);
+    for (const LayerPoint& lp : solve_pass(pd, config, pattern, pr, report, bar)) {
+      cloud.points.push_back(lp.p_world);
+      cloud.intensity.push_back(lp.value);
+    }
+    for (const auto& w : pr.warnings) report.warnings.push_back(w);
+    report.passes.push_back(std::move(pr));
+  }
+  bar.finish();
+
+  report.points_before_occlusion = cloud.size();
+  if (config.resolve_occlusions && !cloud.empty()) {
+    // sec. 5.6.7.3: keep the front surfaces, as carving does (sec. 4.4.5).
+    const auto t0 = std::chrono::steady_clock::now();
+    OcclusionConfig oc = config.occlusion;
+    if (oc.num_threads == 0) oc.num_threads = config.num_threads;
+    if (config.occlusion_auto_voxel) {
+      oc.voxel_size = spec.range_resolution();
+      for (const PassPlan& p : plans) oc.voxel_size = std::min(oc.voxel_size, p.dz);
+    }
+    cloud = resolve_occlusions(cloud, returns, spec, oc);
+    report.seconds_occlusion = seconds_since(t0);
+  }
+  return cloud;
+}
+
+}  // namespace
+
+// The pipeline of deconvolution (thesis ch. 5): checks, the mode (auto: passes or voxel), then
+// the passes mode's stages above (deconvolve_passes) in a task arena of num_threads.
+PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
+                             const std::vector<Eigen::Isometry3d>& T_world_sonar,
+                             const SonarSpec& spec, const DeconvConfig& config,
+                             DeconvReport* report_out, bool progress) {
+  using namespace deconv_detail;
+  const auto t_start = std::chrono::steady_clock::now();
+  config.validate();
+  spec.validate();
+  check_frames(denoised, T_world_sonar, spec);
+  if (config.mode == DeconvConfig::Mode::Auto) {
+    return deconvolve_auto(denoised, T_world_sonar, spec, config, report_out, progress);
   }
   DeconvReport report;
   report.frames = denoised.size();
@@ -828,263 +1224,10 @@ PointCloud deconvolve_frames(const std::vector<SonarImage>& denoised,
     if (report_out) *report_out = std::move(report);
     return cloud;
   }
-  const BeamPattern pattern = kernel_pattern(config, spec);
-  const double theta3 = spec.theta_3db();
-  const double dr = spec.range_resolution();
-  const double r_far_limit =
-      config.max_range > 0 ? std::min(config.max_range, spec.r_max) : spec.r_max;
-  int bin_hi = spec.range_bins - 1;
-  while (bin_hi >= 0 && spec.range_of_bin(bin_hi) > r_far_limit) --bin_hi;
-  require(bin_hi >= 0, "deconv.max_range (" + fmt(config.max_range) +
-                           " m) is below the sonar's first range bin (" +
-                           fmt(spec.range_of_bin(0)) + " m)");
-
+  const int bin_hi = farthest_bin(spec, config);
   tbb::task_arena arena(config.num_threads > 0 ? config.num_threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    // Split and check every pass before the heavy work: a bad pass fails fast.
-    std::vector<std::pair<std::size_t, std::size_t>> ranges =
-        config.split_passes
-            ? split_passes(T_world_sonar, config)
-            : std::vector<std::pair<std::size_t, std::size_t>>{{0, T_world_sonar.size()}};
-    struct PassPlan {
-      std::size_t first, count;
-      std::string label;
-      PassGeometry geo;
-      double dz;
-      int bin_hi;  // farthest range bin holding a return (within max_range)
-    };
-    std::vector<PassPlan> plans;
-    for (std::size_t pi = 0; pi < ranges.size(); ++pi) {
-      // Not a structured binding: C++17 lambdas cannot capture those (clang rejects it).
-      const std::size_t first = ranges[pi].first, last = ranges[pi].second;
-      const std::string label = frames_label(pi, first, last - first);
-      if (static_cast<int>(last - first) < config.min_pass_frames) {
-        report.warnings.push_back(
-            label + ": skipped, only " + std::to_string(last - first) +
-            " frames (min_pass_frames = " + std::to_string(config.min_pass_frames) + ")");
-        continue;
-      }
-      std::vector<Eigen::Isometry3d> poses(T_world_sonar.begin() + first,
-                                           T_world_sonar.begin() + last);
-      PassPlan plan{first, last - first, label, analyze_pass(poses, config, label), 0.0, -1};
-      plan.dz = config.layer_spacing > 0 ? config.layer_spacing : plan.geo.spacing;
-      // Columns beyond the farthest return hold nothing: the window ends there.
-      std::vector<int> last_bin(plan.count, -1);
-      tbb::parallel_for(std::size_t{0}, plan.count, [&](std::size_t k) {
-        const SonarImage& im = denoised[first + k];
-        for (int i = bin_hi; i >= 0 && last_bin[k] < 0; --i) {
-          const float* row = im.row_ptr(i);
-          for (int j = 0; j < im.cols; ++j) {
-            if (row[j] > 0.0f) {
-              last_bin[k] = i;
-              break;
-            }
-          }
-        }
-      });
-      for (int b : last_bin) plan.bin_hi = std::max(plan.bin_hi, b);
-      if (plan.bin_hi < 0) {
-        report.warnings.push_back(label + ": skipped, no return in any frame after denoising");
-        continue;
-      }
-      if (config.exact) {
-        // A cell seen off-centre lands up to r·(1/cos θ_3dB − 1) farther: keep those empty
-        // bins, they constrain the far cells.
-        const double r = spec.range_of_bin(plan.bin_hi);
-        plan.bin_hi = std::min(
-            bin_hi,
-            plan.bin_hi + 1 + static_cast<int>(std::ceil(r * (1.0 / std::cos(theta3) - 1.0) / dr)));
-      }
-      // eq. 5.25–5.26: the far range needs K frames to be seen by a full footprint.
-      const double r_far = spec.range_of_bin(plan.bin_hi);
-      const int K_far = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
-      if (static_cast<int>(plan.count) < K_far) {
-        const double r_ok = plan.count * plan.dz / (2.0 * std::tan(theta3));
-        throw Error(label + ": too few frames for the footprint: at r = " + fmt(r_far, 2) +
-                    " m the aperture of " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
-                    "° spans K = " + std::to_string(K_far) + " layers of " + fmt(plan.dz * 100, 2) +
-                    " cm (eq. 5.25) but the pass has " + std::to_string(plan.count) +
-                    " frames; record a longer pass or limit the "
-                    "range with max_range ≤ " +
-                    fmt(r_ok, 2) + " m (the farthest return is at " + fmt(r_far, 2) + " m)");
-      }
-      plans.push_back(std::move(plan));
-    }
-
-    // Free-space summaries of every frame (de-ringing, occlusion resolution).
-    std::vector<FrameReturns> returns;
-    const bool need_returns = config.dering || config.resolve_occlusions;
-    if (need_returns) {
-      returns.resize(denoised.size());
-      tbb::parallel_for(std::size_t{0}, denoised.size(), [&](std::size_t f) {
-        returns[f] = summarize_frame(denoised[f], T_world_sonar[f], spec);
-      });
-    }
-
-    std::size_t units = 0;
-    for (const auto& p : plans) {
-      units += static_cast<std::size_t>(config.exact ? spec.beams() : p.bin_hi + 1);
-    }
-    if (config.kernel != DeconvConfig::Kernel::Plain) units *= 2;
-    Progress bar("deconvolve", units, progress);
-
-    for (const PassPlan& plan : plans) {
-      PassReport pr;
-      pr.first_frame = plan.first;
-      pr.frames = plan.count;
-      const PassGeometry& g = plan.geo;
-      pr.spacing = g.spacing;
-      pr.axis_angle_deg = g.axis_angle_rad / kDeg;
-      pr.max_rotation_deg = g.max_rotation_rad / kDeg;
-      pr.max_lateral = g.max_lateral;
-      pr.rms_lateral = g.rms_lateral;
-      pr.max_spacing_error = g.max_spacing_error;
-      pr.rms_spacing_error = g.rms_spacing_error;
-      pr.warnings = g.warnings;
-      const int bin_hi_pass = plan.bin_hi;
-      const double r_far = spec.range_of_bin(bin_hi_pass);
-      pr.K_min = footprint_layers(spec.range_of_bin(0), spec.vertical_aperture_rad, plan.dz);
-      pr.K_max = footprint_layers(r_far, spec.vertical_aperture_rad, plan.dz);
-      pr.rectilinear_mismatch_bins = rectilinear_mismatch(r_far, theta3) / dr;
-      pr.rectilinear_max_aperture_deg = rectilinear_max_aperture(r_far, dr) / kDeg;
-      if (g.max_lateral > 0.5 * dr) {
-        pr.warnings.push_back(plan.label + ": frames deviate up to " + fmt(g.max_lateral * 100, 2) +
-                              " cm (rms " + fmt(g.rms_lateral * 100, 2) +
-                              " cm) from the pass axis, more than half a range bin (" +
-                              fmt(0.5 * dr * 100, 2) + " cm): returns shift between columns");
-      }
-      if (!config.exact && pr.rectilinear_mismatch_bins > config.rectilinear_warn_bins) {
-        // eq. 5.21 gives the largest range where the approximation holds for this aperture.
-        const double r_ok = 0.5 * dr / (1.0 - std::cos(theta3));
-        pr.warnings.push_back(
-            plan.label +
-            ": the rectilinear approximation (eq. 5.21) is violated beyond r = " + fmt(r_ok, 2) +
-            " m: at r = " + fmt(r_far, 2) + " m the " + fmt(spec.vertical_aperture_rad / kDeg, 1) +
-            "° aperture bends the footprint by " + fmt(pr.rectilinear_mismatch_bins, 2) +
-            " range bins at its edge (eq. 5.21 allows " + fmt(pr.rectilinear_max_aperture_deg, 1) +
-            "° here); vertical surfaces may show gaps (Fig. 5.14) — the exact mode avoids them");
-      }
-      if (pr.K_max < 2) {
-        pr.warnings.push_back(plan.label +
-                              ": footprints do not overlap (K = " + std::to_string(pr.K_max) +
-                              " at the far range): deconvolution reduces to a reprojection");
-      }
-
-      // Column stack, frames by height.
-      PassData pd;
-      pd.spec = &spec;
-      pd.geo = g;
-      pd.dz = plan.dz;
-      pd.theta_3db = theta3;
-      pd.n = static_cast<int>(plan.count);
-      pd.bin_lo = 0;
-      pd.bin_hi = bin_hi_pass;
-      pd.bins = bin_hi_pass + 1;
-      pd.beams = spec.beams();
-      if (config.use_measured_heights) {
-        pd.heights = g.heights;
-      } else {
-        // The thesis' model: uniform z_0 + k·Δz (from the least-squares fit).
-        pd.heights.resize(pd.n);
-        double mean_h = 0;
-        for (double v : g.heights) mean_h += v;
-        mean_h /= pd.n;
-        for (int k = 0; k < pd.n; ++k) pd.heights[k] = mean_h + (k - 0.5 * (pd.n - 1)) * g.spacing;
-      }
-      pd.stack.assign(static_cast<std::size_t>(pd.beams) * pd.bins * pd.n, 0.0f);
-      pd.bin_has_data.assign(pd.bins, 0);
-      pd.T_world_sonar.resize(pd.n);
-      if (need_returns) pd.returns.resize(pd.n);
-      std::vector<const SonarImage*> by_height(pd.n);
-      for (int k = 0; k < pd.n; ++k) {
-        const std::size_t f = plan.first + g.frames[k];
-        by_height[k] = &denoised[f];
-        pd.T_world_sonar[k] = T_world_sonar[f];
-        if (need_returns) pd.returns[k] = &returns[f];
-      }
-      // Transpose to columns bin by bin: contiguous writes along the frames, one streaming read
-      // per frame row.
-      tbb::parallel_for(0, pd.bins, [&](int i) {
-        bool any = false;
-        for (int j = 0; j < pd.beams; ++j) {
-          float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
-          for (int k = 0; k < pd.n; ++k) {
-            const float v = by_height[k]->row_ptr(i)[j];
-            col[k] = v;
-            any = any || v > 0.0f;
-          }
-        }
-        pd.bin_has_data[i] = any;
-      });
-      pd.first_return.assign(static_cast<std::size_t>(pd.beams) * pd.n, pd.bins);
-      tbb::parallel_for(0, pd.beams, [&](int j) {
-        for (int i = 0; i < pd.bins; ++i) {
-          const float* col = &pd.stack[(static_cast<std::size_t>(j) * pd.bins + i) * pd.n];
-          for (int k = 0; k < pd.n; ++k) {
-            int& f = pd.first_return[static_cast<std::size_t>(j) * pd.n + k];
-            if (f == pd.bins && col[k] > 0.0f) f = i;
-          }
-        }
-      });
-
-      auto t0 = std::chrono::steady_clock::now();
-      std::vector<LayerPoint> points;
-      if (config.exact) {
-        solve_exact(pd, config, pattern, pr, points, &bar);
-      } else {
-        solve_approx(pd, config, pattern, nullptr, pr, points, &bar);
-      }
-      report.seconds_solve += seconds_since(t0);
-      if (config.max_extrapolation >= 0) {
-        const double lo = pd.heights.front() - config.max_extrapolation;
-        const double hi = pd.heights.back() + config.max_extrapolation;
-        points.erase(
-            std::remove_if(points.begin(), points.end(),
-                           [&](const LayerPoint& lp) { return lp.height < lo || lp.height > hi; }),
-            points.end());
-      }
-      pr.points_solved = points.size();
-      t0 = std::chrono::steady_clock::now();
-      if (config.dering) pr.points_deringed = dering(pd, points);
-      report.seconds_dering += seconds_since(t0);
-
-      if (config.kernel != DeconvConfig::Kernel::Plain) {
-        // sec. 5.6.7: the first reconstruction provides normals / occlusions for a second pass.
-        t0 = std::chrono::steady_clock::now();
-        const std::unique_ptr<KernelScaler> scaler = make_multipass_scaler(pd, config, points);
-        std::vector<LayerPoint> second;
-        PassReport pr2;
-        solve_approx(pd, config, pattern, scaler.get(), pr2, second, &bar);
-        pr.unconverged += pr2.unconverged;
-        pr.max_iterations = std::max(pr.max_iterations, pr2.max_iterations);
-        pr.points_solved = second.size();
-        if (config.dering) pr.points_deringed = dering(pd, second);
-        points.swap(second);
-        report.seconds_multipass += seconds_since(t0);
-      }
-
-      for (const LayerPoint& lp : points) {
-        cloud.points.push_back(lp.p_world);
-        cloud.intensity.push_back(lp.value);
-      }
-      for (const auto& w : pr.warnings) report.warnings.push_back(w);
-      report.passes.push_back(std::move(pr));
-    }
-    bar.finish();
-
-    report.points_before_occlusion = cloud.size();
-    if (config.resolve_occlusions && !cloud.empty()) {
-      // sec. 5.6.7.3: keep the front surfaces, as carving does (sec. 4.4.5).
-      const auto t0 = std::chrono::steady_clock::now();
-      OcclusionConfig oc = config.occlusion;
-      if (oc.num_threads == 0) oc.num_threads = config.num_threads;
-      if (config.occlusion_auto_voxel) {
-        oc.voxel_size = dr;
-        for (const PassPlan& p : plans) oc.voxel_size = std::min(oc.voxel_size, p.dz);
-      }
-      cloud = resolve_occlusions(cloud, returns, spec, oc);
-      report.seconds_occlusion = seconds_since(t0);
-    }
+    cloud = deconvolve_passes(denoised, T_world_sonar, spec, config, bin_hi, report, progress);
   });
   if (report.passes.empty()) {
     report.warnings.push_back("no pass was reconstructed");

@@ -197,142 +197,161 @@ const char* object_status_name(ObjectStatus s) {
   return "?";
 }
 
-ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
-                                    const ChangeRegistrationConfig& config) {
-  config.validate();
-  const auto t0 = std::chrono::steady_clock::now();
-  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
-  // B turns about the centre of its extent.
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// The stages of register_surveys, in the order it runs them: B's pivot, the maps of the yaw
+// search, every yaw of the window on coarse maps (sec. 6.2.2.1, eq. 6.1–6.2), the shift refined
+// at cell_m, then beyond the thesis a trimmed Gauss-Newton of B's heights onto A's (yaw, shift,
+// height), kept only where it does better than the search.
+
+// The turn by `yaw` about the vertical through `pivot`.
+Eigen::Isometry3d turn_about(const Eigen::Vector3d& pivot, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = pivot - T.linear() * pivot;
+  return T;
+}
+
+// B turns about the centre of its extent (at z = 0); every point of B must be finite.
+Eigen::Vector3d survey_pivot(const PointCloud& b_world) {
   Eigen::Vector3f lo = b_world.points[0], hi = lo;
   for (const auto& p : b_world.points) {
     if (!p.allFinite()) throw Error("change detection: survey B has a point that is not finite");
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  const Eigen::Vector3d pivot(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
-  const ElevationMap a_fine = map_of(a_world, config.cell_m, "A");
-  // The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells
-  // (on a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m.
-  const double observed_m2 =
-      static_cast<double>(a_fine.num_valid()) * config.cell_m * config.cell_m;
-  const double yaw_cell =
-      std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
-  const ElevationMap a_coarse = map_of(a_world, yaw_cell, "A");
-  // The yaw search turns B's map at a fifth of its cell as points (one per cell: its highest),
-  // not every point of B (4.4 M on the field; the map keeps only the highest per cell anyway).
-  PointCloud b_thin;
-  {
-    const ElevationMap m = map_of(b_world, yaw_cell / 5, "B");
-    for (int r = 0; r < m.rows; ++r) {
-      for (int c = 0; c < m.cols; ++c) {
-        if (!m.valid(r, c)) continue;
-        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
-        b_thin.points.emplace_back(static_cast<float>(xy.x()), static_cast<float>(xy.y()),
-                                   m.at(r, c));
-      }
-    }
-  }
+  return Eigen::Vector3d(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0);
+}
 
-  struct Trial {
-    double yaw = 0, cost = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
-    std::size_t overlap = 0;
-  };
-  std::string last_error;
-  auto turn = [&](double yaw) {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    T.translation() = pivot - T.linear() * pivot;
-    return T;
-  };
-  // B turned by `yaw`, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's search
-  // (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
-  auto trial = [&](const ElevationMap& a, double yaw, const Eigen::Vector3d& prior, double search) {
-    Trial tr;
-    tr.yaw = yaw;
-    Eigen::Isometry3d T = turn(yaw);
-    T.translation() += prior;
-    const ElevationMap b =
-        map_of(transformed(&a == &a_coarse ? b_thin : b_world, T), a.cell_m, "B");
-    if (!maps_may_overlap(a, b, search)) {
-      last_error = "their extents do not meet";
-      return tr;
+// A map's observed cells as points: each cell's centre at its height (its highest point).
+std::vector<Eigen::Vector3d> cell_points(const ElevationMap& m) {
+  std::vector<Eigen::Vector3d> out;
+  for (int r = 0; r < m.rows; ++r) {
+    for (int c = 0; c < m.cols; ++c) {
+      if (!m.valid(r, c)) continue;
+      const Eigen::Vector2d xy = m.cell_center_xy(r, c);
+      out.emplace_back(xy.x(), xy.y(), m.at(r, c));
     }
-    SwathRegistrationConfig sw;
-    sw.search_m = search;
-    sw.min_overlap_cells = config.min_overlap_cells;
-    sw.coarse_factor = config.coarse_factor;
-    sw.num_threads = config.num_threads;
-    // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
-    // fine stage refines the shift); on small sites the yaw cell is cell_m.
-    sw.subcell = a.cell_m <= config.cell_m;
-    try {
-      const SwathTie tie = register_elevation_maps(a, b, sw);
-      tr.t = prior + tie.t;
-      tr.cost = registered_cost(a, b, tie.t, config.inlier_fraction, &tr.overlap);
-    } catch (const Error& e) {
-      last_error = e.what();
-    }
-    return tr;
-  };
-  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
-  Trial best;
-  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
-  for (int k = -n; k <= n; ++k) {
-    const Trial tr =
-        trial(a_coarse, k * config.yaw_step_deg * kDeg, Eigen::Vector3d::Zero(), config.search_m);
-    if (tr.cost < best.cost) best = tr;
   }
-  require(std::isfinite(best.cost),
-          "change detection: the surveys do not overlap (no yaw within ±" +
-              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
-              std::to_string(config.search_m) + " m leaves " +
-              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
-              ")");
-  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
-  best = trial(a_fine, best.yaw, best.t, yaw_cell);
-  require(std::isfinite(best.cost),
-          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
-  // 3. Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights
-  // onto A's height field (an ICP of the seabed on the elevation maps, point to surface), at
-  // half of cell_m: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over B's cells, the smallest
-  // inlier_fraction of |r| kept each iteration.
+  return out;
+}
+
+// The maps the yaw search works on.
+struct YawSearchMaps {
+  ElevationMap a_fine;    // A at cell_m
+  double yaw_cell = 0;    // the yaw search's cell, m
+  ElevationMap a_coarse;  // A at yaw_cell
+  PointCloud b_thin;      // B's map at yaw_cell / 5, one point per cell
+};
+
+// The yaw search's cell: yaw_cell_m, but fine enough that A's map keeps ~20,000 observed cells (on
+// a small site, cells of 25 cm leave too few for the yaw to show), at least cell_m. The search
+// turns B's map at a fifth of its cell as points (one per cell: its highest), not every point of
+// B (4.4 M on the field; the map keeps only the highest per cell anyway).
+YawSearchMaps yaw_search_maps(const PointCloud& a_world, const PointCloud& b_world,
+                              const ChangeRegistrationConfig& config) {
+  YawSearchMaps m;
+  m.a_fine = map_of(a_world, config.cell_m, "A");
+  const double observed_m2 =
+      static_cast<double>(m.a_fine.num_valid()) * config.cell_m * config.cell_m;
+  m.yaw_cell = std::clamp(std::sqrt(observed_m2 / 20000.0), config.cell_m, config.yaw_cell_m);
+  m.a_coarse = map_of(a_world, m.yaw_cell, "A");
+  for (const Eigen::Vector3d& p : cell_points(map_of(b_world, m.yaw_cell / 5, "B"))) {
+    m.b_thin.points.push_back(p.cast<float>());
+  }
+  return m;
+}
+
+// One yaw tried: its cost (infinite when the maps do not register), the total shift after the
+// turn and the overlap.
+struct Trial {
+  double yaw = 0, cost = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();  // total shift after the turn
+  std::size_t overlap = 0;
+};
+
+// B turned by `yaw` about the pivot, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's
+// search (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
+// `last_error`: why the last failed trial failed.
+Trial shift_trial(const ElevationMap& a, const PointCloud& b, const Eigen::Vector3d& pivot,
+                  double yaw, const Eigen::Vector3d& prior, double search,
+                  const ChangeRegistrationConfig& config, std::string& last_error) {
+  Trial tr;
+  tr.yaw = yaw;
+  Eigen::Isometry3d T = turn_about(pivot, yaw);
+  T.translation() += prior;
+  const ElevationMap bm = map_of(transformed(b, T), a.cell_m, "B");
+  if (!maps_may_overlap(a, bm, search)) {
+    last_error = "their extents do not meet";
+    return tr;
+  }
+  SwathRegistrationConfig sw;
+  sw.search_m = search;
+  sw.min_overlap_cells = config.min_overlap_cells;
+  sw.coarse_factor = config.coarse_factor;
+  sw.num_threads = config.num_threads;
+  // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
+  // fine stage refines the shift); on small sites the yaw cell is cell_m.
+  sw.subcell = a.cell_m <= config.cell_m;
+  try {
+    const SwathTie tie = register_elevation_maps(a, bm, sw);
+    tr.t = prior + tie.t;
+    tr.cost = registered_cost(a, bm, tie.t, config.inlier_fraction, &tr.overlap);
+  } catch (const Error& e) {
+    last_error = e.what();
+  }
+  return tr;
+}
+
+// A's height and gradient at (x, y), bilinear between the four surrounding cell centres of `a`
+// (cell `cell`); false outside A or next to an unobserved cell.
+bool sample_height(const ElevationMap& a, double cell, double x, double y, double* z,
+                   Eigen::Vector2d* g) {
+  const double u = (x - a.origin_xy.x()) / cell - 0.5;
+  const double v = (a.origin_xy.y() - y) / cell - 0.5;
+  const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
+  if (c0 < 0 || r0 < 0 || c0 + 1 >= a.cols || r0 + 1 >= a.rows) return false;
+  const float z00 = a.at(r0, c0), z01 = a.at(r0, c0 + 1), z10 = a.at(r0 + 1, c0),
+              z11 = a.at(r0 + 1, c0 + 1);
+  if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
+  const double fu = u - c0, fv = v - r0;
+  *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
+  const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
+  const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
+  *g = {dzdu / cell, -dzdv / cell};  // rows run southward
+  return true;
+}
+
+// The Gauss-Newton's solution: yaw, shift and height, its cost and cells, its covariance.
+struct HeightFit {
+  double yaw = 0;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  double cost = 0;
+  std::size_t used = 0;
+  Eigen::Matrix4d cov = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+};
+
+// Beyond the thesis: yaw, shift and height together by trimmed Gauss-Newton of B's heights onto
+// A's height field (an ICP of the seabed on the elevation maps, point to surface), at half of
+// cell_m, from the search's solution `best`: residual r = A(R(ψ)(p − c) + c + t) − (z + dz) over
+// B's cells, the smallest inlier_fraction of |r| kept each iteration; steps bounded by the basin of
+// the coarse search (a yaw cell, a yaw step).
+HeightFit refine_heights(const PointCloud& a_world, const PointCloud& b_world,
+                         const Eigen::Vector3d& pivot, const Trial& best, double yaw_cell,
+                         const ChangeRegistrationConfig& config) {
   const double gn_cell = 0.5 * config.cell_m;
   const ElevationMap a_gn = map_of(a_world, gn_cell, "A");
-  std::vector<Eigen::Vector3d> pts;
-  {
-    const ElevationMap m = map_of(b_world, gn_cell, "B");
-    for (int r = 0; r < m.rows; ++r) {
-      for (int c = 0; c < m.cols; ++c) {
-        if (!m.valid(r, c)) continue;
-        const Eigen::Vector2d xy = m.cell_center_xy(r, c);
-        pts.emplace_back(xy.x(), xy.y(), m.at(r, c));
-      }
-    }
-  }
-  // A's height and gradient at (x, y), bilinear between the four surrounding cell centres.
-  auto sample = [&](double x, double y, double* z, Eigen::Vector2d* g) {
-    const double u = (x - a_gn.origin_xy.x()) / gn_cell - 0.5;
-    const double v = (a_gn.origin_xy.y() - y) / gn_cell - 0.5;
-    const int c0 = static_cast<int>(std::floor(u)), r0 = static_cast<int>(std::floor(v));
-    if (c0 < 0 || r0 < 0 || c0 + 1 >= a_gn.cols || r0 + 1 >= a_gn.rows) return false;
-    const float z00 = a_gn.at(r0, c0), z01 = a_gn.at(r0, c0 + 1), z10 = a_gn.at(r0 + 1, c0),
-                z11 = a_gn.at(r0 + 1, c0 + 1);
-    if (!(z00 == z00 && z01 == z01 && z10 == z10 && z11 == z11)) return false;
-    const double fu = u - c0, fv = v - r0;
-    *z = (1 - fv) * ((1 - fu) * z00 + fu * z01) + fv * ((1 - fu) * z10 + fu * z11);
-    const double dzdu = (1 - fv) * (z01 - z00) + fv * (z11 - z10);
-    const double dzdv = (1 - fu) * (z10 - z00) + fu * (z11 - z01);
-    *g = {dzdu / gn_cell, -dzdv / gn_cell};  // rows run southward
-    return true;
-  };
-  double yaw = best.yaw;
-  Eigen::Vector3d t = best.t;
+  const std::vector<Eigen::Vector3d> pts = cell_points(map_of(b_world, gn_cell, "B"));
+  HeightFit fit;
+  double& yaw = fit.yaw;
+  Eigen::Vector3d& t = fit.t;
+  yaw = best.yaw;
+  t = best.t;
   // B's points were turned about the pivot, then shifted: q = R(ψ)(p − c) + c + t.
   std::vector<double> absr;
-  double gn_cost = best.cost;
-  std::size_t gn_used = 0;
-  Eigen::Matrix4d gn_cov = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+  fit.cost = best.cost;
+  fit.used = 0;
   for (int it = 0; it < 30; ++it) {
     const double cs = std::cos(yaw), sn = std::sin(yaw);
     struct Row {
@@ -347,7 +366,7 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       const double qy = sn * dx + cs * dy + pivot.y() + t.y();
       double za;
       Eigen::Vector2d g;
-      if (!sample(qx, qy, &za, &g)) continue;
+      if (!sample_height(a_gn, gn_cell, qx, qy, &za, &g)) continue;
       const double dqx = -sn * dx - cs * dy, dqy = cs * dx - sn * dy;  // ∂q/∂ψ
       rows.push_back(
           {Eigen::Vector4d(g.x() * dqx + g.y() * dqy, g.x(), g.y(), -1), za - (p.z() + t.z())});
@@ -372,12 +391,12 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
       sum2 += row.r * row.r;
       ++used;
     }
-    gn_cost = sum / static_cast<double>(used);
-    gn_used = used;
+    fit.cost = sum / static_cast<double>(used);
+    fit.used = used;
     // The covariance at this iterate, s²·H⁻¹ (the last one is kept: at convergence, the
     // solution's).
     if (used > 4 && H.fullPivLu().rank() == 4) {
-      gn_cov = (sum2 / static_cast<double>(used - 4)) * H.inverse();
+      fit.cov = (sum2 / static_cast<double>(used - 4)) * H.inverse();
     }
     H.diagonal() += Eigen::Vector4d::Constant(1e-9 * H.trace() + 1e-12);  // a flat seabed
     const Eigen::Vector4d delta = H.ldlt().solve(rhs);
@@ -390,33 +409,70 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
                          std::clamp(delta[2], -yaw_cell, yaw_cell), delta[3]);
     if (std::abs(step_yaw) < 1e-6 && delta.segment<3>(1).norm() < 1e-4) break;
   }
+  return fit;
+}
+
+}  // namespace
+
+// The pipeline of survey registration (stages above): pivot, yaw search on coarse maps, shift
+// refined at cell_m, Gauss-Newton of the heights, the better of the last two.
+ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,
+                                    const ChangeRegistrationConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  require(!b_world.empty(), "change detection: survey B has no points (nothing to compare)");
+  const Eigen::Vector3d pivot = survey_pivot(b_world);
+  const YawSearchMaps maps = yaw_search_maps(a_world, b_world, config);
+  const double yaw_cell = maps.yaw_cell;
+  std::string last_error;
+  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
+  Trial best;
+  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
+  for (int k = -n; k <= n; ++k) {
+    const Trial tr = shift_trial(maps.a_coarse, maps.b_thin, pivot, k * config.yaw_step_deg * kDeg,
+                                 Eigen::Vector3d::Zero(), config.search_m, config, last_error);
+    if (tr.cost < best.cost) best = tr;
+  }
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap (no yaw within ±" +
+              std::to_string(config.yaw_search_deg) + " deg and shift within ±" +
+              std::to_string(config.search_m) + " m leaves " +
+              std::to_string(config.min_overlap_cells) + " cells observed in both; " + last_error +
+              ")");
+  // 2. At cell_m, the shift refined within a yaw cell of the coarse one (sub-cell).
+  best = shift_trial(maps.a_fine, b_world, pivot, best.yaw, best.t, yaw_cell, config, last_error);
+  require(std::isfinite(best.cost),
+          "change detection: the surveys do not overlap at the fine cell (" + last_error + ")");
+  // 3. Beyond the thesis: trimmed Gauss-Newton of the heights (refine_heights).
+  HeightFit gn = refine_heights(a_world, b_world, pivot, best, yaw_cell, config);
   // Kept only when it stays within the coarse search's basin and lowers the shift search's own
   // cost (mean |A − B| over the inlier fraction at cell_m): on maps that are not rigidly alike
   // (dead reckoning distorts each survey differently), the least-squares optimum can sit
   // elsewhere than the robust one.
-  bool refined = gn_used > 0 && std::abs(yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
-                 (t - best.t).head<2>().norm() <= yaw_cell;
+  bool refined = gn.used > 0 && std::abs(gn.yaw - best.yaw) <= 2 * config.yaw_step_deg * kDeg &&
+                 (gn.t - best.t).head<2>().norm() <= yaw_cell;
   if (refined) {
-    Eigen::Isometry3d T = turn(yaw);
-    T.translation() += t;
+    Eigen::Isometry3d T = turn_about(pivot, gn.yaw);
+    T.translation() += gn.t;
     std::size_t overlap = 0;
-    const double cost = registered_cost(a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
-                                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
+    const double cost =
+        registered_cost(maps.a_fine, map_of(transformed(b_world, T), config.cell_m, "B"),
+                        Eigen::Vector3d::Zero(), config.inlier_fraction, &overlap);
     refined = cost < best.cost;
-    if (refined) gn_cost = cost, gn_used = overlap;
+    if (refined) gn.cost = cost, gn.used = overlap;
   }
   ChangeRegistration out;
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
-  shift.translation() = refined ? t : best.t;
-  out.T_a_b = shift * turn(refined ? yaw : best.yaw);
+  shift.translation() = refined ? gn.t : best.t;
+  out.T_a_b = shift * turn_about(pivot, refined ? gn.yaw : best.yaw);
   out.method = refined ? "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw, then "
                          "trimmed Gauss-Newton of heights (yaw, shift, height)"
                        : "elevation-map shift search (sec. 6.2.2.1, eq. 6.1-6.2) over yaw";
-  out.yaw_deg = (refined ? yaw : best.yaw) / kDeg;
-  out.rms_m = refined ? gn_cost : best.cost;
-  out.overlap_cells = refined ? gn_used : best.overlap;
-  out.covariance = gn_cov;
-  out.covariance_cells = gn_used;
+  out.yaw_deg = (refined ? gn.yaw : best.yaw) / kDeg;
+  out.rms_m = refined ? gn.cost : best.cost;
+  out.overlap_cells = refined ? gn.used : best.overlap;
+  out.covariance = gn.cov;
+  out.covariance_cells = gn.used;
   out.pivot = pivot;
   out.seconds = seconds_since(t0);
   return out;
@@ -462,6 +518,131 @@ RegistrationFit registration_fit(const ElevationMap& a, const PointCloud& b_worl
   return fit;
 }
 
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// The stages of compare_placements: each placement's model, centre and match radius; pairs of
+// one model within the radius, nearest first; then one change per placement of A (unchanged,
+// moved or removed) and per unpaired placement of B (added).
+
+// One survey's placements as compare_placements sees them: each one's catalogue model, centre
+// and match radius.
+struct PlacedSide {
+  std::vector<ObjectModel> models;
+  std::vector<Eigen::Vector2d> centres;
+};
+
+// The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
+double match_radius(const ObjectModel& m, const ChangeConfig& config) {
+  return m.has_size()
+             ? std::max(config.min_match_radius_m, config.match_radius_factor * m.radius_m())
+             : config.match_radius_m;
+}
+
+// Each placement's catalogue model (an empty model without a catalogue; a model the catalogue
+// does not list is an error) and centre: its footprint's centre placed (a CAD origin may sit at a
+// corner of a frame, where a turn alone would read as a shift), or its origin when the size is
+// unknown.
+PlacedSide placed_side(const std::vector<SurveyPlacement>& placements, const ObjectModels& models,
+                       const char* which) {
+  PlacedSide side;
+  side.models.resize(placements.size());
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const SurveyPlacement& p = placements[i];
+    if (models.empty()) continue;
+    const auto it = models.find(p.model);
+    require(it != models.end(), std::string("placements of survey ") + which + ": placement " +
+                                    std::to_string(i) + " is a model '" + printable(p.model) +
+                                    "' that the catalogue does not list");
+    side.models[i] = it->second;
+  }
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const SurveyPlacement& p = placements[i];
+    const ObjectModel& m = side.models[i];
+    if (!m.has_size()) {
+      side.centres.push_back(p.T_world_model.translation().head<2>());
+      continue;
+    }
+    const Eigen::Vector2d c = m.footprint.center();
+    side.centres.push_back(
+        (p.T_world_model * Eigen::Vector3d(p.scale * c.x(), p.scale * c.y(), 0)).head<2>());
+  }
+  return side;
+}
+
+// Identity (same model) and pose (centres within the radius): nearest pairs first, the distance
+// relative to the radius (a large structure's 1 m and a small one's 10 cm weigh alike). Fills
+// match_a[i] (the placement of B paired with A's i, −1 for none) and match_b alike.
+void pair_placements(const std::vector<SurveyPlacement>& a, const PlacedSide& sa,
+                     const std::vector<SurveyPlacement>& b_in_a, const PlacedSide& sb,
+                     const ChangeConfig& config, std::vector<long>& match_a,
+                     std::vector<long>& match_b) {
+  struct Pair {
+    double d;
+    std::size_t i, j;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double rad = match_radius(sa.models[i], config);
+    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
+      if (a[i].model != b_in_a[j].model) continue;
+      const double d = (sa.centres[i] - sb.centres[j]).norm();
+      if (d <= rad) pairs.push_back({d / rad, i, j});
+    }
+  }
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
+  match_a.assign(a.size(), -1);
+  match_b.assign(b_in_a.size(), -1);
+  for (const Pair& p : pairs) {
+    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
+    match_a[p.i] = static_cast<long>(p.j);
+    match_b[p.j] = static_cast<long>(p.i);
+  }
+}
+
+// The model the other survey placed over an unpaired placement (another model, unpaired too,
+// within the larger of the two radii): the recognitions disagree on what stands there.
+std::string other_over(const Eigen::Vector2d& c, const std::string& model, double rad,
+                       const std::vector<SurveyPlacement>& others, const PlacedSide& other_side,
+                       const std::vector<long>& matched, const ChangeConfig& config) {
+  std::string best;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < others.size(); ++k) {
+    if (matched[k] >= 0 || others[k].model == model) continue;
+    const double d = (other_side.centres[k] - c).norm();
+    if (d <= std::max(rad, match_radius(other_side.models[k], config)) && d < best_d) {
+      best_d = d;
+      best = others[k].model;
+    }
+  }
+  return best;
+}
+
+// A paired placement's change: the shift of its centre and the turn modulo the model's symmetry
+// about the vertical (sec. 6.3.2.5's yaw ranges); unchanged within the tolerances, moved beyond.
+void measure_move(const SurveyPlacement& a, const Eigen::Vector2d& ca, const ObjectModel& ma,
+                  const SurveyPlacement& b, const Eigen::Vector2d& cb, const ChangeConfig& config,
+                  ObjectChange& c) {
+  c.in_b = true;
+  c.T_world_model_b_in_a = b.T_world_model;
+  c.confidence_b = b.confidence;
+  c.shift_m = (cb - ca).norm();
+  // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
+  const Symmetry sym = ma.symmetry;
+  const double period = sym == Symmetry::Half ? 180 : 360;
+  double turn =
+      std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a.T_world_model)) / kDeg, period);
+  turn = std::min(turn, period - turn);
+  c.turn_deg = sym == Symmetry::Full ? 0 : turn;
+  c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
+                 ? ObjectStatus::Unchanged
+                 : ObjectStatus::Moved;
+}
+
+}  // namespace
+
+// The pipeline of placement comparison (stages above).
 std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>& a,
                                              const std::vector<SurveyPlacement>& b_in_a,
                                              const ObjectModels& models,
@@ -471,76 +652,10 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
   require(a.size() <= kMaxComparedPlacements && b_in_a.size() <= kMaxComparedPlacements,
           "change detection: at most " + std::to_string(kMaxComparedPlacements) +
               " placements per survey are compared");
-  auto model_of = [&](const SurveyPlacement& p, const char* which, std::size_t i) {
-    if (models.empty()) return ObjectModel{};
-    const auto it = models.find(p.model);
-    require(it != models.end(), std::string("placements of survey ") + which + ": placement " +
-                                    std::to_string(i) + " is a model '" + printable(p.model) +
-                                    "' that the catalogue does not list");
-    return it->second;
-  };
-  std::vector<ObjectModel> ma(a.size()), mb(b_in_a.size());
-  for (std::size_t i = 0; i < a.size(); ++i) ma[i] = model_of(a[i], "A", i);
-  for (std::size_t j = 0; j < b_in_a.size(); ++j) mb[j] = model_of(b_in_a[j], "B", j);
-  // The centre of a placement: its footprint's centre placed (a CAD origin may sit at a corner
-  // of a frame, where a turn alone would read as a shift), or its origin when the size is unknown.
-  auto centre = [](const SurveyPlacement& p, const ObjectModel& m) -> Eigen::Vector2d {
-    if (!m.has_size()) return p.T_world_model.translation().head<2>();
-    const Eigen::Vector2d c = m.footprint.center();
-    return (p.T_world_model * Eigen::Vector3d(p.scale * c.x(), p.scale * c.y(), 0)).head<2>();
-  };
-  // The match radius scales with the object (ChangeConfig::match_radius_factor × r_model).
-  auto radius = [&](const ObjectModel& m) {
-    return m.has_size()
-               ? std::max(config.min_match_radius_m, config.match_radius_factor * m.radius_m())
-               : config.match_radius_m;
-  };
-  std::vector<Eigen::Vector2d> ca(a.size()), cb(b_in_a.size());
-  for (std::size_t i = 0; i < a.size(); ++i) ca[i] = centre(a[i], ma[i]);
-  for (std::size_t j = 0; j < b_in_a.size(); ++j) cb[j] = centre(b_in_a[j], mb[j]);
-
-  // Identity (same model) and pose (centres within the radius): nearest pairs first, the
-  // distance relative to the radius (a large structure's 1 m and a small one's 10 cm weigh
-  // alike).
-  struct Pair {
-    double d;
-    std::size_t i, j;
-  };
-  std::vector<Pair> pairs;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const double rad = radius(ma[i]);
-    for (std::size_t j = 0; j < b_in_a.size(); ++j) {
-      if (a[i].model != b_in_a[j].model) continue;
-      const double d = (ca[i] - cb[j]).norm();
-      if (d <= rad) pairs.push_back({d / rad, i, j});
-    }
-  }
-  std::stable_sort(pairs.begin(), pairs.end(),
-                   [](const Pair& x, const Pair& y) { return x.d < y.d; });
-  std::vector<long> match_a(a.size(), -1), match_b(b_in_a.size(), -1);
-  for (const Pair& p : pairs) {
-    if (match_a[p.i] >= 0 || match_b[p.j] >= 0) continue;
-    match_a[p.i] = static_cast<long>(p.j);
-    match_b[p.j] = static_cast<long>(p.i);
-  }
-  // The model the other survey placed over an unpaired placement (another model, unpaired too,
-  // within the larger of the two radii): the recognitions disagree on what stands there.
-  auto other_over =
-      [&](const Eigen::Vector2d& c, const std::string& model, double rad,
-          const std::vector<SurveyPlacement>& others, const std::vector<Eigen::Vector2d>& centres,
-          const std::vector<ObjectModel>& other_models, const std::vector<long>& matched) {
-        std::string best;
-        double best_d = std::numeric_limits<double>::infinity();
-        for (std::size_t k = 0; k < others.size(); ++k) {
-          if (matched[k] >= 0 || others[k].model == model) continue;
-          const double d = (centres[k] - c).norm();
-          if (d <= std::max(rad, radius(other_models[k])) && d < best_d) {
-            best_d = d;
-            best = others[k].model;
-          }
-        }
-        return best;
-      };
+  const PlacedSide sa = placed_side(a, models, "A");
+  const PlacedSide sb = placed_side(b_in_a, models, "B");
+  std::vector<long> match_a, match_b;
+  pair_placements(a, sa, b_in_a, sb, config, match_a, match_b);
   std::map<std::string, int> count;
   std::vector<ObjectChange> out;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -550,27 +665,14 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.in_a = true;
     c.T_world_model_a = a[i].T_world_model;
     c.confidence_a = a[i].confidence;
-    c.match_radius_m = radius(ma[i]);
+    c.match_radius_m = match_radius(sa.models[i], config);
     if (match_a[i] < 0) {
       c.status = ObjectStatus::Removed;
-      c.other_model = other_over(ca[i], a[i].model, c.match_radius_m, b_in_a, cb, mb, match_b);
+      c.other_model =
+          other_over(sa.centres[i], a[i].model, c.match_radius_m, b_in_a, sb, match_b, config);
     } else {
       const std::size_t j = static_cast<std::size_t>(match_a[i]);
-      const SurveyPlacement& b = b_in_a[j];
-      c.in_b = true;
-      c.T_world_model_b_in_a = b.T_world_model;
-      c.confidence_b = b.confidence;
-      c.shift_m = (cb[j] - ca[i]).norm();
-      // The turn modulo the model's symmetry about the vertical (sec. 6.3.2.5's yaw ranges).
-      const Symmetry sym = ma[i].symmetry;
-      const double period = sym == Symmetry::Half ? 180 : 360;
-      double turn =
-          std::fmod(std::abs(yaw_of(b.T_world_model) - yaw_of(a[i].T_world_model)) / kDeg, period);
-      turn = std::min(turn, period - turn);
-      c.turn_deg = sym == Symmetry::Full ? 0 : turn;
-      c.status = c.shift_m <= config.shift_tol_m && c.turn_deg <= config.turn_tol_deg
-                     ? ObjectStatus::Unchanged
-                     : ObjectStatus::Moved;
+      measure_move(a[i], sa.centres[i], sa.models[i], b_in_a[j], sb.centres[j], config, c);
     }
     out.push_back(c);
   }
@@ -583,8 +685,8 @@ std::vector<ObjectChange> compare_placements(const std::vector<SurveyPlacement>&
     c.in_b = true;
     c.T_world_model_b_in_a = b_in_a[j].T_world_model;
     c.confidence_b = b_in_a[j].confidence;
-    c.match_radius_m = radius(mb[j]);
-    c.other_model = other_over(cb[j], c.model, c.match_radius_m, a, ca, ma, match_a);
+    c.match_radius_m = match_radius(sb.models[j], config);
+    c.other_model = other_over(sb.centres[j], c.model, c.match_radius_m, a, sa, match_a, config);
     out.push_back(c);
   }
   return out;
@@ -775,6 +877,130 @@ ColourGrid bin_colours(const PointCloud& cloud, const ElevationMap& grid, double
   return g;
 }
 
+// ---------------------------------------------------------------------------------------------
+// The stages of compare_colour, in the order it runs them: both clouds binned on A's colour grid,
+// each cell's colour in the space, the survey-wide offset and the robust sigma, the cells that
+// changed beyond the threshold, and their connected regions.
+
+// A survey's cells in the colour space (chromaticity in percentage points, or CIELAB), and which
+// are valid: min_points coloured points and, for chromaticity, any light at all.
+struct SpaceColours {
+  std::vector<Eigen::Vector3d> v;
+  std::vector<char> ok;
+};
+
+SpaceColours space_colours(const ColourGrid& g, const ColourChangeConfig& config) {
+  SpaceColours s;
+  s.v.assign(g.rgb.size(), Eigen::Vector3d::Zero());
+  s.ok.assign(g.rgb.size(), 0);
+  for (std::size_t k = 0; k < g.rgb.size(); ++k) {
+    if (g.count[k] < config.min_points) continue;
+    const Eigen::Vector3d& c = g.rgb[k];
+    if (config.space == ColourSpace::Lab) {
+      s.v[k] = linear_rgb_to_lab(c);
+    } else {
+      const double sum = c.sum();
+      if (!(sum > 1e-6)) continue;
+      s.v[k] = Eigen::Vector3d(100 * c.x() / sum, 100 * c.y() / sum, 0);
+    }
+    s.ok[k] = 1;
+  }
+  return s;
+}
+
+// The offset: the median of B − A per component over the cells both observed (a lighting or white
+// balance shift of the whole survey); the sigma: robust, of the length of what is left (chi with
+// `dims` components); the threshold k_sigma·sigma. Fills `out`; returns the offset.
+Eigen::Vector3d colour_offset(const SpaceColours& a, const SpaceColours& b,
+                              const std::vector<std::size_t>& both, int dims,
+                              const ColourChangeConfig& config, ColourChange& out) {
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  std::vector<float> values(both.size());
+  for (int c = 0; c < dims; ++c) {
+    for (std::size_t n = 0; n < both.size(); ++n) {
+      values[n] = static_cast<float>(b.v[both[n]][c] - a.v[both[n]][c]);
+    }
+    offset[c] = quantile(values, 0.5);
+    out.offset.push_back(offset[c]);
+  }
+  for (std::size_t n = 0; n < both.size(); ++n) {
+    values[n] = static_cast<float>((b.v[both[n]] - offset - a.v[both[n]]).norm());
+  }
+  out.sigma = std::max(config.min_sigma, quantile(values, config.sigma_quantile) /
+                                             chi_quantile(config.sigma_quantile, dims));
+  out.threshold = config.k_sigma * out.sigma;
+  return offset;
+}
+
+// The cells that changed: B's colour (offset removed) differs from every colour of A within
+// tolerance_m (at least the 3×3 cells) by more than the threshold, or A's from every one of B's —
+// a colour edge that the maps place less than that apart is no change. Writes |B − A − offset| of
+// the cells both observed into `delta` (no data elsewhere).
+std::vector<int8_t> changed_colour_cells(const ElevationMap& grid, const SpaceColours& a,
+                                         const SpaceColours& b,
+                                         const std::vector<std::size_t>& both,
+                                         const Eigen::Vector3d& offset, double threshold,
+                                         const ColourChangeConfig& config, ElevationMap& delta) {
+  std::fill(delta.z.begin(), delta.z.end(), ElevationMap::kNoData);
+  const int rows = grid.rows, cols = grid.cols;
+  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
+  std::vector<int8_t> changed(a.v.size(), 0);
+  for (const std::size_t k : both) {
+    delta.z[k] = static_cast<float>((b.v[k] - offset - a.v[k]).norm());
+    const int row = static_cast<int>(k / static_cast<std::size_t>(cols));
+    const int col = static_cast<int>(k % static_cast<std::size_t>(cols));
+    double to_a = std::numeric_limits<double>::infinity(), to_b = to_a;
+    for (int dr = -reach; dr <= reach; ++dr) {
+      for (int dc = -reach; dc <= reach; ++dc) {
+        const int rr = row + dr, cc = col + dc;
+        if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
+        const std::size_t j = grid.index(rr, cc);
+        if (a.ok[j]) to_a = std::min(to_a, (b.v[k] - offset - a.v[j]).norm());
+        if (b.ok[j]) to_b = std::min(to_b, (a.v[k] + offset - b.v[j]).norm());
+      }
+    }
+    if (to_a > threshold || to_b > threshold) changed[k] = 1;
+  }
+  return changed;
+}
+
+// The changed cells linked within link_m into regions; those of at least min_area_m2 reported
+// with their centroid, mean and largest change and both surveys' mean colours. Fills `out`.
+void colour_regions(const ElevationMap& grid, const ColourGrid& ga, const ColourGrid& gb,
+                    const ElevationMap& delta, const std::vector<int8_t>& changed,
+                    const ColourChangeConfig& config, ColourChange& out) {
+  const int rows = grid.rows, cols = grid.cols;
+  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
+  const double cell_area = config.cell_m * config.cell_m;
+  for (const std::vector<std::size_t>& comp : sign_components(changed, rows, cols, link)) {
+    out.significant_cells += comp.size();
+    ColourRegion reg;
+    reg.cells = comp.size();
+    reg.area_m2 = static_cast<double>(comp.size()) * cell_area;
+    if (reg.area_m2 < config.min_area_m2) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), rgb_a = sum, rgb_b = sum;
+    double sd = 0;
+    for (const std::size_t k : comp) {
+      const Eigen::Vector2d c =
+          grid.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cols)),
+                              static_cast<int>(k % static_cast<std::size_t>(cols)));
+      sum += Eigen::Vector3d(c.x(), c.y(), 0.5 * (ga.z[k] + gb.z[k]));
+      rgb_a += ga.rgb[k];
+      rgb_b += gb.rgb[k];
+      sd += delta.z[k];
+      reg.max_delta = std::max(reg.max_delta, static_cast<double>(delta.z[k]));
+    }
+    const double n = static_cast<double>(comp.size());
+    reg.centroid = sum / n;
+    reg.mean_delta = sd / n;
+    reg.colour_a = linear_to_srgb8((rgb_a / n).cast<float>());
+    reg.colour_b = linear_to_srgb8((rgb_b / n).cast<float>());
+    reg.cell_indices = comp;
+    reg.id = static_cast<int>(out.regions.size());
+    out.regions.push_back(reg);
+  }
+}
+
 }  // namespace
 
 void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
@@ -807,7 +1033,8 @@ void check_colour_cloud(const PointCloud& cloud, const std::string& name) {
 }
 
 // Colour change (issue 13 item 4, beyond the thesis, whose sec. 6.4 maps video onto the sonar
-// cloud; here the two surveys' mapped colours are compared like the heights of compare_geometry).
+// cloud; here the two surveys' mapped colours are compared like the heights of compare_geometry):
+// the pipeline of the stages above.
 ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour_b_in_a,
                             const ColourChangeConfig& config) {
   config.validate();
@@ -834,31 +1061,10 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
   const ColourGrid ga = bin_colours(colour_a, grid, config.top_layer_m),
                    gb = bin_colours(colour_b_in_a, grid, config.top_layer_m);
   const int dims = config.space == ColourSpace::Lab ? 3 : 2;
-  // Each cell's colour in the space (chromaticity in percentage points); valid when the cell has
-  // min_points coloured points and, for chromaticity, any light at all.
-  auto to_space = [&](const ColourGrid& g, std::vector<Eigen::Vector3d>* v, std::vector<char>* ok) {
-    v->assign(g.rgb.size(), Eigen::Vector3d::Zero());
-    ok->assign(g.rgb.size(), 0);
-    for (std::size_t k = 0; k < g.rgb.size(); ++k) {
-      if (g.count[k] < config.min_points) continue;
-      const Eigen::Vector3d& c = g.rgb[k];
-      if (config.space == ColourSpace::Lab) {
-        (*v)[k] = linear_rgb_to_lab(c);
-      } else {
-        const double sum = c.sum();
-        if (!(sum > 1e-6)) continue;
-        (*v)[k] = Eigen::Vector3d(100 * c.x() / sum, 100 * c.y() / sum, 0);
-      }
-      (*ok)[k] = 1;
-    }
-  };
-  std::vector<Eigen::Vector3d> va, vb;
-  std::vector<char> oka, okb;
-  to_space(ga, &va, &oka);
-  to_space(gb, &vb, &okb);
+  const SpaceColours a = space_colours(ga, config), b = space_colours(gb, config);
   std::vector<std::size_t> both;
-  for (std::size_t k = 0; k < va.size(); ++k) {
-    if (oka[k] && okb[k]) both.push_back(k);
+  for (std::size_t k = 0; k < a.v.size(); ++k) {
+    if (a.ok[k] && b.ok[k]) both.push_back(k);
   }
   out.compared_cells = both.size();
   require(both.size() >= static_cast<std::size_t>(config.min_overlap_cells),
@@ -867,76 +1073,11 @@ ColourChange compare_colour(const PointCloud& colour_a, const PointCloud& colour
               std::to_string(config.min_points) + " coloured points in each (colour " +
               "min_overlap_cells = " + std::to_string(config.min_overlap_cells) +
               "): do they cover the same site, each in its own survey's world frame?");
-  // The offset: the median of B − A per component (a lighting or white balance shift of the
-  // whole survey); the sigma: robust, of the length of what is left (chi with `dims` components).
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
-  std::vector<float> values(both.size());
-  for (int c = 0; c < dims; ++c) {
-    for (std::size_t n = 0; n < both.size(); ++n) {
-      values[n] = static_cast<float>(vb[both[n]][c] - va[both[n]][c]);
-    }
-    offset[c] = quantile(values, 0.5);
-    out.offset.push_back(offset[c]);
-  }
-  for (std::size_t n = 0; n < both.size(); ++n) {
-    values[n] = static_cast<float>((vb[both[n]] - offset - va[both[n]]).norm());
-  }
-  out.sigma = std::max(config.min_sigma, quantile(values, config.sigma_quantile) /
-                                             chi_quantile(config.sigma_quantile, dims));
-  out.threshold = config.k_sigma * out.sigma;
-  // A cell changed when B's colour (offset removed) differs from every colour of A within
-  // tolerance_m (at least the 3×3 cells) by more than the threshold, or A's from every one of B's:
-  // a colour edge that the maps place less than that apart is no change.
+  const Eigen::Vector3d offset = colour_offset(a, b, both, dims, config, out);
   ElevationMap delta = grid;
-  std::fill(delta.z.begin(), delta.z.end(), ElevationMap::kNoData);
-  const int rows = grid.rows, cols = grid.cols;
-  const int reach = std::max(1, static_cast<int>(std::lround(config.tolerance_m / config.cell_m)));
-  std::vector<int8_t> changed(va.size(), 0);
-  for (const std::size_t k : both) {
-    delta.z[k] = static_cast<float>((vb[k] - offset - va[k]).norm());
-    const int row = static_cast<int>(k / static_cast<std::size_t>(cols));
-    const int col = static_cast<int>(k % static_cast<std::size_t>(cols));
-    double to_a = std::numeric_limits<double>::infinity(), to_b = to_a;
-    for (int dr = -reach; dr <= reach; ++dr) {
-      for (int dc = -reach; dc <= reach; ++dc) {
-        const int rr = row + dr, cc = col + dc;
-        if (rr < 0 || cc < 0 || rr >= rows || cc >= cols) continue;
-        const std::size_t j = grid.index(rr, cc);
-        if (oka[j]) to_a = std::min(to_a, (vb[k] - offset - va[j]).norm());
-        if (okb[j]) to_b = std::min(to_b, (va[k] + offset - vb[j]).norm());
-      }
-    }
-    if (to_a > out.threshold || to_b > out.threshold) changed[k] = 1;
-  }
-  const int link = std::max(1, static_cast<int>(std::lround(config.link_m / config.cell_m)));
-  const double cell_area = config.cell_m * config.cell_m;
-  for (const std::vector<std::size_t>& comp : sign_components(changed, rows, cols, link)) {
-    out.significant_cells += comp.size();
-    ColourRegion reg;
-    reg.cells = comp.size();
-    reg.area_m2 = static_cast<double>(comp.size()) * cell_area;
-    if (reg.area_m2 < config.min_area_m2) continue;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), rgb_a = sum, rgb_b = sum;
-    double sd = 0;
-    for (const std::size_t k : comp) {
-      const Eigen::Vector2d c =
-          grid.cell_center_xy(static_cast<int>(k / static_cast<std::size_t>(cols)),
-                              static_cast<int>(k % static_cast<std::size_t>(cols)));
-      sum += Eigen::Vector3d(c.x(), c.y(), 0.5 * (ga.z[k] + gb.z[k]));
-      rgb_a += ga.rgb[k];
-      rgb_b += gb.rgb[k];
-      sd += delta.z[k];
-      reg.max_delta = std::max(reg.max_delta, static_cast<double>(delta.z[k]));
-    }
-    const double n = static_cast<double>(comp.size());
-    reg.centroid = sum / n;
-    reg.mean_delta = sd / n;
-    reg.colour_a = linear_to_srgb8((rgb_a / n).cast<float>());
-    reg.colour_b = linear_to_srgb8((rgb_b / n).cast<float>());
-    reg.cell_indices = comp;
-    reg.id = static_cast<int>(out.regions.size());
-    out.regions.push_back(reg);
-  }
+  const std::vector<int8_t> changed =
+      changed_colour_cells(grid, a, b, both, offset, out.threshold, config, delta);
+  colour_regions(grid, ga, gb, delta, changed, config, out);
   out.delta_map = std::move(delta);
   return out;
 }

@@ -300,6 +300,234 @@ void fit_pieces(const Dataset& dataset, const PointCloud& model, const Elevation
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// The stages of relocalize, per swath in the order it runs them: carve the swath alone, register
+// it onto the model (coarse, then refined), test the registration (found or not), its σ, the
+// drift along it (fit_pieces); then, over the survey, the swaths not found borrow a correction
+// and the navigation is moved.
+
+// Stage 1: the swath carved on its own (as `sonar3d map` carves one, thesis ch. 4).
+PointCloud carve_swath(const Dataset& dataset, const CarveConfig& carve, int s,
+                       const RelocalizedSwath& sw, Progress& bar) {
+  PointCloud cloud;
+  {
+    Carver carver(dataset.spec, carve, dataset.noise);
+    integrate_frames(carver, dataset, static_cast<std::size_t>(sw.first_frame),
+                     static_cast<std::size_t>(sw.last_frame), &bar);
+    cloud = carver.finalize();
+  }
+  require(!cloud.empty(), fmt::format("relocalize: swath {} (frames {}–{}) reconstructs to no "
+                                      "point: is the seabed within the sonar's range?",
+                                      s, sw.first_frame, sw.last_frame));
+  return cloud;
+}
+
+// A swath registered onto the model: the model near it, and the registration when they overlap.
+struct ModelRegistration {
+  PointCloud near;  // the model near the swath
+  bool overlapped = false;
+  ChangeRegistration r;                                // T_a_b: model ← swath
+  Eigen::Vector3d r2_pivot = Eigen::Vector3d::Zero();  // the refinement's pivot (survey moved)
+};
+
+// Stage 2: the swath registered onto the model (sec. 6.2.2.1's search over yaw, then
+// Gauss-Newton; register_surveys), then refined from that solution in a window of a few cells and
+// a yaw window of two coarse steps searched five times finer (a 9 m swath's ends move 4 cm for
+// 0.25°, under the coarse maps' cell); the refinement's Gauss-Newton gives σ. The model is
+// cropped to the swath's extent grown by the search window and the yaw's lever arm (the
+// registration maps the model at three cells per call).
+ModelRegistration register_to_model(const PointCloud& model, const PointCloud& cloud,
+                                    const ChangeRegistrationConfig& reg) {
+  ModelRegistration m;
+  Eigen::Vector2d lo, hi;
+  extent(cloud, &lo, &hi);
+  const double margin =
+      reg.search_m + std::sin(reg.yaw_search_deg * kDeg) * 0.5 * (hi - lo).norm() + 1.0;
+  m.near = crop(model, lo, hi, margin);
+  try {
+    require(!m.near.empty(), "no model point near the swath");
+    m.r = register_surveys(m.near, cloud, reg);
+    ChangeRegistrationConfig fine = reg;
+    fine.search_m = 2 * reg.cell_m;
+    fine.yaw_cell_m = reg.cell_m;
+    fine.yaw_search_deg = 2 * reg.yaw_step_deg;
+    fine.yaw_step_deg = 0.2 * reg.yaw_step_deg;
+    const ChangeRegistration r2 = register_surveys(m.near, transformed(cloud, m.r.T_a_b), fine);
+    m.r2_pivot = r2.pivot;
+    m.r.T_a_b = r2.T_a_b * m.r.T_a_b;
+    m.r.yaw_deg += r2.yaw_deg;
+    m.r.covariance = r2.covariance;
+    m.overlapped = true;
+  } catch (const Error&) {
+    m.overlapped = false;
+  }
+  return m;
+}
+
+// Stage 3: the tests of a registration: the swath's overlap with the model at the best pose, and
+// its fit against the search window's alternatives (the pose shifted by half and all of the
+// window in 8 directions): the swath is found when enough of it lies on the model and the best
+// pose fits distinctly better than the others (RelocalizeConfig). Fills `sw`.
+void test_registration(const ElevationMap& model_map, const PointCloud& cloud,
+                       const Eigen::Isometry3d& T_model_survey, const ChangeRegistrationConfig& reg,
+                       const RelocalizeConfig& config, RelocalizedSwath& sw) {
+  const RegistrationFit best =
+      registration_fit(model_map, cloud, T_model_survey, reg.inlier_fraction);
+  sw.overlap_cells = best.overlap;
+  sw.swath_cells = best.b_cells;
+  sw.overlap_fraction =
+      best.b_cells ? static_cast<double>(best.overlap) / static_cast<double>(best.b_cells) : 0;
+  sw.residual_m = best.cost_m;
+  std::vector<double> alt;
+  for (const double radius : {0.5 * reg.search_m, reg.search_m}) {
+    for (int k = 0; k < 8; ++k) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = radius * Eigen::Vector3d(std::cos(k * kPi / 4), std::sin(k * kPi / 4), 0);
+      const RegistrationFit f =
+          registration_fit(model_map, cloud, T * T_model_survey, reg.inlier_fraction);
+      // Shifted off the model: as bad as no fit (the alternative is no overlap at all).
+      if (f.overlap >= static_cast<std::size_t>(reg.min_overlap_cells)) {
+        alt.push_back(f.cost_m);
+      }
+    }
+  }
+  if (!alt.empty()) {
+    std::nth_element(alt.begin(), alt.begin() + static_cast<std::ptrdiff_t>(alt.size() / 2),
+                     alt.end());
+    sw.alternative_m = alt[alt.size() / 2];
+    sw.distinctiveness = sw.alternative_m > 0 ? 1 - sw.residual_m / sw.alternative_m : 0;
+  } else {
+    sw.distinctiveness = 1;  // every alternative leaves the model: only the solution fits
+  }
+  if (best.overlap < static_cast<std::size_t>(reg.min_overlap_cells)) {
+    sw.reason = fmt::format("{} cells overlap the model at the best pose (fewer than {})",
+                            best.overlap, reg.min_overlap_cells);
+  } else if (sw.overlap_fraction < config.min_overlap_fraction) {
+    sw.reason = fmt::format(
+        "only {:.0f} % of the swath lies on the model at the best pose (at least {:.0f} % "
+        "needed)",
+        100 * sw.overlap_fraction, 100 * config.min_overlap_fraction);
+  } else if (sw.distinctiveness < config.min_distinctiveness) {
+    sw.reason = fmt::format(
+        "the best pose fits hardly better than the search window's others (distinctiveness "
+        "{:.2f} < {:.2f}: a featureless overlap)",
+        sw.distinctiveness, config.min_distinctiveness);
+  } else {
+    sw.found = true;
+  }
+}
+
+// Stage 4: σ of a found swath's placement from the refinement's Gauss-Newton covariance, its
+// cells of cell_m/2 counted once per cell of cell_m (×4 the variance), carried to the swath's
+// centre and, the worst over its frames, to the vehicle's positions (horizontal_jacobian).
+void registration_sigma(const Dataset& dataset, const PointCloud& cloud, const ModelRegistration& m,
+                        RelocalizedSwath& sw) {
+  const ChangeRegistration& r = m.r;
+  // The refinement's parameters: a small yaw about its pivot (the moved swath's centre).
+  const Eigen::Matrix4d C = 4.0 * r.covariance;
+  const double yaw = 0;
+  Eigen::Vector3d lo = cloud.points[0].cast<double>(), hi = lo;
+  for (const auto& p : cloud.points) {
+    lo = lo.cwiseMin(p.cast<double>());
+    hi = hi.cwiseMax(p.cast<double>());
+  }
+  const Eigen::Vector3d centre = r.T_a_b * (0.5 * (lo + hi));
+  const Eigen::Matrix<double, 2, 4> Jc = horizontal_jacobian(centre, m.r2_pivot, yaw);
+  const Eigen::Matrix2d Cc = Jc * C * Jc.transpose();
+  sw.sigma_m = {std::sqrt(Cc(0, 0)), std::sqrt(Cc(1, 1)), std::sqrt(C(3, 3))};
+  sw.sigma_yaw_deg = std::sqrt(C(0, 0)) / kDeg;
+  double worst = 0;
+  for (int i = sw.first_frame; i <= sw.last_frame; ++i) {
+    const Eigen::Vector3d p =
+        r.T_a_b * dataset.navigation.interpolate(dataset.frames[i].timestamp).translation();
+    const Eigen::Matrix<double, 2, 4> J = horizontal_jacobian(p, m.r2_pivot, yaw);
+    worst = std::max(worst, std::sqrt((J * C * J.transpose()).trace()));
+  }
+  sw.sigma_hessian_m = worst;
+  sw.sigma_horizontal_m = worst;
+}
+
+// Stages 1–4 and the drift for one swath (frames `range`): carved, registered, tested, σ, pieces.
+RelocalizedSwath relocalize_swath(const Dataset& dataset, const PointCloud& model,
+                                  const ElevationMap& model_map, const CarveConfig& carve,
+                                  const ChangeRegistrationConfig& reg,
+                                  const RelocalizeConfig& config, int s,
+                                  const std::pair<int, int>& range, Progress& bar) {
+  RelocalizedSwath sw;
+  sw.first_frame = range.first;
+  sw.last_frame = range.second;
+  sw.t0 = dataset.frames[sw.first_frame].timestamp;
+  sw.t1 = dataset.frames[sw.last_frame].timestamp;
+  auto t0 = std::chrono::steady_clock::now();
+  const PointCloud cloud = carve_swath(dataset, carve, s, sw, bar);
+  sw.points = cloud.size();
+  sw.seconds_carving = seconds_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  const ModelRegistration m = register_to_model(model, cloud, reg);
+  if (!m.overlapped) {
+    sw.reason =
+        fmt::format("no overlap with the model within ±{:g} m and ±{:g} deg of the navigation",
+                    reg.search_m, reg.yaw_search_deg);
+  } else {
+    sw.T_model_survey = m.r.T_a_b;
+    sw.yaw_deg = m.r.yaw_deg;
+    test_registration(model_map, cloud, m.r.T_a_b, reg, config, sw);
+    if (sw.found && m.r.covariance.allFinite()) registration_sigma(dataset, cloud, m, sw);
+    if (sw.found && config.piece_m > 0) {
+      fit_pieces(dataset, m.near, model_map, cloud, m.r.T_a_b, reg, config, sw);
+    }
+  }
+  sw.seconds_registration = seconds_since(t0);
+  return sw;
+}
+
+// Stage 5: swaths not found borrow the nearest found swath's correction (in swath order), held
+// constant. `found`: the indices of the found swaths (not empty).
+void borrow_corrections(const std::vector<int>& found, std::vector<RelocalizedSwath>& swaths) {
+  for (std::size_t s = 0; s < swaths.size(); ++s) {
+    RelocalizedSwath& sw = swaths[s];
+    if (sw.found) continue;
+    int nearest = found[0];
+    for (int f : found) {
+      if (std::abs(f - static_cast<int>(s)) < std::abs(nearest - static_cast<int>(s))) nearest = f;
+    }
+    sw.T_model_survey = swaths[nearest].T_model_survey;
+    sw.drift_offset = swaths[nearest].correction(sw.t0).translation() -
+                      sw.T_model_survey.translation();  // the nearest one's, held constant
+    sw.drift_rate.setZero();
+    sw.t_mid = sw.t0;
+    sw.yaw_deg = swaths[nearest].yaw_deg;
+    sw.borrowed = true;
+  }
+}
+
+// Stage 6: the navigation moved: within a swath by its correction, in a turn by the two around
+// it blended linearly in time, before the first / after the last swath by theirs.
+Trajectory relocalized_navigation(const Trajectory& nav, const std::vector<RelocalizedSwath>& sws) {
+  Trajectory out;
+  for (std::size_t k = 0; k < nav.size(); ++k) {
+    const double t = nav.times[k];
+    Eigen::Isometry3d T = sws.front().correction(t);
+    if (t >= sws.back().t1) {
+      T = sws.back().correction(t);
+    } else if (t > sws.front().t0) {
+      for (std::size_t s = 0; s < sws.size(); ++s) {
+        if (t >= sws[s].t0 && t <= sws[s].t1) {
+          T = sws[s].correction(t);
+          break;
+        }
+        if (s + 1 < sws.size() && t > sws[s].t1 && t < sws[s + 1].t0) {
+          const double w = (t - sws[s].t1) / (sws[s + 1].t0 - sws[s].t1);
+          T = blend(sws[s].correction(t), sws[s + 1].correction(t), w);
+          break;
+        }
+      }
+    }
+    out.push_back(t, T * nav.poses[k]);
+  }
+  return out;
+}
+
 }  // namespace
 
 Eigen::Isometry3d RelocalizedSwath::correction(double t) const {
@@ -308,6 +536,8 @@ Eigen::Isometry3d RelocalizedSwath::correction(double t) const {
   return T * T_model_survey;
 }
 
+// The pipeline of relocalisation: each swath on its own (relocalize_swath), then the corrections
+// of the swaths not found and the moved navigation (stages above).
 RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world,
                             const RelocalizeConfig& config, bool progress) {
   config.validate();
@@ -337,145 +567,14 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
   for (const auto& r : ranges) total_frames += static_cast<std::size_t>(r.second - r.first + 1);
   Progress bar("relocalize: carving", total_frames, progress);
   for (std::size_t s = 0; s < ranges.size(); ++s) {
-    RelocalizedSwath sw;
-    sw.first_frame = ranges[s].first;
-    sw.last_frame = ranges[s].second;
-    sw.t0 = dataset.frames[sw.first_frame].timestamp;
-    sw.t1 = dataset.frames[sw.last_frame].timestamp;
-    // 1. The swath carved on its own (as `sonar3d map` carves one).
-    auto t0 = std::chrono::steady_clock::now();
-    PointCloud cloud;
-    {
-      Carver carver(dataset.spec, carve, dataset.noise);
-      integrate_frames(carver, dataset, static_cast<std::size_t>(sw.first_frame),
-                       static_cast<std::size_t>(sw.last_frame), &bar);
-      cloud = carver.finalize();
-    }
-    require(!cloud.empty(), fmt::format("relocalize: swath {} (frames {}–{}) reconstructs to no "
-                                        "point: is the seabed within the sonar's range?",
-                                        s, sw.first_frame, sw.last_frame));
-    sw.points = cloud.size();
-    sw.seconds_carving = seconds_since(t0);
-    // 2. Registered onto the model (sec. 6.2.2.1's search over yaw, then Gauss-Newton).
-    t0 = std::chrono::steady_clock::now();
-    ChangeRegistration r;
-    Eigen::Vector3d r2_pivot = Eigen::Vector3d::Zero();  // the refinement's pivot (survey moved)
-    bool overlapped = true;
-    // The model near the swath only (its extent grown by the search window and the yaw's lever
-    // arm): the registration maps the model at three cells per call.
-    Eigen::Vector2d lo, hi;
-    extent(cloud, &lo, &hi);
-    const double margin =
-        reg.search_m + std::sin(reg.yaw_search_deg * kDeg) * 0.5 * (hi - lo).norm() + 1.0;
-    const PointCloud near = crop(world.cloud, lo, hi, margin);
-    try {
-      require(!near.empty(), "no model point near the swath");
-      r = register_surveys(near, cloud, reg);
-      // Refinement: the same registration again from the coarse solution, in a window of a
-      // few cells and a yaw window of two coarse steps searched five times finer (a 9 m swath's
-      // ends move 4 cm for 0.25°, under the coarse maps' cell); its Gauss-Newton gives σ.
-      ChangeRegistrationConfig fine = reg;
-      fine.search_m = 2 * reg.cell_m;
-      fine.yaw_cell_m = reg.cell_m;
-      fine.yaw_search_deg = 2 * reg.yaw_step_deg;
-      fine.yaw_step_deg = 0.2 * reg.yaw_step_deg;
-      const ChangeRegistration r2 = register_surveys(near, transformed(cloud, r.T_a_b), fine);
-      r2_pivot = r2.pivot;
-      r.T_a_b = r2.T_a_b * r.T_a_b;
-      r.yaw_deg += r2.yaw_deg;
-      r.covariance = r2.covariance;
-    } catch (const Error& e) {
-      overlapped = false;
-      sw.reason =
-          fmt::format("no overlap with the model within ±{:g} m and ±{:g} deg of the navigation",
-                      reg.search_m, reg.yaw_search_deg);
-    }
-    if (overlapped) {
-      sw.T_model_survey = r.T_a_b;
-      sw.yaw_deg = r.yaw_deg;
-      // 3. The tests: overlap fraction, and the fit against the window's alternatives.
-      const RegistrationFit best = registration_fit(model_map, cloud, r.T_a_b, reg.inlier_fraction);
-      sw.overlap_cells = best.overlap;
-      sw.swath_cells = best.b_cells;
-      sw.overlap_fraction =
-          best.b_cells ? static_cast<double>(best.overlap) / static_cast<double>(best.b_cells) : 0;
-      sw.residual_m = best.cost_m;
-      std::vector<double> alt;
-      for (const double radius : {0.5 * reg.search_m, reg.search_m}) {
-        for (int k = 0; k < 8; ++k) {
-          Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-          T.translation() =
-              radius * Eigen::Vector3d(std::cos(k * kPi / 4), std::sin(k * kPi / 4), 0);
-          const RegistrationFit f =
-              registration_fit(model_map, cloud, T * r.T_a_b, reg.inlier_fraction);
-          // Shifted off the model: as bad as no fit (the alternative is no overlap at all).
-          if (f.overlap >= static_cast<std::size_t>(reg.min_overlap_cells)) {
-            alt.push_back(f.cost_m);
-          }
-        }
-      }
-      if (!alt.empty()) {
-        std::nth_element(alt.begin(), alt.begin() + static_cast<std::ptrdiff_t>(alt.size() / 2),
-                         alt.end());
-        sw.alternative_m = alt[alt.size() / 2];
-        sw.distinctiveness = sw.alternative_m > 0 ? 1 - sw.residual_m / sw.alternative_m : 0;
-      } else {
-        sw.distinctiveness = 1;  // every alternative leaves the model: only the solution fits
-      }
-      if (best.overlap < static_cast<std::size_t>(reg.min_overlap_cells)) {
-        sw.reason = fmt::format("{} cells overlap the model at the best pose (fewer than {})",
-                                best.overlap, reg.min_overlap_cells);
-      } else if (sw.overlap_fraction < config.min_overlap_fraction) {
-        sw.reason = fmt::format(
-            "only {:.0f} % of the swath lies on the model at the best pose (at least {:.0f} % "
-            "needed)",
-            100 * sw.overlap_fraction, 100 * config.min_overlap_fraction);
-      } else if (sw.distinctiveness < config.min_distinctiveness) {
-        sw.reason = fmt::format(
-            "the best pose fits hardly better than the search window's others (distinctiveness "
-            "{:.2f} < {:.2f}: a featureless overlap)",
-            sw.distinctiveness, config.min_distinctiveness);
-      } else {
-        sw.found = true;
-      }
-      // σ from the Gauss-Newton's covariance, its cells of cell_m/2 counted once per cell of
-      // cell_m (×4 the variance).
-      if (sw.found && r.covariance.allFinite()) {
-        // The refinement's parameters: a small yaw about its pivot (the moved swath's centre).
-        const Eigen::Matrix4d C = 4.0 * r.covariance;
-        const double yaw = 0;
-        Eigen::Vector3d lo = cloud.points[0].cast<double>(), hi = lo;
-        for (const auto& p : cloud.points) {
-          lo = lo.cwiseMin(p.cast<double>());
-          hi = hi.cwiseMax(p.cast<double>());
-        }
-        const Eigen::Vector3d centre = r.T_a_b * (0.5 * (lo + hi));
-        const Eigen::Matrix<double, 2, 4> Jc = horizontal_jacobian(centre, r2_pivot, yaw);
-        const Eigen::Matrix2d Cc = Jc * C * Jc.transpose();
-        sw.sigma_m = {std::sqrt(Cc(0, 0)), std::sqrt(Cc(1, 1)), std::sqrt(C(3, 3))};
-        sw.sigma_yaw_deg = std::sqrt(C(0, 0)) / kDeg;
-        double worst = 0;
-        for (int i = sw.first_frame; i <= sw.last_frame; ++i) {
-          const Eigen::Vector3d p =
-              r.T_a_b * dataset.navigation.interpolate(dataset.frames[i].timestamp).translation();
-          const Eigen::Matrix<double, 2, 4> J = horizontal_jacobian(p, r2_pivot, yaw);
-          worst = std::max(worst, std::sqrt((J * C * J.transpose()).trace()));
-        }
-        sw.sigma_hessian_m = worst;
-        sw.sigma_horizontal_m = worst;
-      }
-      if (sw.found && config.piece_m > 0) {
-        fit_pieces(dataset, near, model_map, cloud, r.T_a_b, reg, config, sw);
-      }
-    }
-    sw.seconds_registration = seconds_since(t0);
+    const RelocalizedSwath sw = relocalize_swath(dataset, world.cloud, model_map, carve, reg,
+                                                 config, static_cast<int>(s), ranges[s], bar);
     result.seconds_carving += sw.seconds_carving;
     result.seconds_registration += sw.seconds_registration;
     result.swaths.push_back(sw);
   }
   bar.finish();
 
-  // Swaths not found borrow the nearest found swath's correction (in time).
   std::vector<int> found;
   for (std::size_t s = 0; s < result.swaths.size(); ++s) {
     if (result.swaths[s].found) found.push_back(static_cast<int>(s));
@@ -485,46 +584,8 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
     double worst = 0;
     for (int s : found) worst = std::max(worst, result.swaths[s].sigma_horizontal_m);
     result.sigma_horizontal_m = worst;
-    for (std::size_t s = 0; s < result.swaths.size(); ++s) {
-      RelocalizedSwath& sw = result.swaths[s];
-      if (sw.found) continue;
-      int nearest = found[0];
-      for (int f : found) {
-        if (std::abs(f - static_cast<int>(s)) < std::abs(nearest - static_cast<int>(s)))
-          nearest = f;
-      }
-      sw.T_model_survey = result.swaths[nearest].T_model_survey;
-      sw.drift_offset = result.swaths[nearest].correction(sw.t0).translation() -
-                        sw.T_model_survey.translation();  // the nearest one's, held constant
-      sw.drift_rate.setZero();
-      sw.t_mid = sw.t0;
-      sw.yaw_deg = result.swaths[nearest].yaw_deg;
-      sw.borrowed = true;
-    }
-    // The navigation moved: within a swath by its correction, in a turn by the two around it
-    // blended linearly in time, before the first / after the last swath by theirs.
-    const auto& sws = result.swaths;
-    const Trajectory& nav = dataset.navigation;
-    for (std::size_t k = 0; k < nav.size(); ++k) {
-      const double t = nav.times[k];
-      Eigen::Isometry3d T = sws.front().correction(t);
-      if (t >= sws.back().t1) {
-        T = sws.back().correction(t);
-      } else if (t > sws.front().t0) {
-        for (std::size_t s = 0; s < sws.size(); ++s) {
-          if (t >= sws[s].t0 && t <= sws[s].t1) {
-            T = sws[s].correction(t);
-            break;
-          }
-          if (s + 1 < sws.size() && t > sws[s].t1 && t < sws[s + 1].t0) {
-            const double w = (t - sws[s].t1) / (sws[s + 1].t0 - sws[s].t1);
-            T = blend(sws[s].correction(t), sws[s + 1].correction(t), w);
-            break;
-          }
-        }
-      }
-      result.navigation.push_back(t, T * nav.poses[k]);
-    }
+    borrow_corrections(found, result.swaths);
+    result.navigation = relocalized_navigation(dataset.navigation, result.swaths);
   }
   result.seconds_total = seconds_since(t_start);
   return result;

@@ -827,23 +827,16 @@ SeabedError seabed_error(const TriangleMesh& mesh, const SeabedTruth& truth, std
   return e;
 }
 
-WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
-                                   const WorldWriteInfo& info) {
-  std::error_code ec;
-  if (fs::exists(fs::symlink_status(dir, ec)) &&
-      !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
-    throw Error("'" + dir.string() +
-                "' exists: sonar3d world writes a new directory; choose "
-                "another output (-o) or remove it yourself");
-  }
-  require(!world.seabed.empty(), "write_world_model: no seabed level of detail");
-  require(info.seabed_error_m.empty() || info.seabed_error_m.size() == world.seabed.size(),
-          "write_world_model: one seabed error per level of detail");
-  WorldWriteResult r;
-  AtomicPath out(dir);
-  const fs::path tmp = out.temp();
-  fs::create_directories(tmp / "models");
+namespace {
 
+// ---------------------------------------------------------------------------------------------
+// The stages of write_world_model, in the order it runs them: the seabed levels of detail (PLY),
+// the glTF scene's seabed, each placed model (PLY, glTF node), the connections, then graph.json.
+
+// The seabed levels of detail as PLY files (with vertex colours when video coloured them), their
+// sizes into r.seabed_bytes; returns graph.json's "seabed" list.
+nlohmann::json write_seabed_lods(const fs::path& tmp, const WorldModel& world,
+                                 const WorldWriteInfo& info, WorldWriteResult& r) {
   nlohmann::json seabed = nlohmann::json::array();
   for (std::size_t k = 0; k < world.seabed.size(); ++k) {
     const SeabedLod& lod = world.seabed[k];
@@ -872,13 +865,14 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                       {"median_error_m", num_or_null(err)},
                       {"coloured_vertices", lod.coloured_vertices()}});
   }
+  return seabed;
+}
 
-  // glTF: the root turns ENU (z up) into glTF's y up; under it the seabed and one node per
-  // placed model (its catalogue mesh in the model frame, shared per model, node = T_world_model).
+// glTF: the root turns ENU (z up) into glTF's y up; under it the seabed (the coarsest level, or
+// every level with info.glb_all_lods), sand-coloured or with its video colours.
+GltfScene seabed_scene(const WorldModel& world, const WorldWriteInfo& info) {
   GltfScene scene;
-  const Eigen::Vector4f sand(0.62f, 0.56f, 0.42f, 1.0f), steel(0.85f, 0.45f, 0.12f, 1.0f);
-  // Unconfirmed placements (below the confidence threshold): grey, named "<id> (unconfirmed)".
-  const Eigen::Vector4f unconfirmed(0.55f, 0.55f, 0.6f, 1.0f);
+  const Eigen::Vector4f sand(0.62f, 0.56f, 0.42f, 1.0f);
   scene.nodes.push_back({"world (ENU z-up to glTF y-up)", -1, enu_to_gltf(), {}});
   scene.roots = {0};
   const std::size_t first_lod = info.glb_all_lods ? 0 : world.seabed.size() - 1;
@@ -898,6 +892,18 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                            {}});
     scene.nodes[0].children.push_back(static_cast<int>(scene.nodes.size()) - 1);
   }
+  return scene;
+}
+
+// Each placed model: models/<id>.ply in the world frame (sizes into r.models_bytes) and a glTF
+// node under the root (its catalogue mesh in the model frame, shared per model, node =
+// T_world_model; unconfirmed placements grey, named "<id> (unconfirmed)"); returns graph.json's
+// "objects" list.
+nlohmann::json write_placed_models(const fs::path& tmp, const WorldModel& world, GltfScene& scene,
+                                   WorldWriteResult& r) {
+  const Eigen::Vector4f steel(0.85f, 0.45f, 0.12f, 1.0f);
+  // Unconfirmed placements (below the confidence threshold): grey, named "<id> (unconfirmed)".
+  const Eigen::Vector4f unconfirmed(0.55f, 0.55f, 0.6f, 1.0f);
   std::map<std::string, int> mesh_of_model;
   nlohmann::json objects = nlohmann::json::array();
   for (const WorldObject& o : world.objects) {
@@ -932,9 +938,11 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                        {"confirmed", o.confirmed},
                        {"file", file}});
   }
-  write_glb(tmp / "world.glb", scene);
-  r.glb_bytes = fs::file_size(tmp / "world.glb");
+  return objects;
+}
 
+// graph.json's "connections" list.
+nlohmann::json connections_json(const WorldModel& world) {
   nlohmann::json connections = nlohmann::json::array();
   for (const Connection& c : world.connections) {
     connections.push_back({{"from", c.from},
@@ -945,6 +953,36 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
                            {"found", c.found},
                            {"given", c.given}});
   }
+  return connections;
+}
+
+}  // namespace
+
+// The world model's directory (stages above): seabed PLYs, model PLYs, world.glb, graph.json,
+// written into a temporary directory and moved into place at the end.
+WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
+                                   const WorldWriteInfo& info) {
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(dir, ec)) &&
+      !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
+    throw Error("'" + dir.string() +
+                "' exists: sonar3d world writes a new directory; choose "
+                "another output (-o) or remove it yourself");
+  }
+  require(!world.seabed.empty(), "write_world_model: no seabed level of detail");
+  require(info.seabed_error_m.empty() || info.seabed_error_m.size() == world.seabed.size(),
+          "write_world_model: one seabed error per level of detail");
+  WorldWriteResult r;
+  AtomicPath out(dir);
+  const fs::path tmp = out.temp();
+  fs::create_directories(tmp / "models");
+
+  const nlohmann::json seabed = write_seabed_lods(tmp, world, info, r);
+  GltfScene scene = seabed_scene(world, info);
+  const nlohmann::json objects = write_placed_models(tmp, world, scene, r);
+  write_glb(tmp / "world.glb", scene);
+  r.glb_bytes = fs::file_size(tmp / "world.glb");
+
   r.bytes_total = r.glb_bytes + r.models_bytes;
   for (std::uintmax_t b : r.seabed_bytes) r.bytes_total += b;
   const nlohmann::json graph = {
@@ -952,7 +990,7 @@ WorldWriteResult write_world_model(const fs::path& dir, const WorldModel& world,
       {"version", 1},
       {"min_confidence", world.min_confidence},
       {"objects", objects},
-      {"connections", connections},
+      {"connections", connections_json(world)},
       {"seabed", seabed},
       {"source",
        {{"map", info.map}, {"placements", info.placements}, {"catalogue", info.catalogue}}},
