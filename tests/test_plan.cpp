@@ -236,8 +236,8 @@ fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, voxel_m: 0.04, spacing_m:
   }
 }
 
-// A voxel the machine cannot hold (issue 29 item 5): the sweep is refused before anything runs or
-// is written, naming the estimate, the point and voxel_m; the same sweep at 4 cm runs.
+// A sweep whose largest point does not fit the memory limit (issue 29 item 5): refused before
+// anything runs or is written, naming the estimate, the point and voxel_m.
 TEST(Plan, AVoxelBeyondTheMemoryLimitRefusesTheSweepBeforeItRuns) {
   const fs::path dir = temp_dir("memory");
   const std::string sweep = R"(
@@ -245,14 +245,15 @@ seed: 3
 workers: 1
 elevation_step_deg: 0.1
 axes:
-  voxel_m: [0.04, 0.00005]
+  voxel_m: [0.04, 0.002]
 fixed: {object: sphere, aperture_deg: 10, fov_deg: 30, bearing_res_deg: 0.5, range_res_m: 0.04,
         spacing_m: 0.1, standoff_m: 2.0}
 )";
   write(dir / "s.yaml", sweep);
   const fs::path out = dir / "out";
   const std::string cmd = std::string(SONAR3D_CLI) + " plan " + (dir / "s.yaml").string() + " -o " +
-                          out.string() + " -q > " + (dir / "log.txt").string() + " 2>&1";
+                          out.string() + " --max-memory 0.01 -q > " + (dir / "log.txt").string() +
+                          " 2>&1";
   EXPECT_NE(std::system(cmd.c_str()), 0);
   const std::string log = read_text_file((dir / "log.txt").string());
   EXPECT_NE(log.find("plan needs an estimated"), std::string::npos) << log;

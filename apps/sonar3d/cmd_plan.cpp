@@ -22,6 +22,7 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
   struct Opts {
     std::string sweep, out;
     std::unique_ptr<ConfigOptions<PlanConfig>> config;
+    double max_memory_gb = 0;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("sweep", o->sweep, "sweep YAML file")->check(CLI::ExistingFile);
@@ -32,6 +33,7 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
   // The command's own settings (declared once, plan/sweep.hpp; the sweep file holds what the
   // points run with): --allow-empty, --print-config, --config FILE.
   o->config = std::make_unique<ConfigOptions<PlanConfig>>(cmd);
+  add_max_memory_option(cmd, o->max_memory_gb);
   cmd->callback([&g, &run, o] {
     // The sweep and -o are required unless --print-config: a usage error (exit status 2).
     if (!o->config->print_requested()) {
@@ -52,6 +54,7 @@ void add_plan(CLI::App& app, const GlobalOptions& g, Runner& run) {
       opt.progress = !g.quiet && mpi.rank() == 0;
       opt.mpi_rank = mpi.rank();
       opt.mpi_size = mpi.size();
+      opt.max_memory_bytes = memory_limit_bytes(o->max_memory_gb);
       const PlanSummary s = run_sweep(sweep, opt);
       gather_points(mpi, sweep, opt.out_dir);
       if (mpi.rank() == 0) {
