@@ -5,10 +5,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -19,9 +23,12 @@
 #include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/online.hpp"
 #include "sonar3d/pipeline/online_feed.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
+#include "sonar3d/recog/model.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulator.hpp"
@@ -552,4 +559,146 @@ TEST(Online, RollingWindowBoundsMemory) {
   EXPECT_GT(em.num_valid(), 1000u);
   EXPECT_GT(em.cols, 140 / 0.02 / 2);
   fs::remove_all(oc.output_dir);
+}
+
+namespace {
+
+// A tank (the reference object, 50 cm diameter) standing on a gently rolling seabed, as a
+// sonar3d map sees it from above: on a 2 cm grid, the higher of the seabed and the tank's top.
+PointCloud tank_on_seabed(const Eigen::Isometry3d& T_world_tank) {
+  const ModelTemplate tank = make_model_template("tank", make_reference_object("tank"),
+                                                 Symmetry::Full, -1, ModelSamplingConfig());
+  TopViewConfig tv;
+  tv.cell_m = 0.02;
+  tv.grid_anchor_xy = {-2, 2};
+  const Eigen::Vector2d c =
+      (T_world_tank * Eigen::Vector3d(tank.center_xy.x(), tank.center_xy.y(), 0)).head<2>();
+  const ElevationMap top = render_placed_top_view(tank, T_world_tank, c, tv);
+  PointCloud cloud;
+  for (int r = 0; r < 200; ++r) {
+    for (int col = 0; col < 200; ++col) {
+      const double x = -2 + (col + 0.5) * 0.02, y = 2 - (r + 0.5) * 0.02;
+      double z = 0.04 * std::sin(0.7 * x + 0.2) * std::cos(0.5 * y);
+      const int tr = static_cast<int>(std::floor((top.origin_xy.y() - y) / top.cell_m));
+      const int tc = static_cast<int>(std::floor((x - top.origin_xy.x()) / top.cell_m));
+      if (tr >= 0 && tc >= 0 && tr < top.rows && tc < top.cols) {
+        const float zt = top.at(tr, tc);
+        if (zt == zt) z = std::max(z, static_cast<double>(zt));
+      }
+      cloud.points.emplace_back(x, y, z);
+    }
+  }
+  return cloud;
+}
+
+}  // namespace
+
+// The periodic recognition of `sonar3d ros --catalogue` without ROS: nothing before its period;
+// at the period a recognition of the snapshot starts on its own thread and finds the tank at its
+// pose; a period that comes while it still runs is skipped and counted; a period with no new
+// frame starts none; the result carries the placements file and each model's mesh as a PLY.
+TEST(OnlineRecognition, RunsAtItsPeriodOffTheCallersThreadAndSkipsWhenBusy) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_recog_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "cat.yaml") << "models:\n"
+                                       "  - {name: tank, reference: tank, symmetry: full}\n";
+  }
+  Eigen::Isometry3d T_tank = Eigen::Isometry3d::Identity();
+  T_tank.translation() = Eigen::Vector3d(0.6, -0.4, 0.02);
+  auto cloud = std::make_shared<const PointCloud>(tank_on_seabed(T_tank));
+
+  std::mutex m;
+  std::condition_variable cv;
+  bool gate_open = false;
+  std::vector<OnlinePlacements> results;
+  std::vector<std::string> lines;
+  OnlineRecognitionConfig oc;
+  oc.period_s = 5;
+  OnlineRecognizer rec(
+      (dir / "cat.yaml").string(), RecognizeConfig(), oc,
+      [&](const OnlinePlacements& p) {
+        std::unique_lock<std::mutex> lock(m);
+        results.push_back(p);
+        cv.wait(lock, [&] { return gate_open; });  // the recognition "runs" until released
+      },
+      [&](const std::string& line) {
+        std::lock_guard<std::mutex> lock(m);
+        lines.push_back(line);
+      },
+      (dir / "meshes").string());
+  ASSERT_EQ(rec.mesh_files().size(), 1u);
+  EXPECT_EQ(load_mesh(rec.mesh_files()[0]).triangles.size(),
+            make_reference_object("tank").triangles.size());
+
+  using std::chrono::seconds;
+  const auto t0 = OnlineRecognizer::Clock::now();
+  EXPECT_FALSE(rec.tick(t0, 10, cloud, 3.5, "odom"));                // starts the clock
+  EXPECT_FALSE(rec.tick(t0 + seconds(4), 10, cloud, 3.5, "odom"));   // not yet due
+  EXPECT_TRUE(rec.tick(t0 + seconds(5), 10, cloud, 3.5, "odom"));    // due: starts
+  EXPECT_FALSE(rec.tick(t0 + seconds(10), 12, cloud, 3.5, "odom"));  // still running: skipped
+  nlohmann::json st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["started"].get<int>(), 1);
+  EXPECT_EQ(st["skipped_busy"].get<int>(), 1);
+  EXPECT_TRUE(st["running"].get<bool>());
+  {
+    std::lock_guard<std::mutex> lock(m);
+    gate_open = true;
+  }
+  cv.notify_all();
+  rec.wait();
+  // The next period with the frames of the last recognition: nothing new, none started.
+  EXPECT_FALSE(rec.tick(t0 + seconds(15), 10, cloud, 3.5, "odom"));
+  st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["started"].get<int>(), 1);
+  EXPECT_EQ(st["finished"].get<int>(), 1);
+  EXPECT_EQ(st["failed"].get<int>(), 0);
+  EXPECT_EQ(st["seconds"]["count"].get<int>(), 1);
+
+  ASSERT_EQ(results.size(), 1u) << ::testing::PrintToString(lines);
+  const std::optional<OnlinePlacements> last = rec.latest();
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->sequence, 1u);
+  EXPECT_EQ(last->frames, 10u);
+  EXPECT_EQ(last->points, cloud->size());
+  EXPECT_EQ(last->frame, "odom");
+  EXPECT_DOUBLE_EQ(last->stamp, 3.5);
+  EXPECT_GT(last->seconds, 0);
+  ASSERT_EQ(last->placements.size(), 1u) << last->json;
+  const Placement& p = last->placements[0];
+  EXPECT_EQ(p.model, "tank");
+  EXPECT_GE(p.confidence, RecognizeConfig().two_d.verification.min_confidence);
+  EXPECT_LT((p.T_world_model.translation().head<2>() - T_tank.translation().head<2>()).norm(), 0.03)
+      << last->json;
+  EXPECT_NEAR(p.T_world_model.translation().z(), T_tank.translation().z(), 0.04);
+  ASSERT_EQ(last->mesh_files.size(), 1u);
+  EXPECT_EQ(last->mesh_files[0], rec.mesh_files()[0]);
+  // The label sits on the tank's top (its height: the model's top_z).
+  EXPECT_NEAR(last->top_world[0].z() - p.T_world_model.translation().z(),
+              rec.models()[0].top_z * p.scale, 1e-3);  // upright within a small tilt
+  const nlohmann::json j = nlohmann::json::parse(last->json);
+  EXPECT_EQ(j["format"], "sonar3d-placements");
+  ASSERT_EQ(j["placements"].size(), 1u);
+  fs::remove_all(dir);
+}
+
+// A catalogue that cannot be read is one clear Error naming it; a period outside its bounds
+// names the field and its flag.
+TEST(OnlineRecognition, BadCatalogueAndPeriodAreClearErrors) {
+  OnlineRecognitionConfig oc;
+  try {
+    OnlineRecognizer rec("/nonexistent/cat.yaml", RecognizeConfig(), oc, nullptr, nullptr);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/cat.yaml"), std::string::npos) << e.what();
+  }
+  oc.period_s = 0;
+  try {
+    oc.validate();
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--recognition-period"), std::string::npos) << e.what();
+  }
 }
