@@ -702,3 +702,46 @@ TEST(OnlineRecognition, BadCatalogueAndPeriodAreClearErrors) {
     EXPECT_NE(std::string(e.what()).find("--recognition-period"), std::string::npos) << e.what();
   }
 }
+
+// Early in a dive the map is smaller than a model's search patch (the 2D method refuses such a
+// model, eq. 6.8): the recognition finds nothing to search, counts it and fails nothing; the
+// model is searched once the map has grown.
+TEST(OnlineRecognition, AMapSmallerThanTheModelsWaitsInsteadOfFailing) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_small_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  { std::ofstream(dir / "cat.yaml") << "models:\n  - {name: tank, reference: tank}\n"; }
+  auto small = std::make_shared<PointCloud>();
+  for (int i = 0; i < 20; ++i)
+    for (int k = 0; k < 20; ++k) small->points.emplace_back(0.02 * i, 0.02 * k, 0.0f);
+  std::vector<std::string> lines;
+  std::size_t results = 0;
+  OnlineRecognitionConfig oc;
+  oc.period_s = 1;
+  OnlineRecognizer rec((dir / "cat.yaml").string(), RecognizeConfig(), oc,
+                       [&](const OnlinePlacements&) { ++results; },
+                       [&](const std::string& line) { lines.push_back(line); });
+  const auto t0 = OnlineRecognizer::Clock::now();
+  rec.tick(t0, 3, small, 1.0);
+  EXPECT_TRUE(rec.tick(t0 + std::chrono::seconds(1), 3, small, 1.0));
+  rec.wait();
+  nlohmann::json st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["map_smaller_than_models"].get<int>(), 1);
+  EXPECT_EQ(st["failed"].get<int>(), 0);
+  EXPECT_EQ(st["finished"].get<int>(), 0);
+  EXPECT_EQ(results, 0u);
+  EXPECT_TRUE(lines.empty()) << lines.front();
+  // The map grew: the tank is searched and found.
+  Eigen::Isometry3d T_tank = Eigen::Isometry3d::Identity();
+  T_tank.translation() = Eigen::Vector3d(-0.5, 0.7, 0.0);
+  EXPECT_TRUE(rec.tick(t0 + std::chrono::seconds(2), 40,
+                       std::make_shared<const PointCloud>(tank_on_seabed(T_tank)), 2.0));
+  rec.wait();
+  st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["finished"].get<int>(), 1);
+  ASSERT_TRUE(rec.latest().has_value());
+  ASSERT_EQ(rec.latest()->placements.size(), 1u) << rec.latest()->json;
+  EXPECT_TRUE(rec.latest()->models_waiting.empty());
+  fs::remove_all(dir);
+}

@@ -19,6 +19,7 @@
 #include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/video/texture_files.hpp"
@@ -123,6 +124,13 @@ std::string reference() {
       "`--neus`/`--colmap` relate to the "
       "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
       params::rows(TextureFilesConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "ros",
+      "`sonar3d ros --print-config` prints these under `online_recognition:`, beside its "
+      "`reconstruct:` and `recognize:` blocks (the tables above); used with `--catalogue` "
+      "(docs/online.md \"Recognised placements\").",
+      params::rows(OnlineRecognitionConfig()));
   // The importers: `sonar3d import <kind>` prints its settings under `import:`.
   const char* kImportIntro =
       "`sonar3d import {} --print-config` prints these under `import:`{}; Python: `sonar3d.{}` "

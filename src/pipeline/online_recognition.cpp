@@ -5,6 +5,7 @@
 #include <stdlib.h>
 
 #include <algorithm>
+#include <cmath>
 #include <condition_variable>
 #include <filesystem>
 #include <mutex>
@@ -13,6 +14,7 @@
 
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/io/mesh_io.hpp"
+#include "sonar3d/mapping/elevation_map.hpp"
 
 namespace sonar3d {
 
@@ -56,6 +58,7 @@ struct OnlineRecognizer::Impl {
   bool running = false;
   std::thread worker;
   std::size_t started = 0, finished = 0, skipped_busy = 0, failed = 0;
+  std::size_t map_too_small = 0;  // started, but every model's search patch exceeded the map
   std::vector<double> seconds;
   std::optional<OnlinePlacements> latest;
 
@@ -86,8 +89,35 @@ struct OnlineRecognizer::Impl {
     bool ok = false;
     try {
       const auto t0 = Clock::now();
+      // A map that grows: the 2D method refuses a model whose descriptor patch (eq. 6.8: r_model
+      // + √½·period) does not fit in the map; such models wait for a larger map instead of
+      // failing the whole recognition.
+      std::vector<ModelTemplate> fitting;
+      if (recognize.method == "2d") {
+        ElevationMapConfig mc;
+        mc.cell_m = recognize.two_d.recog_cell_m;
+        const ElevationMap coarse = elevation_map_from_points(*cloud, mc);
+        const double side = std::min(coarse.cols, coarse.rows) * coarse.cell_m;
+        for (const ModelTemplate& mt : models) {
+          const double r_patch = mt.radius_m + std::sqrt(0.5) * recognize.two_d.scan.period_m;
+          if (2 * r_patch > side) {
+            out.models_waiting.push_back(mt.name);
+          } else {
+            fitting.push_back(mt);
+          }
+        }
+      } else {
+        fitting = models;
+      }
+      if (fitting.empty()) {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++map_too_small;
+        running = false;
+        idle.notify_all();
+        return;
+      }
       std::vector<Search3dRecord> searches3;
-      const RecognitionResult r = sonar3d::recognize(*cloud, models, recognize, &searches3, false);
+      const RecognitionResult r = sonar3d::recognize(*cloud, fitting, recognize, &searches3, false);
       out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
       // The recognition's own threshold, shared by both methods (verify.hpp).
       const double threshold = recognize.two_d.verification.min_confidence;
@@ -239,7 +269,9 @@ std::string OnlineRecognizer::stats_json() const {
   j["finished"] = m.finished;
   j["skipped_busy"] = m.skipped_busy;
   j["failed"] = m.failed;
+  j["map_smaller_than_models"] = m.map_too_small;
   j["placements"] = m.latest ? m.latest->placements.size() : 0;
+  j["models_waiting"] = m.latest ? m.latest->models_waiting : std::vector<std::string>();
   j["last_frames"] = m.latest ? m.latest->frames : 0;
   std::vector<double> s = m.seconds;
   std::sort(s.begin(), s.end());

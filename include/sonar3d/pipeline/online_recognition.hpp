@@ -57,6 +57,9 @@ struct OnlinePlacements {
   // Per placement: the top of the placed model above its horizontal centre (world frame), where
   // a label goes.
   std::vector<Eigen::Vector3d> top_world;
+  // Models left out of this recognition because the map is still smaller than their search
+  // patch (the 2D method's rule, eq. 6.8); they are searched once the map is large enough.
+  std::vector<std::string> models_waiting;
   std::size_t sequence = 0;  // 1 for the first recognition that finished, then 2, ...
   std::size_t frames = 0;    // frames carved into the cloud recognised
   std::size_t points = 0;    // points of that cloud
@@ -100,8 +103,10 @@ class OnlineRecognizer {
   // The last recognition that finished (none yet: nullopt).
   std::optional<OnlinePlacements> latest() const;
 
-  // Counters as one JSON object: started, finished, skipped_busy, failed, placements (of the
-  // last), last_frames, seconds {count, median, p95, max} over the recognitions that finished.
+  // Counters as one JSON object: started, finished, skipped_busy, failed,
+  // map_smaller_than_models (started on a map smaller than every model's search patch: nothing
+  // to search yet), placements, models_waiting and last_frames of the last, seconds {count,
+  // median, p95, max} over the recognitions that finished.
   std::string stats_json() const;
 
   const Catalogue& catalogue() const;
