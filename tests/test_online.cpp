@@ -32,6 +32,7 @@
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 using namespace sonar3d;
@@ -743,5 +744,55 @@ TEST(OnlineRecognition, AMapSmallerThanTheModelsWaitsInsteadOfFailing) {
   ASSERT_TRUE(rec.latest().has_value());
   ASSERT_EQ(rec.latest()->placements.size(), 1u) << rec.latest()->json;
   EXPECT_TRUE(rec.latest()->models_waiting.empty());
+  fs::remove_all(dir);
+}
+
+// `sonar3d online DATASET`: the dataset replayed through the online feed (as a ROS 1 bag, without
+// ROS), as fast as the map takes it, gives the cloud that `import rosbag` of the same bag +
+// `reconstruct --method carve` gives with the same settings, point for point; the final JSON
+// counts every frame and no drop; bad input is one clear line.
+TEST(OnlineCli, ReplayedDatasetGivesTheImportedBagsReconstruction) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_cli_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_survey_dataset(dir / "ds");
+  const std::string settings =
+      " --voxel-size 0.02 --roi -0.6 -1.0 0.2 0.6 7.0 1.8 --no-explain-returns "
+      "--no-auto-min-bracket -q";
+  test::CliRunSplit r =
+      test::run_cli_captured(dir, "export rosbag " + (dir / "ds").string() + " -o " +
+                                      (dir / "ds.bag").string() + " --ros1 -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "import rosbag " + (dir / "ds.bag").string() + " -o " +
+                                      (dir / "imported").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "reconstruct " + (dir / "imported").string() + " -o " +
+                                      (dir / "batch.ply").string() + " --method carve" + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() +
+                                      " --speed 0 --queue 100000 --save-prefix " +
+                                      (dir / "online").string() + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json st = nlohmann::json::parse(r.out);
+  const std::size_t n = read_dataset(dir / "ds").size();
+  EXPECT_EQ(st["sonar_received"].get<std::size_t>(), n);
+  EXPECT_EQ(st["map"]["frames_used"].get<std::size_t>(), n);
+  EXPECT_EQ(st["dropped_node_queue_full"].get<std::size_t>(), 0u);
+  EXPECT_EQ(st["frames_dropped_by_map"].get<std::size_t>(), 0u);
+  EXPECT_NE(st["mounting"].get<std::string>().find("/tf_static"), std::string::npos);
+  const PointCloud batch = read_ply((dir / "batch.ply").string());
+  ASSERT_GT(batch.size(), 100u);
+  expect_same_cloud(read_ply((dir / "online.ply").string()), batch,
+                    "sonar3d online vs import rosbag + reconstruct");
+  // Bad input: one line naming it, exit 1; nothing written.
+  { std::ofstream(dir / "notabag.bag") << "not a bag\n"; }
+  r = test::run_cli_captured(dir, "online " + (dir / "notabag.bag").string() + " -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("notabag.bag"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() + " --speed -1 -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--speed"), std::string::npos) << r.err;
   fs::remove_all(dir);
 }
