@@ -682,6 +682,14 @@ TEST(OnlineRecognition, RunsAtItsPeriodOffTheCallersThreadAndSkipsWhenBusy) {
   const nlohmann::json j = nlohmann::json::parse(last->json);
   EXPECT_EQ(j["format"], "sonar3d-placements");
   ASSERT_EQ(j["placements"].size(), 1u);
+  // A reset of the map forgets the placements and recognises the next map even with as many
+  // frames as the last one.
+  rec.reset();
+  EXPECT_FALSE(rec.latest().has_value());
+  EXPECT_TRUE(rec.tick(t0 + seconds(20), 10, cloud, 4.0, "odom"));
+  rec.wait();
+  ASSERT_TRUE(rec.latest().has_value());
+  EXPECT_EQ(rec.latest()->sequence, 2u);
   fs::remove_all(dir);
 }
 

@@ -243,7 +243,11 @@ bool OnlineRecognizer::tick(Clock::time_point now, std::size_t frames,
   return true;
 }
 
-void OnlineRecognizer::reset() { impl_->started_once = false; }
+void OnlineRecognizer::reset() {
+  impl_->started_once = false;
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->latest.reset();
+}
 
 void OnlineRecognizer::wait() {
   Impl& m = *impl_;

@@ -93,8 +93,10 @@ class OnlineRecognizer {
   bool tick(Clock::time_point now, std::size_t frames, std::shared_ptr<const PointCloud> cloud,
             double stamp, const std::string& frame = "");
 
-  // The map was cleared: the next period recognises whatever is carved by then, even the same
-  // number of frames as the last recognition.
+  // The map was cleared: the last placements are forgotten (latest() is none until the next
+  // recognition finishes; one still running on the old map finishes and counts as the latest),
+  // and the next period recognises whatever is carved by then, even the same number of frames as
+  // the last recognition.
   void reset();
 
   // Waits until no recognition runs.
