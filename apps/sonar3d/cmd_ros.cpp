@@ -137,7 +137,7 @@ class Ros1Sink : public OnlineFeedSink {
       m.type = visualization_msgs::Marker::MESH_RESOURCE;
       m.action = visualization_msgs::Marker::ADD;
       const Eigen::Vector3d t = p.T_world_model.translation();
-      const Eigen::Quaterniond q(p.T_world_model.linear());
+      const Eigen::Quaterniond q = Eigen::Quaterniond(p.T_world_model.linear()).normalized();
       m.pose.position.x = t.x();
       m.pose.position.y = t.y();
       m.pose.position.z = t.z();
