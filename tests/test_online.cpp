@@ -804,3 +804,60 @@ TEST(OnlineCli, ReplayedDatasetGivesTheImportedBagsReconstruction) {
   EXPECT_NE(r.err.find("--speed"), std::string::npos) << r.err;
   fs::remove_all(dir);
 }
+
+// `sonar3d online --catalogue`: a down-looking pass over a tank on a rolling seabed replayed
+// through the feed; the recognition of the complete map at the end places the tank where the
+// batch `sonar3d recognize` places it in the batch carving (within 3 cm), and the placements JSON
+// is saved with the map.
+TEST(OnlineCli, CatalogueRecognisesTheCompleteMapAsBatch) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_cli_cat_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "scene.yaml") << R"(seed: 4
+sensor: {preset: mb2250, r_min: 1.0, r_max: 6.0, range_bins: 250, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [5, 4], cell: 0.05, relief: 0.1, wavelength: 6, trenches: 0, rocks: 3, seed: 4}, reflectivity: 0.3}
+  - {name: tank, reference: tank, pose: {translation: [0.5, -0.3, -0.05]}, reflectivity: 0.8}
+trajectory: {type: straight, start: [-1.5, 0, 4], end: [1.5, 0, 4], spacing: 0.03, period: 0.1}
+)";
+    std::ofstream(dir / "cat.yaml")
+        << "models:\n  - {name: tank, reference: tank, symmetry: full}\n";
+  }
+  const std::string settings = " --voxel-size 0.02 --no-explain-returns --no-auto-min-bracket -q";
+  test::CliRunSplit r = test::run_cli_captured(
+      dir, "simulate " + (dir / "scene.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "reconstruct " + (dir / "ds").string() + " -o " +
+                                      (dir / "batch.ply").string() + " --method carve" + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "recognize " + (dir / "batch.ply").string() + " --catalogue " +
+                                      (dir / "cat.yaml").string() + " -o " +
+                                      (dir / "batch_placements.json").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json batch = nlohmann::json::parse(test::read_all(dir / "batch_placements.json"));
+  ASSERT_EQ(batch["placements"].size(), 1u) << batch.dump(1);
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() +
+                                      " --speed 0 --queue 100000 --catalogue " +
+                                      (dir / "cat.yaml").string() + " --save-prefix " +
+                                      (dir / "online").string() + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json st = nlohmann::json::parse(r.out);
+  EXPECT_GE(st["recognition"]["finished"].get<int>(), 1);
+  EXPECT_EQ(st["recognition"]["failed"].get<int>(), 0);
+  EXPECT_EQ(st["recognition"]["last_frames"].get<std::size_t>(), read_dataset(dir / "ds").size());
+  const nlohmann::json online =
+      nlohmann::json::parse(test::read_all(dir / "online.placements.json"));
+  EXPECT_EQ(online["format"], "sonar3d-placements");
+  ASSERT_EQ(online["placements"].size(), 1u) << online.dump(1);
+  EXPECT_EQ(online["placements"][0]["model"], "tank");
+  Eigen::Vector3d a, b;
+  for (int k = 0; k < 3; ++k) {
+    a[k] = online["placements"][0]["T_world_model"][k][3].get<double>();
+    b[k] = batch["placements"][0]["T_world_model"][k][3].get<double>();
+  }
+  EXPECT_LT((a - b).norm(), 0.03) << a.transpose() << " vs batch " << b.transpose();
+  fs::remove_all(dir);
+}

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "online_node_config.hpp"
 #include "params_cli.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/output_dir.hpp"
@@ -19,6 +20,7 @@
 #include "sonar3d/io/navigation.hpp"
 #include "sonar3d/pipeline/online_feed.hpp"
 #include "sonar3d/pipeline/online_replay.hpp"
+#include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 
 namespace sonar3d::cli {
@@ -52,6 +54,12 @@ class PrintSink : public OnlineFeedSink {
         c["median"].get<double>(), c["p95"].get<double>());
   }
   void log(const std::string& line) override { fmt::print(stderr, "sonar3d online: {}\n", line); }
+  void placements(const OnlinePlacements& found) override {
+    if (quiet_) return;
+    fmt::print(stderr,
+               "sonar3d online: recognition {}: {} placements in the map of {} frames ({:.2f} s)\n",
+               found.sequence, found.placements.size(), found.frames, found.seconds);
+  }
 
  private:
   bool quiet_;
@@ -68,11 +76,11 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "its final statistics as JSON (docs/online.md). No ROS needed.");
   struct Opts {
     std::string input, sonar_topic = "/sonar3d/image", nav_topic = "/sonar3d/odom",
-                       tf_topic = "/tf_static", mount, sonar, save_prefix;
+                       tf_topic = "/tf_static", mount, sonar, save_prefix, catalogue;
     double speed = 1.0, rate_hz = 1.0;
     std::size_t queue = 8;
     bool overwrite = false;
-    std::unique_ptr<ConfigOptions<ReconstructConfig>> config;
+    std::unique_ptr<ConfigOptions<OnlineNodeConfig>> config;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("input", o->input, "dataset directory (sonar.yaml) or ROS 1 bag (.bag)")
@@ -99,18 +107,31 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
                   "sensor YAML (sonar.yaml fields): required for a bag of sensor_msgs/Image")
       ->check(CLI::ExistingFile);
   cmd->add_option("--save-prefix", o->save_prefix,
-                  "at the end, write PREFIX.ply (cloud) and PREFIX.tif (elevation GeoTIFF) "
-                  "together, as the node's ~save service does");
-  add_overwrite_flag(cmd, o->overwrite, "a cloud and GeoTIFF at --save-prefix sonar3d wrote");
-  // The carving settings, from ReconstructConfig's one declaration, as `sonar3d ros`.
-  o->config = std::make_unique<ConfigOptions<ReconstructConfig>>(cmd);
+                  "at the end, write PREFIX.ply (cloud), PREFIX.tif (elevation GeoTIFF) and, with "
+                  "--catalogue, PREFIX.placements.json together, as the node's ~save service "
+                  "does");
+  cmd->add_option("--catalogue", o->catalogue,
+                  "catalogue YAML (as sonar3d recognize reads it): recognise its models every "
+                  "--recognition-period s during the replay, off the carving thread, as `sonar3d "
+                  "ros` does, and once more on the complete map at the end; the recognition's "
+                  "settings: the recognize block of --config")
+      ->check(CLI::ExistingFile);
+  add_overwrite_flag(cmd, o->overwrite,
+                     "a cloud, GeoTIFF and placements JSON at --save-prefix sonar3d wrote");
+  // The settings of `sonar3d ros`: the carving, the recognition and its period.
+  o->config = std::make_unique<ConfigOptions<OnlineNodeConfig>>(cmd);
   cmd->callback([&g, &run, o] {
-    const FlagNames flags = o->config->flag_names();
+    const FlagNames flags = online_node_flag_names(o->config->flag_names());
     run = [&g, o, flags]() -> int {
       return with_flag_names(flags, [&]() -> int {
-        const ReconstructConfig rc = o->config->resolve("reconstruct");
+        const OnlineNodeConfig cfg = o->config->resolve();
+        const ReconstructConfig& rc = cfg.reconstruct;
         rc.validate();
-        if (o->config->print_if_requested(rc, "reconstruct", "online")) return 0;
+        if (!o->catalogue.empty()) {
+          cfg.recognize.validate();
+          cfg.online_recognition.validate();
+        }
+        if (o->config->print_if_requested(cfg, "", "online")) return 0;
         if (rc.method != "carve") {
           throw Error("the online map carves (--method carve); '" + rc.method + "' is batch only");
         }
@@ -127,11 +148,21 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
         fc.queue = o->queue;
         fc.map.carve = rc.effective_carve();
         fc.map.validate();
+        if (!o->catalogue.empty()) {
+          read_catalogue(o->catalogue);  // a bad catalogue fails now, before the replay
+          fc.catalogue = o->catalogue;
+          fc.recognize = cfg.recognize;
+          fc.recognition = cfg.online_recognition;
+        }
         if (!o->save_prefix.empty()) {
           check_output(o->save_prefix + ".ply", OutputKind::PointCloud,
                        output_policy(o->overwrite, {o->input}), "--save-prefix");
           check_output(o->save_prefix + ".tif", OutputKind::GeoTiff,
                        output_policy(o->overwrite, {o->input}), "--save-prefix");
+          if (!o->catalogue.empty()) {
+            check_output(o->save_prefix + ".placements.json", OutputKind::PlacementsJson,
+                         output_policy(o->overwrite, {o->input}), "--save-prefix");
+          }
         }
         // A dataset replayed brings its own noise statistics for the Z-test, as reconstruct.
         if (std::filesystem::is_directory(o->input)) fc.noise = read_dataset(o->input).noise;
@@ -145,6 +176,9 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
         ro.progress = !g.quiet;
         const OnlineReplayResult r = replay_into_feed(o->input, feed, fc, ro);
         if (!r.stopped) feed.drain();
+        // The placements of the complete map (the periodic ones saw it growing).
+        std::string found;
+        if (!o->catalogue.empty() && r.sonar > 0 && !r.stopped) found = feed.recognize_now();
         std::string saved;
         if (!o->save_prefix.empty()) saved = feed.save(o->save_prefix, o->overwrite);
         feed.stop();
@@ -152,9 +186,11 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
         if (!g.quiet) {
           fmt::print(stderr,
                      "sonar3d online: replayed {} sonar, {} navigation and {} transform "
-                     "messages ({:.1f} s recorded, speed {}){}{}\n",
+                     "messages ({:.1f} s recorded, speed {}){}{}{}\n",
                      r.sonar, r.navigation, r.tf, r.recorded_s, o->speed,
-                     r.stopped ? "; stopped by a signal" : "", saved.empty() ? "" : "; " + saved);
+                     r.stopped ? "; stopped by a signal" : "",
+                     found.empty() ? "" : "; recognised " + found,
+                     saved.empty() ? "" : "; " + saved);
         }
         fmt::print("{}\n", stats);
         return 0;

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "online_node_config.hpp"
 #include "params_cli.hpp"
 #include "sonar3d/pipeline/online_recognition.hpp"
 #include "sonar3d/recog/catalogue.hpp"
@@ -57,24 +58,6 @@
 namespace sonar3d::cli {
 namespace {
 
-// The node's configuration, each part from its one declaration: the carving
-// (ReconstructConfig, as `sonar3d reconstruct`), the recognition used with --catalogue
-// (RecognizeConfig, as `sonar3d recognize`) and how often it runs. --print-config prints the
-// three blocks; --config reads any of them (a file `sonar3d reconstruct --print-config` or
-// `sonar3d recognize --print-config` wrote works as it is). A flag both declare (--method,
-// --threads, --map-cell) sets the carving's; the recognition's is set in the file.
-struct RosNodeConfig {
-  ReconstructConfig reconstruct;
-  RecognizeConfig recognize;
-  OnlineRecognitionConfig online_recognition;
-};
-template <class V>
-void describe(RosNodeConfig& c, V& v) {
-  v.group("reconstruct", c.reconstruct);
-  v.group("recognize", c.recognize);
-  v.group("online_recognition", c.online_recognition);
-}
-
 struct RosCliOptions {
   std::string sonar_topic = "/sonar3d/image", nav_topic = "/sonar3d/odom", tf_topic = "/tf_static";
   std::string base_frame, mount, sonar, noise, frame_id;
@@ -87,7 +70,7 @@ struct RosCliOptions {
   bool overwrite = false;
   double max_memory_gb = 0;
   std::string node_name = "sonar3d";
-  std::unique_ptr<ConfigOptions<RosNodeConfig>> config;
+  std::unique_ptr<ConfigOptions<OnlineNodeConfig>> config;
 };
 
 #ifdef SONAR3D_HAVE_ROS1
@@ -290,7 +273,7 @@ std::vector<std::uint8_t> shape_bytes(const topic_tools::ShapeShifter& m) {
   return bytes;
 }
 
-int run_ros(const RosCliOptions& o, const RosNodeConfig& nc, const GlobalOptions& g) {
+int run_ros(const RosCliOptions& o, const OnlineNodeConfig& nc, const GlobalOptions& g) {
   const ReconstructConfig& rc = nc.reconstruct;
   if (rc.method != "carve") {
     throw Error("the online map carves (--method carve); '" + rc.method + "' is batch only");
@@ -516,18 +499,12 @@ void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run) {
   // The carving settings, from ReconstructConfig's one declaration (recon/reconstruct.hpp), the
   // recognition's (recog/recognize.hpp) and its period, with --print-config and --config: a file
   // `sonar3d reconstruct --print-config` or `sonar3d recognize --print-config` wrote works here.
-  o->config = std::make_unique<ConfigOptions<RosNodeConfig>>(cmd);
+  o->config = std::make_unique<ConfigOptions<OnlineNodeConfig>>(cmd);
   cmd->callback([&g, &run, o] {
-    // Library errors name fields by their path within their own config ("voxel_size").
-    FlagNames flags = o->config->flag_names();
-    for (auto& [path, flag] : flags) {
-      for (const char* group : {"reconstruct.", "recognize.", "online_recognition."}) {
-        if (path.rfind(group, 0) == 0) path = path.substr(std::strlen(group));
-      }
-    }
+    const FlagNames flags = online_node_flag_names(o->config->flag_names());
     run = [&g, o, flags]() -> int {
       return with_flag_names(flags, [&]() -> int {
-        const RosNodeConfig cfg = o->config->resolve();
+        const OnlineNodeConfig cfg = o->config->resolve();
         cfg.reconstruct.validate();
         if (!o->catalogue.empty()) {
           cfg.recognize.validate();

@@ -195,6 +195,26 @@ struct OnlineFeed::Impl {
     return "map, navigation and map counters cleared";
   }
 
+  std::string recognize_now() {
+    if (!recognizer_) throw Error("no --catalogue: the feed recognises nothing");
+    if (!mapper_) throw Error("nothing to recognise yet: no frame has been carved");
+    publish();  // the cloud of every frame carved so far (when it changed)
+    const std::string frame = !cfg_.frame_id.empty() ? cfg_.frame_id
+                              : !nav_frame_.empty()  ? nav_frame_
+                                                     : "map";
+    recognizer_->run_now(frames_in_cloud_, last_cloud_, cloud_stamp_, frame);
+    const std::optional<OnlinePlacements> found = recognizer_->latest();
+    if (!found) return "no recognition finished (see the log)";
+    std::string line = fmt::format("{} placements in the map of {} frames ({:.2f} s)",
+                                   found->placements.size(), found->frames, found->seconds);
+    for (const Placement& p : found->placements) {
+      const Eigen::Vector3d t = p.T_world_model.translation();
+      line += fmt::format("; {} at {:.3f} {:.3f} {:.3f} m, confidence {:.2f}", p.model, t.x(),
+                          t.y(), t.z(), p.confidence);
+    }
+    return line;
+  }
+
   std::string stats_json() { return stats().dump(); }
 
   nlohmann::ordered_json stats() {
@@ -531,6 +551,9 @@ std::string OnlineFeed::save(const std::string& prefix, bool overwrite) {
 }
 std::string OnlineFeed::reset() {
   return impl_->call([&] { return impl_->reset(); });
+}
+std::string OnlineFeed::recognize_now() {
+  return impl_->call([&] { return impl_->recognize_now(); });
 }
 std::string OnlineFeed::stats_json() {
   // Once stopped, the worker is joined: the counters are read here.

@@ -79,6 +79,18 @@ struct OnlineRecognizer::Impl {
     if (t.joinable()) t.join();
   }
 
+  // Starts a recognition on a new thread (none runs: the caller checked).
+  void start(std::shared_ptr<const PointCloud> cloud, std::size_t frames, double stamp,
+             const std::string& frame) {
+    join();  // the previous run's thread has finished
+    std::lock_guard<std::mutex> lock(mutex);
+    running = true;
+    ++started;
+    started_once = true;
+    last_frames_started = frames;
+    worker = std::thread([this, cloud, frames, stamp, frame] { run(cloud, frames, stamp, frame); });
+  }
+
   void run(std::shared_ptr<const PointCloud> cloud, std::size_t frames, double stamp,
            const std::string& frame) {
     OnlinePlacements out;
@@ -233,13 +245,17 @@ bool OnlineRecognizer::tick(Clock::time_point now, std::size_t frames,
       return false;
     }
   }
-  m.join();  // the previous run's thread has finished
-  std::lock_guard<std::mutex> lock(m.mutex);
-  m.running = true;
-  ++m.started;
-  m.started_once = true;
-  m.last_frames_started = frames;
-  m.worker = std::thread([&m, cloud, frames, stamp, frame] { m.run(cloud, frames, stamp, frame); });
+  m.start(std::move(cloud), frames, stamp, frame);
+  return true;
+}
+
+bool OnlineRecognizer::run_now(std::size_t frames, std::shared_ptr<const PointCloud> cloud,
+                               double stamp, const std::string& frame) {
+  Impl& m = *impl_;
+  wait();
+  if (!cloud || frames == 0 || (m.started_once && frames == m.last_frames_started)) return false;
+  m.start(std::move(cloud), frames, stamp, frame);
+  wait();
   return true;
 }
 

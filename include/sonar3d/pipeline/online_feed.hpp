@@ -97,6 +97,12 @@ class OnlineFeed {
   // Clears the map, the navigation and the map's counters; on the worker thread.
   std::string reset();
 
+  // With a catalogue: publishes the cloud if frames were carved since the last one, then
+  // recognises it now, waiting for a running recognition first and for this one (the end of a
+  // replay: the placements of the complete map); on the worker thread. Returns a line saying
+  // what was found.
+  std::string recognize_now();
+
   // Every counter as one JSON object (received, queued, dropped, bad, latencies, the map's own).
   std::string stats_json();
 

@@ -99,6 +99,12 @@ class OnlineRecognizer {
   // the last recognition.
   void reset();
 
+  // Waits for a running recognition, then recognises `cloud` now and waits for it (the end of a
+  // replay: the complete map), unless it has the frames of the last recognition started.
+  // Returns whether one ran.
+  bool run_now(std::size_t frames, std::shared_ptr<const PointCloud> cloud, double stamp,
+               const std::string& frame = "");
+
   // Waits until no recognition runs.
   void wait();
 
