@@ -84,7 +84,6 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("input", o->input, "dataset directory (sonar.yaml) or ROS 1 bag (.bag)")
-      ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("--speed", o->speed,
                   "playing speed: 1 = the recorded rate, 2 = twice as fast, 0 = as fast as the "
@@ -132,6 +131,7 @@ void add_online(CLI::App& app, const GlobalOptions& g, Runner& run) {
           cfg.online_recognition.validate();
         }
         if (o->config->print_if_requested(cfg, "", "online")) return 0;
+        require(!o->input.empty(), "online: give INPUT (a dataset directory or a ROS 1 bag)");
         if (rc.method != "carve") {
           throw Error("the online map carves (--method carve); '" + rc.method + "' is batch only");
         }
