@@ -802,6 +802,12 @@ TEST(OnlineCli, ReplayedDatasetGivesTheImportedBagsReconstruction) {
   r = test::run_cli_captured(dir, "online " + (dir / "ds").string() + " --speed -1 -q");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("--speed"), std::string::npos) << r.err;
+  // The settings of `sonar3d ros`: three blocks, printed without INPUT.
+  r = test::run_cli_captured(dir, "online --print-config --recognition-period 4");
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* block : {"\nreconstruct:", "\nrecognize:", "\nonline_recognition:"})
+    EXPECT_NE(r.out.find(block), std::string::npos) << block << "\n" << r.out;
+  EXPECT_NE(r.out.find("period_s: 4"), std::string::npos) << r.out;
   fs::remove_all(dir);
 }
 
