@@ -13,7 +13,10 @@
 #   bench/ros_latency.sh BUILD_DIR WORK_DIR [p900|mb2250|both] [RATE_FACTORS...]
 # e.g. bench/ros_latency.sh build /tmp/ros_bench both 1 2 3
 # Environment: VOXEL (m, default 0.02), ROI ("xmin ymin zmin xmax ymax zmax", m; default the seabed
-# prior -1 -8 -2.05 16 8 -0.5), RATE (cloud publishing rate, Hz, default 1), QUEUE (--queue, 8).
+# prior -1 -8 -2.05 16 8 -0.5), RATE (cloud publishing rate, Hz, default 1), QUEUE (--queue, 8),
+# CATALOGUE (a catalogue YAML: the node recognises its models every RECOG_PERIOD s, default 10,
+# and the run prints the recognitions' count, time and skips), GRACE (s between the bag's end and
+# the node's SIGINT, default 3).
 set -euo pipefail
 BUILD=$(realpath "${1:?build dir}")
 WORK=${2:?work dir}
@@ -27,6 +30,15 @@ VOXEL=${VOXEL:-0.02}
 ROI=${ROI:--1 -8 -2.05 16 8 -0.5}
 RATE=${RATE:-1}
 QUEUE=${QUEUE:-8}
+CATALOGUE=${CATALOGUE:-}
+RECOG_PERIOD=${RECOG_PERIOD:-10}
+GRACE=${GRACE:-3}
+RECOG=()
+TAG=""
+if [ -n "$CATALOGUE" ]; then
+  RECOG=(--catalogue "$(realpath "$CATALOGUE")" --recognition-period "$RECOG_PERIOD")
+  TAG=".recog$RECOG_PERIOD"
+fi
 mkdir -p "$WORK"
 WORK=$(realpath "$WORK")
 
@@ -75,17 +87,19 @@ EOF
 
 run() {  # name factor
   local name=$1 f=$2
-  local out="$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f.json"
+  local out="$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f$TAG.json"
   # shellcheck disable=SC2086
-  setsid "$S" ros --quiet --voxel-size "$VOXEL" --roi $ROI --rate "$RATE" --queue "$QUEUE" >"$out" 2>"$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f.log" &
+  # GNU time (which ignores SIGINT while it waits) gives the node's CPU time, all threads, at exit.
+  setsid /usr/bin/time -f "%U %S" -o "$out.time" "$S" ros --quiet --voxel-size "$VOXEL" --roi $ROI --rate "$RATE" --queue "$QUEUE" "${RECOG[@]}" >"$out" 2>"$WORK/$name.v$VOXEL.r$RATE.q$QUEUE.x$f$TAG.log" &
   local node=$!
   PIDS+=("$node")
   rosbag play --wait-for-subscribers -q -r "$f" "$WORK/$name.bag" >/dev/null 2>&1
-  sleep 3  # the queue drains, the last cloud goes out
+  sleep "$GRACE"  # the queue drains, the last cloud goes out
   local load
   load=$(cut -d' ' -f1-3 /proc/loadavg)
-  kill -INT "$node"
+  kill -INT -- "-$node"
   wait "$node" || true
+  load="$load; node CPU user+sys $(awk '{printf "%.2f s", $1 + $2}' "$out.time")"
   $PY - "$out" "$name" "$f" "$load" "$VOXEL" "$RATE" "$QUEUE" <<'EOF'
 import json, sys
 path, name, f, load, voxel, rate, queue = sys.argv[1:]
@@ -93,12 +107,20 @@ s = json.loads(open(path).read().strip().splitlines()[-1])
 m = s['map']
 c, p = s['latency_arrival_to_carved_ms'], s['latency_arrival_to_published_ms']
 dropped = s['dropped_node_queue_full'] + s['frames_dropped_by_map']
+left = s['queued']  # still waiting in the node's queue at SIGINT: not carved
 print(f"{name} voxel {voxel} m, cloud at {rate} Hz, queue {queue}, bag x{f}: received {s['sonar_received']}, carved {m.get('frames_used', 0)}, dropped {dropped} "
-      f"(queue full {s['dropped_node_queue_full']}); arrival->carved ms median {c['median']:.1f} "
+      f"(queue full {s['dropped_node_queue_full']}), left in the queue at exit {left}; arrival->carved ms median {c['median']:.1f} "
       f"p95 {c['p95']:.1f} max {c['max']:.1f}; arrival->published median {p['median']:.0f} "
       f"p95 {p['p95']:.0f}; carve ms/frame median {m.get('push_ms', {}).get('median', 0):.1f} "
       f"p95 {m.get('push_ms', {}).get('p95', 0):.1f}; cloud() ms (last) {m.get('resolve_ms_last', 0):.0f}; "
       f"{s['cloud_points']} points; mounting {s['mounting']}; load {load}")
+if 'recognition' in s:
+    r = s['recognition']
+    print(f"  recognition every {r['period_s']} s: started {r['started']}, finished {r['finished']}, "
+          f"skipped (busy) {r['skipped_busy']}, failed {r['failed']}, map smaller than the "
+          f"models {r['map_smaller_than_models']}; seconds median "
+          f"{r['seconds']['median']:.2f} max {r['seconds']['max']:.2f}; last: {r['placements']} "
+          f"placements in the map of {r['last_frames']} frames")
 EOF
 }
 

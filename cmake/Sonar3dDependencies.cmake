@@ -52,7 +52,8 @@ if(NOT SONAR3D_ROS1 STREQUAL "OFF")
     set(_sonar3d_ros1_required REQUIRED)
   endif()
   pkg_check_modules(ROS1 ${_sonar3d_ros1_required} QUIET IMPORTED_TARGET roscpp topic_tools
-                    sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs diagnostic_msgs)
+                    sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs diagnostic_msgs
+                    visualization_msgs)
   if(ROS1_FOUND)
     set(SONAR3D_HAVE_ROS1 ON)
     message(STATUS "ROS 1 (roscpp ${ROS1_roscpp_VERSION}) found: building `sonar3d ros`")

@@ -24,7 +24,9 @@ PACKAGES=(
   # tests/test_ros_node.py runs it with (rosbag play comes with python3-rosbag).
   libroscpp-dev libtopic-tools-dev libstd-msgs-dev libsensor-msgs-dev libnav-msgs-dev
   libgeometry-msgs-dev libstd-srvs-dev libdiagnostic-msgs-dev
+  libvisualization-msgs-dev  # --catalogue: recognised placements as MarkerArray
   ros-core python3-rospy python3-rosgraph python3-std-srvs python3-diagnostic-msgs
+  python3-visualization-msgs
   libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
   zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev

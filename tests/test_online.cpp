@@ -5,10 +5,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -19,12 +23,16 @@
 #include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/core/scene.hpp"
 #include "sonar3d/io/dataset.hpp"
+#include "sonar3d/io/mesh_io.hpp"
 #include "sonar3d/io/rosbag.hpp"
 #include "sonar3d/mapping/online.hpp"
 #include "sonar3d/pipeline/online_feed.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
+#include "sonar3d/recog/model.hpp"
 #include "sonar3d/recon/carve.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 #include "sonar3d/sim/simulator.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 using namespace sonar3d;
@@ -552,4 +560,310 @@ TEST(Online, RollingWindowBoundsMemory) {
   EXPECT_GT(em.num_valid(), 1000u);
   EXPECT_GT(em.cols, 140 / 0.02 / 2);
   fs::remove_all(oc.output_dir);
+}
+
+namespace {
+
+// A tank (the reference object, 50 cm diameter) standing on a gently rolling seabed, as a
+// sonar3d map sees it from above: on a 2 cm grid, the higher of the seabed and the tank's top.
+PointCloud tank_on_seabed(const Eigen::Isometry3d& T_world_tank) {
+  const ModelTemplate tank = make_model_template("tank", make_reference_object("tank"),
+                                                 Symmetry::Full, -1, ModelSamplingConfig());
+  TopViewConfig tv;
+  tv.cell_m = 0.02;
+  tv.grid_anchor_xy = {-2, 2};
+  const Eigen::Vector2d c =
+      (T_world_tank * Eigen::Vector3d(tank.center_xy.x(), tank.center_xy.y(), 0)).head<2>();
+  const ElevationMap top = render_placed_top_view(tank, T_world_tank, c, tv);
+  PointCloud cloud;
+  for (int r = 0; r < 200; ++r) {
+    for (int col = 0; col < 200; ++col) {
+      const double x = -2 + (col + 0.5) * 0.02, y = 2 - (r + 0.5) * 0.02;
+      double z = 0.04 * std::sin(0.7 * x + 0.2) * std::cos(0.5 * y);
+      const int tr = static_cast<int>(std::floor((top.origin_xy.y() - y) / top.cell_m));
+      const int tc = static_cast<int>(std::floor((x - top.origin_xy.x()) / top.cell_m));
+      if (tr >= 0 && tc >= 0 && tr < top.rows && tc < top.cols) {
+        const float zt = top.at(tr, tc);
+        if (zt == zt) z = std::max(z, static_cast<double>(zt));
+      }
+      cloud.points.emplace_back(x, y, z);
+    }
+  }
+  return cloud;
+}
+
+}  // namespace
+
+// The periodic recognition of `sonar3d ros --catalogue` without ROS: nothing before its period;
+// at the period a recognition of the snapshot starts on its own thread and finds the tank at its
+// pose; a period that comes while it still runs is skipped and counted; a period with no new
+// frame starts none; the result carries the placements file and each model's mesh as a PLY.
+TEST(OnlineRecognition, RunsAtItsPeriodOffTheCallersThreadAndSkipsWhenBusy) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_recog_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "cat.yaml") << "models:\n"
+                                       "  - {name: tank, reference: tank, symmetry: full}\n";
+  }
+  Eigen::Isometry3d T_tank = Eigen::Isometry3d::Identity();
+  T_tank.translation() = Eigen::Vector3d(0.6, -0.4, 0.02);
+  auto cloud = std::make_shared<const PointCloud>(tank_on_seabed(T_tank));
+
+  std::mutex m;
+  std::condition_variable cv;
+  bool gate_open = false;
+  std::vector<OnlinePlacements> results;
+  std::vector<std::string> lines;
+  OnlineRecognitionConfig oc;
+  oc.period_s = 5;
+  OnlineRecognizer rec(
+      (dir / "cat.yaml").string(), RecognizeConfig(), oc,
+      [&](const OnlinePlacements& p) {
+        std::unique_lock<std::mutex> lock(m);
+        results.push_back(p);
+        cv.wait(lock, [&] { return gate_open; });  // the recognition "runs" until released
+      },
+      [&](const std::string& line) {
+        std::lock_guard<std::mutex> lock(m);
+        lines.push_back(line);
+      },
+      (dir / "meshes").string());
+  ASSERT_EQ(rec.mesh_files().size(), 1u);
+  EXPECT_EQ(load_mesh(rec.mesh_files()[0]).triangles.size(),
+            make_reference_object("tank").triangles.size());
+
+  using std::chrono::seconds;
+  const auto t0 = OnlineRecognizer::Clock::now();
+  EXPECT_FALSE(rec.tick(t0, 10, cloud, 3.5, "odom"));                // starts the clock
+  EXPECT_FALSE(rec.tick(t0 + seconds(4), 10, cloud, 3.5, "odom"));   // not yet due
+  EXPECT_TRUE(rec.tick(t0 + seconds(5), 10, cloud, 3.5, "odom"));    // due: starts
+  EXPECT_FALSE(rec.tick(t0 + seconds(10), 12, cloud, 3.5, "odom"));  // still running: skipped
+  nlohmann::json st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["started"].get<int>(), 1);
+  EXPECT_EQ(st["skipped_busy"].get<int>(), 1);
+  EXPECT_TRUE(st["running"].get<bool>());
+  {
+    std::lock_guard<std::mutex> lock(m);
+    gate_open = true;
+  }
+  cv.notify_all();
+  rec.wait();
+  // The next period with the frames of the last recognition: nothing new, none started.
+  EXPECT_FALSE(rec.tick(t0 + seconds(15), 10, cloud, 3.5, "odom"));
+  st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["started"].get<int>(), 1);
+  EXPECT_EQ(st["finished"].get<int>(), 1);
+  EXPECT_EQ(st["failed"].get<int>(), 0);
+  EXPECT_EQ(st["seconds"]["count"].get<int>(), 1);
+
+  ASSERT_EQ(results.size(), 1u) << ::testing::PrintToString(lines);
+  const std::optional<OnlinePlacements> last = rec.latest();
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->sequence, 1u);
+  EXPECT_EQ(last->frames, 10u);
+  EXPECT_EQ(last->points, cloud->size());
+  EXPECT_EQ(last->frame, "odom");
+  EXPECT_DOUBLE_EQ(last->stamp, 3.5);
+  EXPECT_GT(last->seconds, 0);
+  ASSERT_EQ(last->placements.size(), 1u) << last->json;
+  const Placement& p = last->placements[0];
+  EXPECT_EQ(p.model, "tank");
+  EXPECT_GE(p.confidence, RecognizeConfig().two_d.verification.min_confidence);
+  EXPECT_LT((p.T_world_model.translation().head<2>() - T_tank.translation().head<2>()).norm(), 0.03)
+      << last->json;
+  EXPECT_NEAR(p.T_world_model.translation().z(), T_tank.translation().z(), 0.04);
+  ASSERT_EQ(last->mesh_files.size(), 1u);
+  EXPECT_EQ(last->mesh_files[0], rec.mesh_files()[0]);
+  // The label sits on the tank's top (its height: the model's top_z).
+  EXPECT_NEAR(last->top_world[0].z() - p.T_world_model.translation().z(),
+              rec.models()[0].top_z * p.scale, 1e-3);  // upright within a small tilt
+  const nlohmann::json j = nlohmann::json::parse(last->json);
+  EXPECT_EQ(j["format"], "sonar3d-placements");
+  ASSERT_EQ(j["placements"].size(), 1u);
+  // A reset of the map forgets the placements and recognises the next map even with as many
+  // frames as the last one.
+  rec.reset();
+  EXPECT_FALSE(rec.latest().has_value());
+  EXPECT_TRUE(rec.tick(t0 + seconds(20), 10, cloud, 4.0, "odom"));
+  rec.wait();
+  ASSERT_TRUE(rec.latest().has_value());
+  EXPECT_EQ(rec.latest()->sequence, 2u);
+  fs::remove_all(dir);
+}
+
+// A catalogue that cannot be read is one clear Error naming it; a period outside its bounds
+// names the field and its flag.
+TEST(OnlineRecognition, BadCatalogueAndPeriodAreClearErrors) {
+  OnlineRecognitionConfig oc;
+  try {
+    OnlineRecognizer rec("/nonexistent/cat.yaml", RecognizeConfig(), oc, nullptr, nullptr);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/cat.yaml"), std::string::npos) << e.what();
+  }
+  oc.period_s = 0;
+  try {
+    oc.validate();
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--recognition-period"), std::string::npos) << e.what();
+  }
+}
+
+// Early in a dive the map is smaller than a model's search patch (the 2D method refuses such a
+// model, eq. 6.8): the recognition finds nothing to search, counts it and fails nothing; the
+// model is searched once the map has grown.
+TEST(OnlineRecognition, AMapSmallerThanTheModelsWaitsInsteadOfFailing) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_small_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  { std::ofstream(dir / "cat.yaml") << "models:\n  - {name: tank, reference: tank}\n"; }
+  auto small = std::make_shared<PointCloud>();
+  for (int i = 0; i < 20; ++i)
+    for (int k = 0; k < 20; ++k) small->points.emplace_back(0.02 * i, 0.02 * k, 0.0f);
+  std::vector<std::string> lines;
+  std::size_t results = 0;
+  OnlineRecognitionConfig oc;
+  oc.period_s = 1;
+  OnlineRecognizer rec((dir / "cat.yaml").string(), RecognizeConfig(), oc,
+                       [&](const OnlinePlacements&) { ++results; },
+                       [&](const std::string& line) { lines.push_back(line); });
+  const auto t0 = OnlineRecognizer::Clock::now();
+  rec.tick(t0, 3, small, 1.0);
+  EXPECT_TRUE(rec.tick(t0 + std::chrono::seconds(1), 3, small, 1.0));
+  rec.wait();
+  nlohmann::json st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["map_smaller_than_models"].get<int>(), 1);
+  EXPECT_EQ(st["failed"].get<int>(), 0);
+  EXPECT_EQ(st["finished"].get<int>(), 0);
+  EXPECT_EQ(results, 0u);
+  EXPECT_TRUE(lines.empty()) << lines.front();
+  // The map grew: the tank is searched and found.
+  Eigen::Isometry3d T_tank = Eigen::Isometry3d::Identity();
+  T_tank.translation() = Eigen::Vector3d(-0.5, 0.7, 0.0);
+  EXPECT_TRUE(rec.tick(t0 + std::chrono::seconds(2), 40,
+                       std::make_shared<const PointCloud>(tank_on_seabed(T_tank)), 2.0));
+  rec.wait();
+  st = nlohmann::json::parse(rec.stats_json());
+  EXPECT_EQ(st["finished"].get<int>(), 1);
+  ASSERT_TRUE(rec.latest().has_value());
+  ASSERT_EQ(rec.latest()->placements.size(), 1u) << rec.latest()->json;
+  EXPECT_TRUE(rec.latest()->models_waiting.empty());
+  fs::remove_all(dir);
+}
+
+// `sonar3d online DATASET`: the dataset replayed through the online feed (as a ROS 1 bag, without
+// ROS), as fast as the map takes it, gives the cloud that `import rosbag` of the same bag +
+// `reconstruct --method carve` gives with the same settings, point for point; the final JSON
+// counts every frame and no drop; bad input is one clear line.
+TEST(OnlineCli, ReplayedDatasetGivesTheImportedBagsReconstruction) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_cli_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_survey_dataset(dir / "ds");
+  const std::string settings =
+      " --voxel-size 0.02 --roi -0.6 -1.0 0.2 0.6 7.0 1.8 --no-explain-returns "
+      "--no-auto-min-bracket -q";
+  test::CliRunSplit r =
+      test::run_cli_captured(dir, "export rosbag " + (dir / "ds").string() + " -o " +
+                                      (dir / "ds.bag").string() + " --ros1 -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "import rosbag " + (dir / "ds.bag").string() + " -o " +
+                                      (dir / "imported").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "reconstruct " + (dir / "imported").string() + " -o " +
+                                      (dir / "batch.ply").string() + " --method carve" + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() +
+                                      " --speed 0 --queue 100000 --save-prefix " +
+                                      (dir / "online").string() + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json st = nlohmann::json::parse(r.out);
+  const std::size_t n = read_dataset(dir / "ds").size();
+  EXPECT_EQ(st["sonar_received"].get<std::size_t>(), n);
+  EXPECT_EQ(st["map"]["frames_used"].get<std::size_t>(), n);
+  EXPECT_EQ(st["dropped_node_queue_full"].get<std::size_t>(), 0u);
+  EXPECT_EQ(st["frames_dropped_by_map"].get<std::size_t>(), 0u);
+  EXPECT_NE(st["mounting"].get<std::string>().find("/tf_static"), std::string::npos);
+  const PointCloud batch = read_ply((dir / "batch.ply").string());
+  ASSERT_GT(batch.size(), 100u);
+  expect_same_cloud(read_ply((dir / "online.ply").string()), batch,
+                    "sonar3d online vs import rosbag + reconstruct");
+  // Bad input: one line naming it, exit 1; nothing written.
+  { std::ofstream(dir / "notabag.bag") << "not a bag\n"; }
+  r = test::run_cli_captured(dir, "online " + (dir / "notabag.bag").string() + " -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("notabag.bag"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() + " --speed -1 -q");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--speed"), std::string::npos) << r.err;
+  // The settings of `sonar3d ros`: three blocks, printed without INPUT.
+  r = test::run_cli_captured(dir, "online --print-config --recognition-period 4");
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* block : {"\nreconstruct:", "\nrecognize:", "\nonline_recognition:"})
+    EXPECT_NE(r.out.find(block), std::string::npos) << block << "\n" << r.out;
+  EXPECT_NE(r.out.find("period_s: 4"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+// `sonar3d online --catalogue`: a down-looking pass over a tank on a rolling seabed replayed
+// through the feed; the recognition of the complete map at the end places the tank where the
+// batch `sonar3d recognize` places it in the batch carving (within 3 cm), and the placements JSON
+// is saved with the map.
+TEST(OnlineCli, CatalogueRecognisesTheCompleteMapAsBatch) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sonar3d_test_online_cli_cat_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "scene.yaml") << R"(seed: 4
+sensor: {preset: mb2250, r_min: 1.0, r_max: 6.0, range_bins: 250, T_vehicle_sonar: {rpy_deg: [0, 90, 0]}}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [5, 4], cell: 0.05, relief: 0.1, wavelength: 6, trenches: 0, rocks: 3, seed: 4}, reflectivity: 0.3}
+  - {name: tank, reference: tank, pose: {translation: [0.5, -0.3, -0.05]}, reflectivity: 0.8}
+trajectory: {type: straight, start: [-1.5, 0, 4], end: [1.5, 0, 4], spacing: 0.03, period: 0.1}
+)";
+    std::ofstream(dir / "cat.yaml")
+        << "models:\n  - {name: tank, reference: tank, symmetry: full}\n";
+  }
+  const std::string settings = " --voxel-size 0.02 --no-explain-returns --no-auto-min-bracket -q";
+  test::CliRunSplit r = test::run_cli_captured(
+      dir, "simulate " + (dir / "scene.yaml").string() + " -o " + (dir / "ds").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "reconstruct " + (dir / "ds").string() + " -o " +
+                                      (dir / "batch.ply").string() + " --method carve" + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_cli_captured(dir, "recognize " + (dir / "batch.ply").string() + " --catalogue " +
+                                      (dir / "cat.yaml").string() + " -o " +
+                                      (dir / "batch_placements.json").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json batch = nlohmann::json::parse(test::read_all(dir / "batch_placements.json"));
+  ASSERT_EQ(batch["placements"].size(), 1u) << batch.dump(1);
+  r = test::run_cli_captured(dir, "online " + (dir / "ds").string() +
+                                      " --speed 0 --queue 100000 --catalogue " +
+                                      (dir / "cat.yaml").string() + " --save-prefix " +
+                                      (dir / "online").string() + settings);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json st = nlohmann::json::parse(r.out);
+  EXPECT_GE(st["recognition"]["finished"].get<int>(), 1);
+  EXPECT_EQ(st["recognition"]["failed"].get<int>(), 0);
+  EXPECT_EQ(st["recognition"]["last_frames"].get<std::size_t>(), read_dataset(dir / "ds").size());
+  const nlohmann::json online =
+      nlohmann::json::parse(test::read_all(dir / "online.placements.json"));
+  EXPECT_EQ(online["format"], "sonar3d-placements");
+  ASSERT_EQ(online["placements"].size(), 1u) << online.dump(1);
+  EXPECT_EQ(online["placements"][0]["model"], "tank");
+  Eigen::Vector3d a, b;
+  for (int k = 0; k < 3; ++k) {
+    a[k] = online["placements"][0]["T_world_model"][k][3].get<double>();
+    b[k] = batch["placements"][0]["T_world_model"][k][3].get<double>();
+  }
+  EXPECT_LT((a - b).norm(), 0.03) << a.transpose() << " vs batch " << b.transpose();
+  fs::remove_all(dir);
 }

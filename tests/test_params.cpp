@@ -25,6 +25,7 @@
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/survey.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
 #include "sonar3d/plan/sweep.hpp"
 #include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
@@ -210,6 +211,13 @@ std::string reference() {
       "`--neus`/`--colmap` relate to the "
       "cloud's world, with when to warn that they may not (docs/video.md \"Camera world\").",
       params::rows(TextureFilesConfig()));
+  out += "\n";
+  out += params::reference_markdown(
+      "ros",
+      "`sonar3d ros --print-config` prints these under `online_recognition:`, beside its "
+      "`reconstruct:` and `recognize:` blocks (the tables above); used with `--catalogue` "
+      "(docs/online.md \"Recognised placements\").",
+      params::rows(OnlineRecognitionConfig()));
   // The importers: `sonar3d import <kind>` prints its settings under `import:`.
   const char* kImportIntro =
       "`sonar3d import {} --print-config` prints these under `import:`{}; Python: `sonar3d.{}` "

@@ -35,6 +35,7 @@ try:
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import Image, PointCloud2
     from std_srvs.srv import Trigger
+    from visualization_msgs.msg import Marker, MarkerArray
 except ImportError as e:
     print(f'test_ros_node: skipped: {e}: Debian\'s ROS 1 is not installed '
           '(scripts/install-deps.sh installs it)')
@@ -60,6 +61,25 @@ objects:
   - {name: ball, primitive: {type: sphere, radius: 0.4}, pose: {translation: [2.8, 0.6, -0.5]}, reflectivity: 0.9}
 trajectory: {period: 0.1, type: straight, start: [0, 0, -0.3], end: [0, 0, 0.3], spacing: 0.05, rpy_deg: [3, -2, 8]}
 """
+# With --catalogue: a down-looking MB2250-like pass over a tank on a rolling seabed (one line, 101
+# frames), the scene the batch `sonar3d recognize` finds the tank in (measured: at E 0.500 N -0.296
+# U -0.040 m, confidence 0.74, truth 0.5, -0.3, -0.05).
+RECOG_SCENE = """
+seed: 4
+sensor:
+  preset: mb2250
+  r_min: 1.0
+  r_max: 6.0
+  range_bins: 250
+  T_vehicle_sonar: {rpy_deg: [0, 90, 0]}
+simulation: {elevation_step_deg: 0.1}
+objects:
+  - {name: seabed, primitive: {type: terrain, size: [5, 4], cell: 0.05, relief: 0.1, wavelength: 6, trenches: 0, rocks: 3, seed: 4}, reflectivity: 0.3}
+  - {name: tank, reference: tank, pose: {translation: [0.5, -0.3, -0.05]}, reflectivity: 0.8}
+trajectory: {type: straight, start: [-1.5, 0, 4], end: [1.5, 0, 4], spacing: 0.03, period: 0.1}
+"""
+CATALOGUE = 'models:\n  - {name: tank, reference: tank, symmetry: full}\n'
+
 # The ghost filters on by default in `reconstruct` since issue 29 are off for both: the online
 # map and the batch carving compare like with like.
 SETTINGS = ['--voxel-size', '0.02', '--no-explain-returns', '--no-auto-min-bracket']
@@ -279,6 +299,102 @@ class RosNode(unittest.TestCase):
             listener.close()
             final, text = self.finish(node)
         self.assertEqual(final['map']['frames_used'], 0, f'reset empties the map:\n{text}')
+
+    def test_catalogue_placements_as_mesh_markers(self):
+        """--catalogue: the MarkerArray on /sonar3d/placements holds the tank where the batch
+        `sonar3d recognize` places it in the batch carving of the same dataset; ~save writes the
+        placements JSON beside the map."""
+        with open(os.path.join(WORK, 'recog_scene.yaml'), 'w') as f:
+            f.write(RECOG_SCENE)
+        catalogue = os.path.join(WORK, 'catalogue.yaml')
+        with open(catalogue, 'w') as f:
+            f.write(CATALOGUE)
+        ds = os.path.join(WORK, 'ds_recog')
+        run('simulate', os.path.join(WORK, 'recog_scene.yaml'), '-o', ds, '--quiet')
+        bag = os.path.join(WORK, 'ds_recog.bag')
+        run('export', 'rosbag', ds, '-o', bag, '--ros1', '--quiet')
+        batch = os.path.join(WORK, 'batch_recog.ply')
+        run('reconstruct', ds, '-o', batch, '--method', 'carve', *SETTINGS, '--quiet')
+        run('recognize', batch, '--catalogue', catalogue, '-o',
+            os.path.join(WORK, 'batch_placements.json'), '--quiet')
+        with open(os.path.join(WORK, 'batch_placements.json')) as f:
+            want = json.load(f)['placements']
+        self.assertEqual([p['model'] for p in want], ['tank'], 'the batch recognition finds it')
+        want_t = np.array(want[0]['T_world_model'])[:3, 3]
+        with open(os.path.join(ds, 'frames.csv')) as f:
+            stamps = [float(l.split(',')[1]) for l in f.read().splitlines()[1:] if l.strip()]
+        n = len(stamps)
+        last = rospy.Time.from_sec(stamps[-1])
+
+        got = {}
+        sub = rospy.Subscriber('/sonar3d/placements', MarkerArray,
+                               lambda m: got.__setitem__('markers', m), queue_size=5)
+        listener = Listener()
+        prefix = os.path.join(WORK, 'recog_saved')
+        node = self.node(*SETTINGS, '--rate', '5', '--queue', '1000', '--catalogue', catalogue,
+                         '--recognition-period', '1', '--save-prefix', prefix)
+        try:
+            play = start(['rosbag', 'play', '--wait-for-subscribers', '-q', '-r', '2', bag],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+            _, err = play.communicate(timeout=120)
+            self.assertEqual(play.returncode, 0, f'rosbag play failed: {err.decode()}')
+
+            def done():
+                s, m = listener.stats, got.get('markers')
+                return (s is not None and s['frames_in_cloud'] == n and
+                        s['recognition']['last_frames'] == n and m is not None and
+                        len(m.markers) > 0 and
+                        abs((m.markers[0].header.stamp - last).to_sec()) < 1e-6)
+            listener.wait(done, 60, f'placements recognised in the map of all {n} frames')
+            markers = got['markers'].markers
+            self.assertEqual(markers[0].action, Marker.DELETEALL, 'DELETEALL first')
+            meshes = [m for m in markers if m.type == Marker.MESH_RESOURCE]
+            texts = [m for m in markers if m.type == Marker.TEXT_VIEW_FACING]
+            self.assertEqual(len(meshes), 1, markers)
+            self.assertEqual(len(texts), 1, markers)
+            mesh = meshes[0]
+            self.assertEqual(mesh.ns, 'tank')
+            self.assertEqual(mesh.header.frame_id, 'map', 'the navigation frame')
+            self.assertEqual(mesh.action, Marker.ADD)
+            self.assertTrue(mesh.mesh_resource.startswith('file:///'), mesh.mesh_resource)
+            path = mesh.mesh_resource[len('file://'):]
+            with open(path, 'rb') as f:
+                self.assertEqual(f.readline().strip(), b'ply', 'the model mesh is a PLY')
+            at = np.array([mesh.pose.position.x, mesh.pose.position.y, mesh.pose.position.z])
+            self.assertLess(np.linalg.norm(at - want_t), 0.03,
+                            f'the node places the tank at {at}, the batch recognize at {want_t}')
+            q = mesh.pose.orientation
+            self.assertAlmostEqual(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w, 1.0, places=6)
+            # Upright: the model's z axis (rotated by q) stays within a few degrees of up.
+            z_up = 1 - 2 * (q.x * q.x + q.y * q.y)
+            self.assertGreater(z_up, math.cos(math.radians(5)))
+            self.assertEqual((mesh.scale.x, mesh.scale.y, mesh.scale.z), (1.0, 1.0, 1.0))
+            self.assertGreater(mesh.color.g, mesh.color.r, 'confident: greener than red')
+            self.assertEqual(texts[0].ns, 'tank')
+            self.assertTrue(texts[0].text.startswith('tank 0.'), texts[0].text)
+            self.assertGreater(texts[0].pose.position.z, at[2], 'the label above the model')
+            s = listener.stats
+            self.assertEqual(s['dropped_node_queue_full'], 0)
+            self.assertGreaterEqual(s['recognition']['finished'], 1)
+            self.assertEqual(s['recognition']['failed'], 0)
+
+            rospy.wait_for_service('/sonar3d/save', timeout=10)
+            r = rospy.ServiceProxy('/sonar3d/save', Trigger)()
+            self.assertTrue(r.success, r.message)
+            self.assertIn('placements.json', r.message)
+            with open(prefix + '.placements.json') as f:
+                saved = json.load(f)
+            self.assertEqual(saved['format'], 'sonar3d-placements')
+            self.assertEqual([p['model'] for p in saved['placements']], ['tank'])
+            self.assertLess(np.linalg.norm(np.array(saved['placements'][0]['T_world_model'])
+                                           [:3, 3] - want_t), 0.03)
+            self.assertTrue(os.path.exists(prefix + '.ply'))
+        finally:
+            sub.unregister()
+            listener.close()
+            final, text = self.finish(node)
+        self.assertGreaterEqual(final['recognition']['finished'], 1, text)
+        self.assertFalse(os.path.exists(path), 'the node removes the meshes it wrote on exit')
 
     def test_bad_messages_are_counted_and_skipped(self):
         ds = os.path.join(WORK, 'ds_bad')

@@ -9,11 +9,16 @@
 // Without Debian's roscpp at build time the command prints that the build has no ROS 1 support.
 #include <fmt/core.h>
 
+#include <cstring>
 #include <memory>
 #include <string>
 
 #include "commands.hpp"
+#include "online_node_config.hpp"
 #include "params_cli.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/recog/recognize.hpp"
 #include "sonar3d/recon/reconstruct.hpp"
 
 #ifdef SONAR3D_HAVE_ROS1
@@ -24,6 +29,7 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
 #include <topic_tools/shape_shifter.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
 #include <atomic>
@@ -32,6 +38,7 @@
 #include <csignal>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <thread>
@@ -59,11 +66,11 @@ struct RosCliOptions {
   double elevation_cell_m = 0.02;
   std::size_t queue = 8;
   double window_m = 0, max_lateness_s = 1.0, tf_wait_s = 2.0, duration_s = 0;
-  std::string window_dir, save_prefix;
+  std::string window_dir, save_prefix, catalogue;
   bool overwrite = false;
   double max_memory_gb = 0;
   std::string node_name = "sonar3d";
-  std::unique_ptr<ConfigOptions<ReconstructConfig>> config;
+  std::unique_ptr<ConfigOptions<OnlineNodeConfig>> config;
 };
 
 #ifdef SONAR3D_HAVE_ROS1
@@ -88,6 +95,64 @@ class Ros1Sink : public OnlineFeedSink {
     elevation_ = nh.advertise<sensor_msgs::Image>("/sonar3d/elevation", 2, true);
     elevation_info_ = nh.advertise<nav_msgs::MapMetaData>("/sonar3d/elevation_info", 2, true);
     diagnostics_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/sonar3d/diagnostics", 10);
+    placements_ = nh.advertise<visualization_msgs::MarkerArray>("/sonar3d/placements", 2, true);
+  }
+
+  // visualization_msgs/MarkerArray, latched: DELETEALL (placements gone since the last
+  // recognition disappear), then per placement its model's mesh (MESH_RESOURCE, file:// URL of
+  // the PLY the recognizer wrote; pose T_world_model, scale the found size; coloured from red at
+  // confidence 0 to green at 1; ns = the model's name) and a label with name and confidence.
+  void placements(const OnlinePlacements& found) override {
+    visualization_msgs::MarkerArray a;
+    visualization_msgs::Marker clear;
+    clear.header.frame_id = found.frame;
+    clear.header.stamp = ros_time(found.stamp);
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    a.markers.push_back(clear);
+    std::map<std::string, int> ids;  // per namespace (model)
+    for (std::size_t i = 0; i < found.placements.size(); ++i) {
+      const Placement& p = found.placements[i];
+      const int k = ids[p.model]++;
+      visualization_msgs::Marker m;
+      m.header = clear.header;
+      m.ns = p.model;
+      m.id = 2 * k;
+      m.type = visualization_msgs::Marker::MESH_RESOURCE;
+      m.action = visualization_msgs::Marker::ADD;
+      const Eigen::Vector3d t = p.T_world_model.translation();
+      const Eigen::Quaterniond q = Eigen::Quaterniond(p.T_world_model.linear()).normalized();
+      m.pose.position.x = t.x();
+      m.pose.position.y = t.y();
+      m.pose.position.z = t.z();
+      m.pose.orientation.x = q.x();
+      m.pose.orientation.y = q.y();
+      m.pose.orientation.z = q.z();
+      m.pose.orientation.w = q.w();
+      m.scale.x = m.scale.y = m.scale.z = p.scale;
+      const double c = std::clamp(p.confidence, 0.0, 1.0);
+      m.color.r = static_cast<float>(1 - c);
+      m.color.g = static_cast<float>(c);
+      m.color.b = 0.1f;
+      m.color.a = 0.9f;
+      m.mesh_resource = "file://" + found.mesh_files[i];
+      m.mesh_use_embedded_materials = false;
+      a.markers.push_back(m);
+      visualization_msgs::Marker label;
+      label.header = clear.header;
+      label.ns = p.model;
+      label.id = 2 * k + 1;
+      label.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+      label.action = visualization_msgs::Marker::ADD;
+      label.pose.position.x = found.top_world[i].x();
+      label.pose.position.y = found.top_world[i].y();
+      label.pose.position.z = found.top_world[i].z() + 0.2;
+      label.pose.orientation.w = 1;
+      label.scale.z = 0.15;  // text height, m
+      label.color.r = label.color.g = label.color.b = label.color.a = 1.0f;
+      label.text = fmt::format("{} {:.2f}", p.model, p.confidence);
+      a.markers.push_back(label);
+    }
+    placements_.publish(a);
   }
 
   // sensor_msgs/PointCloud2: x y z intensity, float32, 16 bytes a point, little-endian.
@@ -195,7 +260,7 @@ class Ros1Sink : public OnlineFeedSink {
   void log(const std::string& line) override { ROS_WARN("sonar3d: %s", line.c_str()); }
 
  private:
-  ros::Publisher cloud_, elevation_, elevation_info_, diagnostics_;
+  ros::Publisher cloud_, elevation_, elevation_info_, diagnostics_, placements_;
 };
 
 std::atomic<int> g_signal{0};
@@ -208,7 +273,8 @@ std::vector<std::uint8_t> shape_bytes(const topic_tools::ShapeShifter& m) {
   return bytes;
 }
 
-int run_ros(const RosCliOptions& o, const ReconstructConfig& rc, const GlobalOptions& g) {
+int run_ros(const RosCliOptions& o, const OnlineNodeConfig& nc, const GlobalOptions& g) {
+  const ReconstructConfig& rc = nc.reconstruct;
   if (rc.method != "carve") {
     throw Error("the online map carves (--method carve); '" + rc.method + "' is batch only");
   }
@@ -238,12 +304,22 @@ int run_ros(const RosCliOptions& o, const ReconstructConfig& rc, const GlobalOpt
   fc.map.max_memory_bytes = memory_limit_bytes(o.max_memory_gb);
   fc.map.elevation.cell_m = o.elevation_cell_m;
   fc.map.validate();
+  if (!o.catalogue.empty()) {
+    read_catalogue(o.catalogue);  // a bad catalogue fails now, before the node starts
+    fc.catalogue = o.catalogue;
+    fc.recognize = nc.recognize;
+    fc.recognition = nc.online_recognition;
+  }
   if (!o.save_prefix.empty()) {
     // Fail now, not at the first save request.
     check_output(o.save_prefix + ".ply", OutputKind::PointCloud, output_policy(o.overwrite, {}),
                  "--save-prefix");
     check_output(o.save_prefix + ".tif", OutputKind::GeoTiff, output_policy(o.overwrite, {}),
                  "--save-prefix");
+    if (!o.catalogue.empty()) {
+      check_output(o.save_prefix + ".placements.json", OutputKind::PlacementsJson,
+                   output_policy(o.overwrite, {}), "--save-prefix");
+    }
   }
 
   int argc = 0;
@@ -258,7 +334,7 @@ int run_ros(const RosCliOptions& o, const ReconstructConfig& rc, const GlobalOpt
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   Ros1Sink sink(nh);
-  OnlineFeed feed(fc, sink);
+  OnlineFeed feed(fc, sink);  // reads the catalogue and prepares its models first
 
   // Subscribers hand the serialised bytes over; decoding happens on the worker thread. The ROS
   // queues are deep because the callbacks only copy (the bound that drops is the feed's).
@@ -299,9 +375,12 @@ int run_ros(const RosCliOptions& o, const ReconstructConfig& rc, const GlobalOpt
   if (!g.quiet) {
     fmt::print(stderr,
                "sonar3d ros: node {} listening on {} (sonar), {} (navigation){}; publishing "
-               "/sonar3d/cloud at {} Hz; services {}/save, {}/reset\n",
+               "/sonar3d/cloud at {} Hz{}; services {}/save, {}/reset\n",
                ros::this_node::getName(), o.sonar_topic, o.nav_topic,
                fc.mount ? "" : ", " + o.tf_topic + " (mounting)", o.rate_hz,
+               o.catalogue.empty() ? ""
+                                   : fmt::format(", /sonar3d/placements every {} s ({})",
+                                                 fc.recognition.period_s, o.catalogue),
                ros::this_node::getName(), ros::this_node::getName());
   }
   ros::AsyncSpinner spinner(2);  // subscriber callbacks and services (a save waits for the worker)
@@ -337,7 +416,8 @@ void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "`sonar3d reconstruct --method carve` with the same settings; publishes /sonar3d/cloud "
       "(sensor_msgs/PointCloud2 x y z intensity, float32, in the navigation's frame), "
       "/sonar3d/elevation (sensor_msgs/Image 32FC1, m) + /sonar3d/elevation_info "
-      "(nav_msgs/MapMetaData) and /sonar3d/diagnostics (diagnostic_msgs/DiagnosticArray); "
+      "(nav_msgs/MapMetaData), /sonar3d/diagnostics (diagnostic_msgs/DiagnosticArray) and, "
+      "with --catalogue, /sonar3d/placements (visualization_msgs/MarkerArray); "
       "services ~save and ~reset (std_srvs/Trigger). Runs until SIGINT/SIGTERM (or --duration), "
       "then prints its statistics as JSON. Needs a ROS master (ROS_MASTER_URI).");
   auto o = std::make_shared<RosCliOptions>();
@@ -401,23 +481,36 @@ void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--save-prefix", o->save_prefix,
                   "the ~save service writes PREFIX.ply (cloud) and PREFIX.tif (elevation "
-                  "GeoTIFF), together; replaces files sonar3d wrote only with --overwrite (or "
+                  "GeoTIFF) and, with --catalogue, PREFIX.placements.json (the last "
+                  "recognition), together; replaces files sonar3d wrote only with --overwrite (or "
                   "this run's earlier save)");
-  add_overwrite_flag(cmd, o->overwrite, "a cloud and GeoTIFF at --save-prefix sonar3d wrote");
+  cmd->add_option("--catalogue", o->catalogue,
+                  "catalogue YAML (as sonar3d recognize reads it): recognise its models in the "
+                  "map every --recognition-period s, off the carving thread, and publish them on "
+                  "/sonar3d/placements (visualization_msgs/MarkerArray, mesh markers); the "
+                  "recognition's settings: the recognize block of --config")
+      ->check(CLI::ExistingFile);
+  add_overwrite_flag(cmd, o->overwrite,
+                     "a cloud, GeoTIFF and placements JSON at --save-prefix sonar3d wrote");
   add_max_memory_option(cmd, o->max_memory_gb);
   cmd->add_option("--duration", o->duration_s, "stop after this long (0 = until a signal), s")
       ->capture_default_str();
   cmd->add_option("--node-name", o->node_name, "ROS node name")->capture_default_str();
-  // The carving settings, from ReconstructConfig's one declaration (recon/reconstruct.hpp), with
-  // --print-config and --config: a file `sonar3d reconstruct --print-config` wrote works here.
-  o->config = std::make_unique<ConfigOptions<ReconstructConfig>>(cmd);
+  // The carving settings, from ReconstructConfig's one declaration (recon/reconstruct.hpp), the
+  // recognition's (recog/recognize.hpp) and its period, with --print-config and --config: a file
+  // `sonar3d reconstruct --print-config` or `sonar3d recognize --print-config` wrote works here.
+  o->config = std::make_unique<ConfigOptions<OnlineNodeConfig>>(cmd);
   cmd->callback([&g, &run, o] {
-    const FlagNames flags = o->config->flag_names();
+    const FlagNames flags = online_node_flag_names(o->config->flag_names());
     run = [&g, o, flags]() -> int {
       return with_flag_names(flags, [&]() -> int {
-        const ReconstructConfig cfg = o->config->resolve("reconstruct");
-        cfg.validate();
-        if (o->config->print_if_requested(cfg, "reconstruct", "ros")) return 0;
+        const OnlineNodeConfig cfg = o->config->resolve();
+        cfg.reconstruct.validate();
+        if (!o->catalogue.empty()) {
+          cfg.recognize.validate();
+          cfg.online_recognition.validate();
+        }
+        if (o->config->print_if_requested(cfg, "", "ros")) return 0;
 #ifdef SONAR3D_HAVE_ROS1
         return run_ros(*o, cfg, g);
 #else

@@ -78,5 +78,6 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_survey(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_relocalize(CLI::App& app, const GlobalOptions& g, Runner& run);
 void add_ros(CLI::App& app, const GlobalOptions& g, Runner& run);
+void add_online(CLI::App& app, const GlobalOptions& g, Runner& run);
 
 }  // namespace sonar3d::cli

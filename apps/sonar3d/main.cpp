@@ -130,6 +130,7 @@ int main(int argc, char** argv) {
   add_survey(app, g, run);
   add_relocalize(app, g, run);
   add_ros(app, g, run);
+  add_online(app, g, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

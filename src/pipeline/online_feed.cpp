@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/output_dir.hpp"
 #include "sonar3d/io/rosbag.hpp"
@@ -57,10 +58,20 @@ void OnlineFeedConfig::validate() const {
   require(!sonar_topic.empty(), "online feed: no sonar topic");
   if (mount) require(mount->matrix().allFinite(), "online feed: the mounting is not finite");
   map.validate();
+  if (!catalogue.empty()) {
+    recognize.validate();
+    recognition.validate();
+  }
 }
 
 struct OnlineFeed::Impl {
   Impl(const OnlineFeedConfig& cfg, OnlineFeedSink& sink) : cfg_(cfg), sink_(sink) {
+    if (!cfg_.catalogue.empty()) {
+      recognizer_ = std::make_unique<OnlineRecognizer>(
+          cfg_.catalogue, cfg_.recognize, cfg_.recognition,
+          [this](const OnlinePlacements& p) { sink_.placements(p); },
+          [this](const std::string& line) { sink_.log(line); }, cfg_.mesh_dir);
+    }
     worker_ = std::thread([this] { run(); });
   }
 
@@ -72,6 +83,8 @@ struct OnlineFeed::Impl {
     cv_.notify_all();
     idle_.notify_all();
     if (worker_.joinable()) worker_.join();
+    // No placements reach the sink after stop().
+    if (recognizer_) recognizer_->wait();
   }
 
   // Called from the subscriber callbacks: cheap (a copy of the bytes), never blocks on carving.
@@ -134,6 +147,8 @@ struct OnlineFeed::Impl {
   std::string save(const std::string& prefix, bool overwrite) {
     if (prefix.empty()) throw Error("no --save-prefix: the node was started without a save path");
     if (!mapper_) throw Error("nothing to save yet: no frame has been carved");
+    const std::optional<OnlinePlacements> found =
+        recognizer_ ? recognizer_->latest() : std::nullopt;
     // Files this run wrote may be replaced by its next save; others only with --overwrite.
     OutputPolicy policy;
     policy.overwrite = overwrite || saved_once_;
@@ -146,12 +161,25 @@ struct OnlineFeed::Impl {
       const auto tif = out.add(prefix + ".tif", OutputKind::GeoTiff, "--save-prefix");
       write_elevation_geotiff(tif.string(), dem);
     }
+    if (found) {
+      const auto json =
+          out.add(prefix + ".placements.json", OutputKind::PlacementsJson, "--save-prefix");
+      write_text_file(json.string(), found->json);
+    }
     out.commit();
     saved_once_ = true;
-    return fmt::format("wrote {} points to {}.ply{}", cloud.size(), prefix,
+    std::string placements;
+    if (found) {
+      placements = fmt::format("; {} placements (recognition of {} frames) to {}.placements.json",
+                               found->placements.size(), found->frames, prefix);
+    } else if (recognizer_) {
+      placements = "; no placements yet (no recognition has finished)";
+    }
+    return fmt::format("wrote {} points to {}.ply{}{}", cloud.size(), prefix,
                        dem.empty() ? " (no elevation map: empty)"
                                    : fmt::format(" and a {}×{} elevation map to {}.tif", dem.cols,
-                                                 dem.rows, prefix));
+                                                 dem.rows, prefix),
+                       placements);
   }
 
   std::string reset() {
@@ -162,7 +190,29 @@ struct OnlineFeed::Impl {
     latency_published_.clear();
     carved_since_publish_.clear();
     last_stamp_ = 0;
+    last_cloud_.reset();
+    if (recognizer_) recognizer_->reset();
     return "map, navigation and map counters cleared";
+  }
+
+  std::string recognize_now() {
+    if (!recognizer_) throw Error("no --catalogue: the feed recognises nothing");
+    if (!mapper_) throw Error("nothing to recognise yet: no frame has been carved");
+    publish();  // the cloud of every frame carved so far (when it changed)
+    const std::string frame = !cfg_.frame_id.empty() ? cfg_.frame_id
+                              : !nav_frame_.empty()  ? nav_frame_
+                                                     : "map";
+    recognizer_->run_now(frames_in_cloud_, last_cloud_, cloud_stamp_, frame);
+    const std::optional<OnlinePlacements> found = recognizer_->latest();
+    if (!found) return "no recognition finished (see the log)";
+    std::string line = fmt::format("{} placements in the map of {} frames ({:.2f} s)",
+                                   found->placements.size(), found->frames, found->seconds);
+    for (const Placement& p : found->placements) {
+      const Eigen::Vector3d t = p.T_world_model.translation();
+      line += fmt::format("; {} at {:.3f} {:.3f} {:.3f} m, confidence {:.2f}", p.model, t.x(),
+                          t.y(), t.z(), p.confidence);
+    }
+    return line;
   }
 
   std::string stats_json() { return stats().dump(); }
@@ -196,6 +246,7 @@ struct OnlineFeed::Impl {
       j["frames_dropped_by_map"] = 0;
       j["map"] = nlohmann::ordered_json::object();
     }
+    if (recognizer_) j["recognition"] = nlohmann::ordered_json::parse(recognizer_->stats_json());
     return j;
   }
 
@@ -424,11 +475,12 @@ struct OnlineFeed::Impl {
   void publish() {
     if (mapper_) {
       const std::size_t used = mapper_->frames_used();
+      const std::string frame = !cfg_.frame_id.empty() ? cfg_.frame_id
+                                : !nav_frame_.empty()  ? nav_frame_
+                                                       : "map";
       if (used != frames_in_cloud_ || clouds_published_ == 0) {
-        const PointCloud cloud = mapper_->cloud();
-        const std::string frame = !cfg_.frame_id.empty() ? cfg_.frame_id
-                                  : !nav_frame_.empty()  ? nav_frame_
-                                                         : "map";
+        auto snapshot = std::make_shared<const PointCloud>(mapper_->cloud());
+        const PointCloud& cloud = *snapshot;
         sink_.cloud(cloud, last_stamp_, frame);
         if (sink_.wants_elevation()) sink_.elevation(mapper_->elevation(), last_stamp_, frame);
         const auto now = Clock::now();
@@ -438,6 +490,15 @@ struct OnlineFeed::Impl {
         frames_in_cloud_ = used;
         cloud_points_ = cloud.size();
         ++clouds_published_;
+        // Kept for the recognition (an immutable snapshot it shares while carving goes on).
+        if (recognizer_) {
+          last_cloud_ = std::move(snapshot);
+          cloud_stamp_ = last_stamp_;
+        }
+      }
+      // Starts a recognition of the last published cloud when its period has come.
+      if (recognizer_) {
+        recognizer_->tick(Clock::now(), frames_in_cloud_, last_cloud_, cloud_stamp_, frame);
       }
     }
     sink_.diagnostics(stats_json());
@@ -471,6 +532,9 @@ struct OnlineFeed::Impl {
   std::size_t clouds_published_ = 0, cloud_points_ = 0, frames_in_cloud_ = 0;
   double last_stamp_ = 0;
   bool saved_once_ = false;
+  std::unique_ptr<OnlineRecognizer> recognizer_;  // with a catalogue
+  std::shared_ptr<const PointCloud> last_cloud_;  // the last published cloud, for recognition
+  double cloud_stamp_ = 0;
 };
 
 OnlineFeed::OnlineFeed(const OnlineFeedConfig& config, OnlineFeedSink& sink) {
@@ -487,6 +551,9 @@ std::string OnlineFeed::save(const std::string& prefix, bool overwrite) {
 }
 std::string OnlineFeed::reset() {
   return impl_->call([&] { return impl_->reset(); });
+}
+std::string OnlineFeed::recognize_now() {
+  return impl_->call([&] { return impl_->recognize_now(); });
 }
 std::string OnlineFeed::stats_json() {
   // Once stopped, the worker is joined: the counters are read here.

@@ -28,6 +28,7 @@
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/mapping/elevation_map.hpp"
 #include "sonar3d/mapping/online.hpp"
+#include "sonar3d/pipeline/online_recognition.hpp"
 
 namespace sonar3d {
 
@@ -42,6 +43,9 @@ struct OnlineFeedSink {
   // The counters (OnlineFeed::stats_json()) once a publishing period.
   virtual void diagnostics(const std::string& stats_json) = 0;
   virtual void log(const std::string& line) = 0;
+  // With a catalogue: each recognition of the map that finished (pipeline/online_recognition.hpp),
+  // in the cloud's frame. Called on the recognizer's thread, not the worker's.
+  virtual void placements(const OnlinePlacements& /*found*/) {}
 };
 
 struct OnlineFeedConfig {
@@ -56,6 +60,13 @@ struct OnlineFeedConfig {
   std::size_t queue = 8;                   // sonar messages waiting for the worker
   double tf_wait_s = 2.0;  // how long frames wait for static transforms before identity, s
   OnlineMapConfig map;
+  // With a catalogue (a file as `sonar3d recognize --catalogue` reads): the map is recognised
+  // every recognition.period_s on a snapshot of the published cloud, on its own thread
+  // (OnlineRecognizer); the sink receives placements(). "" = no recognition.
+  std::string catalogue;
+  RecognizeConfig recognize;
+  OnlineRecognitionConfig recognition;
+  std::string mesh_dir;   // where the models' meshes are written ("" = a temporary directory)
   void validate() const;  // throws Error naming the field
 };
 
@@ -77,12 +88,20 @@ class OnlineFeed {
   // Waits until every message pushed so far has been handled (replays, tests).
   void drain();
 
-  // Saves the cloud (PREFIX.ply) and the elevation map (PREFIX.tif), atomically and together,
-  // under the output rule (files this feed wrote may be replaced by its next save; others only
-  // with `overwrite`); on the worker thread. Returns a line saying what was written.
+  // Saves the cloud (PREFIX.ply), the elevation map (PREFIX.tif) and, with a catalogue, the last
+  // recognition's placements (PREFIX.placements.json, as `sonar3d recognize -o` writes them; none
+  // until one has finished), atomically and together, under the output rule (files this feed wrote
+  // may be replaced by its next save; others only with `overwrite`); on the worker thread. Returns
+  // a line saying what was written.
   std::string save(const std::string& prefix, bool overwrite);
   // Clears the map, the navigation and the map's counters; on the worker thread.
   std::string reset();
+
+  // With a catalogue: publishes the cloud if frames were carved since the last one, then
+  // recognises it now, waiting for a running recognition first and for this one (the end of a
+  // replay: the placements of the complete map); on the worker thread. Returns a line saying
+  // what was found.
+  std::string recognize_now();
 
   // Every counter as one JSON object (received, queued, dropped, bad, latencies, the map's own).
   std::string stats_json();
