@@ -1351,7 +1351,12 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     std::stable_sort(by_count.begin(), by_count.end(),
                      [&](std::size_t a, std::size_t b) { return npts[a] > npts[b]; });
     std::vector<std::size_t> reps;
-    const double dedup = std::max(cfg.dedup_fraction * m.r_model, 1e-6);
+    // With the upright prior, groups are at least the start sites' step (the coarse gate) wide
+    // (recog3dfast): each group's starts reach dedup + T/√2 around its centroid on that step, so
+    // a small model's survivors 0.13 m apart (a 0.26 m hot stab: 1,870 groups on the ordnance
+    // field) were matched from nearly the same starts many times over.
+    const double dedup =
+        std::max({cfg.dedup_fraction * m.r_model, cfg.upright ? cfg.coarse_gate_m : 0.0, 1e-6});
     std::unordered_map<uint64_t, std::vector<std::size_t>> dedup_grid;
     auto cell_of = [&](const Eigen::Vector3d& p) {
       return ((p / dedup).array().floor().cast<int64_t>() + (1 << 20)).eval();
