@@ -63,8 +63,9 @@ struct Recognition3dConfig {
   double ground_cell_m = 0.25;
   double ground_window_m = 2.0;
   double ground_quantile = 0.25;
-  // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model of a
-  // survivor holding more points are not matched (they hold nearly the same points).
+  // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model (with the
+  // upright prior at least coarse_gate_m, the start sites' step) of a survivor holding more
+  // points are not matched (they hold nearly the same points).
   double dedup_fraction = 0.5;
   int starts = 2;                  // ICP starts per subspace (best yaws / rotations)
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
@@ -192,8 +193,8 @@ void describe(Recognition3dConfig& c, V& v) {
       c.ground_quantile,
       param("ground_quantile", "", "seabed quantile where too few cells hold points").range(0, 1));
   v.field(c.dedup_fraction, param("dedup_fraction", "",
-                                  "survivors this close (× r_model) to a fuller one are not "
-                                  "matched")
+                                  "survivors this close (× r_model; upright: at least "
+                                  "coarse_gate_m) to a fuller one are not matched")
                                 .range(0, 10));
   v.field(c.starts, param("starts", "", "ICP starts per subspace").range(1, 100).flag("--starts"));
   v.field(c.coarse_gate_m,
