@@ -494,3 +494,59 @@ TEST(Recog3dPipeline, FindsAPartlyBuriedShellAndRefusesAModelStandingOnAnotherOb
   }
   EXPECT_TRUE(panel_seen) << "the panel on the plinth must be matched and refused\n" << js;
 }
+
+// Coarse to fine over the start sites (recog3dfast): every site scored on coarse_points points
+// first, only the coarse_sites best swept at every yaw. On a shell lying beside a pipe of its own
+// diameter and a riser (both long: a start a site off leaves their ends beyond the gate), the
+// search ends where the exhaustive one (coarse_sites 0) ends: the same placements, within 1 cm
+// and 0.5°, the same rejections counted; and it did prune (fewer sites swept than there are).
+TEST(Recog3dPipeline, CoarseToFineSitesEndWhereTheExhaustiveSearchEnds) {
+  const double r = 0.2, len = 2.0;
+  TriangleMesh shell_mesh = make_cylinder(r, len, 48);
+  shell_mesh.transform(pose(0, 0, r, 0, 0, 90));  // along x, lying on z = 0
+  TriangleMesh fin = make_box(0.05, 0.35, 0.3);
+  fin.transform(pose(-len / 2 + 0.1, 0, r + 0.1, 0));
+  shell_mesh.append(fin);
+  const ModelTemplate shell = mesh_template("shell", shell_mesh);
+  TriangleMesh pipe_mesh = make_cylinder(r, 3.0, 48);
+  pipe_mesh.transform(pose(0, 0, r, 0, 0, 90));
+  const ModelTemplate pipe = mesh_template("pipe", pipe_mesh);
+  const ModelTemplate riser = reference_template("riser");
+  const Eigen::Isometry3d T_shell = pose(-1.1, 1.3, -0.04, 35);
+  const Eigen::Isometry3d T_pipe = pose(0.4, -0.2, -0.1, -20);
+  const Eigen::Isometry3d T_riser = pose(1.5, -1.6, -0.03, 110);
+  const PointCloud cloud =
+      scene_3d({{&shell, T_shell}, {&pipe, T_pipe}, {&riser, T_riser}}, 3.2, 0.004, 17);
+  Recognition3dConfig fine_cfg;
+  fine_cfg.coarse_sites = 0;  // exhaustive
+  Recognition3dConfig coarse_cfg;
+  coarse_cfg.coarse_sites = 4;
+  ASSERT_GT(coarse_cfg.coarse_points, 0u);
+  std::vector<Search3dRecord> s_fine, s_coarse;
+  const RecognitionResult a = recognize_3d(cloud, {shell, riser}, fine_cfg, &s_fine);
+  const RecognitionResult b = recognize_3d(cloud, {shell, riser}, coarse_cfg, &s_coarse);
+  const std::string js = placements_json_3d(b, s_coarse, "", "", coarse_cfg);
+  // The exhaustive search finds both structures (else the comparison says little).
+  ASSERT_EQ(a.placements.size(), 2u) << placements_json_3d(a, s_fine, "", "", fine_cfg);
+  ASSERT_EQ(b.placements.size(), a.placements.size()) << js;
+  for (std::size_t k = 0; k < a.placements.size(); ++k) {
+    const Placement &p = a.placements[k], &q = b.placements[k];
+    SCOPED_TRACE(p.model);
+    EXPECT_EQ(p.model, q.model);
+    EXPECT_LT((p.T_world_model.translation() - q.T_world_model.translation()).norm(), 0.01) << js;
+    const Eigen::AngleAxisd d(p.T_world_model.linear().transpose() * q.T_world_model.linear());
+    EXPECT_LT(std::abs(d.angle()) / kDeg, 0.5) << js;
+  }
+  ASSERT_EQ(s_fine.size(), s_coarse.size());
+  std::size_t pruned = 0;
+  for (std::size_t k = 0; k < s_fine.size(); ++k) {
+    SCOPED_TRACE(s_fine[k].model);
+    EXPECT_EQ(s_fine[k].registered, s_coarse[k].registered);
+    EXPECT_EQ(s_fine[k].accepted, s_coarse[k].accepted);
+    EXPECT_EQ(s_fine[k].sites, s_coarse[k].sites);      // the same sites considered
+    EXPECT_EQ(s_fine[k].sites_swept, s_fine[k].sites);  // exhaustive: every one swept
+    EXPECT_LE(s_coarse[k].sites_swept, s_coarse[k].sites);
+    pruned += s_coarse[k].sites - s_coarse[k].sites_swept;
+  }
+  EXPECT_GT(pruned, 0u) << "the coarse pass must have left sites out\n" << js;
+}

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <nanoflann.hpp>
 
 #include "sonar3d/core/error.hpp"
@@ -55,6 +56,25 @@ std::size_t ModelIndex::nearest(const Eigen::Vector3f& p, float* dist2) const {
   return idx;
 }
 
+bool ModelIndex::nearest_within(const Eigen::Vector3f& p, float max_dist2, std::size_t* index,
+                                float* dist2) const {
+  unsigned idx = 0;
+  float d2 = 0;
+  nanoflann::KNNResultSet<float, unsigned> result(1);
+  result.init(&idx, &d2);
+  // The worst distance kept: just above the bound, so that a sample at exactly the bound is
+  // found (as nearest() followed by d2 <= max_dist2).
+  d2 = std::nextafter(max_dist2, std::numeric_limits<float>::infinity());
+  impl_->tree->findNeighbors(result, p.data(), nanoflann::SearchParams());
+  if (result.size() == 0) {
+    *dist2 = std::numeric_limits<float>::infinity();
+    return false;
+  }
+  if (index) *index = idx;
+  *dist2 = d2;
+  return true;
+}
+
 std::vector<std::size_t> ModelIndex::within(const Eigen::Vector3f& p, float radius) const {
   std::vector<std::pair<unsigned, float>> found;
   impl_->tree->radiusSearch(p.data(), radius * radius, found,
@@ -88,8 +108,10 @@ IcpResult trimmed_icp(const ModelIndex& model, const std::vector<Eigen::Vector3f
   for (int it = 0; it < config.max_iterations; ++it) {
     const Eigen::Isometry3f T_model_world = res.T_world_model.inverse().cast<float>();
     tbb::parallel_for(std::size_t(0), scene.size(), [&](std::size_t i) {
+      // Beyond the gate a match is never used: its branches are not searched (d2 = +inf).
       float d2 = 0;
-      const std::size_t j = model.nearest(T_model_world * scene[i], &d2);
+      std::size_t j = 0;
+      model.nearest_within(T_model_world * scene[i], gate2, &j, &d2);
       matches[i] = {d2, static_cast<int>(i), static_cast<int>(j)};
     });
     // Trimming (Masuda): within the gate, the closest keep_fraction.

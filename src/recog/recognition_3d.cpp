@@ -195,10 +195,13 @@ double trimmed_mean_distance(const ModelIndex& model, const std::vector<V3f>& sc
   if (scene.empty()) return std::numeric_limits<double>::infinity();
   const Eigen::Isometry3f T_mw = T_world_model.inverse().cast<float>();
   std::vector<float> d(scene.size());
+  // Capped: no sample beyond the cap is searched for; the bound a little beyond the cap keeps
+  // every distance exactly as an unbounded search gives it (a farther one is capped anyway).
+  const float capf = static_cast<float>(cap), bound2 = capf * capf * 1.0001f;
   for (std::size_t i = 0; i < scene.size(); ++i) {
     float d2 = 0;
-    model.nearest(T_mw * scene[i], &d2);
-    d[i] = std::min(std::sqrt(d2), static_cast<float>(cap));
+    model.nearest_within(T_mw * scene[i], bound2, nullptr, &d2);
+    d[i] = std::min(std::sqrt(d2), capf);
   }
   const std::size_t keep = std::max<std::size_t>(1, (d.size() * 4) / 5);
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(keep - 1), d.end());
@@ -270,14 +273,17 @@ IcpResult upright_icp(const ModelIndex& model, const std::vector<V3f>& scene,
   };
   std::vector<Pair> pairs;
   const double gate2 = gate * gate;
+  // The largest float not above gate2: a float d2 <= gate2f exactly when d2 <= gate2.
+  float gate2f = static_cast<float>(gate2);
+  if (static_cast<double>(gate2f) > gate2) gate2f = std::nextafter(gate2f, 0.0f);
   for (int it = 0; it < iterations; ++it) {
     const Eigen::Isometry3d& T = out.T_world_model;
     const Eigen::Isometry3f T_mw = T.inverse().cast<float>();
     pairs.clear();
     for (const auto& p : scene) {
       float d2 = 0;
-      const std::size_t i = model.nearest(T_mw * p, &d2);
-      if (d2 > gate2) continue;
+      std::size_t i = 0;
+      if (!model.nearest_within(T_mw * p, gate2f, &i, &d2)) continue;
       pairs.push_back({p.cast<double>(), T * mp[i].cast<double>(),
                        T.linear() * mn[i].cast<double>(), std::sqrt(static_cast<double>(d2))});
     }
@@ -753,6 +759,7 @@ struct Candidate {
   bool verified = false;
   bool matched = false;  // registered (T holds a pose)
   int iterations = 0;
+  std::size_t sites = 0, sites_swept = 0;  // start sites, of which swept at every yaw
 };
 
 // Free-space violation: where the survey saw the surface's top lower than the model's top (by
@@ -820,8 +827,7 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
   std::size_t hit = 0;
   for (const auto& q : m.seen_pts) {
     float d2 = 0;
-    scene_index.nearest(T * q, &d2);
-    hit += d2 <= tol2;
+    hit += scene_index.nearest_within(T * q, tol2, nullptr, &d2);
   }
   c->v.coverage = static_cast<double>(hit) / static_cast<double>(m.seen_pts.size());
   free_space_terms(m, top, c->T, cfg, &c->v);
@@ -838,8 +844,7 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
     if (std::isfinite(g) && scene[i].z() < g + cfg.unexplained_height_m) continue;
     ++inside;
     float d2 = 0;
-    m.index->nearest(q, &d2);
-    unexplained += d2 > tol2;
+    unexplained += !m.index->nearest_within(q, tol2, nullptr, &d2);
   }
   c->v.unexplained = inside ? static_cast<double>(unexplained) / static_cast<double>(inside) : 0.0;
 }
@@ -945,14 +950,32 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
       double score;
       std::size_t site;
     };
-    std::vector<Start> starts;
-    std::vector<std::vector<V3f>> sites;
+    // A start site: its centre, its heights, the points scoring its starts (sweep) and those
+    // refining them (pts).
+    struct Site {
+      Eigen::Vector2d o;
+      std::vector<double> heights;
+      std::vector<V3f> sweep, pts;
+    };
+    std::vector<Site> sites;
     const std::vector<double> yaws = yaw_range(m.t->symmetry, cfg.yaw_step_deg * kDeg);
     // Starts are scored both ways (trimmed, capped at the coarse gate): the scene's points to the
     // model, and the model's samples a survey from above sees to the scene. One way alone cannot
     // tell a cylinder slid along its axis (its ends are in the trimmed 20 %): a 35 %-buried mk46
     // across a pipeline was refined only 0.9 m along its axis (ordnance field).
     const std::vector<V3f> seen_sweep = thin(m.seen_pts, cfg.sweep_points);
+    auto start_pose = [&](const Site& s, double h, double yaw) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translate(Eigen::Vector3d(s.o.x(), s.o.y(), h));
+      T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
+      T.translate(Eigen::Vector3d(-m.centroid.x(), -m.centroid.y(), 0));
+      return T;
+    };
+    auto start_score = [&](const std::vector<V3f>& sweep, const std::vector<V3f>& seen,
+                           const Eigen::Isometry3d& T) {
+      return 0.5 * (trimmed_mean_distance(*m.index, sweep, T, cfg.coarse_gate_m) +
+                    trimmed_mean_distance(scene_index, seen, T.inverse(), cfg.coarse_gate_m));
+    };
     for (int ix = -n_off; ix <= n_off; ++ix) {
       for (int iy = -n_off; iy <= n_off; ++iy) {
         if (std::hypot(ix * step, iy * step) > extent + 1e-9) continue;
@@ -968,7 +991,9 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
         const double g = ground.at(o.x(), o.y());
         const bool on_seabed = cfg.seabed_clearance_m > 0 && std::isfinite(g);
         const double tz = on_seabed ? g - m.t->base_z : cs.z() - m.centroid.z();
-        std::vector<double> heights{tz};
+        Site s;
+        s.o = o;
+        s.heights = {tz};
         if (on_seabed) {
           double top = -std::numeric_limits<double>::infinity();
           for (const auto& p : local) {
@@ -978,24 +1003,49 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
           }
           const double tz_top = top - m.t->top_z;
           if (tz_top < tz - cfg.voxel_m && tz_top >= tz - cfg.max_buried_fraction * m.t->height()) {
-            heights.push_back(tz_top);
+            s.heights.push_back(tz_top);
           }
         }
-        const std::vector<V3f> sweep = thin(local, cfg.sweep_points);
-        for (double h : heights) {
-          for (double yaw : yaws) {
-            Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-            T.translate(Eigen::Vector3d(o.x(), o.y(), h));
-            T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
-            T.translate(Eigen::Vector3d(-m.centroid.x(), -m.centroid.y(), 0));
-            starts.push_back({T,
-                              0.5 * (trimmed_mean_distance(*m.index, sweep, T, cfg.coarse_gate_m) +
-                                     trimmed_mean_distance(scene_index, seen_sweep, T.inverse(),
-                                                           cfg.coarse_gate_m)),
-                              sites.size()});
+        s.sweep = thin(local, cfg.sweep_points);
+        s.pts = thin(local, cfg.max_points);
+        sites.push_back(std::move(s));
+      }
+    }
+    // Coarse to fine (beyond the thesis; docs/recognition.md "After, recog3dfast"): with more
+    // than coarse_sites sites, every site is first scored on coarse_points of its points and of
+    // the model's seen samples (all heights, every coarse_yaw_stride-th yaw), and only the
+    // coarse_sites best are swept in full. The sites 0.4 m apart around a structure score far
+    // apart (a start a grid step off leaves the model's ends beyond the gate), so the sites the
+    // full sweep would pick rank among the coarse best; 0 sweeps every site (the exhaustive
+    // search).
+    std::vector<std::size_t> swept(sites.size());
+    std::iota(swept.begin(), swept.end(), std::size_t(0));
+    if (cfg.coarse_sites > 0 && sites.size() > cfg.coarse_sites) {
+      const std::vector<V3f> seen_coarse = thin(m.seen_pts, cfg.coarse_points);
+      std::vector<double> coarse(sites.size(), std::numeric_limits<double>::infinity());
+      for (std::size_t k = 0; k < sites.size(); ++k) {
+        const std::vector<V3f> sweep = thin(sites[k].sweep, cfg.coarse_points);
+        for (double h : sites[k].heights) {
+          for (std::size_t y = 0; y < yaws.size(); y += cfg.coarse_yaw_stride) {
+            coarse[k] = std::min(coarse[k],
+                                 start_score(sweep, seen_coarse, start_pose(sites[k], h, yaws[y])));
           }
         }
-        sites.push_back(thin(local, cfg.max_points));
+      }
+      std::stable_sort(swept.begin(), swept.end(),
+                       [&](std::size_t a, std::size_t b) { return coarse[a] < coarse[b]; });
+      swept.resize(cfg.coarse_sites);
+      std::sort(swept.begin(), swept.end());  // the exhaustive search's order
+    }
+    c.sites = sites.size();
+    c.sites_swept = swept.size();
+    std::vector<Start> starts;
+    for (std::size_t k : swept) {
+      for (double h : sites[k].heights) {
+        for (double yaw : yaws) {
+          const Eigen::Isometry3d T = start_pose(sites[k], h, yaw);
+          starts.push_back({T, start_score(sites[k].sweep, seen_sweep, T), k});
+        }
       }
     }
     if (starts.empty()) {
@@ -1020,7 +1070,7 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
       if (tried[starts[k].site]) continue;
       tried[starts[k].site] = 1;
       ++refined;
-      const std::vector<V3f>& pts = sites[starts[k].site];
+      const std::vector<V3f>& pts = sites[starts[k].site].pts;
       try {
         BaseBounds bounds;
         if (cfg.seabed_clearance_m > 0) {
@@ -1056,7 +1106,7 @@ Candidate match_subspace(const Model3d& m, const ModelIndex& scene_index,
       c.v.tilt_deg = tilt_deg(c.T);
       return c;
     }
-    judge(m, scene_index, scene, top, ground, sites[best_site], cfg, &c);
+    judge(m, scene_index, scene, top, ground, sites[best_site].pts, cfg, &c);
   }
   c.failed = "";
   if (c.v.residual_median_m <= cfg.max_residual_median_m) {
@@ -1301,7 +1351,12 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
     std::stable_sort(by_count.begin(), by_count.end(),
                      [&](std::size_t a, std::size_t b) { return npts[a] > npts[b]; });
     std::vector<std::size_t> reps;
-    const double dedup = std::max(cfg.dedup_fraction * m.r_model, 1e-6);
+    // With the upright prior, groups are at least the start sites' step (the coarse gate) wide
+    // (recog3dfast): each group's starts reach dedup + T/√2 around its centroid on that step, so
+    // a small model's survivors 0.13 m apart (a 0.26 m hot stab: 1,870 groups on the ordnance
+    // field) were matched from nearly the same starts many times over.
+    const double dedup =
+        std::max({cfg.dedup_fraction * m.r_model, cfg.upright ? cfg.coarse_gate_m : 0.0, 1e-6});
     std::unordered_map<uint64_t, std::vector<std::size_t>> dedup_grid;
     auto cell_of = [&](const Eigen::Vector3d& p) {
       return ((p / dedup).array().floor().cast<int64_t>() + (1 << 20)).eval();
@@ -1363,6 +1418,10 @@ RecognitionResult recognize_3d(const PointCloud& scene_world,
       }
     }
     rec.passed = passed.size();
+    for (const Candidate& c : cands) {
+      rec.sites += c.sites;
+      rec.sites_swept += c.sites_swept;
+    }
     auto record_rejected = [&](const Candidate& c, const std::string& reason) {
       Candidate3dRecord r;
       r.T_world_model = c.T;
@@ -1541,7 +1600,10 @@ std::string placements_json_3d(const RecognitionResult& result,
                    {"max_lift_m", config.max_lift_m},
                    {"max_overlap", config.max_overlap},
                    {"min_net_explained", config.min_net_explained},
-                   {"max_subspaces", config.max_subspaces}};
+                   {"max_subspaces", config.max_subspaces},
+                   {"coarse_sites", config.coarse_sites},
+                   {"coarse_points", config.coarse_points},
+                   {"coarse_yaw_stride", config.coarse_yaw_stride}};
   auto terms_json = [](const Verification3d& v) {
     auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); };
     return nlohmann::json{{"residual_median_m", num(v.residual_median_m)},
@@ -1578,6 +1640,8 @@ std::string placements_json_3d(const RecognitionResult& result,
                     {"kept", s.kept},
                     {"failed", failed},
                     {"registered", s.registered},
+                    {"sites", s.sites},
+                    {"sites_swept", s.sites_swept},
                     {"passed", s.passed},
                     {"suppressed", s.suppressed},
                     {"accepted", s.accepted},

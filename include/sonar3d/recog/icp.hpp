@@ -54,6 +54,11 @@ class ModelIndex {
   ModelIndex& operator=(const ModelIndex&) = delete;
   // Nearest sample to p (model frame): its index and squared distance.
   std::size_t nearest(const Eigen::Vector3f& p, float* dist2) const;
+  // The nearest sample to p when it lies within sqrt(max_dist2) of p (its index, *dist2 its
+  // squared distance, as nearest() gives), else false and *dist2 = +inf. Branches beyond the
+  // bound are not searched: a far query costs a descent, not a search.
+  bool nearest_within(const Eigen::Vector3f& p, float max_dist2, std::size_t* index,
+                      float* dist2) const;
   // Indices of the samples within `radius` of p (unsorted).
   std::vector<std::size_t> within(const Eigen::Vector3f& p, float radius) const;
   const std::vector<Eigen::Vector3f>& points() const;

@@ -63,14 +63,22 @@ struct Recognition3dConfig {
   double ground_cell_m = 0.25;
   double ground_window_m = 2.0;
   double ground_quantile = 0.25;
-  // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model of a
-  // survivor holding more points are not matched (they hold nearly the same points).
+  // Matching. Survivors whose points' centroids lie within dedup_fraction · r_model (with the
+  // upright prior at least coarse_gate_m, the start sites' step) of a survivor holding more
+  // points are not matched (they hold nearly the same points).
   double dedup_fraction = 0.5;
   int starts = 2;                  // ICP starts per subspace (best yaws / rotations)
   double coarse_gate_m = 0.4;      // first ICP pass: correspondences within this, m
   int coarse_iterations = 15;      // first ICP pass iterations
   std::size_t max_points = 1500;   // scene points per subspace used in the matching
   std::size_t sweep_points = 300;  // scene points scoring each yaw-sweep start (upright)
+  // Coarse to fine over the start sites (upright): when a survivor has more than coarse_sites
+  // start sites, each is first scored on coarse_points points (every coarse_yaw_stride-th yaw)
+  // and only the coarse_sites best are swept at every yaw on sweep_points; 0 sweeps every site
+  // (the exhaustive search).
+  std::size_t coarse_sites = 8;
+  std::size_t coarse_points = 75;
+  std::size_t coarse_yaw_stride = 1;
   double max_start_score_m = 0.2;  // early rejection: a start whose trimmed mean distance (or
                                    // 0.1·r_model when larger: see match_subspace)
                                    // exceeds this is not refined, m
@@ -185,8 +193,8 @@ void describe(Recognition3dConfig& c, V& v) {
       c.ground_quantile,
       param("ground_quantile", "", "seabed quantile where too few cells hold points").range(0, 1));
   v.field(c.dedup_fraction, param("dedup_fraction", "",
-                                  "survivors this close (× r_model) to a fuller one are not "
-                                  "matched")
+                                  "survivors this close (× r_model; upright: at least "
+                                  "coarse_gate_m) to a fuller one are not matched")
                                 .range(0, 10));
   v.field(c.starts, param("starts", "", "ICP starts per subspace").range(1, 100).flag("--starts"));
   v.field(c.coarse_gate_m,
@@ -197,6 +205,15 @@ void describe(Recognition3dConfig& c, V& v) {
           param("max_points", "", "scene points per subspace used in the matching").at_least(10));
   v.field(c.sweep_points,
           param("sweep_points", "", "scene points scoring each yaw-sweep start").at_least(10));
+  v.field(c.coarse_sites, param("coarse_sites", "",
+                                "start sites swept in full after a coarse scoring of all (0: "
+                                "every site, exhaustive)")
+                              .range(0, 100000)
+                              .flag("--coarse-sites"));
+  v.field(c.coarse_points,
+          param("coarse_points", "", "points scoring each start in the coarse pass").at_least(10));
+  v.field(c.coarse_yaw_stride,
+          param("coarse_yaw_stride", "", "the coarse pass scores every this-th yaw").range(1, 360));
   v.field(c.max_start_score_m,
           param("max_start_score_m", "m", "a start scoring worse is not refined").positive());
   v.group("icp", c.icp);
@@ -322,9 +339,11 @@ struct Search3dRecord {
   std::size_t subspaces = 0;                // centres with at least one point within r_subspace
   std::size_t kept = 0;                     // passed eq. 6.4-6.7
   std::size_t failed[5] = {0, 0, 0, 0, 0};  // per SubspaceTest (index 0 unused)
-  std::size_t registered = 0;  // survivors matched (one per group with nearly the same points)
-  std::size_t passed = 0;      // survivors whose match passed the residual and coverage
-  std::size_t suppressed = 0;  // passed but overlapping a better placement
+  std::size_t registered = 0;   // survivors matched (one per group with nearly the same points)
+  std::size_t sites = 0;        // start sites of the matched survivors (upright)
+  std::size_t sites_swept = 0;  // of which swept at every yaw (coarse to fine: coarse_sites each)
+  std::size_t passed = 0;       // survivors whose match passed the residual and coverage
+  std::size_t suppressed = 0;   // passed but overlapping a better placement
   std::size_t accepted = 0;
   // Why nothing (more) was accepted: the matched survivor that came nearest to passing (highest
   // confidence, else highest coverage) with the test it failed, or, when no survivor was matched,
