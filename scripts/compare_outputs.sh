@@ -46,12 +46,21 @@ diff)
 import csv, io, json, os, re, sys
 
 a_root, b_root = sys.argv[1], sys.argv[2]
-# Keys whose values are measurements of the run, not results: times, memory, threads, dates,
-# and the paths of the scratch directory the run used.
-VOLATILE = re.compile(
-    r"(^|_)(seconds|s|ms|time|times|timing|timings|elapsed|wall|cpu|peak|rss|memory|mb|gb|"
-    r"threads|date|created|generated|version|host)(_|$)|^seconds_|_seconds$|_ms$|per_frame|duration",
+# Keys whose values are measurements of the run, not results: durations, memory, threads, dates,
+# and the paths of the scratch directory the run used. Timestamps of the data (`time_s`,
+# `t_mid_s`, `time_reference_s`), rates (`rate_m_per_s`) and settings (`period_s`) are results:
+# a key ending in `_s` is a duration only when it names a step of the run (DURATION_S).
+DURATION_S = {"runtime_s", "simulate_s", "reconstruct_s"}
+VOLATILE_WORDS = re.compile(
+    r"(^|_)(seconds|ms|timing|timings|elapsed|wall|cpu|peak|rss|memory|mb|gb|"
+    r"threads|date|created|generated|version|host)(_|$)|_ms$|per_frame|duration",
     re.I)
+
+class _Volatile:
+    def search(self, key):
+        return key in DURATION_S or VOLATILE_WORDS.search(key)
+
+VOLATILE = _Volatile()
 
 def files(root):
     out = set()
