@@ -77,8 +77,14 @@ data() {  # field: simulate + map, each once
   # subsea_kit by up to 14 cm although the navigation was exact).
   if ! grep -q '^navigation_error' "$WORK/$f.yaml" && [ ! -f "$WORK/$f.ply" ]; then
     echo "== $f: reconstruct" >&2
+    # The carving's whole configuration is written once into WORK and every cloud is carved
+    # from it: the clouds keep the settings they were made with when reconstruct's defaults
+    # change (issue 29 turned the ghost filters on; the 3D figures moved with it,
+    # docs/recognition.md "After, recog3dfast").
+    [ -f "$WORK/reconstruct.yaml" ] ||
+      "$S3D" reconstruct --print-config --voxel-size 0.02 > "$WORK/reconstruct.yaml"
     $T -o "$WORK/$RUNS/$f.reconstruct.time.txt" nice -n 5 "$S3D" reconstruct "$WORK/$f.ds" \
-      -o "$WORK/$f.ply" --voxel-size 0.02 -q > /dev/null
+      -o "$WORK/$f.ply" --config "$WORK/reconstruct.yaml" -q > /dev/null
   fi
   # What recognition reads: cut 0.5 m inside the seabed mesh's edge (the finite seabed ends in a
   # drop that no real seabed has; the 2D method placed BOP panels along it).
