@@ -205,9 +205,21 @@ void finish_point(const fs::path& dir, std::size_t index, int wstatus, const rus
   write_text_file(file.string(), st->dump(2) + "\n");
 }
 
-}  // namespace
+// A point's parameters satisfy every hard constraint of the sweep.
+bool within_constraints(const Sweep& sweep, const std::map<std::string, SweepValue>& params) {
+  for (const auto& c : sweep.constraints) {
+    if (!c.satisfied_by(params)) return false;
+  }
+  return true;
+}
 
-namespace {
+// Workers that run `points` points together: the sweep's, else one per core, at most one per
+// point.
+int sweep_workers(const Sweep& sweep, std::size_t points) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
+                                   static_cast<int>(std::max<std::size_t>(1, points))));
+}
 
 // Refuses the sweep, before any point runs, when its largest point's reconstruction (estimated
 // from the point's simulated poses and its voxel, core/memory.hpp) times the workers that run
@@ -220,15 +232,9 @@ void check_sweep_memory(const Sweep& sweep, const PlanOptions& opt) {
   std::vector<std::size_t> todo;
   for (std::size_t i = 0; i < sweep.size(); ++i) {
     if (static_cast<int>(i % opt.mpi_size) != opt.mpi_rank) continue;
-    const auto params = sweep.point(i);
-    bool violates = false;
-    for (const auto& c : sweep.constraints) violates |= !c.satisfied_by(params);
-    if (!violates) todo.push_back(i);
+    if (within_constraints(sweep, sweep.point(i))) todo.push_back(i);
   }
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const int workers =
-      std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
-                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
+  const int workers = sweep_workers(sweep, todo.size());
   const fs::path dir = sweep.source.empty() ? opt.out_dir : fs::path(sweep.source).parent_path();
   MemoryEstimate largest;
   std::size_t which = 0;
@@ -279,9 +285,7 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     const auto params = sweep.point(i);
     const std::string key = plan_params_key(params);
     const fs::path status = opt.out_dir / "points" / point_id(i) / "status.json";
-    bool violates = false;
-    for (const auto& c : sweep.constraints) violates |= !c.satisfied_by(params);
-    if (violates) {
+    if (!within_constraints(sweep, params)) {
       nlohmann::json j = {{"id", point_id(i)},
                           {"index", i},
                           {"params_key", key},
@@ -301,9 +305,7 @@ PlanSummary run_sweep(const Sweep& sweep, const PlanOptions& opt) {
     todo.push_back(i);
   }
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const int workers =
-      std::max(1, std::min<int>(sweep.workers > 0 ? sweep.workers : cores,
-                                static_cast<int>(std::max<std::size_t>(1, todo.size()))));
+  const int workers = sweep_workers(sweep, todo.size());
   const int threads = std::max(1, cores / workers);
   Progress bar("plan", todo.size(), opt.progress);
   std::map<pid_t, std::size_t> running;
