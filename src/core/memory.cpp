@@ -27,6 +27,12 @@ double MemoryEstimate::total() const {
   return t;
 }
 
+std::string grid_part(const std::string& what, double cells, double cell_m) {
+  char s[64];
+  std::snprintf(s, sizeof s, ": %.3g cells of %.3g m", cells, cell_m);
+  return what + s;
+}
+
 std::string format_bytes(double bytes) {
   char buf[64];
   if (!std::isfinite(bytes)) return "an unbounded amount";

@@ -1,7 +1,5 @@
 #include "sonar3d/recog/recognize.hpp"
 
-#include <cstdio>
-
 #include "sonar3d/core/atomic_file.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/io/mesh_io.hpp"
@@ -59,12 +57,6 @@ double map_cells(const PointCloud& scene_world, double cell_m) {
   return estimate_elevation_memory(scene_world, mc, {}, false, "").total() / sizeof(float);
 }
 
-std::string grid_what(const char* what, double cells, double cell_m) {
-  char s[200];
-  std::snprintf(s, sizeof s, "%s: %.3g cells of %.3g m", what, cells, cell_m);
-  return s;
-}
-
 }  // namespace
 
 MemoryEstimate estimate_recognition_memory(const PointCloud& scene_world, std::size_t models,
@@ -77,11 +69,11 @@ MemoryEstimate estimate_recognition_memory(const PointCloud& scene_world, std::s
     // recognize_3d: the fine map of the verification and its removal mask (float + byte a cell).
     const double fine = map_cells(scene_world, c.map_cell_m);
     e.add(
-        grid_what("3D method: verification elevation map and its removal mask", fine, c.map_cell_m),
+        grid_part("3D method: verification elevation map and its removal mask", fine, c.map_cell_m),
         fine * (sizeof(float) + 1), "three_d.map_cell_m (--config)");
     // The top map of what the survey saw (make_top_map: a float a cell at voxel_m).
     const double top = map_cells(scene_world, c.voxel_m);
-    e.add(grid_what("3D method: top map of the observed surface", top, c.voxel_m),
+    e.add(grid_part("3D method: top map of the observed surface", top, c.voxel_m),
           top * sizeof(float), "--subsample");
     // The scene's working copies: all points (12 B), those above the seabed and subsampled, with
     // normals in the search index (12 + 12 B and the index's ~8 B a point): at most the cloud.
@@ -95,7 +87,7 @@ MemoryEstimate estimate_recognition_memory(const PointCloud& scene_world, std::s
   // recognize_2d: the fine map (registration, support), its live copy, its levelled copy
   // (floats) and its removal mask (a byte).
   const double fine = map_cells(scene_world, c.map_cell_m);
-  e.add(grid_what("2D method: fine elevation maps (the map, its live and levelled copies, the "
+  e.add(grid_part("2D method: fine elevation maps (the map, its live and levelled copies, the "
                   "removal mask)",
                   fine, c.map_cell_m),
         fine * (3 * sizeof(float) + 1), "--map-cell");
@@ -103,7 +95,7 @@ MemoryEstimate estimate_recognition_memory(const PointCloud& scene_world, std::s
   // (4 B each), its removal mask and one exclusion mask per model (a byte each), the point grid's
   // cell starts (8 B, twice while it is built).
   const double coarse = map_cells(scene_world, c.recog_cell_m);
-  e.add(grid_what("2D method: coarse maps (copies, relief, labels, masks, point grid)", coarse,
+  e.add(grid_part("2D method: coarse maps (copies, relief, labels, masks, point grid)", coarse,
                   c.recog_cell_m),
         coarse * (5 * 4.0 + 1 + static_cast<double>(models) + 16), "--recog-cell");
   // The point grid: a cell number (8 B) while it is built, an index (4 B) a point.

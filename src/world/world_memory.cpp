@@ -4,7 +4,6 @@
 // to change instead of ending in std::bad_alloc.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 
 #include "sonar3d/world/change.hpp"
@@ -31,12 +30,6 @@ double extent_cells(const std::vector<const PointCloud*>& clouds, double cell_m)
   return (std::floor((x1 - x0) / cell_m) + 2) * (std::floor((y1 - y0) / cell_m) + 2);
 }
 
-std::string grid_what(const std::string& what, double cells, double cell_m) {
-  char s[240];
-  std::snprintf(s, sizeof s, "%s: %.3g cells of %.3g m", what.c_str(), cells, cell_m);
-  return s;
-}
-
 }  // namespace
 
 MemoryEstimate estimate_world_model_memory(const PointCloud& cloud_world,
@@ -51,7 +44,7 @@ MemoryEstimate estimate_world_model_memory(const PointCloud& cloud_world,
     // triangles (24 B), the vertex colour and its count when the cloud is coloured (16 B), and
     // the copies the PLY and glTF writers make of the vertices and triangles (36 B).
     const double per_cell = 4 + 1 + 12 + 24 + (colours ? 16 : 0) + 36;
-    e.add(grid_what("seabed level of detail " + std::to_string(k) + " (heights, mesh, writers)",
+    e.add(grid_part("seabed level of detail " + std::to_string(k) + " (heights, mesh, writers)",
                     cells, c),
           cells * per_cell, "--lod-cells");
   }
@@ -71,21 +64,21 @@ MemoryEstimate estimate_change_memory(const PointCloud& a_world, const PointClou
   // cost buffers (as much again): over both clouds' extent, which holds B's turned map too.
   const auto& r = config.registration;
   const double yaw_cells = extent_cells({&a_world, &b_world}, r.yaw_cell_m);
-  e.add(grid_what("registration maps of the yaw search", yaw_cells, r.yaw_cell_m),
+  e.add(grid_part("registration maps of the yaw search", yaw_cells, r.yaw_cell_m),
         yaw_cells * 4 * 4.0, "--yaw-cell");
   const double reg_cells = extent_cells({&a_world, &b_world}, r.cell_m);
-  e.add(grid_what("registration maps of the final shift search", reg_cells, r.cell_m),
+  e.add(grid_part("registration maps of the final shift search", reg_cells, r.cell_m),
         reg_cells * 4 * 4.0, "--registration-cell");
   // The height change map: A's and B's heights, their 3x3 ranges, the difference (4 B each), the
   // significance mask (1 B) and region labels (4 B).
   const double change_cells = extent_cells({&a_world, &b_world}, config.cell_m);
-  e.add(grid_what("height change map (heights, ranges, differences, labels)", change_cells,
+  e.add(grid_part("height change map (heights, ranges, differences, labels)", change_cells,
                   config.cell_m),
         change_cells * (5 * 4.0 + 1 + 4), "--cell");
   if (colour) {
     // Colour sums (3 doubles) and counts (4 B) per survey, the compared colours and labels.
     const double cc = extent_cells({&a_world, &b_world}, config.colour.cell_m);
-    e.add(grid_what("colour change maps", cc, config.colour.cell_m), cc * (2 * 28.0 + 16),
+    e.add(grid_part("colour change maps", cc, config.colour.cell_m), cc * (2 * 28.0 + 16),
           "--colour-cell");
   }
   e.add("survey B moved into A's frame, and both surveys' working copies",

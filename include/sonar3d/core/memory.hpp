@@ -34,6 +34,9 @@ struct MemoryEstimate {
 // "512 MB", "27.4 GB" (decimal units, as --max-memory).
 std::string format_bytes(double bytes);
 
+// A grid's part of an estimate: "<what>: 1.6e+11 cells of 5e-05 m".
+std::string grid_part(const std::string& what, double cells, double cell_m);
+
 // Physical memory of the machine in bytes (Linux: MemTotal of /proc/meminfo), 0 when unknown.
 std::size_t physical_memory_bytes();
 
