@@ -20,6 +20,7 @@
 #include "sonar3d/core/trajectory.hpp"
 #include "sonar3d/io/dataset.hpp"
 #include "sonar3d/recon/carve.hpp"
+#include "sonar3d/world/change.hpp"
 #include "sonar3d/world/relocalize.hpp"
 #include "sonar3d/world/world_model.hpp"
 #include "test_support.hpp"
@@ -144,6 +145,53 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
   ASSERT_TRUE(s["sigma_horizontal_m"].is_number());
   EXPECT_GT(s["sigma_horizontal_m"].get<double>(), 0.0);
   EXPECT_LT(s["sigma_horizontal_m"].get<double>(), 0.05);
+
+  // The coarse-to-fine yaw search (yaw_refine_best: every yaw scored at whole-cell shifts, the
+  // best few searched sub-cell) ends where the exhaustive one (every yaw searched sub-cell) ends,
+  // for relocalize's search (±5° every 0.25°, ±1 m) and its refinement from that solution
+  // (±0.5° every 0.05°, ±0.2 m): the same yaw within one step, the same shift within one cell.
+  {
+    const sonar3d::Dataset ds = sonar3d::read_dataset(dir / "b");
+    sonar3d::CarveConfig cc;
+    cc.voxel_size = 0.05;
+    sonar3d::Carver carver(ds.spec, cc, ds.noise);
+    for (std::size_t i = 0; i < ds.size(); ++i) {
+      carver.integrate(ds.load_frame(i), ds.T_world_sonar(i));
+    }
+    const sonar3d::PointCloud swath = carver.finalize();
+    sonar3d::ChangeRegistrationConfig coarse = sonar3d::RelocalizeConfig{}.registration;
+    ASSERT_GT(coarse.yaw_refine_best, 0);  // relocalize's default is the coarse-to-fine search
+    sonar3d::ChangeRegistrationConfig fine = coarse;
+    fine.search_m = 2 * coarse.cell_m;
+    fine.yaw_cell_m = coarse.cell_m;
+    fine.yaw_search_deg = 2 * coarse.yaw_step_deg;
+    fine.yaw_step_deg = 0.2 * coarse.yaw_step_deg;
+    sonar3d::PointCloud moved;
+    double yaw_total = 0;
+    for (sonar3d::ChangeRegistrationConfig* c : {&coarse, &fine}) {
+      const sonar3d::PointCloud& b = c == &coarse ? swath : moved;
+      sonar3d::ChangeRegistrationConfig exhaustive = *c;
+      exhaustive.yaw_refine_best = 0;
+      const sonar3d::ChangeRegistration fast = sonar3d::register_surveys(w.cloud, b, *c);
+      const sonar3d::ChangeRegistration full = sonar3d::register_surveys(w.cloud, b, exhaustive);
+      EXPECT_LE(std::abs(fast.yaw_deg - full.yaw_deg), c->yaw_step_deg + 1e-9)
+          << fast.yaw_deg << " vs " << full.yaw_deg;
+      EXPECT_LE((fast.T_a_b.translation() - full.T_a_b.translation()).head<2>().norm(), c->cell_m)
+          << fast.T_a_b.translation().transpose() << " vs " << full.T_a_b.translation().transpose();
+      std::cout << "yaw search ±" << c->yaw_search_deg << " deg: coarse-to-fine " << fast.yaw_deg
+                << " deg, " << fast.seconds << " s; exhaustive " << full.yaw_deg << " deg, "
+                << full.seconds << " s\n";
+      yaw_total += full.yaw_deg;
+      if (c == &coarse) {
+        moved.points.reserve(swath.size());
+        for (const auto& p : swath.points) {
+          moved.points.push_back((full.T_a_b * p.cast<double>()).cast<float>());
+        }
+      }
+    }
+    // The logged line was turned by 3°: search and refinement together find it within 0.3°.
+    EXPECT_NEAR(yaw_total, -3.0, 0.3);
+  }
 
   // Survey A itself, five lines and their turns, against its own model: every swath found, the
   // navigation (exact) left within 3 cm, the turns' poses too (blended between swaths).

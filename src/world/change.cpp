@@ -274,9 +274,12 @@ struct Trial {
 // B turned by `yaw` about the pivot, moved by `prior`, then registered onto `a` by sec. 6.2.2.1's
 // search (eq. 6.1–6.2) within ±search; scored by the mean |A − B| over the inlier fraction.
 // `last_error`: why the last failed trial failed.
+// `subcell`: the shift searched within ±½ cell too where the maps are at cell_m (false: whole
+// cells only, a yaw scan's score).
 Trial shift_trial(const ElevationMap& a, const PointCloud& b, const Eigen::Vector3d& pivot,
                   double yaw, const Eigen::Vector3d& prior, double search,
-                  const ChangeRegistrationConfig& config, std::string& last_error) {
+                  const ChangeRegistrationConfig& config, std::string& last_error,
+                  bool subcell = true) {
   Trial tr;
   tr.yaw = yaw;
   Eigen::Isometry3d T = turn_about(pivot, yaw);
@@ -293,7 +296,7 @@ Trial shift_trial(const ElevationMap& a, const PointCloud& b, const Eigen::Vecto
   sw.num_threads = config.num_threads;
   // Sub-cell at cell_m only: at 25 cm it changed the field's yaw winner for the worse (the
   // fine stage refines the shift); on small sites the yaw cell is cell_m.
-  sw.subcell = a.cell_m <= config.cell_m;
+  sw.subcell = subcell && a.cell_m <= config.cell_m;
   try {
     const SwathTie tie = register_elevation_maps(a, bm, sw);
     tr.t = prior + tie.t;
@@ -412,6 +415,55 @@ HeightFit refine_heights(const PointCloud& a_world, const PointCloud& b_world,
   return fit;
 }
 
+// Stage 1, the yaw search: every yaw of ±yaw_search_deg every yaw_step_deg, B turned about the
+// pivot and registered onto A by sec. 6.2.2.1's search over the whole ±search_m (eq. 6.1–6.2),
+// scored by registered_cost; the lowest wins. Beyond the thesis, a coarse-to-fine yaw search
+// (yaw_refine_best = K > 0, maps at cell_m): every yaw is scored first with the shift at whole
+// cells only, then the K best are searched again from their shift (±1 cell, then sub-cell) — the
+// sub-cell search (121 bilinear evaluations of eq. 6.1–6.2 per yaw) costs more than the whole
+// window's search at cells. K = 0, or K not below the number of yaws: every yaw in full.
+Trial yaw_search(const YawSearchMaps& maps, const Eigen::Vector3d& pivot,
+                 const ChangeRegistrationConfig& config, std::string& last_error) {
+  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
+  const int yaws = 2 * n + 1;
+  const bool subcell = maps.a_coarse.cell_m <= config.cell_m;
+  const bool two_pass = subcell && config.yaw_refine_best > 0 && config.yaw_refine_best < yaws;
+  std::vector<Trial> trials;
+  trials.reserve(static_cast<std::size_t>(yaws));
+  for (int k = -n; k <= n; ++k) {
+    trials.push_back(shift_trial(maps.a_coarse, maps.b_thin, pivot, k * config.yaw_step_deg * kDeg,
+                                 Eigen::Vector3d::Zero(), config.search_m, config, last_error,
+                                 !two_pass));
+  }
+  if (two_pass) {
+    // The K best of the scan (ties: the first in the window's order, as the exhaustive search's
+    // strict minimum takes them).
+    std::vector<int> order(static_cast<std::size_t>(yaws));
+    for (int i = 0; i < yaws; ++i) order[static_cast<std::size_t>(i)] = i;
+    std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
+      return trials[static_cast<std::size_t>(x)].cost < trials[static_cast<std::size_t>(y)].cost;
+    });
+    std::vector<char> refined(static_cast<std::size_t>(yaws), 0);
+    for (int i = 0; i < config.yaw_refine_best; ++i) {
+      const auto k = static_cast<std::size_t>(order[static_cast<std::size_t>(i)]);
+      if (!std::isfinite(trials[k].cost)) break;  // the rest do not overlap either
+      // From the scan's whole-cell shift: ±1 cell, then sub-cell (the window's search again).
+      trials[k] = shift_trial(maps.a_coarse, maps.b_thin, pivot, trials[k].yaw, trials[k].t,
+                              maps.a_coarse.cell_m, config, last_error);
+      refined[k] = 1;
+    }
+    // Only the refined ones compete: a scan's cost at whole cells is not comparable.
+    for (std::size_t k = 0; k < trials.size(); ++k) {
+      if (!refined[k]) trials[k].cost = std::numeric_limits<double>::infinity();
+    }
+  }
+  Trial best;
+  for (const Trial& tr : trials) {
+    if (tr.cost < best.cost) best = tr;
+  }
+  return best;
+}
+
 }  // namespace
 
 // The pipeline of survey registration (stages above): pivot, yaw search on coarse maps, shift
@@ -425,14 +477,9 @@ ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud&
   const YawSearchMaps maps = yaw_search_maps(a_world, b_world, config);
   const double yaw_cell = maps.yaw_cell;
   std::string last_error;
-  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m.
-  Trial best;
-  const int n = static_cast<int>(std::floor(config.yaw_search_deg / config.yaw_step_deg + 1e-9));
-  for (int k = -n; k <= n; ++k) {
-    const Trial tr = shift_trial(maps.a_coarse, maps.b_thin, pivot, k * config.yaw_step_deg * kDeg,
-                                 Eigen::Vector3d::Zero(), config.search_m, config, last_error);
-    if (tr.cost < best.cost) best = tr;
-  }
+  // 1. Every yaw of the window on coarse maps, the shift searched over the whole ±search_m
+  // (yaw_search).
+  Trial best = yaw_search(maps, pivot, config, last_error);
   require(std::isfinite(best.cost),
           "change detection: the surveys do not overlap (no yaw within ±" +
               std::to_string(config.yaw_search_deg) + " deg and shift within ±" +

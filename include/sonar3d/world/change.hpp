@@ -45,10 +45,15 @@ struct ChangeRegistrationConfig {
   // winner is refined on maps of cell_m (the shift within a yaw cell of the coarse one).
   double yaw_cell_m = 0.25;
   double cell_m = 0.1;
-  double search_m = 0.6;        // ± horizontal shift searched (East, North), m
-  double yaw_search_deg = 2;    // ± yaw searched, degrees
-  double yaw_step_deg = 0.25;   // yaw step of the coarse search, degrees
-  int coarse_factor = 4;        // the shift search's coarse-to-fine factor (swath_registration.hpp)
+  double search_m = 0.6;       // ± horizontal shift searched (East, North), m
+  double yaw_search_deg = 2;   // ± yaw searched, degrees
+  double yaw_step_deg = 0.25;  // yaw step of the coarse search, degrees
+  int coarse_factor = 4;       // the shift search's coarse-to-fine factor (swath_registration.hpp)
+  // Beyond the thesis: every yaw scored first at whole-cell shifts only, then only this many of
+  // the best searched again with sub-cell shifts (the sub-cell search costs more than the whole
+  // window's). 0 = every yaw searched in full (exhaustive). Only where the search is sub-cell
+  // (maps at cell_m).
+  int yaw_refine_best = 0;
   int min_overlap_cells = 500;  // fewer cells observed in both maps: the surveys do not overlap
   // Fraction of the overlap whose height differences score a yaw (the smallest ones): the changes
   // themselves must not decide the registration.
@@ -86,6 +91,12 @@ void describe_registration_own(ChangeRegistrationConfig& c, V& v) {
               .flag("--yaw-step-deg"));
   v.field(c.coarse_factor,
           param("coarse_factor", "", "the shift search's coarse-to-fine factor").range(1, 64));
+  v.field(c.yaw_refine_best,
+          param("yaw_refine_best", "",
+                "every yaw scored at whole-cell shifts, then only this many of the best searched "
+                "again with sub-cell shifts (0 = every yaw searched in full)")
+              .non_negative()
+              .flag("--yaw-refine-best"));
   v.field(
       c.min_overlap_cells,
       param("min_overlap_cells", "", "fewer cells observed in both maps: no overlap").at_least(1));
@@ -131,7 +142,10 @@ struct ChangeRegistration {
 // maps of the yaw cell (ChangeRegistrationConfig), the shift (dx, dy) and height offset dz come
 // from sec. 6.2.2.1's search (register_elevation_maps: eq. 6.1's signed median for dz, eq. 6.2's
 // score, sub-cell), and the yaw whose registered maps leave the smallest mean |A − B| over the
-// inlier fraction of the overlap wins; (2) the shift again at cell_m; (3) yaw, shift and height
+// inlier fraction of the overlap wins (with yaw_refine_best = K > 0 on maps at cell_m, every yaw
+// scored at whole-cell shifts first and only the K best searched sub-cell: the same winner as
+// the exhaustive search where it is among the K, at a fraction of the cost); (2) the shift again
+// at cell_m; (3) yaw, shift and height
 // by trimmed Gauss-Newton of B's heights onto A's bilinear height field at cell_m / 2, kept when
 // it lowers (1)'s cost at cell_m. Throws Error when the maps do not overlap.
 ChangeRegistration register_surveys(const PointCloud& a_world, const PointCloud& b_world,

@@ -69,6 +69,7 @@ inline ChangeRegistrationConfig relocalize_registration_defaults() {
   r.yaw_step_deg = 0.25;
   r.inlier_fraction = 0.8;
   r.min_overlap_cells = 300;
+  r.yaw_refine_best = 3;  // coarse-to-fine yaw search (docs/mapping.md "Faster registration")
   return r;
 }
 
