@@ -39,7 +39,7 @@ PointCloud read_scene(const fs::path& map, double voxel_size, bool progress, dou
     o.voxel_size = voxel_size;
     // The carving's memory, estimated before it allocates (core/memory.hpp).
     const std::string warning = check_reconstruct_memory(ds, o, limit_bytes, "--voxel-size");
-    if (!warning.empty()) fmt::print(stderr, "warning: {}\n", warning);
+    if (!warning.empty()) print_warning(warning);
     return reconstruct_dataset(ds, o).cloud;
   }
   throw Error("'" + map.string() +
