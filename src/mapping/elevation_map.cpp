@@ -115,6 +115,11 @@ Grid grid_of(const PointCloud& cloud_world, const ElevationMapConfig& config) {
 
 }  // namespace
 
+double elevation_map_cells(const PointCloud& cloud_world, const ElevationMapConfig& config) {
+  const Grid grid = grid_of(cloud_world, config);
+  return grid.cols() * grid.rows();
+}
+
 MemoryEstimate estimate_elevation_memory(const PointCloud& cloud_world,
                                          const ElevationMapConfig& config,
                                          const ElevationWriteOptions& write, bool png,

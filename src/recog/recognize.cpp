@@ -49,12 +49,12 @@ std::string recognize_json(const RecognitionResult& result,
 
 namespace {
 
-// Cells of an elevation map of `scene_world` at `cell_m` (as elevation_map_from_points lays it
-// out), from the elevation map's own estimate: 4 bytes a cell.
+// Cells of an elevation map of `scene_world` at `cell_m`, as elevation_map_from_points lays it
+// out.
 double map_cells(const PointCloud& scene_world, double cell_m) {
   ElevationMapConfig mc;
   mc.cell_m = cell_m;
-  return estimate_elevation_memory(scene_world, mc, {}, false, "").total() / sizeof(float);
+  return elevation_map_cells(scene_world, mc);
 }
 
 }  // namespace

@@ -101,6 +101,10 @@ void describe(ElevationFileConfig& c, V& v) {
 // Written atomically (temporary name, renamed when complete).
 void write_elevation_geotiff(const std::string& path, const ElevationMap& map,
                              const ElevationWriteOptions& options = {});
+// Cells of the elevation map elevation_map_from_points would lay out for this cloud (its
+// region, or the points' extent, at config.cell_m), before anything is allocated.
+double elevation_map_cells(const PointCloud& cloud_world, const ElevationMapConfig& config);
+
 // Memory an elevation map of this cloud will take (core/memory.hpp), before it is allocated: the
 // grid's float32 heights, the uint16 band when written so, the PNG picture when asked for.
 // `cell_option` names the option that sets config.cell_m (e.g. "--cell-m").
