@@ -95,7 +95,15 @@ void print_bracketing(const ReconstructResult& r, const ReconstructConfig& cfg,
         "beyond its end; docs/carving.md, \"Elevation bracketing\"); --no-auto-min-bracket keeps "
         "them",
         br.min_bracket));
-  } else if (!br.extensions.empty() && br.min_bracket == 0) {
+  }
+  if (br.level_stack.dropped > 0) {
+    print_note(fmt::format(
+        "{} points above the level frames' top that no frame saw from above were dropped (the "
+        "ghost arcs over the structure; docs/carving.md, \"Orbits at several heights\"); "
+        "--no-auto-min-bracket keeps them",
+        br.level_stack.dropped));
+  }
+  if (!br.min_bracket_auto && !br.extensions.empty() && br.min_bracket == 0) {
     print_note(
         "--min-bracket 0.5 drops the points no frame saw from the other side of their "
         "elevation (measured: docs/carving.md, \"Elevation bracketing\")");

@@ -27,6 +27,7 @@ struct FrameView {
   Eigen::Vector3d t_world;     // sonar position
   Eigen::AlignedBox3d bounds;  // world box of the wedge
   int pass = -1;               // elevation-sweeping pass it belongs to, or -1
+  bool level = false;          // outside every pass, sonar z within kMaxSweepAngle of world up
 };
 
 // What one point's wedge test in one frame gives: whether it is inside, and s = sin θ / sin θ3.
@@ -170,6 +171,9 @@ void BracketConfig::validate() const {
   require(
       std::isfinite(end_tolerance) && end_tolerance >= 0 && end_tolerance < 1,
       "parameter 'bracket.end_tolerance' must lie in [0, 1), got " + std::to_string(end_tolerance));
+  require(std::isfinite(level_view_above) && level_view_above >= 0 && level_view_above <= 1,
+          "parameter 'bracket.level_view_above' must lie in [0, 1], got " +
+              std::to_string(level_view_above));
   require(region_samples >= 0 && region_samples <= 100000000,
           "parameter 'bracket.region_samples' must lie in [0, 1e8], got " +
               std::to_string(region_samples));
@@ -191,9 +195,23 @@ std::string PassExtension::message() const {
   return os.str();
 }
 
+std::string LevelStack::message() const {
+  std::ostringstream os;
+  os.precision(2);
+  os << std::fixed << "the level frames (" << frames << ", sonars at z " << z_min << " to " << z_max
+     << " m) stop short at their top: the highest goes " << past_surface
+     << " m over the surface they saw from above, the elevation beyond it needs 2·r·tan(A_v/2) = "
+     << rule << " m (r = " << range << " m): add levels up to z = " << z_max + extend << " m"
+     << (lower_bound ? " or higher" : "")
+     << "; until then the space above is seen from below only and may hold ghosts "
+        "(docs/carving.md)";
+  return os.str();
+}
+
 std::vector<std::string> BracketReport::warnings() const {
   std::vector<std::string> w;
   for (const auto& e : extensions) w.push_back(e.message());
+  if (level_stack.stops_short) w.push_back(level_stack.message());
   return w;
 }
 
@@ -231,6 +249,24 @@ std::string BracketReport::to_json() const {
     ext.push_back(x);
   }
   j["pass_extensions"] = ext;
+  const LevelStack& ls = level_stack;
+  nlohmann::ordered_json st;
+  st["frames"] = ls.frames;
+  st["z_min"] = ls.z_min;
+  st["z_max"] = ls.z_max;
+  st["sweeps"] = ls.sweeps;
+  st["stops_short"] = ls.stops_short;
+  if (ls.stops_short) {
+    st["surface_z"] = ls.surface_z;
+    st["range"] = ls.range;
+    st["rule"] = ls.rule;
+    st["past_surface"] = ls.past_surface;
+    st["extend"] = ls.extend;
+    st["lower_bound"] = ls.lower_bound;
+    st["dropped"] = ls.dropped;
+    st["message"] = ls.message();
+  }
+  j["level_stack"] = st;
   return j.dump(2);
 }
 
@@ -300,6 +336,22 @@ BracketReport assess_bracketing(PointCloud& cloud,
     for (std::size_t p = 0; p < passes.size(); ++p)
       for (std::size_t k = passes[p].first; k <= passes[p].last; ++k)
         frames[k].pass = static_cast<int>(p);
+    // The level frames: a stack of them at several heights sweeps the elevation level by level.
+    LevelStack& stack = rep.level_stack;
+    for (std::size_t k = 0; k < frames.size(); ++k) {
+      const double up = T_world_sonar[k].linear().col(2).z();
+      frames[k].level = frames[k].pass < 0 && up >= std::cos(kMaxSweepAngle);
+      if (!frames[k].level) continue;
+      const double z = frames[k].t_world.z();
+      stack.z_min = stack.frames == 0 ? z : std::min(stack.z_min, z);
+      stack.z_max = stack.frames == 0 ? z : std::max(stack.z_max, z);
+      ++stack.frames;
+    }
+    // A stack sweeps when its heights span the aperture's height at the nearest range (points
+    // there are seen at both edges); one orbit at one height (or bobbing about it) does not, and
+    // keeps everything: it carves the arcs from other azimuths instead.
+    stack.sweeps =
+        stack.frames >= 3 && stack.z_max - stack.z_min >= 2.0 * wt.geometry().r_min * tan3;
 
     // Per point: bracket and views over every frame; per pass: the extreme surface it saw.
     const std::size_t n = cloud.size();
@@ -309,10 +361,20 @@ BracketReport assess_bracketing(PointCloud& cloud,
         [&] { return std::vector<Extreme>(passes.size()); });
     tbb::combinable<std::vector<Extreme>> lower(
         [&] { return std::vector<Extreme>(passes.size()); });
+    // The stack's extreme surface: the highest point a level frame saw from above at |s| >= f.
+    tbb::combinable<Extreme> stack_top;
+    std::vector<unsigned char> level_seen(stack.sweeps ? n : 0, 0);
     sweep(cloud.points, frames, wt, [&](std::size_t i, std::size_t k, double s) {
       views[i] += 1.0f;
       lo[i] = std::min(lo[i], static_cast<float>(s));
       hi[i] = std::max(hi[i], static_cast<float>(s));
+      if (stack.sweeps && frames[k].level) {
+        level_seen[i] = 1;
+        if (s <= -f) {
+          const Eigen::Vector3d q = cloud.points[i].cast<double>();
+          stack_top.local().offer(q.z(), (q - frames[k].t_world).norm(), q, true);
+        }
+      }
       const int pi = frames[k].pass;
       if (pi < 0 || std::abs(s) < f) return;
       const Pass& ps = passes[pi];
@@ -388,6 +450,25 @@ BracketReport assess_bracketing(PointCloud& cloud,
       }
     }
 
+    // The stack's top level, by the same rule as a pass' upper end (world z: the level frames'
+    // sonar z is within kMaxSweepAngle of up).
+    Extreme top;
+    stack_top.combine_each([&](const Extreme& e) {
+      if (e.set) top.offer(e.s, e.r, e.p, true);
+    });
+    if (stack.sweeps && top.set) {
+      stack.surface_z = top.s;
+      stack.range = top.r;
+      stack.rule = 2.0 * top.r * tan3;
+      stack.past_surface = stack.z_max - top.s;
+      stack.extend = stack.rule - stack.past_surface;
+      stack.lower_bound = stack.past_surface <= config.end_view_fraction * top.r * tan3 + 0.02;
+      bool any_inside = !region;
+      for (int a = 1; a <= 4 && !any_inside; ++a)
+        any_inside = region->contains(top.p + 0.25 * a * stack.rule * Eigen::Vector3d::UnitZ());
+      stack.stops_short = stack.extend > config.end_tolerance * stack.rule && any_inside;
+    }
+
     // The region: the never-bracketed share of what the frames saw.
     std::optional<Eigen::AlignedBox3d> box = region;
     if (!box && n > 0) {
@@ -451,18 +532,33 @@ BracketReport assess_bracketing(PointCloud& cloud,
       rep.min_bracket = config.bracketed_level;
       rep.min_bracket_auto = true;
     }
+    // Over a stack that stops short: the points above its extreme surface that level frames saw
+    // and no frame saw from above at level_view_above or more (nor from nowhere below: a point
+    // seen edge-on only stays).
+    const bool stack_filter =
+        config.min_bracket == 0 && config.auto_min_bracket && stack.stops_short;
+    auto above_stack = [&](std::size_t i) {
+      return stack_filter && level_seen[i] && hi[i] > 0 &&
+             -lo[i] < static_cast<float>(config.level_view_above) &&
+             cloud.points[i].z() > stack.surface_z;
+    };
     auto beyond_short_end = [&](std::size_t i) {
       const Eigen::Vector3d q = cloud.points[i].cast<double>();
       for (const auto& [p, dir] : short_ends)
         if ((q - p).dot(dir) > 0) return true;
       return false;
     };
-    if (rep.min_bracket > 0) {
+    if (rep.min_bracket > 0 || stack_filter) {
       PointCloud kept;
       kept.properties = cloud.properties;
       for (auto& p : kept.properties) p.values.clear();
       for (std::size_t i = 0; i < n; ++i) {
-        if (bracket[i] < rep.min_bracket && (!rep.min_bracket_auto || beyond_short_end(i))) {
+        if (rep.min_bracket > 0 && bracket[i] < rep.min_bracket &&
+            (!rep.min_bracket_auto || beyond_short_end(i))) {
+          continue;
+        }
+        if (above_stack(i)) {
+          ++stack.dropped;
           continue;
         }
         kept.points.push_back(cloud.points[i]);

@@ -38,8 +38,10 @@ struct BracketConfig {
   double min_bracket = 0.0;
   // When min_bracket is 0 and a pass stops short (a PassExtension: the data shows unbracketed
   // space beyond a pass end, where ghost arcs lie), drop the points bracketed less than
-  // bracketed_level anyway (issue 29). Orbits and level approaches find no short pass and keep
-  // everything. Off here; a reconstruction's carving turns it on (ReconstructConfig).
+  // bracketed_level anyway (issue 29); and over level frames at several heights whose top stops
+  // short, the points seen from below only (level_view_above). One orbit at one height and level
+  // approaches find neither and keep everything. Off here; a reconstruction's carving turns it on
+  // (ReconstructConfig).
   bool auto_min_bracket = false;
   // A point (or region sample) counts as bracketed when its bracket is >= this; the summary
   // reports the share of the observed region below it.
@@ -50,6 +52,14 @@ struct BracketConfig {
   double end_view_fraction = 0.9;
   // Warn when a pass stops short of the rule by more than this fraction of 2·r·tan(A_v/2).
   double end_tolerance = 0.05;
+  // Level frames (outside every sweeping pass, sonar z within 30° of world up: orbits, level
+  // approaches) at heights spanning at least the aperture's height at the nearest range,
+  // 2·r_min·tan(A_v/2), sweep the elevation as a vertical pass does, one level after another. When
+  // their top level stops short (the pass-end rule), the automatic filter drops the points above
+  // the extreme surface that no frame saw from above at this fraction of the aperture or more: the
+  // ghost arcs over the structure's top, seen from below only (docs/carving.md, "Orbits at several
+  // heights"). Bracketed points, and a seabed seen from above only, stay.
+  double level_view_above = 0.1;
   // Region samples for the never-bracketed share (a regular grid over the region).
   int region_samples = 200000;
   int num_threads = 0;    // 0 = all cores
@@ -70,7 +80,8 @@ void describe_bracket_own(BracketConfig& c, V& v) {
   v.field(c.auto_min_bracket,
           param("auto_min_bracket", "",
                 "when min_bracket is 0 and a pass stops short, drop the points bracketed less "
-                "than bracketed_level (the ghost arcs beyond its end)")
+                "than bracketed_level (the ghost arcs beyond its end); when orbits at several "
+                "heights stop short at their top, the points above seen from below only")
               // The switch turns the default around (on in ReconstructConfig).
               .flag(c.auto_min_bracket ? "--no-auto-min-bracket" : "--auto-min-bracket"));
   v.field(c.bracketed_level,
@@ -85,6 +96,12 @@ void describe_bracket_own(BracketConfig& c, V& v) {
                                  "warn when a pass stops short by more than this fraction of "
                                  "2 r tan(A_v/2)")
                                .range_open_high(0, 1));
+  v.field(c.level_view_above,
+          param("level_view_above", "",
+                "level frames at several heights (orbits) whose top stops short: with "
+                "auto_min_bracket, drop the points above the surface they saw that no frame saw "
+                "from above at this fraction of the aperture")
+              .range(0, 1));
   v.field(
       c.region_samples,
       param("region_samples", "", "region samples for the never-bracketed share").range(0, 1e8));
@@ -117,6 +134,23 @@ struct PassExtension {
   std::string message() const;
 };
 
+// The level frames (orbits, level approaches) when their heights sweep the elevation, and
+// whether their top level stops short of the pass-end rule.
+struct LevelStack {
+  std::size_t frames = 0;       // level frames (outside every sweeping pass, sonar z near up)
+  double z_min = 0, z_max = 0;  // m, world heights of their sonars
+  bool sweeps = false;          // z_max − z_min >= 2·r_min·tan(A_v/2)
+  bool stops_short = false;     // the top level stops short of 2·r·tan(A_v/2) over its surface
+  double surface_z = 0;         // m, the extreme surface seen from above (if stops_short)
+  double range = 0;             // m, its distance from the frame that saw it
+  double rule = 0;              // m, 2·r·tan(A_v/2)
+  double past_surface = 0;      // m, z_max − surface_z
+  double extend = 0;            // m, rule − past_surface
+  bool lower_bound = false;     // as PassExtension::lower_bound
+  std::size_t dropped = 0;      // points the automatic filter dropped above it
+  std::string message() const;  // the warning when stops_short
+};
+
 struct BracketReport {
   std::size_t points = 0;                     // points assessed
   std::size_t kept = 0;                       // after min_bracket
@@ -130,8 +164,9 @@ struct BracketReport {
   std::optional<Eigen::AlignedBox3d> region;  // what the shares were measured over
   std::size_t passes = 0;                     // passes that sweep the elevation
   std::vector<PassExtension> extensions;      // passes that stop short
+  LevelStack level_stack;                     // orbits at several heights
   double seconds = 0;                         // wall time of assess_bracketing()
-  std::vector<std::string> warnings() const;  // one line per extension
+  std::vector<std::string> warnings() const;  // one line per extension (and the level stack)
   std::string to_json() const;                // a JSON object
 };
 
