@@ -31,6 +31,17 @@ TriangleMesh box_mesh() {
   return m;
 }
 
+// A scene of one object (reflectivity 0.8).
+Scene one_object(const std::string& name, const TriangleMesh& mesh) {
+  Scene scene;
+  SceneObject o;
+  o.name = name;
+  o.mesh_world = mesh;
+  o.reflectivity = 0.8;
+  scene.objects.push_back(o);
+  return scene;
+}
+
 Eigen::AlignedBox3d region() {
   return Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -0.03), Eigen::Vector3d(1, 1, 2.5));
 }
@@ -43,13 +54,7 @@ struct PassRun {
 // A vertical pass at x = -2.5 m from z0 to z1 every 2 cm, carved at 2 cm voxels above the seabed.
 PassRun carve_pass(double z0, double z1) {
   const SonarSpec spec = test::reduced_spec_20deg();
-  Scene scene;
-  SceneObject box;
-  box.name = "box";
-  box.mesh_world = box_mesh();
-  box.reflectivity = 0.8;
-  scene.objects.push_back(box);
-  const Simulator sim(scene, spec, test::jittered_sim_config(0.05));
+  const Simulator sim(one_object("box", box_mesh()), spec, test::jittered_sim_config(0.05));
   CarveConfig cfg;
   cfg.voxel_size = 0.02;
   cfg.region = region();
@@ -191,13 +196,7 @@ TEST(Bracket, PropertiesAndGhostFilter) {
 // the defaults before issue 29, which kept the unbracketed arcs above the top.
 TEST(Bracket, DefaultsDropTheGhostsOfAShortPass) {
   const SonarSpec spec = test::reduced_spec_20deg();
-  Scene scene;
-  SceneObject box;
-  box.name = "box";
-  box.mesh_world = box_mesh();
-  box.reflectivity = 0.8;
-  scene.objects.push_back(box);
-  const Simulator sim(scene, spec, test::jittered_sim_config(0.05));
+  const Simulator sim(one_object("box", box_mesh()), spec, test::jittered_sim_config(0.05));
   const auto dir = test::temp_dir("bracket_defaults");
   {
     DatasetWriter w(dir / "ds", spec);
@@ -265,13 +264,7 @@ TriangleMesh gate_mesh() {
 ReconstructResult reconstruct_orbits(const std::vector<double>& levels, bool auto_filter,
                                      const std::string& name) {
   const SonarSpec spec = test::reduced_spec_20deg();
-  Scene scene;
-  SceneObject gate;
-  gate.name = "gate";
-  gate.mesh_world = gate_mesh();
-  gate.reflectivity = 0.8;
-  scene.objects.push_back(gate);
-  const Simulator sim(scene, spec, test::jittered_sim_config(0.05));
+  const Simulator sim(one_object("gate", gate_mesh()), spec, test::jittered_sim_config(0.05));
   const auto dir = test::temp_dir(name);
   {
     DatasetWriter w(dir / "ds", spec);
