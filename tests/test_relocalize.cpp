@@ -50,8 +50,13 @@ const std::string kScene = std::string(R"(seed: 4
 trajectory: TRAJECTORY
 )";
 
-void simulate(const fs::path& dir, const std::string& name, const std::string& trajectory) {
+void simulate(const fs::path& dir, const std::string& name, const std::string& trajectory,
+              const std::string& box_translation = "") {
   std::string scene = kScene;
+  if (!box_translation.empty()) {  // the box moved (a later survey of a changed site)
+    const std::string at = "[1.5, -1.0, 0.1]";
+    scene.replace(scene.find(at), at.size(), box_translation);
+  }
   scene.replace(scene.find("TRAJECTORY"), 10, trajectory);
   { std::ofstream(dir / (name + ".yaml")) << scene; }
   const CliRun r = run_cli(dir, "simulate " + (dir / (name + ".yaml")).string() + " -o " +
@@ -59,8 +64,11 @@ void simulate(const fs::path& dir, const std::string& name, const std::string& t
   ASSERT_EQ(r.code, 0) << r.out;
 }
 
-// The world model of survey A (its navigation exact): carved, the box placed where it is.
-void build_world(const fs::path& dataset, const fs::path& world_dir) {
+// The world model of survey A (its navigation exact): carved, the box placed where it is. With
+// `cloud_file`, A's cloud is written there too and the world records it as its map (as `sonar3d
+// world MAP` does).
+void build_world(const fs::path& dataset, const fs::path& world_dir,
+                 const fs::path& cloud_file = {}) {
   const sonar3d::Dataset ds = sonar3d::read_dataset(dataset);
   sonar3d::CarveConfig cc;
   cc.voxel_size = 0.03;
@@ -76,7 +84,58 @@ void build_world(const fs::path& dataset, const fs::path& world_dir) {
   box.mesh_model = std::make_shared<sonar3d::TriangleMesh>(sonar3d::make_box(1.0, 0.6, 0.4));
   const sonar3d::WorldModel world =
       sonar3d::build_world_model(cloud, {box}, sonar3d::WorldModelConfig{});
-  sonar3d::write_world_model(world_dir, world, sonar3d::WorldWriteInfo{});
+  sonar3d::WorldWriteInfo info;
+  if (!cloud_file.empty()) {
+    sonar3d::write_ply(cloud_file.string(), cloud);
+    info.map = cloud_file.string();
+  }
+  sonar3d::write_world_model(world_dir, world, info);
+}
+
+// The dataset carved as its navigation says (a map made as logged).
+void carve_dataset(const fs::path& dataset, const fs::path& cloud_file) {
+  const sonar3d::Dataset ds = sonar3d::read_dataset(dataset);
+  sonar3d::CarveConfig cc;
+  cc.voxel_size = 0.03;
+  sonar3d::Carver carver(ds.spec, cc, ds.noise);
+  for (std::size_t i = 0; i < ds.size(); ++i)
+    carver.integrate(ds.load_frame(i), ds.T_world_sonar(i));
+  sonar3d::write_ply(cloud_file.string(), carver.finalize());
+}
+
+// Logged = E · true for every pose of a dataset's navigation.
+void offset_navigation(const fs::path& dataset, const Eigen::Isometry3d& E) {
+  sonar3d::Trajectory nav = sonar3d::read_tum((dataset / "navigation.tum").string());
+  for (auto& T : nav.poses) T = E * T;
+  sonar3d::write_tum((dataset / "navigation.tum").string(), nav);
+}
+
+std::string placements_json(double x, double y) {
+  const double c = std::cos(30 * kDeg), s = std::sin(30 * kDeg);
+  return "{\"format\": \"sonar3d-placements\", \"version\": 1, \"placements\": [{\"model\": "
+         "\"box\", \"T_world_model\": [[" +
+         std::to_string(c) + ", " + std::to_string(-s) + ", 0, " + std::to_string(x) + "], [" +
+         std::to_string(s) + ", " + std::to_string(c) + ", 0, " + std::to_string(y) +
+         "], [0, 0, 1, 0.1], [0, 0, 0, 1]]}]}";
+}
+
+// Area of the change regions of a changes.json whose centroid lies farther than `radius` from
+// every point of `near` (the seabed's changes, away from the structures), m².
+double area_away_from(const nlohmann::json& changes, const std::vector<Eigen::Vector2d>& near,
+                      double radius) {
+  double area = 0;
+  for (const auto& g : changes["regions"]) {
+    const Eigen::Vector2d c(g["centroid"][0].get<double>(), g["centroid"][1].get<double>());
+    bool close = false;
+    for (const auto& p : near) close = close || (c - p).norm() < radius;
+    if (!close) area += g["area_m2"].get<double>();
+  }
+  return area;
+}
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream f(path);
+  return nlohmann::json::parse(f);
 }
 
 }  // namespace
@@ -293,5 +352,122 @@ TEST(Relocalize, RecoversAKnownOffsetAndRotationAndSaysNotFoundOutsideTheModel) 
   EXPECT_EQ(jf["swaths"].size(), 1u);
   EXPECT_EQ(jf["criterion"]["search_m"].get<double>(), 0.8);  // the file's, not the default
   EXPECT_EQ(jf["criterion"]["min_overlap_fraction"].get<double>(), 0.4);
+  fs::remove_all(dir);
+}
+
+// Change detection through relocalisation (issue 26 item 4: "the second survey of a change
+// detection can go through it"): survey B of a site whose box moved 1 m, logged 4° and 1.8 m
+// off (beyond diff's own ±0.6 m, ±2° search; relocalised with --search 1.6). Compared as logged,
+// diff's registration cannot place B and the seabed shows large changes; relocalised against A's
+// world model and carved with the relocalised navigation, B is in A's frame: the seabed is
+// unchanged and the moved box is reported (its regions of change, and the object moved).
+TEST(Relocalize, ChangeDetectionThroughRelocalisation) {
+  const fs::path dir = temp_dir() / "diff";
+  fs::create_directories(dir);
+  simulate(dir, "a",
+           "{type: lawnmower, x: [-5, 5], y: [-3, 3], z: 3.0, line_spacing: 1.5, spacing: 0.04, "
+           "period: 0.1}");
+  build_world(dir / "a", dir / "world", dir / "a.ply");
+  const Eigen::Vector2d box_a(1.5, -1.0), box_b(1.5, 0.0);
+  simulate(dir, "b",
+           "{type: lawnmower, x: [-5, 5], y: [-2.25, 2.25], z: 3.0, line_spacing: 1.5, "
+           "spacing: 0.04, period: 0.1}",
+           "[1.5, 0.0, 0.1]");
+  // Logged turned by 4° about the site's centre and shifted by (1.4, -1.1, 0.05) m.
+  Eigen::Isometry3d E = Eigen::Isometry3d::Identity();
+  E.linear() = Eigen::AngleAxisd(4 * kDeg, Eigen::Vector3d::UnitZ()).matrix();
+  E.translation() = Eigen::Vector3d(1.4, -1.1, 0.05);
+  offset_navigation(dir / "b", E);
+  { std::ofstream(dir / "pa.json") << placements_json(box_a.x(), box_a.y()); }
+  // B's recognition in its relocalised map (A's frame) places the box where it now stands.
+  { std::ofstream(dir / "pb.json") << placements_json(box_b.x(), box_b.y()); }
+  const std::string placements = " --placements-a " + (dir / "pa.json").string() +
+                                 " --placements-b " + (dir / "pb.json").string();
+
+  // As logged: B's map carved with its own navigation.
+  carve_dataset(dir / "b", dir / "b_logged.ply");
+  CliRun r =
+      run_cli(dir, "diff " + (dir / "a.ply").string() + " " + (dir / "b_logged.ply").string() +
+                       " -o " + (dir / "d_logged").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json logged = read_json(dir / "d_logged/changes.json");
+  // The box's regions: lowered where it stood (A), raised where it stands (B).
+  const auto box_regions = [&](const nlohmann::json& changes) {
+    bool lowered_at_a = false, raised_at_b = false;
+    for (const auto& g : changes["regions"]) {
+      const Eigen::Vector2d c(g["centroid"][0].get<double>(), g["centroid"][1].get<double>());
+      const bool raised = g["kind"] == "raised";
+      lowered_at_a = lowered_at_a || (!raised && (c - box_a).norm() < 0.4);
+      raised_at_b = raised_at_b || (raised && (c - box_b).norm() < 0.4);
+    }
+    return std::make_pair(lowered_at_a, raised_at_b);
+  };
+  std::cout << r.out << "as logged: " << logged["regions"].size() << " regions, sigma of B - A "
+            << logged["thresholds"]["sigma_m"] << " m, rms " << logged["registration"]["rms_m"]
+            << " m\n";
+  // diff's own registration (±0.6 m, ±2°) cannot place B: the seabed differs everywhere, which
+  // raises the noise it derives its threshold from and hides the box's move (checked against
+  // the relocalised run below).
+  const auto [lowered_logged, raised_logged] = box_regions(logged);
+  EXPECT_FALSE(lowered_logged && raised_logged) << logged["regions"].dump();
+
+  // Relocalised against A's world model, carved with the relocalised navigation.
+  r = run_cli(dir, "relocalize " + (dir / "b").string() + " --world " + (dir / "world").string() +
+                       " -o " + (dir / "rb").string() + " --search 1.6 --map-resolution 0.03 -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("merged.ply (survey B of sonar3d diff)"), std::string::npos) << r.out;
+  ASSERT_TRUE(fs::exists(dir / "rb/merged.ply"));
+  const nlohmann::json jr = read_json(dir / "rb/relocalization.json");
+  EXPECT_EQ(jr["map"], "merged.ply");
+  EXPECT_EQ(jr["map_voxel_m"].get<double>(), 0.03);
+  EXPECT_GT(jr["map_points"].get<std::size_t>(), 10000u);
+  r = run_cli(dir, "diff " + (dir / "a.ply").string() + " " + (dir / "rb").string() + " -o " +
+                       (dir / "d_reloc").string() + placements);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::cout << r.out;
+  EXPECT_NE(r.out.find("not registered again"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("B onto A (relocalised)"), std::string::npos) << r.out;
+  const nlohmann::json reloc = read_json(dir / "d_reloc/changes.json");
+  EXPECT_EQ(reloc["registration"]["method"].get<std::string>().rfind("relocalized against", 0), 0u);
+  const double seabed_reloc = area_away_from(reloc, {box_a, box_b}, 1.5);
+  std::cout << "relocalised: " << reloc["regions"].size() << " regions, " << seabed_reloc
+            << " m2 of change away from the box, sigma of B - A " << reloc["thresholds"]["sigma_m"]
+            << " m, rms " << reloc["registration"]["rms_m"] << " m\n";
+  // The seabed unchanged: no change away from the box, its differences a third of the logged
+  // ones or less.
+  EXPECT_EQ(seabed_reloc, 0.0) << r.out;
+  EXPECT_LT(3 * reloc["thresholds"]["sigma_m"].get<double>(),
+            logged["thresholds"]["sigma_m"].get<double>());
+  EXPECT_LT(3 * reloc["registration"]["rms_m"].get<double>(),
+            logged["registration"]["rms_m"].get<double>());
+  EXPECT_LT(reloc["registration"]["rms_m"].get<double>(), 0.03);
+  // The box: lowered where it stood, raised where it stands, and the object moved by 1 m.
+  const auto [lowered_reloc, raised_reloc] = box_regions(reloc);
+  EXPECT_TRUE(lowered_reloc) << reloc["regions"].dump();
+  EXPECT_TRUE(raised_reloc) << reloc["regions"].dump();
+  ASSERT_EQ(reloc["objects"].size(), 1u) << reloc["objects"].dump();
+  EXPECT_EQ(reloc["objects"][0]["status"], "moved") << reloc["objects"].dump();
+  EXPECT_NEAR(reloc["objects"][0]["shift_m"].get<double>(), (box_a - box_b).norm(), 0.01);
+
+  // Relocalised against a world model of another map than A: B is registered as usual, and the
+  // warning says why (here A's cloud under another name).
+  fs::copy_file(dir / "a.ply", dir / "a_copy.ply");
+  r = run_cli(dir, "diff " + (dir / "a_copy.ply").string() + " " + (dir / "rb").string() + " -o " +
+                       (dir / "d_other").string() + " -q");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("registered onto A as usual"), std::string::npos) << r.out;
+  EXPECT_NE(read_json(dir / "d_other/changes.json")["registration"]["method"].get<std::string>(),
+            reloc["registration"]["method"].get<std::string>());
+
+  // A relocalisation without its map: one error line naming the directory and the flag.
+  fs::create_directories(dir / "rb_nomap");
+  fs::copy_file(dir / "rb/relocalization.json", dir / "rb_nomap/relocalization.json");
+  r = run_cli(dir, "diff " + (dir / "a.ply").string() + " " + (dir / "rb_nomap").string() + " -o " +
+                       (dir / "d_nomap").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("rb_nomap"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--map-resolution"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "d_nomap"));
   fs::remove_all(dir);
 }

@@ -9,6 +9,7 @@
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/recog/catalogue.hpp"
 #include "sonar3d/world/change.hpp"
+#include "sonar3d/world/relocalize.hpp"
 
 namespace sonar3d::cli {
 
@@ -20,7 +21,10 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "moved, added, removed; uncertain when the recognitions disagree and the heights did not "
       "change) and the heights cell by cell (regions of significant change). "
       "Writes OUTPUT/changes.json, change_map.tif (B - A, metres) and change_points.ply, all in "
-      "A's frame; with --colour-a/--colour-b also the colour change (colour_change_map.tif).");
+      "A's frame; with --colour-a/--colour-b also the colour change (colour_change_map.tif). B may "
+      "be a relocalisation directory (sonar3d relocalize B_DATASET --world A_WORLD "
+      "--map-resolution 0.02): B carved with its relocalised navigation, already in A's frame, "
+      "is not registered again.");
   struct Opts {
     std::string a, b, output, catalogue, placements_a, placements_b, colour_a, colour_b;
     std::unique_ptr<ConfigOptions<ChangeConfig>> config;
@@ -30,7 +34,9 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
   auto o = std::make_shared<Opts>();
   cmd->add_option("a", o->a, "survey A (the reference): a map directory (sonar3d map) or a .ply")
       ->check(CLI::ExistingPath);
-  cmd->add_option("b", o->b, "survey B (the later one): a map directory or a .ply")
+  cmd->add_option("b", o->b,
+                  "survey B (the later one): a map directory, a .ply, or a relocalisation "
+                  "directory (sonar3d relocalize --map-resolution) against A's world model")
       ->check(CLI::ExistingPath);
   cmd->add_option("-o,--output", o->output, "change directory to create (must not exist)");
   cmd->add_option("--catalogue", o->catalogue,
@@ -69,7 +75,33 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       if (o->config->print_if_requested(cfg, "diff", "diff")) return 0;
       Catalogue cat;
       if (!o->catalogue.empty()) cat = read_catalogue(o->catalogue);
-      const PointCloud a = read_survey_cloud(o->a), b = read_survey_cloud(o->b);
+      const PointCloud a = read_survey_cloud(o->a);
+      // B relocalised against A's world model: its map (carved with the relocalised navigation)
+      // is in A's frame already and is not registered again (docs/change.md).
+      PointCloud b;
+      std::unique_ptr<ChangeRegistration> placed;
+      if (is_relocalization_dir(o->b)) {
+        RelocalizedSurvey rb = read_relocalized_survey(o->b);
+        b = std::move(rb.cloud);
+        if (relocalized_against(rb, o->a)) {
+          placed = std::make_unique<ChangeRegistration>();
+          placed->method = "relocalized against " + rb.world;
+          if (!g.quiet) {
+            fmt::print(
+                "B relocalised against {} (A's world model): in A's frame, not "
+                "registered again\n",
+                rb.world);
+          }
+        } else {
+          print_warning(fmt::format(
+              "B '{}' was relocalised against the world model '{}', built from {}, not from A "
+              "'{}': B is registered onto A as usual",
+              o->b, rb.world, rb.world_map.empty() ? "an unknown map" : "'" + rb.world_map + "'",
+              o->a));
+        }
+      } else {
+        b = read_survey_cloud(o->b);
+      }
       std::vector<SurveyPlacement> pa, pb;
       if (!o->placements_a.empty()) {
         pa = read_placements(o->placements_a).placements;
@@ -111,14 +143,14 @@ void add_diff(CLI::App& app, const GlobalOptions& g, Runner& run) {
       check_memory(estimate_change_memory(a, b, cfg, colour), memory_limit_bytes(o->max_memory_gb),
                    "diff");
       const ChangeResult r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &colour_a : nullptr,
-                                          colour ? &colour_b : nullptr);
+                                          colour ? &colour_b : nullptr, placed.get());
       write_change_directory(o->output, r);
       const Eigen::Vector3d t = r.registration.T_a_b.translation();
       fmt::print(
-          "B onto A: shift E {:+.3f} N {:+.3f} U {:+.3f} m, yaw {:+.2f} deg; rms {:.3f} m over "
+          "B onto A{}: shift E {:+.3f} N {:+.3f} U {:+.3f} m, yaw {:+.2f} deg; rms {:.3f} m over "
           "{} cells\n",
-          t.x(), t.y(), t.z(), r.registration.yaw_deg, r.registration.rms_m,
-          r.registration.overlap_cells);
+          placed ? " (relocalised)" : "", t.x(), t.y(), t.z(), r.registration.yaw_deg,
+          r.registration.rms_m, r.registration.overlap_cells);
       for (const ObjectChange& ob : r.objects) {
         const Eigen::Vector3d p =
             (ob.in_a ? ob.T_world_model_a : ob.T_world_model_b_in_a).translation();

@@ -22,7 +22,9 @@ void add_relocalize(CLI::App& app, const GlobalOptions& g, Runner& run) {
       "shift search, eq. 6.1-6.2, over a yaw search spanning the navigation's error, then "
       "Gauss-Newton of the heights). Writes OUTPUT/relocalization.json (per swath: correction, "
       "sigma, overlap, residual, found or why not) and OUTPUT/navigation.tum (the vehicle "
-      "navigation in the world model's frame). Exit status 3 when the survey is not found in "
+      "navigation in the world model's frame); with --map-resolution also OUTPUT/merged.ply, the "
+      "survey carved with that navigation (survey B of sonar3d diff). Exit status 3 when the "
+      "survey is not found in "
       "the model.");
   struct Opts {
     std::string dataset, world, output;
@@ -86,6 +88,12 @@ void add_relocalize(CLI::App& app, const GlobalOptions& g, Runner& run) {
             r.sigma_horizontal_m, 100 * first->overlap_fraction, first->residual_m,
             first->distinctiveness, r.seconds_total, r.seconds_carving, r.seconds_registration,
             o->output);
+        if (!r.map.empty()) {
+          fmt::print(
+              "  the survey carved with the relocalised navigation at {:g} m: {} points, {:.1f} s "
+              "-> {}/merged.ply (survey B of sonar3d diff)\n",
+              r.map_voxel_m, r.map.size(), r.seconds_map, o->output);
+        }
         return 0;
       });
     };

@@ -94,7 +94,8 @@ void bind_change(py::module_& m) {
       "diff_surveys",
       [](const carray<float>& points_a, const carray<float>& points_b, const py::list& placements_a,
          const py::list& placements_b, const std::string& catalogue, const py::object& colour_a,
-         const py::object& colour_b, const py::object& config, const py::kwargs& settings) {
+         const py::object& colour_b, const py::object& config, bool b_in_a_frame,
+         const py::kwargs& settings) {
         PointCloud a, b;
         a.points = array_to_points(points_a);
         b.points = array_to_points(points_b);
@@ -123,8 +124,11 @@ void bind_change(py::module_& m) {
         ChangeResult r;
         {
           py::gil_scoped_release release;
+          // B relocalised against A's world model (sonar3d.relocalize's map): in A's frame.
+          ChangeRegistration placed;
+          placed.method = "given: B in A's frame";
           r = diff_surveys(a, b, pa, pb, models, cfg, colour ? &ca : nullptr,
-                           colour ? &cb : nullptr);
+                           colour ? &cb : nullptr, b_in_a_frame ? &placed : nullptr);
         }
         py::dict out = json_loads(changes_json(r));
         out["change_map"] = py::cast(r.change_map);
@@ -133,7 +137,7 @@ void bind_change(py::module_& m) {
       },
       "points_a"_a, "points_b"_a, "placements_a"_a = py::list(), "placements_b"_a = py::list(),
       "catalogue"_a = "", "colour_a"_a = py::none(), "colour_b"_a = py::none(),
-      "config"_a = py::none(),
+      "config"_a = py::none(), "b_in_a_frame"_a = false,
       "Compare two surveys of one site ((N, 3) world-frame clouds, each in its own world): B "
       "registered onto A, placements (lists of dicts with model and T_world_model, as "
       "sonar3d.recognize returns; symmetries and sizes from the catalogue YAML if given) compared "
@@ -146,7 +150,9 @@ void bind_change(py::module_& m) {
       "what texture_cloud returns): the colour change is compared too (the dict's 'colour', and "
       "colour_change_map, the colour difference per cell). config: a ChangeConfig (default: "
       "the library's, the one sonar3d diff runs); any of its fields given as a keyword "
-      "(cell_m=0.05, registration=ChangeRegistrationConfig(num_threads=2)) overrides it.");
+      "(cell_m=0.05, registration=ChangeRegistrationConfig(num_threads=2)) overrides it. "
+      "b_in_a_frame: B is in A's frame already (the map of sonar3d.relocalize against A's world "
+      "model, RelocalizeConfig(map_voxel_m=...)): not registered (T_a_b the identity).");
 }
 
 }  // namespace sonar3d::python

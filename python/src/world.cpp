@@ -70,10 +70,13 @@ void bind_world(py::module_& m) {
         }
         std::vector<double> times = r.navigation.times;
         const py::ssize_t n = static_cast<py::ssize_t>(times.size());
-        return py::dict(
-            "found"_a = r.found, "swaths"_a = swaths, "times"_a = adopt(std::move(times), {n}),
-            "poses"_a = poses_to_array(r.navigation.poses),
-            "sigma_horizontal_m"_a = r.sigma_horizontal_m, "seconds"_a = r.seconds_total);
+        py::dict res("found"_a = r.found, "swaths"_a = swaths,
+                     "times"_a = adopt(std::move(times), {n}),
+                     "poses"_a = poses_to_array(r.navigation.poses),
+                     "sigma_horizontal_m"_a = r.sigma_horizontal_m, "seconds"_a = r.seconds_total);
+        // With config.map_voxel_m > 0: the survey carved with the relocalised navigation.
+        if (!r.map.empty()) res["map"] = points_to_array(std::move(r.map.points));
+        return res;
       },
       "dataset"_a, "world"_a, "config"_a = py::none(), "output"_a = "", "overwrite"_a = false,
       "progress"_a = py::none(),
@@ -83,7 +86,9 @@ void bind_world(py::module_& m) {
       "per swath its correction T_model_survey (4×4), yaw_deg, sigma_horizontal_m, "
       "overlap_fraction, residual_m, distinctiveness, found and why not (reason); times and poses "
       "(N×4×4 T_world_vehicle in the world model's frame; empty when not found), "
-      "sigma_horizontal_m, seconds.");
+      "sigma_horizontal_m, seconds; with config.map_voxel_m > 0 also map, the survey carved with "
+      "the relocalised navigation ((N, 3), the model's frame: survey B of diff_surveys with "
+      "b_in_a_frame=True).");
   m.def(
       "world_model",
       [](const carray<float>& points, const std::string& placements, const std::string& catalogue,

@@ -41,6 +41,25 @@ def test_diff_surveys_registers_and_finds_an_added_box():
     assert r["change_map"].num_valid() == r["registration"]["overlap_cells"]
 
 
+def test_diff_surveys_takes_b_in_a_frame_as_given():
+    # B already in A's frame (what sonar3d.relocalize's map is, against A's world model): not
+    # registered. With B in A's frame only the box changed; with B 0.3 m off and declared in A's
+    # frame, the seabed's relief shows as change everywhere (the registration is not run).
+    a = site(seed=1)
+    b = site(box=(1.5, 1.0, 0.3, 0.4), seed=2)
+    r = sonar3d.diff_surveys(a, b, b_in_a_frame=True,
+                             registration=sonar3d.ChangeRegistrationConfig(num_threads=2))
+    assert np.allclose(np.array(r["T_a_b"]).reshape(4, 4), np.eye(4))
+    assert r["registration"]["method"] == "given: B in A's frame"
+    assert len(r["regions"]) == 1 and r["regions"][0]["kind"] == "raised"
+    off = site(box=(1.5, 1.0, 0.3, 0.4), offset=(0.3, 0.0, 0.0), seed=2)
+    moved = sonar3d.diff_surveys(a, off, b_in_a_frame=True,
+                                 registration=sonar3d.ChangeRegistrationConfig(num_threads=2))
+    assert moved["thresholds"]["sigma_m"] > 3 * r["thresholds"]["sigma_m"]
+    registered = sonar3d.diff_surveys(a, off, registration=sonar3d.ChangeRegistrationConfig(num_threads=2))
+    assert np.array(registered["T_a_b"])[3] == pytest.approx(-0.3, abs=0.03)
+
+
 def test_diff_surveys_refuses_a_model_outside_the_catalogue(tmp_path):
     cat = tmp_path / "cat.yaml"
     cat.write_text("models:\n  - {name: tank, reference: tank, symmetry: full}\n")

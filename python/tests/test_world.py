@@ -148,6 +148,12 @@ def test_relocalize_config_and_bad_worlds(tmp_path):
     assert "num_threads" not in c.to_dict()["registration"]  # the relocalisation's own
     with pytest.raises(Exception, match="min_overlap_fraction"):
         sonar3d.RelocalizeConfig(min_overlap_fraction=1.5).validate()
+    # The survey carved again with its relocalised navigation (survey B of diff_surveys): off by
+    # default, a voxel size when asked.
+    assert sonar3d.RelocalizeConfig().map_voxel_m == 0
+    assert sonar3d.RelocalizeConfig(map_voxel_m=0.02).to_dict()["map_voxel_m"] == 0.02
+    with pytest.raises(Exception, match="map_voxel_m"):
+        sonar3d.RelocalizeConfig(map_voxel_m=-1).validate()
     # A world directory that is missing, or has no seabed: one clear error each.
     with pytest.raises(Exception, match="does not exist"):
         sonar3d.relocalize(str(tmp_path / "ds"), str(tmp_path / "nowhere"))

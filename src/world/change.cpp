@@ -1235,7 +1235,7 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
                           const std::vector<SurveyPlacement>& pb, const ObjectModels& models,
                           const ChangeConfig& config, const PointCloud* colour_a,
-                          const PointCloud* colour_b) {
+                          const PointCloud* colour_b, const ChangeRegistration* registration) {
   config.validate();
   const auto t0 = std::chrono::steady_clock::now();
   require((colour_a == nullptr) == (colour_b == nullptr),
@@ -1245,7 +1245,8 @@ ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
     check_colour_cloud(*colour_b, "colour cloud B");
   }
   ChangeResult r;
-  r.registration = register_surveys(a_world, b_world, config.registration);
+  r.registration =
+      registration ? *registration : register_surveys(a_world, b_world, config.registration);
   std::vector<SurveyPlacement> pb_in_a = pb;
   for (SurveyPlacement& p : pb_in_a) p.T_world_model = r.registration.T_a_b * p.T_world_model;
   r.objects = compare_placements(pa, pb_in_a, models, config);

@@ -528,6 +528,34 @@ Trajectory relocalized_navigation(const Trajectory& nav, const std::vector<Reloc
   return out;
 }
 
+// Stage 7 (map_voxel_m > 0): the survey carved again with its relocalised navigation — each
+// swath alone, as `sonar3d map` carves them (thesis ch. 4), the clouds put together — so B's map
+// is in the model's frame with the drift along its lines taken out, which no rigid move of a
+// cloud carved as logged could do.
+PointCloud carve_relocalized(const Dataset& dataset, const RelocalizeResult& result,
+                             const RelocalizeConfig& config, bool progress) {
+  Dataset moved = dataset;  // frames are read on demand: only the navigation is copied
+  moved.navigation = result.navigation;
+  CarveConfig carve;
+  carve.voxel_size = config.map_voxel_m;
+  carve.num_threads = config.num_threads;
+  std::size_t total_frames = 0;
+  for (const RelocalizedSwath& s : result.swaths) {
+    total_frames += static_cast<std::size_t>(s.last_frame - s.first_frame + 1);
+  }
+  Progress bar("relocalize: carving the relocalised survey", total_frames, progress);
+  PointCloud map;
+  for (const RelocalizedSwath& s : result.swaths) {
+    Carver carver(moved.spec, carve, moved.noise);
+    integrate_frames(carver, moved, static_cast<std::size_t>(s.first_frame),
+                     static_cast<std::size_t>(s.last_frame), &bar);
+    const PointCloud c = carver.finalize();
+    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+  }
+  bar.finish();
+  return map;
+}
+
 }  // namespace
 
 Eigen::Isometry3d RelocalizedSwath::correction(double t) const {
@@ -586,6 +614,14 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
     result.sigma_horizontal_m = worst;
     borrow_corrections(found, result.swaths);
     result.navigation = relocalized_navigation(dataset.navigation, result.swaths);
+    if (config.map_voxel_m > 0) {
+      const auto t_map = std::chrono::steady_clock::now();
+      result.map = carve_relocalized(dataset, result, config, progress);
+      result.map_voxel_m = config.map_voxel_m;
+      result.seconds_map = seconds_since(t_map);
+      require(!result.map.empty(),
+              "relocalize: the survey carved with its relocalised navigation has no point");
+    }
   }
   result.seconds_total = seconds_since(t_start);
   return result;
@@ -600,6 +636,9 @@ std::string relocalization_json(const RelocalizeResult& r, const RelocalizeConfi
   j["world"] = r.world;
   j["world_points"] = r.world_points;
   j["navigation"] = r.found ? nlohmann::json("navigation.tum") : nlohmann::json(nullptr);
+  j["map"] = r.map.empty() ? nlohmann::json(nullptr) : nlohmann::json("merged.ply");
+  j["map_voxel_m"] = r.map.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.map_voxel_m);
+  j["map_points"] = r.map.size();
   j["sigma_horizontal_m"] = number_or_null(r.sigma_horizontal_m);
   nlohmann::json swaths = nlohmann::json::array();
   for (const RelocalizedSwath& s : r.swaths) {
@@ -643,6 +682,7 @@ std::string relocalization_json(const RelocalizeResult& r, const RelocalizeConfi
                     {"yaw_search_deg", config.registration.yaw_search_deg}};
   j["seconds"] = {{"carving", r.seconds_carving},
                   {"registration", r.seconds_registration},
+                  {"map", r.seconds_map},
                   {"total", r.seconds_total}};
   return j.dump(2) + "\n";
 }
@@ -651,11 +691,68 @@ void write_relocalization(const fs::path& dir, const RelocalizeResult& result,
                           const RelocalizeConfig& config) {
   fs::create_directories(dir);
   if (result.found) write_tum((dir / "navigation.tum").string(), result.navigation);
+  if (!result.map.empty()) write_ply((dir / "merged.ply").string(), result.map);
   const fs::path json = dir / "relocalization.json";
   std::ofstream f(json, std::ios::binary | std::ios::trunc);
   f << relocalization_json(result, config);
   f.close();
   require(static_cast<bool>(f), "failed writing '" + json.string() + "' (disk full?)");
+}
+
+bool is_relocalization_dir(const fs::path& path) {
+  return fs::is_directory(path) && fs::is_regular_file(path / "relocalization.json");
+}
+
+RelocalizedSurvey read_relocalized_survey(const fs::path& dir) {
+  const std::string where = "relocalisation directory '" + dir.string() + "'";
+  const fs::path json_path = dir / "relocalization.json";
+  require(fs::is_regular_file(json_path),
+          where + " has no relocalization.json (a directory written by sonar3d relocalize)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_text(json_path, 256u << 20));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("'" + json_path.string() + "' is not JSON: " + e.what());
+  }
+  require(j.is_object() && j.value("format", std::string()) == "sonar3d-relocalization",
+          "'" + json_path.string() +
+              "' is not a relocalisation (\"format\": \"sonar3d-relocalization\")");
+  require(j.value("found", false),
+          where + ": the survey was not found in its world model (nothing to compare)");
+  require(j.contains("map") && j["map"].is_string() && fs::is_regular_file(dir / "merged.ply"),
+          where +
+              " has no merged.ply: relocalise with --map-resolution (e.g. 0.02) to carve the "
+              "survey with its relocalised navigation");
+  RelocalizedSurvey r;
+  r.dir = dir.string();
+  r.world = j.value("world", std::string());
+  // The map the world model was built from, as its graph.json records it.
+  const fs::path graph = fs::path(r.world) / "graph.json";
+  if (!r.world.empty() && fs::is_regular_file(graph)) {
+    try {
+      const nlohmann::json g = nlohmann::json::parse(read_text(graph, 256u << 20));
+      if (g.contains("source") && g["source"].is_object() && g["source"].contains("map") &&
+          g["source"]["map"].is_string()) {
+        r.world_map = g["source"]["map"].get<std::string>();
+      }
+    } catch (const nlohmann::json::exception&) {
+      r.world_map.clear();  // unknown: the caller registers B onto A as usual
+    }
+  }
+  r.cloud = read_ply((dir / "merged.ply").string());
+  return r;
+}
+
+bool relocalized_against(const RelocalizedSurvey& b, const std::string& a) {
+  if (b.world_map.empty() || a.empty()) return false;
+  // A map directory and its merged.ply are one survey.
+  auto survey = [](fs::path p) {
+    std::error_code ec;
+    if (fs::is_regular_file(p) && p.filename() == "merged.ply") p = p.parent_path();
+    const fs::path c = fs::weakly_canonical(p, ec);
+    return ec ? p.lexically_normal() : c;
+  };
+  return survey(b.world_map) == survey(a);
 }
 
 }  // namespace sonar3d

@@ -506,12 +506,16 @@ MemoryEstimate estimate_change_memory(const PointCloud& a_world, const PointClou
 // it; without it a pair is unchanged and a one-survey recognition uncertain). `pa`, `pb` may both
 // be empty (geometry only). `colour_a`, `colour_b` (both or neither): coloured clouds of each
 // survey in its own world (sonar3d texture's output, e.g. of the survey's own cloud), compared by
-// compare_colour after B's is moved by T_a_b.
+// compare_colour after B's is moved by T_a_b. `registration` (optional): B's placement in A's
+// frame known already — survey B relocalised against A's world model (world/relocalize.hpp,
+// its map carved with the relocalised navigation) — taken as is (its T_a_b, method), and
+// register_surveys is not run.
 ChangeResult diff_surveys(const PointCloud& a_world, const PointCloud& b_world,
                           const std::vector<SurveyPlacement>& pa,
                           const std::vector<SurveyPlacement>& pb, const ObjectModels& models,
                           const ChangeConfig& config, const PointCloud* colour_a = nullptr,
-                          const PointCloud* colour_b = nullptr);
+                          const PointCloud* colour_b = nullptr,
+                          const ChangeRegistration* registration = nullptr);
 
 // changes.json (docs/formats.md, "Change directory").
 std::string changes_json(const ChangeResult& result);

@@ -86,8 +86,12 @@ struct RelocalizeConfig {
   // fitted to them as a correction linear in time, and their agreement gives σ. 0: no pieces.
   double piece_m = 6;
   SwathSplitConfig split;  // the new survey's swaths (as sonar3d map splits them)
-  int num_threads = 0;     // 0 = all cores
-  void validate() const;   // throws Error naming the parameter
+  // > 0: the survey is also carved again with its relocalised navigation, swath by swath at this
+  // voxel size, into one cloud in the model's frame (RelocalizeResult::map, OUTPUT/merged.ply):
+  // survey B of a change detection (sonar3d diff A RELOC_DIR). 0: not carved.
+  double map_voxel_m = 0;
+  int num_threads = 0;    // 0 = all cores
+  void validate() const;  // throws Error naming the parameter
 };
 
 template <class V>
@@ -117,6 +121,13 @@ void describe(RelocalizeConfig& c, V& v) {
                          .non_negative()
                          .flag("--piece"));
   v.group("split", c.split);
+  v.field(c.map_voxel_m,
+          param("map_voxel_m", "m",
+                "also carve the survey with its relocalised navigation at this voxel size into "
+                "OUTPUT/merged.ply, in the model's frame (survey B of sonar3d diff; 0: not "
+                "written)")
+              .non_negative()
+              .flag("--map-resolution"));
   v.field(
       c.num_threads,
       param("num_threads", "", "worker threads (0 = all cores)").non_negative().flag("--threads"));
@@ -181,7 +192,11 @@ struct RelocalizeResult {
   double sigma_horizontal_m = std::numeric_limits<double>::quiet_NaN();  // max over found swaths
   std::string dataset, world;
   std::size_t world_points = 0;
-  double seconds_carving = 0, seconds_registration = 0, seconds_total = 0;
+  // With map_voxel_m > 0 and found: the survey carved with the relocalised navigation (each
+  // swath alone, as sonar3d map carves them, the clouds put together), in the model's frame.
+  PointCloud map;
+  double map_voxel_m = 0;
+  double seconds_carving = 0, seconds_registration = 0, seconds_map = 0, seconds_total = 0;
 };
 
 // Relocalises `dataset` against the world model's cloud. Errors: a dataset without frames or
@@ -190,10 +205,27 @@ RelocalizeResult relocalize(const Dataset& dataset, const WorldModelCloud& world
                             const RelocalizeConfig& config, bool progress = false);
 
 // relocalization.json ("format": "sonar3d-relocalization", version 1) and, when found,
-// navigation.tum (the corrected vehicle navigation, TUM) into `dir` (written by the caller's
-// OutputDirectory; docs/formats.md).
+// navigation.tum (the corrected vehicle navigation, TUM) and with a map merged.ply (binary PLY,
+// the model's frame) into `dir` (written by the caller's OutputDirectory; docs/formats.md).
 void write_relocalization(const std::filesystem::path& dir, const RelocalizeResult& result,
                           const RelocalizeConfig& config);
 std::string relocalization_json(const RelocalizeResult& result, const RelocalizeConfig& config);
+
+// A relocalisation directory read back as survey B of a change detection (sonar3d diff).
+struct RelocalizedSurvey {
+  std::string dir;
+  std::string world;      // the world model it was relocalised against (as recorded)
+  std::string world_map;  // the map that world model was built from (its graph.json), or empty
+  PointCloud cloud;       // merged.ply: the survey in the world model's frame
+};
+// True when `path` is a directory holding relocalization.json.
+bool is_relocalization_dir(const std::filesystem::path& path);
+// Errors (one line, naming the directory): not of format sonar3d-relocalization, the survey not
+// found in its model, no merged.ply (relocalised without --map-resolution).
+RelocalizedSurvey read_relocalized_survey(const std::filesystem::path& dir);
+// Whether the world model B was relocalised against was built from survey A (`a`: a map
+// directory or its merged.ply; the world's graph.json records its map as given to sonar3d
+// world, resolved here against the current directory): then B is already in A's frame.
+bool relocalized_against(const RelocalizedSurvey& b, const std::string& a);
 
 }  // namespace sonar3d
