@@ -929,9 +929,10 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                 cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
       isolated = cv::countNonZero(core) == 0;
     }
-    // A model standing less than relief_m cannot have raised a blob (relief_m above the seabed),
-    // and the verification sees no relief of it: no proposals. (It does not stop the benchmark's
-    // false hot stab on rock, whose template, as loaded, stands at least relief_m.)
+    // A model standing less than its relief threshold cannot have raised a blob, and the
+    // verification sees no relief of it: no proposals (with low_relief_fraction > 0 every model
+    // stands above its own threshold unless min_relief_m or the map's noise exceeds its height).
+    // A low model's blobs are those of its own threshold (blob_set).
     const BlobSet* set = config.max_relief_proposals > 0 && isolated && s.m->height() >= relief
                              ? &blob_set(relief)
                              : nullptr;

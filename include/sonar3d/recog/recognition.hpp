@@ -207,14 +207,15 @@ struct RecognitionConfig {
   // Relief proposals (beyond the thesis' scan of sec. 6.3.2.4): the descriptor ranks a partly
   // buried structure, or a small tool among rocks, below look-alike patches, so the scan gives up
   // before reaching it. Once a model's scan has given up, every blob of relief standing
-  // verification.relief_m above the local seabed (a grey-scale opening of the recognition map
+  // the model's relief threshold (model_relief_m: verification.relief_m, less for a low model)
+  // above the local seabed (a grey-scale opening of the recognition map
   // over relief_window_m) whose size fits the model (its height at least half of what
   // max_buried_fraction leaves standing and at most 1.5 × the model's plus 0.1 m, its area
   // 0.25–3 × the model's footprint) is proposed to it, best-fitting first, at most
   // max_relief_proposals of them; each is registered and verified like a scan candidate. Models
-  // whose footprint holds a square of the window, or that stand lower than verification.relief_m
-  // (they cannot raise a blob), are left to the scan (the opening cannot lift the former off the
-  // seabed).
+  // whose footprint holds a square of the window, or that stand lower than their relief
+  // threshold (they cannot raise a blob), are left to the scan (the opening cannot lift the former
+  // off the seabed).
   double relief_window_m = 2.0;
   // A low model's relief threshold (issue 28, beyond the thesis): a model standing less than
   // verification.relief_m / low_relief_fraction above its base is judged on its cells standing
