@@ -10,6 +10,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -472,6 +473,28 @@ void Search4dConfig::validate() const {
           "4D search refine_yaw_step_deg must lie in (0, yaw_step_deg]");
 }
 
+double model_relief_m(const ModelTemplate& model, const RecognitionConfig& config, double noise_m) {
+  const double relief = config.verification.relief_m;
+  const double low = config.low_relief_fraction * model.height();
+  if (config.low_relief_fraction <= 0 || low >= relief) return relief;
+  return std::min(relief, std::max({low, config.min_relief_m, 3 * noise_m}));
+}
+
+double map_height_noise(const ElevationMap& map) {
+  std::vector<float> d;
+  d.reserve(map.z.size());
+  for (int r = 0; r < map.rows; ++r) {
+    for (int c = 0; c + 1 < map.cols; ++c) {
+      const float a = map.at(r, c), b = map.at(r, c + 1);
+      if (a == a && b == b) d.push_back(std::abs(a - b));
+    }
+  }
+  if (d.empty()) return 0.0;
+  const auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+  std::nth_element(d.begin(), mid, d.end());
+  return 1.4826 * *mid / std::sqrt(2.0);
+}
+
 void RecognitionConfig::validate() const {
   params::check(*this, "recognition");
   require(recog_cell_m >= map_cell_m, "recog_cell_m must be >= map_cell_m");
@@ -772,6 +795,8 @@ struct ModelSearch {
   std::vector<uint8_t> excluded;        // coarse cells this model's scan skips
   std::unique_ptr<ModelIndex> index;    // the model's KD-tree, built at its first registration
   std::optional<SearchRecord> pending;  // a registered, verified candidate awaiting the decision
+  // The verification's settings for this model: relief_m is model_relief_m's.
+  VerificationConfig verification;
 };
 
 // Not this patch again for this model: its neighbourhood (r_model/2) is excluded from the scan.
@@ -839,18 +864,34 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                   " m): check the model's unit and the map");
     }
   }
-  // Relief proposals: the blobs of the scene as it was given, offered to the models they fit.
-  cv::Mat relief_image, blob_labels;
-  std::vector<ReliefBlob> blobs =
-      config.max_relief_proposals > 0
-          ? relief_blobs(coarse, config.relief_window_m, config.verification.relief_m,
-                         &relief_image, &blob_labels)
-          : std::vector<ReliefBlob>{};
-  const std::size_t whole_blobs = blobs.size();
+  // Relief proposals: the blobs of the scene as it was given, offered to the models they fit;
+  // one set per relief threshold (model_relief_m: low models have their own). `blobs` holds
+  // the proposals, the models' indices point into it.
+  struct BlobSet {
+    double relief_m = 0;
+    std::vector<ReliefBlob> blobs;
+    cv::Mat relief_image, labels;
+  };
+  std::deque<BlobSet> blob_sets;  // references stay valid as sets are added
+  auto blob_set = [&](double relief) -> const BlobSet& {
+    for (const BlobSet& b : blob_sets) {
+      if (b.relief_m == relief) return b;
+    }
+    BlobSet b;
+    b.relief_m = relief;
+    b.blobs = relief_blobs(coarse, config.relief_window_m, relief, &b.relief_image, &b.labels);
+    blob_sets.push_back(std::move(b));
+    return blob_sets.back();
+  };
+  std::vector<ReliefBlob> blobs;
+  const double noise_m = map_height_noise(fine);
   std::vector<ModelSearch> states(order.size());
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelSearch& s = states[k];
     s.m = order[k];
+    s.verification = config.verification;
+    s.verification.relief_m = model_relief_m(*s.m, config, noise_m);
+    const double relief = s.verification.relief_m;
     const double r_patch = s.m->radius_m + std::sqrt(0.5) * period;  // eq. 6.8
     s.layout = make_ring_layout(coarse.cell_m, r_patch, config.descriptor.ring_width_m);
     // The model's descriptor: its top view with the seabed it stands on around it, centred on
@@ -863,7 +904,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     const int vr = static_cast<int>(std::floor((view.origin_xy.y() - h) / view.cell_m));
     const int vc = static_cast<int>(std::floor((h - view.origin_xy.x()) / view.cell_m));
     s.desc = describe_model(view, vr, vc, s.layout, config.descriptor);
-    // The model's footprint standing relief_m above its base (the top view's lowest height),
+    // The model's footprint standing `relief` above its base (the top view's lowest height),
     // and the blobs that fit it, best first (area and height ratios nearest 1).
     float base = std::numeric_limits<float>::infinity();
     for (float zv : view.z) {
@@ -873,7 +914,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     for (int r = 0; r < view.rows; ++r) {
       for (int c = 0; c < view.cols; ++c) {
         const float zv = view.at(r, c);
-        if (zv == zv && zv > base + config.verification.relief_m) fp_mask.at<uint8_t>(r, c) = 1;
+        if (zv == zv && zv > base + relief) fp_mask.at<uint8_t>(r, c) = 1;
       }
     }
     s.footprint_m2 = cv::countNonZero(fp_mask) * view.cell_m * view.cell_m;
@@ -888,34 +929,42 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
                 cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
       isolated = cv::countNonZero(core) == 0;
     }
-    // A model standing less than relief_m cannot have raised a blob (relief_m above the seabed),
-    // and the verification sees no relief of it: no proposals. (It does not stop the benchmark's
-    // false hot stab on rock, whose template, as loaded, stands at least relief_m.)
-    if (!blobs.empty() && isolated && s.m->height() >= config.verification.relief_m) {
+    // A model standing less than its relief threshold cannot have raised a blob, and the
+    // verification sees no relief of it: no proposals (with low_relief_fraction > 0 every model
+    // stands above its own threshold unless min_relief_m or the map's noise exceeds its height).
+    // A low model's blobs are those of its own threshold (blob_set).
+    const BlobSet* set = config.max_relief_proposals > 0 && isolated && s.m->height() >= relief
+                             ? &blob_set(relief)
+                             : nullptr;
+    if (set && !set->blobs.empty()) {
+      const std::vector<ReliefBlob>& fitting = set->blobs;
       const double hm = s.m->height();
       const double h_lo = 0.5 * (1 - config.max_buried_fraction) * hm, h_hi = 1.5 * hm + 0.1;
       std::vector<std::pair<double, std::size_t>> fits;
-      for (std::size_t b = 0; b < blobs.size(); ++b) {
-        const double ratio = blobs[b].area_m2 / s.footprint_m2;
-        if (blobs[b].relief_m < h_lo || blobs[b].relief_m > h_hi || ratio < 0.25 || ratio > 3) {
+      for (std::size_t b = 0; b < fitting.size(); ++b) {
+        const double ratio = fitting[b].area_m2 / s.footprint_m2;
+        if (fitting[b].relief_m < h_lo || fitting[b].relief_m > h_hi || ratio < 0.25 || ratio > 3) {
           continue;
         }
-        fits.emplace_back(std::abs(std::log(ratio)) + std::abs(std::log(blobs[b].relief_m / hm)),
+        fits.emplace_back(std::abs(std::log(ratio)) + std::abs(std::log(fitting[b].relief_m / hm)),
                           b);
       }
       std::sort(fits.begin(), fits.end());
-      for (const auto& f : fits) s.proposals.push_back(f.second);
+      for (const auto& f : fits) {
+        blobs.push_back(fitting[f.second]);
+        s.proposals.push_back(blobs.size() - 1);
+      }
       // Then the blobs too large for the model, split by its footprint (split_blob_centres),
       // when config.split_relief_blobs: their best centres, best first, after the blobs that fit.
       if (config.split_relief_blobs) {
         std::vector<std::pair<double, ReliefBlob>> split;
         const std::vector<double> yaws =
             yaw_range(s.m->symmetry, config.search.yaw_step_deg * 3 * kDeg);
-        for (std::size_t b = 0; b < whole_blobs; ++b) {
-          const double ratio = blobs[b].area_m2 / s.footprint_m2;
-          if (ratio <= 3 || blobs[b].relief_m < h_lo) continue;
+        for (std::size_t b = 0; b < fitting.size(); ++b) {
+          const double ratio = fitting[b].area_m2 / s.footprint_m2;
+          if (ratio <= 3 || fitting[b].relief_m < h_lo) continue;
           for (auto& c :
-               split_blob_centres(coarse, relief_image, blob_labels, static_cast<int>(b) + 1,
+               split_blob_centres(coarse, set->relief_image, set->labels, static_cast<int>(b) + 1,
                                   fp_mask, vr, vc, yaws, hm, s.m->radius_m,
                                   static_cast<std::size_t>(config.max_relief_proposals))) {
             split.push_back(std::move(c));
@@ -981,7 +1030,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
     // the scene better than the best so far.
     auto consider = [&](const Eigen::Isometry3d& T, double rms) {
       std::vector<std::pair<Eigen::Isometry3d, Verification>> poses;
-      poses.emplace_back(T, verify_placement(*m, T, fine, removed_fine, config.verification));
+      poses.emplace_back(T, verify_placement(*m, T, fine, removed_fine, s.verification));
       const Verification& vr = poses.front().second;
       if (std::isfinite(vr.ground_z)) {
         Eigen::Isometry3d T_seated = T;
@@ -989,7 +1038,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
             vr.ground_z -
             (T_seated * Eigen::Vector3d(m->center_xy.x(), m->center_xy.y(), m->base_z)).z();
         poses.emplace_back(T_seated,
-                           verify_placement(*m, T_seated, fine, removed_fine, config.verification));
+                           verify_placement(*m, T_seated, fine, removed_fine, s.verification));
       }
       for (const auto& [Tp, v] : poses) {
         if (have4 && !(v.valid && v.score_m3 > v4.score_m3)) continue;
@@ -1110,7 +1159,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
           if (tilt_deg(icp.T_world_model) <= config.max_tilt_deg &&
               shift <= config.max_icp_shift_m) {
             const Verification vi =
-                verify_placement(*m, icp.T_world_model, fine, removed_fine, config.verification);
+                verify_placement(*m, icp.T_world_model, fine, removed_fine, s.verification);
             if (vi.confidence >= v4.confidence - 0.05) {
               p.T_world_model = icp.T_world_model;
               p.residual = structure_residual(local, *m, icp.T_world_model);
@@ -1308,7 +1357,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         turn.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
         turn.translate(-axis);
         const Verification vt =
-            verify_placement(*mb, turn * p.T_world_model, fine, removed_fine, config.verification);
+            verify_placement(*mb, turn * p.T_world_model, fine, removed_fine, best->verification);
         p.turned_confidence = vt.confidence;
         p.yaw_ambiguous = vt.confidence >= config.verification.min_confidence &&
                           vt.score_m3 >= (1 - config.compete_margin) * p.verification.score_m3;
@@ -1328,7 +1377,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
         if (!s.pending) continue;
         Placement& p = s.pending->placement;
         p.set_verification(verify_placement(*ModelAtScale(*s.m, p.scale), p.T_world_model, fine,
-                                            removed_fine, config.verification));
+                                            removed_fine, s.verification));
       }
     }
     std::size_t now_done = 0;
@@ -1445,6 +1494,8 @@ std::string placements_json(const RecognitionResult& result, const std::string& 
                    {"compete_margin", config.compete_margin},
                    {"max_rejections", config.max_rejections},
                    {"max_relief_proposals", config.max_relief_proposals},
+                   {"low_relief_fraction", config.low_relief_fraction},
+                   {"min_relief_m", config.min_relief_m},
                    {"relief_window_m", config.relief_window_m},
                    {"split_relief_blobs", config.split_relief_blobs},
                    {"level_by_seabed", config.level_by_seabed},

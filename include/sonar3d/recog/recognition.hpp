@@ -207,15 +207,25 @@ struct RecognitionConfig {
   // Relief proposals (beyond the thesis' scan of sec. 6.3.2.4): the descriptor ranks a partly
   // buried structure, or a small tool among rocks, below look-alike patches, so the scan gives up
   // before reaching it. Once a model's scan has given up, every blob of relief standing
-  // verification.relief_m above the local seabed (a grey-scale opening of the recognition map
+  // the model's relief threshold (model_relief_m: verification.relief_m, less for a low model)
+  // above the local seabed (a grey-scale opening of the recognition map
   // over relief_window_m) whose size fits the model (its height at least half of what
   // max_buried_fraction leaves standing and at most 1.5 × the model's plus 0.1 m, its area
   // 0.25–3 × the model's footprint) is proposed to it, best-fitting first, at most
   // max_relief_proposals of them; each is registered and verified like a scan candidate. Models
-  // whose footprint holds a square of the window, or that stand lower than verification.relief_m
-  // (they cannot raise a blob), are left to the scan (the opening cannot lift the former off the
-  // seabed).
+  // whose footprint holds a square of the window, or that stand lower than their relief
+  // threshold (they cannot raise a blob), are left to the scan (the opening cannot lift the former
+  // off the seabed).
   double relief_window_m = 2.0;
+  // A low model's relief threshold (issue 28, beyond the thesis): a model standing less than
+  // verification.relief_m / low_relief_fraction above its base is judged on its cells standing
+  // low_relief_fraction of its height above the seabed, in its relief proposals (the blobs it is
+  // offered and its footprint) and in its verification (VerificationConfig::relief_m for this
+  // model), bounded below by min_relief_m and by the map's noise (3 robust σ of the fine map's
+  // neighbouring height differences). A 11 cm hot stab lying on the seabed has no cell 10 cm
+  // above it: it was never proposed nor judged. 0: every model uses verification.relief_m.
+  double low_relief_fraction = 0.5;
+  double min_relief_m = 0.04;
   // Per model; 0: none. On by default since the verification's relief evidence
   // (VerificationConfig::min_evidence) refuses the false hot stab on rock that they placed in
   // the benchmark's ordnance field: 4 per model find the buried cinder block and the upright
@@ -307,6 +317,15 @@ void describe(RecognitionConfig& c, V& v) {
   v.field(c.relief_window_m, param("relief_window_m", "m", "seabed window of the relief proposals")
                                  .range_open_low(0, 50)
                                  .flag("--relief-window"));
+  v.field(c.low_relief_fraction,
+          param("low_relief_fraction", "",
+                "a model lower than verification.relief_m / this is proposed and verified on its "
+                "cells this fraction of its height above the seabed (0: never)")
+              .range(0, 1));
+  v.field(c.min_relief_m,
+          param("min_relief_m", "m",
+                "a low model's relief threshold is at least this (and the map's noise)")
+              .non_negative());
   v.field(c.max_relief_proposals,
           param("max_relief_proposals", "",
                 "then at most this many blobs of relief that fit the model are tried per model "
@@ -391,6 +410,15 @@ struct RecognitionResult {
   std::size_t scene_points = 0;
   double seconds_maps = 0, seconds = 0;
 };
+
+// A model's relief threshold (RecognitionConfig::low_relief_fraction): verification.relief_m,
+// or for a model lower than relief_m / low_relief_fraction, low_relief_fraction of its height,
+// at least min_relief_m and 3 × `noise_m` (map_height_noise).
+double model_relief_m(const ModelTemplate& model, const RecognitionConfig& config, double noise_m);
+
+// The map's height noise: 1.4826 × the median absolute difference of horizontally neighbouring
+// cells' heights / √2 (a robust σ of one cell's height), m; 0 without two neighbouring cells.
+double map_height_noise(const ElevationMap& map);
 
 // The whole 2D method on a world-frame cloud. Models larger than the map are an Error naming
 // them; an empty catalogue or cloud is an Error.
