@@ -644,6 +644,10 @@ struct Model3d {
   ShapeStats stats;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   double r_model = 0;  // bounding sphere radius about the bounding box centre
+  // The top view's principal axis (model frame): its direction, the footprint's centre along and
+  // across it, and its half length and half width (end continuation).
+  Eigen::Vector2d axis = Eigen::Vector2d::UnitX(), axis_centre = Eigen::Vector2d::Zero();
+  double half_length = 0, half_width = 0;
 };
 
 Model3d prepare(const ModelTemplate& t, const Recognition3dConfig& cfg) {
@@ -696,6 +700,32 @@ Model3d prepare(const ModelTemplate& t, const Recognition3dConfig& cfg) {
   if (m.top_pts.size() < 6) m.top_pts = top_all;
   if (visible_pts.size() < 6) visible_pts = m.pts;
 
+  // The top view's principal axis: the horizontal principal direction of the samples seen from
+  // above, and the footprint's extent along and across it.
+  {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& q : top_all) mean += q.head<2>().cast<double>();
+    mean /= static_cast<double>(std::max<std::size_t>(top_all.size(), 1));
+    Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
+    for (const auto& q : top_all) {
+      const Eigen::Vector2d d = q.head<2>().cast<double>() - mean;
+      C += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(C);
+    m.axis = es.eigenvectors().col(1).normalized();
+    const Eigen::Vector2d across(-m.axis.y(), m.axis.x());
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo, wlo = lo, whi = -lo;
+    for (const auto& q : top_all) {
+      const Eigen::Vector2d d = q.head<2>().cast<double>();
+      lo = std::min(lo, d.dot(m.axis)), hi = std::max(hi, d.dot(m.axis));
+      wlo = std::min(wlo, d.dot(across)), whi = std::max(whi, d.dot(across));
+    }
+    if (!top_all.empty()) {
+      m.axis_centre = 0.5 * (lo + hi) * m.axis + 0.5 * (wlo + whi) * across;
+      m.half_length = 0.5 * (hi - lo);
+      m.half_width = 0.5 * (whi - wlo);
+    }
+  }
   m.context_m = std::max(cfg.context_min_m, cfg.context_fraction * m.r_model);
   m.footprint = make_footprint(t.points, m.context_m, std::max(cfg.voxel_m, 0.02));
 
@@ -794,6 +824,52 @@ void free_space_terms(const Model3d& m, const TopMap& top, const Eigen::Isometry
   v->violation = observed ? static_cast<double>(violated) / static_cast<double>(observed) : 0.0;
 }
 
+// End continuation (Verification3d::end_continuation; issue 28, beyond the thesis): beyond each
+// end of an elongated model, a strip from coverage_tol_m (the slip) to coverage_tol_m + max(
+// its width, 0.2 m) out along its axis and half its width wide; per end, of the strip's observed
+// cells of the surface-top map, the fraction standing at least half the model's exposed height
+// (its top above the seabed under its centre) above the local seabed. The smaller of the two
+// ends: a body of the model's section running on past both ends (a pipeline under a shell) gives
+// ≈ 1, a rock or a neighbour at one end does not. An end whose strip holds fewer than 5 observed
+// cells (beyond the survey's edge) is left out: the observed end decides (clutter_only field: the
+// shell on the pipeline lay 0.6 m from the survey's end). NaN when the model is not elongated,
+// stands no higher than coverage_tol_m, or neither end was observed.
+double end_continuation(const Model3d& m, const TopMap& top, const Ground& ground,
+                        const Eigen::Isometry3d& T, const Recognition3dConfig& cfg) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (!(m.half_width > 0) || m.half_length < cfg.elongation_min * m.half_width) return nan;
+  const Eigen::Vector3d ctr = T * Eigen::Vector3d(m.axis_centre.x(), m.axis_centre.y(), 0);
+  const double g0 = ground.at(ctr.x(), ctr.y());
+  const double exposed =
+      (T * Eigen::Vector3d(m.axis_centre.x(), m.axis_centre.y(), m.t->top_z)).z() - g0;
+  if (!std::isfinite(exposed) || exposed <= cfg.coverage_tol_m) return nan;
+  const Eigen::Vector3d u = T.linear() * Eigen::Vector3d(m.axis.x(), m.axis.y(), 0);
+  const Eigen::Vector2d ax = u.head<2>().normalized(), across(-ax.y(), ax.x());
+  const double step = top.cell, depth = std::max(2 * m.half_width, 0.2);
+  const double w = 0.5 * m.half_width;  // the central half of the width
+  double worst = 1;
+  bool any = false;
+  for (int end : {-1, 1}) {
+    std::size_t observed = 0, continued = 0;
+    for (double s = cfg.coverage_tol_m; s <= cfg.coverage_tol_m + depth; s += step) {
+      for (double t = -w; t <= w + 1e-9; t += step) {
+        const Eigen::Vector2d p = ctr.head<2>() + ax * (end * (m.half_length + s)) + across * t;
+        const int c = static_cast<int>(std::floor((p.x() - top.x0) / top.cell));
+        const int r = static_cast<int>(std::floor((p.y() - top.y0) / top.cell));
+        const float z = top.at(c, r);
+        const double g = ground.at(p.x(), p.y());
+        if (!(z == z) || !std::isfinite(g)) continue;
+        ++observed;
+        continued += z - g >= 0.5 * exposed;
+      }
+    }
+    if (observed < 5) continue;  // this end not observed (the survey's edge): the other decides
+    any = true;
+    worst = std::min(worst, static_cast<double>(continued) / static_cast<double>(observed));
+  }
+  return any ? worst : nan;
+}
+
 // The acceptance terms of a placement (Recognition3dConfig, "Decision"): the residual (sec.
 // 6.3.1.3) and, beyond the thesis, the seen coverage, the free-space violation and the
 // unexplained scene in the footprint.
@@ -847,6 +923,7 @@ void judge(const Model3d& m, const ModelIndex& scene_index, const std::vector<V3
     unexplained += !m.index->nearest_within(q, tol2, nullptr, &d2);
   }
   c->v.unexplained = inside ? static_cast<double>(unexplained) / static_cast<double>(inside) : 0.0;
+  c->v.end_continuation = end_continuation(m, top, ground, c->T, cfg);
 }
 
 // The first acceptance test a matched candidate fails, as a line for the log (empty: accepted):
@@ -880,6 +957,11 @@ std::string failed_test(const Candidate& c, const ModelTemplate& m,
     std::snprintf(buf, sizeof buf,
                   "base %.3f m above the seabed > %.3f m (stands on another object)",
                   -buried_fraction(m, c.T, w.ground_z) * m.height(), cfg.max_lift_m);
+  } else if (c.v.end_continuation > cfg.max_end_continuation) {
+    std::snprintf(buf, sizeof buf,
+                  "relief continues beyond both ends (%.2f > %.2f): a section of a longer "
+                  "structure",
+                  c.v.end_continuation, cfg.max_end_continuation);
   } else if (!(w.score_m3 >= cfg.min_net_explained * w.relief_m3) || !(w.relief_m3 > 0)) {
     std::snprintf(buf, sizeof buf, "net explanation %.3f of %.3f m3 relief < %.2f", w.score_m3,
                   w.relief_m3, cfg.min_net_explained);
@@ -1598,6 +1680,8 @@ std::string placements_json_3d(const RecognitionResult& result,
                    {"min_confidence", config.verification.min_confidence},
                    {"max_buried_fraction", config.max_buried_fraction},
                    {"max_lift_m", config.max_lift_m},
+                   {"max_end_continuation", config.max_end_continuation},
+                   {"elongation_min", config.elongation_min},
                    {"max_overlap", config.max_overlap},
                    {"min_net_explained", config.min_net_explained},
                    {"max_subspaces", config.max_subspaces},
@@ -1611,7 +1695,8 @@ std::string placements_json_3d(const RecognitionResult& result,
                           {"violation", num(v.violation)},
                           {"unexplained", num(v.unexplained)},
                           {"observed", num(v.observed)},
-                          {"tilt_deg", num(v.tilt_deg)}};
+                          {"tilt_deg", num(v.tilt_deg)},
+                          {"end_continuation", num(v.end_continuation)}};
   };
   j["placements"] = placements_list_json(result.placements);
   // The acceptance terms of each placement (the searches hold them in the placements' order).

@@ -99,6 +99,13 @@ struct Recognition3dConfig {
   // seabed ring around it (verify.hpp's ground_z). A model standing on another object's top
   // (a BOP panel laid 0.25 m up on a debris plate, mixed_buried field) is refused. m.
   double max_lift_m = 0.1;
+  // A model elongated in the top view (footprint length ≥ elongation_min × width) whose relief
+  // continues beyond both ends (Verification3d::end_continuation above this) lies on a section
+  // of a longer structure and is refused: a torpedo shell on a half-buried pipeline of its
+  // diameter (clutter_only field) is explained by the pipe's top, passes every other term, and
+  // its burial against the 0.5 limit is a matter of 1-2 % of its height.
+  double max_end_continuation = 0.5;
+  double elongation_min = 2.0;
   double max_overlap = 0.25;
   // The net explanation, verify.hpp's score_m3 (relief explained − contradicted − left
   // unexplained) over the model's relief relief_m3, at least this: a model with no relief of its
@@ -229,6 +236,16 @@ void describe(Recognition3dConfig& c, V& v) {
   v.field(c.max_lift_m,
           param("max_lift_m", "m", "an upright model's base at most this above the seabed ring")
               .non_negative());
+  v.field(c.max_end_continuation,
+          param("max_end_continuation", "",
+                "an elongated model whose relief continues beyond both ends on more than this "
+                "fraction of each end strip is refused")
+              .range(0, 1));
+  v.field(c.elongation_min,
+          param("elongation_min", "",
+                "a model whose footprint is at least this many times as long as wide is "
+                "elongated (end continuation)")
+              .range(1, 1000));
   v.field(c.max_overlap,
           param("max_overlap", "", "at most this fraction of the footprint on accepted placements")
               .range(0, 1));
@@ -316,6 +333,14 @@ struct Verification3d {
   double unexplained = std::numeric_limits<double>::quiet_NaN();
   double observed = std::numeric_limits<double>::quiet_NaN();  // of the top samples, observed
   double tilt_deg = std::numeric_limits<double>::quiet_NaN();
+  // End continuation (issue 28, beyond the thesis): for a model elongated in the top view (its
+  // footprint at least elongation_min times as long as wide), the smaller over its two ends of
+  // the fraction of observed cells in a strip beyond the end (along the model's axis, the
+  // central half of its width) where the surveyed surface stands at least half the model's
+  // exposed height above the seabed: the relief continues beyond both ends, the model lies on a
+  // section of a longer structure (a shell on a pipeline). An end not observed (beyond the
+  // survey's edge) is left out. NaN: not elongated, or neither end observed.
+  double end_continuation = std::numeric_limits<double>::quiet_NaN();
 };
 
 // A matched candidate the method did not accept (its pose, the test that rejected it, its
