@@ -214,6 +214,50 @@ TEST(Explain, VoxelDeconvolutionOfAnOrbitLeavesProvenGhostsOut) {
   EXPECT_LE(ea.median_error, eb.median_error);
 }
 
+// The fast paths of issue 29 (docs/performance.md, "Ghost removal") skip only work that cannot
+// change the result: the occlusion resolution defers the blocks that hold no return pixel and
+// skips those whose candidates are already refuted or cannot be refuted by the frame; the
+// explanation skips the blocks with no return pixel in reach and sorts hits by counting. Same
+// kept points, in the same order, as the straightforward computations, on one pass of the open
+// frame (1 cm) — the first resolution, then the explanation's rounds (with their whole-voxel
+// resolutions).
+TEST(Explain, FastPathsKeepTheSamePointsAsTheStraightforwardOnes) {
+  const SonarSpec spec = test::reduced_spec_20deg();
+  const Simulator sim(frame_scene(), spec, test::jittered_sim_config(0.05));
+  CarveConfig cfg;
+  cfg.voxel_size = 0.01;
+  cfg.resolve_occlusions = false;  // the candidates
+  cfg.region =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.6, -0.03), Eigen::Vector3d(0.6, 0.6, 1.5));
+  Carver carver(spec, cfg);
+  int seed = 0;
+  for (double z = -0.3; z <= kHeight + 0.5 + 1e-9; z += 0.02) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(-2.5 - kHalf, 0.1, z);
+    carver.integrate(sim.render(T, ++seed), T);
+  }
+  const PointCloud candidates = carver.finalize();
+  OcclusionConfig occ = cfg.occlusion;
+  occ.voxel_size = cfg.voxel_size;
+  occ.explain_returns = false;
+  const PointCloud fast = resolve_occlusions(candidates, carver.frame_returns(), spec, occ);
+  const PointCloud ref =
+      detail::resolve_occlusions_reference(candidates, carver.frame_returns(), spec, occ);
+  std::size_t removed_fast = 0, removed_ref = 0;
+  const PointCloud explained =
+      drop_unexplained(fast, carver.frame_returns(), spec, occ, &removed_fast);
+  const PointCloud explained_ref =
+      detail::drop_unexplained_reference(ref, carver.frame_returns(), spec, occ, &removed_ref);
+  std::printf("one pass of the open frame: %zu candidates -> %zu points -> %zu explained\n",
+              candidates.size(), fast.size(), explained.size());
+  ASSERT_GT(candidates.size(), 2 * fast.size());  // the resolution removes much
+  ASSERT_GT(removed_ref, 0u);                     // and so does the explanation
+  EXPECT_EQ(fast.points, ref.points);
+  EXPECT_EQ(fast.intensity, ref.intensity);
+  EXPECT_EQ(removed_fast, removed_ref);
+  EXPECT_EQ(explained.points, explained_ref.points);
+}
+
 // Points no frame put in a return pixel, and a cloud without frames, are left alone; a sensor
 // mismatch is an error naming the frame.
 TEST(Explain, EdgeCases) {

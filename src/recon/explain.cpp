@@ -142,8 +142,9 @@ class ReturnHits {
  public:
   ReturnHits(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
              const detail::SonarGeometry& g, double voxel_size, double theta_lobe,
-             tbb::task_arena& arena)
-      : points_(points_world),
+             tbb::task_arena& arena, bool shortcuts)
+      : shortcuts_(shortcuts),
+        points_(points_world),
         frames_(frames),
         g_(g),
         theta_lobe_(theta_lobe),
@@ -224,7 +225,17 @@ class ReturnHits {
       const double alpha = std::asin(radius / d) + 1e-3;
       if (std::abs(std::atan2(c.z(), rho)) - alpha > theta_lobe_) return true;
       const double beta = std::asin(radius / rho) + 1e-3, phi = std::atan2(c.y(), c.x());
-      return phi + beta < g.fov_min || phi - beta >= g.fov_max;
+      if (phi + beta < g.fov_min || phi - beta >= g.fov_max) return true;
+      if (!shortcuts_ || phi - beta < -M_PI || phi + beta > M_PI) return false;
+      // No return pixel in the block's range × bearing window (a bin of margin each way): none
+      // of its points can be a hit. Most of an open lattice lies in empty pixels of most frames.
+      const int j0 = g.beam(std::max(phi - beta, g.fov_min));
+      const int j1 = g.beam(std::min(phi + beta, std::nextafter(g.fov_max, g.fov_min)));
+      const int i0 = static_cast<int>(std::floor((d - radius - g.r_min) * g.inv_dr)) - 1;
+      const int i1 = static_cast<int>((d + radius - g.r_min) * g.inv_dr) + 1;
+      for (int j = j0; j <= j1; ++j)
+        if (fr.any_return(j, i0, i1)) return false;
+      return true;
     };
     for (const PointBlock& b : blocks_) {
       if (outside_lobe(fp.to_sonar(b.centre), b.radius)) continue;
@@ -250,11 +261,39 @@ class ReturnHits {
                         n | (in_aperture ? kInAperture : 0u)});
       }
     }
-    std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
-      return a.pixel != b.pixel ? a.pixel < b.pixel : a.arc < b.arc;
-    });
+    if (!shortcuts_) {
+      std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+        return a.pixel != b.pixel ? a.pixel < b.pixel : a.arc < b.arc;
+      });
+      return;
+    }
+    // The same order by a counting sort on the pixel, then each pixel's run by arc (tens of
+    // hits): a frame holds millions of hits and a comparison sort of all of them took 10 % of
+    // the P900 lattice's run (issue 29). Hits of one pixel at the same arc may come out in
+    // another order than std::sort's; a pass never tells them apart (one surface, sums).
+    SortScratch& sc = sort_scratch_.local();
+    const std::size_t pixels = static_cast<std::size_t>(g.bins) * g.beams;
+    sc.start.assign(pixels + 1, 0);
+    for (const Hit& h : hits) ++sc.start[h.pixel + 1];
+    for (std::size_t p = 0; p < pixels; ++p) sc.start[p + 1] += sc.start[p];
+    sc.sorted.resize(hits.size());
+    for (const Hit& h : hits) sc.sorted[sc.start[h.pixel]++] = h;
+    const auto by_arc = [](const Hit& a, const Hit& b) { return a.arc < b.arc; };
+    for (std::size_t k = 0; k < sc.sorted.size();) {
+      std::size_t e = k + 1;
+      while (e < sc.sorted.size() && sc.sorted[e].pixel == sc.sorted[k].pixel) ++e;
+      if (e - k > 1) std::sort(sc.sorted.begin() + k, sc.sorted.begin() + e, by_arc);
+      k = e;
+    }
+    hits.swap(sc.sorted);
   }
+  struct SortScratch {
+    std::vector<std::uint32_t> start;  // per pixel, where its hits go
+    std::vector<Hit> sorted;
+  };
+  mutable tbb::enumerable_thread_specific<SortScratch> sort_scratch_;
 
+  bool shortcuts_;  // skip the blocks that hold no return pixel (false: the reference)
   const PointCloud& points_;
   const std::vector<FrameReturns>& frames_;
   const detail::SonarGeometry& g_;
@@ -399,7 +438,7 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
   if (n_points == 0 || frames.empty()) return alive;
   const detail::SonarGeometry g(spec);
   tbb::task_arena arena = make_arena(config);
-  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena, true);
   std::vector<std::uint8_t> pinned;
   int iterations = 0;
   const std::size_t removed =
@@ -414,9 +453,12 @@ std::vector<std::uint8_t> explain_returns(const PointCloud& points_world,
   return alive;
 }
 
-PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
-                            const SonarSpec& spec, const OcclusionConfig& config,
-                            std::size_t* removed) {
+namespace {
+
+PointCloud drop_unexplained_impl(const PointCloud& points_world,
+                                 const std::vector<FrameReturns>& frames, const SonarSpec& spec,
+                                 const OcclusionConfig& config, std::size_t* removed,
+                                 bool shortcuts) {
   auto select = [](const PointCloud& in, const std::vector<std::uint8_t>& keep) {
     PointCloud out;
     out.properties = in.properties;
@@ -442,7 +484,7 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
   // frames beyond are projected again in each pass): a round only removes points, so each pass
   // skips the dead ones (issue 29: 3-5x the 50 ms/frame target when every pass projected every
   // point into every frame again).
-  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena);
+  ReturnHits rh(points_world, frames, g, config.voxel_size, lobe_of(g), arena, shortcuts);
   const double gap = kExplainGapVoxels * config.voxel_size;
   std::vector<std::uint8_t> alive(points_world.size(), 1), pinned;
   for (int round = 0; round < kExplainMaxRounds; ++round) {
@@ -461,7 +503,9 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
     for (std::size_t n = 0; n < alive.size(); ++n)
       if (alive[n]) index.push_back(n);
     const PointCloud cur = select(points_world, alive);
-    const PointCloud resolved = detail::resolve_occlusions_solid(cur, frames, spec, plain);
+    const PointCloud resolved =
+        shortcuts ? detail::resolve_occlusions_solid(cur, frames, spec, plain)
+                  : detail::resolve_occlusions_reference(cur, frames, spec, plain, true);
     std::size_t dropped = 0;
     for (std::size_t k = 0, m = 0; k < cur.size(); ++k) {
       if (m < resolved.size() && resolved.points[m] == cur.points[k]) {
@@ -477,5 +521,24 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
   if (removed) *removed = points_world.size() - out.size();
   return out;
 }
+
+}  // namespace
+
+PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<FrameReturns>& frames,
+                            const SonarSpec& spec, const OcclusionConfig& config,
+                            std::size_t* removed) {
+  return drop_unexplained_impl(points_world, frames, spec, config, removed, true);
+}
+
+namespace detail {
+
+PointCloud drop_unexplained_reference(const PointCloud& points_world,
+                                      const std::vector<FrameReturns>& frames,
+                                      const SonarSpec& spec, const OcclusionConfig& config,
+                                      std::size_t* removed) {
+  return drop_unexplained_impl(points_world, frames, spec, config, removed, false);
+}
+
+}  // namespace detail
 
 }  // namespace sonar3d

@@ -146,7 +146,8 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
                                               Position&& position,
                                               const std::vector<const FrameReturns*>& frames,
                                               const SonarSpec& spec, const OcclusionConfig& config,
-                                              Progress* progress, bool solid_refute = false) {
+                                              Progress* progress, bool solid_refute = false,
+                                              bool shortcuts = true) {
   const detail::SonarGeometry g(spec);
   const double dtheta = config.elevation_resolution_rad;
   const int K = std::max(1, static_cast<int>(std::ceil(2 * g.theta3 / dtheta - 1e-9)));
@@ -171,7 +172,8 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     std::vector<std::uint16_t> depth;   // nearest return-pixel candidate bin per (beam, interval)
     std::vector<std::uint16_t> shield;  // the same, footprints of a whole voxel (solid_refute)
     std::vector<Hit> hits;
-    std::vector<Hit> empty_hits;  // candidates in empty pixels (refute_free)
+    std::vector<Hit> empty_hits;          // candidates in empty pixels (refute_free)
+    std::vector<std::uint32_t> deferred;  // blocks with no return pixel in reach (refute_free)
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
 
@@ -200,10 +202,10 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     };
     // Projects the candidates of block bi; on_return(hit, theta, phi, r, rho) for those in a
     // return pixel, on_empty(hit) for those in an empty pixel of the footprint.
-    auto visit_block = [&](std::size_t bi, auto&& on_return, auto&& on_empty) {
-      const detail::CandidateBlock& b = blocks[bi];
+    auto visit_block = [&](std::size_t bi, const detail::BlockMask& mask, auto&& on_return,
+                           auto&& on_empty) {
       for (int w = 0; w < 8; ++w) {
-        for (std::uint64_t bits = b.mask[w]; bits; bits &= bits - 1) {
+        for (std::uint64_t bits = mask[w]; bits; bits &= bits - 1) {
           const auto bit = static_cast<std::uint32_t>(w * 64 + __builtin_ctzll(bits));
           const Eigen::Vector3d p = fp.to_sonar(position(bi, bit));
           const double r2 = p.squaredNorm();
@@ -228,10 +230,19 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
       }
     };
     std::size_t overflow_from = nb;  // first block whose hits were not all buffered
+    sc.deferred.clear();
     for (std::size_t bi = 0; bi < nb; ++bi) {
       if (skip_block(blocks[bi])) continue;
+      // A block none of whose candidates can lie in a return pixel neither splats nor is
+      // observed: only the free-space test can touch it, and that needs the depth grid
+      // complete, so it waits (below), where it is skipped when it cannot change.
+      if (shortcuts && config.refute_free &&
+          fp.no_return_possible(fp.to_sonar(blocks[bi].centre_world), blocks[bi].radius)) {
+        sc.deferred.push_back(static_cast<std::uint32_t>(bi));
+        continue;
+      }
       visit_block(
-          bi,
+          bi, blocks[bi].mask,
           [&](const Hit& hit, double theta, double phi, double r, double rho) {
             // Fig. 4.7: the candidate occludes every (beam, interval) cell its angular
             // footprint covers, for everything at a longer range.
@@ -278,8 +289,59 @@ std::vector<detail::BlockMask> resolve_blocks(const std::vector<detail::Candidat
     for (const Hit& hit : sc.empty_hits) test_empty(hit);
     for (std::size_t bi = overflow_from; bi < nb; ++bi) {
       if (skip_block(blocks[bi])) continue;
+      if (shortcuts && config.refute_free &&
+          fp.no_return_possible(fp.to_sonar(blocks[bi].centre_world), blocks[bi].radius))
+        continue;  // deferred
       visit_block(
-          bi, [&](const Hit& hit, double, double, double, double) { test_return(hit); },
+          bi, blocks[bi].mask,
+          [&](const Hit& hit, double, double, double, double) { test_return(hit); }, test_empty);
+    }
+    // The deferred blocks: every candidate lies in an empty pixel (or outside the aperture), so
+    // only the free-space test applies — and a refutation is final (a candidate refuted by one
+    // frame is never kept), so the candidates some frame has already refuted need no test, and a
+    // block whose every cell of its angular window already holds a candidate at or before its
+    // nearest range bin cannot have one refuted here. Skipping them changes no flag.
+    const std::vector<std::uint16_t>& free_grid = solid_refute ? sc.shield : sc.depth;
+    for (std::uint32_t bi : sc.deferred) {
+      const detail::CandidateBlock& b = blocks[bi];
+      detail::BlockMask left;
+      std::uint64_t any = 0;
+      for (int w = 0; w < 8; ++w) {
+        left[w] = b.mask[w] &
+                  ~refuted[static_cast<std::size_t>(bi) * 8 + w].load(std::memory_order_relaxed);
+        any |= left[w];
+      }
+      if (!any) continue;
+      const Eigen::Vector3d c = fp.to_sonar(b.centre_world);
+      const double d = c.norm(), rho = std::sqrt(c.x() * c.x() + c.y() * c.y());
+      if (d > 1.01 * b.radius && rho > 1.01 * b.radius) {
+        // The cells and range bins the block's candidates can fall in (conservative, as
+        // FrameFootprint::classify()).
+        const double alpha = detail::asin_upper(b.radius / d) + detail::kAnglePad;
+        const double beta = detail::asin_upper(b.radius / rho) + detail::kAnglePad;
+        const double theta_c = detail::fast_atan2(c.z(), rho),
+                     phi_c = detail::fast_atan2(c.y(), c.x());
+        const double lo = phi_c - beta, hi = phi_c + beta;
+        if (lo >= -M_PI && hi <= M_PI && hi >= g.fov_min && lo < g.fov_max) {
+          const int j0 = g.beam(std::max(lo, g.fov_min));
+          const int j1 = g.beam(std::min(hi, std::nextafter(g.fov_max, g.fov_min)));
+          const int k0 = interval(theta_c - alpha), k1 = interval(theta_c + alpha);
+          const int i_lo = static_cast<int>(std::floor((d - b.radius - g.r_min) * g.inv_dr)) - 1;
+          bool can_refute = false;
+          for (int jj = j0; jj <= j1 && !can_refute; ++jj) {
+            const std::uint16_t* row = &free_grid[static_cast<std::size_t>(jj) * K];
+            for (int kk = k0; kk <= k1; ++kk) {
+              if (i_lo < static_cast<int>(row[kk])) {
+                can_refute = true;
+                break;
+              }
+            }
+          }
+          if (!can_refute) continue;
+        }
+      }
+      visit_block(
+          bi, left, [&](const Hit& hit, double, double, double, double) { test_return(hit); },
           test_empty);
     }
     if (progress) progress->add();
@@ -349,7 +411,8 @@ namespace {
 // resolve_occlusions() without the explanation, and detail::resolve_occlusions_solid().
 PointCloud resolve_cloud(const PointCloud& candidates_world,
                          const std::vector<FrameReturns>& frame_list, const SonarSpec& spec,
-                         const OcclusionConfig& config, Progress* progress, bool solid_refute) {
+                         const OcclusionConfig& config, Progress* progress, bool solid_refute,
+                         bool shortcuts) {
   config.validate();
   spec.validate();
   const std::vector<const FrameReturns*> frames = detail::frame_pointers(frame_list);
@@ -425,7 +488,7 @@ PointCloud resolve_cloud(const PointCloud& candidates_world,
       [&](std::size_t bi, std::uint32_t bit) {
         return candidates_world.points[point_index(bi, bit)].cast<double>();
       },
-      frames, spec, config, progress, solid_refute);
+      frames, spec, config, progress, solid_refute, shortcuts);
 
   std::vector<std::uint32_t> kept;
   for (std::size_t bi = 0; bi < blocks.size(); ++bi)
@@ -447,7 +510,7 @@ PointCloud resolve_cloud(const PointCloud& candidates_world,
 PointCloud resolve_occlusions(const PointCloud& candidates_world,
                               const std::vector<FrameReturns>& frames, const SonarSpec& spec,
                               const OcclusionConfig& config, Progress* progress) {
-  PointCloud out = resolve_cloud(candidates_world, frames, spec, config, progress, false);
+  PointCloud out = resolve_cloud(candidates_world, frames, spec, config, progress, false, true);
   if (config.explain_returns) return drop_unexplained(out, frames, spec, config);
   return out;
 }
@@ -459,7 +522,16 @@ PointCloud resolve_occlusions_solid(const PointCloud& points_world,
                                     const OcclusionConfig& config) {
   OcclusionConfig plain = config;
   plain.explain_returns = false;
-  return resolve_cloud(points_world, frames, spec, plain, nullptr, true);
+  return resolve_cloud(points_world, frames, spec, plain, nullptr, true, true);
+}
+
+PointCloud resolve_occlusions_reference(const PointCloud& candidates_world,
+                                        const std::vector<FrameReturns>& frames,
+                                        const SonarSpec& spec, const OcclusionConfig& config,
+                                        bool solid_refute) {
+  OcclusionConfig plain = config;
+  plain.explain_returns = false;
+  return resolve_cloud(candidates_world, frames, spec, plain, nullptr, solid_refute, false);
 }
 
 }  // namespace detail

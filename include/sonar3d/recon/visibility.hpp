@@ -190,4 +190,20 @@ PointCloud drop_unexplained(const PointCloud& points_world, const std::vector<Fr
                             const SonarSpec& spec, const OcclusionConfig& config,
                             std::size_t* removed = nullptr);
 
+namespace detail {
+// The references the fast paths must equal (tests): resolve_occlusions() without the explanation
+// (with `solid_refute`, each point shielding its whole voxel from the free-space test, as the
+// explanation's rounds run it) and drop_unexplained(), both without the shortcuts that skip work
+// which cannot change the result (blocks of no return pixel, candidates already refuted: issue 29,
+// docs/performance.md "Ghost removal").
+PointCloud resolve_occlusions_reference(const PointCloud& candidates_world,
+                                        const std::vector<FrameReturns>& frames,
+                                        const SonarSpec& spec, const OcclusionConfig& config,
+                                        bool solid_refute = false);
+PointCloud drop_unexplained_reference(const PointCloud& points_world,
+                                      const std::vector<FrameReturns>& frames,
+                                      const SonarSpec& spec, const OcclusionConfig& config,
+                                      std::size_t* removed = nullptr);
+}  // namespace detail
+
 }  // namespace sonar3d
