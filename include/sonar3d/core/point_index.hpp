@@ -7,10 +7,10 @@
 // kept private to src/core/point_index.cpp: this header exposes Eigen and std only.
 //
 // Points are float (`PointIndex3f`) or double (`PointIndex3d`); squared distances are computed in
-// the index's scalar as ((dx² + dy²) + dz²). The index either owns its points (constructed from a vector, moved in to avoid
-// a copy) or borrows a vector the caller keeps alive and unchanged (`borrow`), so a large cloud
-// already in memory is not copied again. Built once, then read-only: queries may run from any
-// number of threads at once.
+// the index's scalar as ((dx² + dy²) + dz²). The index either owns its points (constructed from a
+// vector, moved in to avoid a copy) or borrows a vector the caller keeps alive and unchanged
+// (`borrow`), so a large cloud already in memory is not copied again. Built once, then read-only:
+// queries may run from any number of threads at once.
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <memory>
