@@ -27,7 +27,7 @@ PACKAGES=(
   libvisualization-msgs-dev  # --catalogue: recognised placements as MarkerArray
   ros-core python3-rospy python3-rosgraph python3-std-srvs python3-diagnostic-msgs
   python3-visualization-msgs
-  libnanoflann-dev     # KD-tree (header only): trimmed ICP of CAD-model recognition
+  libnanoflann-dev     # KD-tree (header only): core/point_index, the library's nearest-neighbour index
   zlib1g-dev           # NumPy .npz camera files (IDR/NeuS): deflated zip entries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -756,7 +756,7 @@ TEST(NavigationCsv, BadFilesNameFileAndLine) {
   write_file(p, "time,x,y,z,roll,pitch,yaw\n");
   expect_error([&] { read_navigation_csv(p, {}); }, {"no sample"});
   expect_error([&] { read_navigation((root / "nav.bin").string()); }, {"extension"});
-  expect_error([&] { parse_nav_convention("nwu"); }, {"'enu' or 'ned'"});
+  expect_error([&] { parse_nav_convention("nwu"); }, {"enu or ned", "'nwu'"});
 }
 
 // ------------------------------------------------------------------------------ frames import

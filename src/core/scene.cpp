@@ -1,26 +1,18 @@
 #include "sonar3d/core/scene.hpp"
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 
 namespace sonar3d {
 
-const char* to_string(ObjectKind kind) {
-  switch (kind) {
-    case ObjectKind::Pipeline:
-      return "pipeline";
-    case ObjectKind::Terrain:
-      return "terrain";
-    case ObjectKind::Structure:
-      break;
-  }
-  return "structure";
-}
+namespace {
+constexpr const char* kObjectKindNames[] = {"structure", "pipeline", "terrain"};  // by ObjectKind
+}  // namespace
+
+const char* to_string(ObjectKind kind) { return enum_name(kObjectKindNames, kind); }
 
 ObjectKind object_kind_from_string(const std::string& s) {
-  if (s == "structure") return ObjectKind::Structure;
-  if (s == "pipeline") return ObjectKind::Pipeline;
-  if (s == "terrain") return ObjectKind::Terrain;
-  throw Error("unknown object kind '" + s + "' (structure, pipeline, terrain)");
+  return parse_enum<ObjectKind>(kObjectKindNames, s, "object kind");
 }
 
 bool Scene::empty() const {

@@ -5,21 +5,18 @@
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
-#include <cstdint>
 #include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <random>
-#include <unordered_map>
 #include <utility>
 
 #include "sonar3d/core/error.hpp"
+#include "sonar3d/core/point_index.hpp"
 
 namespace sonar3d {
 namespace {
@@ -30,83 +27,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Uniform double in [0, 1) from the top 53 bits: unlike std::uniform_real_distribution, whose
 // algorithm is left to the standard library, this gives the same samples on every platform.
 double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
-
-// Uniform hash grid of points, cell size = query radius, for "is any point within r of q?".
-// Coverage asks exactly one fixed-radius question per surface sample, so a grid whose cells are
-// r wide answers each by scanning the 27 cells around q; it is simpler and no slower than a
-// KD-tree here and needs no extra dependency (nanoflann is not a project dependency).
-class PointHashGrid {
- public:
-  // Only points inside `domain` are kept: coverage queries come from the mesh surface, so points
-  // farther than r from the mesh's box can never answer one (and far outliers would blow up the
-  // cell index range).
-  PointHashGrid(const std::vector<Eigen::Vector3f>& points, const Eigen::AlignedBox3d& domain,
-                double cell)
-      : origin_(domain.min()), cell_(cell) {
-    const Vector3d extent = domain.max() - domain.min();
-    for (int k = 0; k < 3; ++k) dims_[k] = static_cast<std::int64_t>(extent[k] / cell) + 1;
-    if (static_cast<double>(dims_[0]) * static_cast<double>(dims_[1]) *
-            static_cast<double>(dims_[2]) >
-        0x1.0p62) {
-      throw Error(fmt::format(
-          "parameter 'coverage_radius' = {} m is too small for a mesh of extent {:.3g} x {:.3g} "
-          "x {:.3g} m (the coverage grid would exceed 2^62 cells); use a larger radius",
-          cell, extent.x(), extent.y(), extent.z()));
-    }
-    std::vector<std::pair<std::uint64_t, std::size_t>> keyed;  // (cell key, point index)
-    keyed.reserve(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const Vector3d p = points[i].cast<double>();
-      if (!domain.contains(p)) continue;
-      keyed.emplace_back(key(cell_of(p)), i);
-    }
-    tbb::parallel_sort(keyed.begin(), keyed.end());
-    points_.reserve(keyed.size());
-    for (std::size_t i = 0; i < keyed.size(); ++i) {
-      points_.push_back(points[keyed[i].second].cast<double>());
-      if (i == 0 || keyed[i].first != keyed[i - 1].first) cells_[keyed[i].first].first = i;
-      cells_[keyed[i].first].second = i + 1;
-    }
-  }
-
-  bool any_within(const Vector3d& q, double radius) const {
-    const double r2 = radius * radius;
-    const auto c = cell_of(q);
-    for (std::int64_t z = c[2] - 1; z <= c[2] + 1; ++z) {
-      if (z < 0 || z >= dims_[2]) continue;
-      for (std::int64_t y = c[1] - 1; y <= c[1] + 1; ++y) {
-        if (y < 0 || y >= dims_[1]) continue;
-        for (std::int64_t x = c[0] - 1; x <= c[0] + 1; ++x) {
-          if (x < 0 || x >= dims_[0]) continue;
-          const auto it = cells_.find(key({x, y, z}));
-          if (it == cells_.end()) continue;
-          for (std::size_t i = it->second.first; i < it->second.second; ++i) {
-            if ((points_[i] - q).squaredNorm() <= r2) return true;
-          }
-        }
-      }
-    }
-    return false;
-  }
-
- private:
-  std::array<std::int64_t, 3> cell_of(const Vector3d& p) const {
-    std::array<std::int64_t, 3> c;
-    for (int k = 0; k < 3; ++k) {
-      c[k] = static_cast<std::int64_t>(std::floor((p[k] - origin_[k]) / cell_));
-    }
-    return c;
-  }
-  std::uint64_t key(const std::array<std::int64_t, 3>& c) const {
-    return static_cast<std::uint64_t>(c[0] + dims_[0] * (c[1] + dims_[1] * c[2]));
-  }
-
-  Vector3d origin_;
-  double cell_;
-  std::array<std::int64_t, 3> dims_{};
-  std::vector<Vector3d> points_;  // sorted by cell, so a cell's points are contiguous
-  std::unordered_map<std::uint64_t, std::pair<std::size_t, std::size_t>> cells_;  // [begin, end)
-};
 
 // Median of the values (average of the two middle ones for an even count); reorders `v`.
 double median_of(std::vector<double>& v) {
@@ -227,12 +147,19 @@ EvalResult evaluate(const PointCloud& cloud, const TriangleMesh& truth, const Ev
   Eigen::AlignedBox3d domain = truth.bounding_box().cast<double>();
   domain.min().array() -= config.coverage_radius;
   domain.max().array() += config.coverage_radius;
-  const PointHashGrid grid(cloud.points, domain, config.coverage_radius);
+  // Only points inside the domain can answer a query from the mesh surface (and far outliers
+  // need not be indexed).
+  std::vector<Vector3d> near_model;
+  near_model.reserve(cloud.size());
+  for (const Eigen::Vector3f& p : cloud.points) {
+    if (domain.contains(p.cast<double>())) near_model.push_back(p.cast<double>());
+  }
+  const PointIndex3d index(std::move(near_model));
   const std::size_t covered = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, samples.size()), std::size_t{0},
       [&](const tbb::blocked_range<std::size_t>& range, std::size_t n) {
         for (std::size_t i = range.begin(); i != range.end(); ++i) {
-          if (grid.any_within(samples[i].cast<double>(), config.coverage_radius)) ++n;
+          if (index.any_within(samples[i].cast<double>(), config.coverage_radius)) ++n;
         }
         return n;
       },

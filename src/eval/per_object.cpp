@@ -102,10 +102,12 @@ MemoryEstimate estimate_evaluation_memory(const PointCloud& cloud,
   std::snprintf(what, sizeof what, "%.3g surface samples over %.3g m² at %.3g per cm²", samples,
                 area, config.samples_per_cm2);
   e.add(what, samples * sizeof(Eigen::Vector3f), samples_option);
-  // Per scoring (each object, then all): the coverage grid holds each point as a double vector
-  // with its cell key while sorting; the distances are one double per point.
+  // Per scoring (each object, then all): the coverage index (core/point_index.hpp) holds each
+  // point as a double vector, with its tree (a 4-byte index a point and the nodes, about a
+  // leaf of up to 16 points each: 16 bytes a point is an upper bound); the distances are one
+  // double per point.
   const double n = static_cast<double>(cloud.size());
-  e.add("coverage grid and distances over " + std::to_string(cloud.size()) + " points",
+  e.add("coverage index and distances over " + std::to_string(cloud.size()) + " points",
         n * (sizeof(Eigen::Vector3d) + 16 + 2 * sizeof(double)));
   // Distance structures, each object's then all's: Embree's copy of the vertices and triangles,
   // and its BVH, counted as large as the copy.

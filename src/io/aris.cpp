@@ -7,6 +7,7 @@
 
 #include "binary.hpp"
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -246,17 +247,11 @@ double aris_vertical_aperture(ArisSystem, bool telephoto) {
 }
 
 ArisClock parse_aris_clock(const std::string& s) {
-  if (s == "pc") return ArisClock::Pc;
-  if (s == "sonar") return ArisClock::Sonar;
-  throw Error("unknown ARIS clock '" + s + "' (expected 'pc' or 'sonar')");
+  return parse_enum<ArisClock>(kArisClockNames, s, "ARIS clock");
 }
 
 ArisNavSource parse_aris_nav_source(const std::string& s) {
-  if (s == "auto") return ArisNavSource::Auto;
-  if (s == "header") return ArisNavSource::Header;
-  if (s == "file") return ArisNavSource::File;
-  if (s == "static") return ArisNavSource::Static;
-  throw Error("unknown navigation source '" + s + "' (expected auto, header, file or static)");
+  return parse_enum<ArisNavSource>(kArisNavSourceNames, s, "ARIS navigation source");
 }
 
 ArisReader::ArisReader(const fs::path& path) : path_(path) {

@@ -19,6 +19,7 @@
 #include <optional>
 #include <sstream>
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -333,14 +334,10 @@ Eigen::Isometry3d rigid_pose(const json& values, double tol, const std::string& 
 
 }  // namespace
 
-const char* holoocean_bins_name(HoloOceanBins b) {
-  return b == HoloOceanBins::Sample ? "sample" : "cell";
-}
+const char* holoocean_bins_name(HoloOceanBins b) { return enum_name(kHoloOceanBinsNames, b); }
 
 HoloOceanBins parse_holoocean_bins(const std::string& s) {
-  if (s == "sample") return HoloOceanBins::Sample;
-  if (s == "cell") return HoloOceanBins::Cell;
-  throw Error("unknown HoloOcean bin convention '" + s + "' (expected 'sample' or 'cell')");
+  return parse_enum<HoloOceanBins>(kHoloOceanBinsNames, s, "HoloOcean bin convention");
 }
 
 void HoloOceanImportConfig::validate() const {

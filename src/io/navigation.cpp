@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -46,13 +47,10 @@ std::string fmt_time(double t) {
 }  // namespace
 
 NavConvention parse_nav_convention(const std::string& s) {
-  const std::string l = lower(s);
-  if (l == "enu") return NavConvention::Enu;
-  if (l == "ned") return NavConvention::Ned;
-  throw Error("unknown navigation convention '" + s + "' (expected 'enu' or 'ned')");
+  return parse_enum<NavConvention>(kNavConventionNames, lower(s), "navigation convention");
 }
 
-const char* nav_convention_name(NavConvention c) { return c == NavConvention::Enu ? "enu" : "ned"; }
+const char* nav_convention_name(NavConvention c) { return enum_name(kNavConventionNames, c); }
 
 Eigen::Isometry3d vehicle_pose_from_nav(const Eigen::Vector3d& xyz, double roll, double pitch,
                                         double yaw, NavConvention convention) {

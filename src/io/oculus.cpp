@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "binary.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -336,15 +337,11 @@ SonarSpec oculus_sonar_spec(const OculusPing& g, const std::string& where) {
 }
 
 OculusGains parse_oculus_gains(const std::string& s) {
-  if (s == "keep") return OculusGains::Keep;
-  if (s == "divide") return OculusGains::Divide;
-  throw Error("unknown Oculus gain handling '" + printable(s) + "' (expected keep or divide)");
+  return parse_enum<OculusGains>(kOculusGainsNames, s, "Oculus gain handling");
 }
 
 OculusClock parse_oculus_clock(const std::string& s) {
-  if (s == "ping") return OculusClock::Ping;
-  if (s == "rate") return OculusClock::Rate;
-  throw Error("unknown Oculus clock '" + printable(s) + "' (expected ping or rate)");
+  return parse_enum<OculusClock>(kOculusClockNames, s, "Oculus clock");
 }
 
 void OculusImportConfig::validate() const {

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -236,14 +237,11 @@ double MapAlignment::stretch() const {
 }
 
 const char* to_string(SwathAdjustMethod method) {
-  const int k = static_cast<int>(method);
-  return k >= 0 && k < 3 ? kSwathAdjustMethodNames[k] : "?";
+  return enum_name(kSwathAdjustMethodNames, method);
 }
 
 SwathAdjustMethod swath_adjust_method_from_string(const std::string& name) {
-  return params::parse_choice<SwathAdjustMethod>(
-      params::param("method", "", "").choices(kSwathAdjustMethodNames), name,
-      "swath adjustment method");
+  return parse_enum<SwathAdjustMethod>(kSwathAdjustMethodNames, name, "swath adjustment method");
 }
 
 void SwathSplitConfig::validate() const {

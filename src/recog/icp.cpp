@@ -1,5 +1,5 @@
-// Trimmed ICP (Masuda et al. 1996; thesis sec. 6.3.2.5) over a nanoflann KD-tree of the model's
-// surface samples (Debian's libnanoflann-dev, header only).
+// Trimmed ICP (Masuda et al. 1996; thesis sec. 6.3.2.5) over the nearest-neighbour index
+// (core/point_index.hpp) of the model's surface samples.
 #include "sonar3d/recog/icp.hpp"
 
 #include <tbb/parallel_for.h>
@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <nanoflann.hpp>
 
 #include "sonar3d/core/error.hpp"
 
@@ -16,76 +15,17 @@ namespace sonar3d {
 void TrimmedIcpConfig::validate() const { params::check(*this, "ICP"); }
 
 namespace {
-struct Cloud {
-  std::vector<Eigen::Vector3f> pts;
-  std::size_t kdtree_get_point_count() const { return pts.size(); }
-  float kdtree_get_pt(std::size_t i, std::size_t d) const { return pts[i][static_cast<int>(d)]; }
-  template <class BBOX>
-  bool kdtree_get_bbox(BBOX&) const {
-    return false;
-  }
-};
-using Tree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3>;
-}  // namespace
-
-struct ModelIndex::Impl {
-  Cloud cloud;
-  std::vector<Eigen::Vector3f> normals;
-  std::unique_ptr<Tree> tree;
-};
-
-ModelIndex::ModelIndex(std::vector<Eigen::Vector3f> points, std::vector<Eigen::Vector3f> normals)
-    : impl_(std::make_unique<Impl>()) {
+// A model index's points: they must be checked before the index is built from them.
+std::vector<Eigen::Vector3f> checked(std::vector<Eigen::Vector3f> points,
+                                     const std::vector<Eigen::Vector3f>& normals) {
   require(!points.empty(), "model index: no points");
   require(normals.size() == points.size(), "model index: one normal per point is needed");
-  impl_->cloud.pts = std::move(points);
-  impl_->normals = std::move(normals);
-  impl_->tree =
-      std::make_unique<Tree>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-  impl_->tree->buildIndex();
+  return points;
 }
+}  // namespace
 
-ModelIndex::~ModelIndex() = default;
-
-std::size_t ModelIndex::nearest(const Eigen::Vector3f& p, float* dist2) const {
-  unsigned idx = 0;  // nanoflann 1.4's default index type
-  float d2 = 0;
-  impl_->tree->knnSearch(p.data(), 1, &idx, &d2);
-  if (dist2) *dist2 = d2;
-  return idx;
-}
-
-bool ModelIndex::nearest_within(const Eigen::Vector3f& p, float max_dist2, std::size_t* index,
-                                float* dist2) const {
-  unsigned idx = 0;
-  float d2 = 0;
-  nanoflann::KNNResultSet<float, unsigned> result(1);
-  result.init(&idx, &d2);
-  // The worst distance kept: just above the bound, so that a sample at exactly the bound is
-  // found (as nearest() followed by d2 <= max_dist2).
-  d2 = std::nextafter(max_dist2, std::numeric_limits<float>::infinity());
-  impl_->tree->findNeighbors(result, p.data(), nanoflann::SearchParams());
-  if (result.size() == 0) {
-    *dist2 = std::numeric_limits<float>::infinity();
-    return false;
-  }
-  if (index) *index = idx;
-  *dist2 = d2;
-  return true;
-}
-
-std::vector<std::size_t> ModelIndex::within(const Eigen::Vector3f& p, float radius) const {
-  std::vector<std::pair<unsigned, float>> found;
-  impl_->tree->radiusSearch(p.data(), radius * radius, found,
-                            nanoflann::SearchParams(32, 0, false));
-  std::vector<std::size_t> out(found.size());
-  for (std::size_t i = 0; i < found.size(); ++i) out[i] = found[i].first;
-  return out;
-}
-
-const std::vector<Eigen::Vector3f>& ModelIndex::points() const { return impl_->cloud.pts; }
-const std::vector<Eigen::Vector3f>& ModelIndex::normals() const { return impl_->normals; }
+ModelIndex::ModelIndex(std::vector<Eigen::Vector3f> points, std::vector<Eigen::Vector3f> normals)
+    : PointIndex3f(checked(std::move(points), normals)), normals_(std::move(normals)) {}
 
 IcpResult trimmed_icp(const ModelIndex& model, const std::vector<Eigen::Vector3f>& scene_world,
                       const Eigen::Isometry3d& T_init, const TrimmedIcpConfig& config) {

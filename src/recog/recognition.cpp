@@ -23,6 +23,7 @@
 #include "recog_common.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
+#include "sonar3d/core/point_index.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/eval/metrics.hpp"
 #include "sonar3d/mapping/swath_registration.hpp"
@@ -598,32 +599,19 @@ Residual structure_residual(const std::vector<Eigen::Vector3f>& scene_world,
 
 namespace {
 
-// Scene points bucketed by the cells of a grid (CSR), to fetch the points near a placement.
-struct PointGrid {
-  ElevationMap grid;  // geometry only
-  std::vector<std::size_t> start;
-  std::vector<uint32_t> index;
+// The scene's points by the cells of the coarse map they fall in, to fetch the points near a
+// placement: the library's index (core/point_index.hpp) finds those over a block of cells; they
+// come back cell by cell (row-major, as the map's cells) and in the cloud's order within a cell.
+struct ScenePoints {
+  ElevationMap grid;                    // geometry only
+  std::unique_ptr<PointIndex3f> index;  // over the cloud's points, read in place
   void build(const PointCloud& cloud, const ElevationMap& g) {
     grid = g;
     grid.z.clear();
-    start.assign(static_cast<std::size_t>(g.rows) * g.cols + 1, 0);
-    std::vector<std::size_t> cell(cloud.size(), SIZE_MAX);
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      const auto& p = cloud.points[i];
-      const int c = static_cast<int>(std::floor((p.x() - g.origin_xy.x()) / g.cell_m));
-      const int r = static_cast<int>(std::floor((g.origin_xy.y() - p.y()) / g.cell_m));
-      if (r < 0 || c < 0 || r >= g.rows || c >= g.cols) continue;
-      cell[i] = g.index(r, c);
-      ++start[cell[i] + 1];
-    }
-    for (std::size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
-    index.resize(start.back());
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      if (cell[i] != SIZE_MAX) index[fill[cell[i]]++] = static_cast<uint32_t>(i);
-    }
+    index = std::make_unique<PointIndex3f>(PointIndex3f::borrow(cloud.points));
   }
-  // Points within the square of half-width h about (x, y), skipping removed cells.
+  // The points of the cells overlapping the square of half-width h about (x, y), skipping
+  // removed cells.
   std::vector<Eigen::Vector3f> near(const PointCloud& cloud, const Eigen::Vector2d& c, double h,
                                     const std::vector<uint8_t>& removed) const {
     std::vector<Eigen::Vector3f> out;
@@ -637,13 +625,27 @@ struct PointGrid {
     const int r1 =
         std::min(grid.rows - 1,
                  static_cast<int>(std::floor((grid.origin_xy.y() - c.y() + h) / grid.cell_m)));
-    for (int r = r0; r <= r1; ++r) {
-      for (int col = c0; col <= c1; ++col) {
-        const std::size_t k = grid.index(r, col);
-        if (!removed.empty() && removed[k]) continue;
-        for (std::size_t j = start[k]; j < start[k + 1]; ++j) out.push_back(cloud.points[index[j]]);
-      }
+    if (r0 > r1 || c0 > c1) return out;
+    // The block's extent grown by a cell (the box is float); the cell of each point decides.
+    const float inf = std::numeric_limits<float>::infinity();
+    const Eigen::AlignedBox3f box(
+        Eigen::Vector3f(static_cast<float>(grid.origin_xy.x() + (c0 - 1) * grid.cell_m),
+                        static_cast<float>(grid.origin_xy.y() - (r1 + 2) * grid.cell_m), -inf),
+        Eigen::Vector3f(static_cast<float>(grid.origin_xy.x() + (c1 + 2) * grid.cell_m),
+                        static_cast<float>(grid.origin_xy.y() - (r0 - 1) * grid.cell_m), inf));
+    std::vector<std::pair<std::size_t, std::size_t>> found;  // (cell, point)
+    for (const std::size_t i : index->in_box(box)) {
+      const auto& p = cloud.points[i];
+      const int col = static_cast<int>(std::floor((p.x() - grid.origin_xy.x()) / grid.cell_m));
+      const int r = static_cast<int>(std::floor((grid.origin_xy.y() - p.y()) / grid.cell_m));
+      if (r < r0 || r > r1 || col < c0 || col > c1) continue;
+      const std::size_t k = grid.index(r, col);
+      if (!removed.empty() && removed[k]) continue;
+      found.emplace_back(k, i);
     }
+    std::sort(found.begin(), found.end());
+    out.reserve(found.size());
+    for (const auto& [k, i] : found) out.push_back(cloud.points[i]);
     return out;
   }
 };
@@ -848,7 +850,7 @@ RecognitionResult recognize_2d(const PointCloud& scene_world,
   const ElevationMap coarse = elevation_map_from_points(scene_world, mc);
   out.map_rows = coarse.rows;
   out.map_cols = coarse.cols;
-  PointGrid points;
+  ScenePoints points;
   points.build(scene_world, coarse);
   out.seconds_maps = since(start);
 

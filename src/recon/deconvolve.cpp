@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "deconvolve_internal.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/progress.hpp"
 #include "sonar3d/core/units.hpp"
@@ -116,38 +117,19 @@ void VoxelDeconvConfig::validate() const {
           fmt(support_min_bracket, 4));
 }
 
-namespace {
-
-// The one enum <-> string convention: an enum's value k is names[k] (core/params.hpp).
-template <class E, std::size_t N>
-E parse_named(const char* const (&names)[N], const std::string& s, const std::string& what) {
-  std::string list;
-  for (std::size_t k = 0; k < N; ++k) {
-    if (s == names[k]) return static_cast<E>(k);
-    list += std::string(k == 0 ? "" : k + 1 == N ? " or " : ", ") + names[k];
-  }
-  throw Error("unknown deconvolution " + what + " '" + s + "' (expected " + list + ")");
-}
-template <class E, std::size_t N>
-const char* named(const char* const (&names)[N], E e) {
-  const auto k = static_cast<std::size_t>(e);
-  return k < N ? names[k] : names[0];
-}
-
-}  // namespace
-
+// The one enum <-> string convention (core/enum_names.hpp).
 DeconvConfig::Mode DeconvConfig::parse_mode(const std::string& s) {
-  return parse_named<Mode>(kModeNames, s, "mode");
+  return parse_enum<Mode>(kModeNames, s, "deconvolution mode");
 }
-const char* DeconvConfig::mode_name(Mode m) { return named(kModeNames, m); }
+const char* DeconvConfig::mode_name(Mode m) { return enum_name(kModeNames, m); }
 DeconvConfig::Beam DeconvConfig::parse_beam(const std::string& s) {
-  return parse_named<Beam>(kBeamNames, s, "beam pattern");
+  return parse_enum<Beam>(kBeamNames, s, "deconvolution beam pattern");
 }
-const char* DeconvConfig::beam_name(Beam b) { return named(kBeamNames, b); }
+const char* DeconvConfig::beam_name(Beam b) { return enum_name(kBeamNames, b); }
 DeconvConfig::Kernel DeconvConfig::parse_kernel(const std::string& s) {
-  return parse_named<Kernel>(kKernelNames, s, "kernel");
+  return parse_enum<Kernel>(kKernelNames, s, "deconvolution kernel");
 }
-const char* DeconvConfig::kernel_name(Kernel k) { return named(kKernelNames, k); }
+const char* DeconvConfig::kernel_name(Kernel k) { return enum_name(kKernelNames, k); }
 
 // ---------------------------------------------------------------------------------------------
 // Geometry helpers

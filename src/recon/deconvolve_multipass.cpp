@@ -10,73 +10,53 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
-#include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "deconvolve_internal.hpp"
+#include "sonar3d/core/point_index.hpp"
 #include "sonar3d/core/projector.hpp"
 
 namespace sonar3d::deconv_detail {
 
 namespace {
 
-struct CellKey {
-  std::int64_t x, y, z;
-  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
-};
-struct CellHash {
-  std::size_t operator()(const CellKey& k) const {
-    return static_cast<std::size_t>(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
+// The first-pass points within `radius` of q (core/point_index.hpp), in a fixed order: by the
+// cubes of side `radius` they fall in (x, then y, then z, about q's cube), then by index. The
+// normals sum over them in floating point, so the order is the result's: this is the order of
+// the radius-wide grid this index replaced, kept so the multipass clouds stay byte-identical.
+std::vector<std::size_t> neighbours(const PointIndex3d& index, const Eigen::Vector3d& q,
+                                    double radius) {
+  std::vector<std::size_t> found = index.within(q, radius);
+  const double inv = 1.0 / radius;
+  const auto cube = [inv](const Eigen::Vector3d& p) {
+    return Eigen::Array3d((p * inv).array().floor());
+  };
+  const Eigen::Array3d c = cube(q);
+  std::vector<std::pair<int, std::size_t>> keyed(found.size());
+  for (std::size_t n = 0; n < found.size(); ++n) {
+    const Eigen::Array3d d = cube(index.points()[found[n]]) - c;  // each -1, 0 or 1
+    keyed[n] = {static_cast<int>(9 * d.x() + 3 * d.y() + d.z()), found[n]};
   }
-};
-
-// Points hashed in cubes of the search radius: a radius query visits 27 cells.
-class PointGrid {
- public:
-  PointGrid(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), inv_(1.0 / cell) {
-    for (std::size_t i = 0; i < pts.size(); ++i) grid_[key(pts[i])].push_back(i);
-  }
-  template <class F>
-  void for_each_within(const Eigen::Vector3d& q, double radius, F&& f) const {
-    const CellKey c = key(q);
-    const double r2 = radius * radius;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const auto it = grid_.find({c.x + dx, c.y + dy, c.z + dz});
-          if (it == grid_.end()) continue;
-          for (std::size_t i : it->second) {
-            const double d2 = (pts_[i] - q).squaredNorm();
-            if (d2 <= r2) f(i, d2);
-          }
-        }
-  }
-
- private:
-  CellKey key(const Eigen::Vector3d& p) const {
-    return {static_cast<std::int64_t>(std::floor(p.x() * inv_)),
-            static_cast<std::int64_t>(std::floor(p.y() * inv_)),
-            static_cast<std::int64_t>(std::floor(p.z() * inv_))};
-  }
-  const std::vector<Eigen::Vector3d>& pts_;
-  double inv_;
-  std::unordered_map<CellKey, std::vector<std::size_t>, CellHash> grid_;
-};
+  std::sort(keyed.begin(), keyed.end());
+  for (std::size_t n = 0; n < found.size(); ++n) found[n] = keyed[n].second;
+  return found;
+}
 
 // Normals of the lowest-variance direction in a neighbourhood (SVD of the covariance, sec.
 // 5.6.7.1); zero vector where fewer than 5 neighbours exist.
-std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>& pts,
-                                              const PointGrid& grid, double radius) {
+std::vector<Eigen::Vector3d> estimate_normals(const PointIndex3d& index, double radius) {
+  const std::vector<Eigen::Vector3d>& pts = index.points();
   std::vector<Eigen::Vector3d> normals(pts.size(), Eigen::Vector3d::Zero());
   tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
     int count = 0;
-    grid.for_each_within(pts[i], radius, [&](std::size_t j, double) {
+    for (const std::size_t j : neighbours(index, pts[i], radius)) {
       mean += pts[j];
       S += pts[j] * pts[j].transpose();
       ++count;
-    });
+    }
     if (count < 5) return;
     mean /= count;
     const Eigen::Matrix3d C = S / count - mean * mean.transpose();
@@ -87,16 +67,18 @@ std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>
 }
 
 // The normal of the nearest point within `radius` of q that has one (zero if none).
-Eigen::Vector3d nearest_normal(const PointGrid& grid, const std::vector<Eigen::Vector3d>& normals,
+Eigen::Vector3d nearest_normal(const PointIndex3d& index,
+                               const std::vector<Eigen::Vector3d>& normals,
                                const Eigen::Vector3d& q, double radius) {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   double best = radius * radius * 1.0001;
-  grid.for_each_within(q, radius, [&](std::size_t j, double d2) {
+  for (const std::size_t j : neighbours(index, q, radius)) {
+    const double d2 = (index.points()[j] - q).squaredNorm();
     if (d2 < best && normals[j].squaredNorm() > 0) {
       best = d2;
       normal = normals[j];
     }
-  });
+  }
   return normal;
 }
 
@@ -104,11 +86,11 @@ Eigen::Vector3d nearest_normal(const PointGrid& grid, const std::vector<Eigen::V
 
 std::vector<Eigen::Vector3f> normals_near(const std::vector<Eigen::Vector3d>& pts, double radius,
                                           const std::vector<Eigen::Vector3f>& queries) {
-  const PointGrid grid(pts, radius);
-  const std::vector<Eigen::Vector3d> normals = estimate_normals(pts, grid, radius);
+  const auto index = PointIndex3d::borrow(pts);
+  const std::vector<Eigen::Vector3d> normals = estimate_normals(index, radius);
   std::vector<Eigen::Vector3f> out(queries.size(), Eigen::Vector3f::Zero());
   tbb::parallel_for(std::size_t{0}, queries.size(), [&](std::size_t i) {
-    out[i] = nearest_normal(grid, normals, queries[i].cast<double>(), radius).cast<float>();
+    out[i] = nearest_normal(index, normals, queries[i].cast<double>(), radius).cast<float>();
   });
   return out;
 }
@@ -127,8 +109,8 @@ class MultipassScaler : public KernelScaler {
     pts_.reserve(first.size());
     for (const LayerPoint& lp : first) pts_.push_back(lp.p_world.cast<double>());
     if (use_normals_) {
-      grid_ = std::make_unique<PointGrid>(pts_, radius_);
-      normals_ = estimate_normals(pts_, *grid_, radius_);
+      index_ = std::make_unique<PointIndex3d>(PointIndex3d::borrow(pts_));
+      normals_ = estimate_normals(*index_, radius_);
     }
     if (use_occlusion_) build_occlusion_maps(cfg);
   }
@@ -137,8 +119,9 @@ class MultipassScaler : public KernelScaler {
              float* values) const override {
     (void)beam;
     // The normal of the nearest first-pass point within the radius.
-    const Eigen::Vector3d normal =
-        use_normals_ ? nearest_normal(*grid_, normals_, p_world, radius_) : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d normal = use_normals_
+                                       ? nearest_normal(*index_, normals_, p_world, radius_)
+                                       : Eigen::Vector3d::Zero();
     for (int e = 0; e < count; ++e) {
       const int k = frames[e];
       const Eigen::Isometry3d& T = pd_.T_world_sonar[k];
@@ -195,7 +178,7 @@ class MultipassScaler : public KernelScaler {
   bool use_normals_ = false, use_occlusion_ = false;
   double radius_ = 0.05;
   std::vector<Eigen::Vector3d> pts_;
-  std::unique_ptr<PointGrid> grid_;
+  std::unique_ptr<PointIndex3d> index_;  // over pts_
   std::vector<Eigen::Vector3d> normals_;
   double el_step_ = 0.0, margin_ = 0.0;
   int n_el_ = 1;

@@ -18,6 +18,7 @@
 
 #include "page.hpp"
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/mesh.hpp"
 #include "sonar3d/core/point_cloud.hpp"
@@ -114,9 +115,7 @@ struct Truth {
 }  // namespace
 
 ReportColor parse_report_color(const std::string& name) {
-  if (name == "error") return ReportColor::Error;
-  if (name == "height") return ReportColor::Height;
-  throw Error("report: unknown colour mode '" + name + "' (expected error or height)");
+  return parse_enum<ReportColor>(kReportColorNames, name, "report colour mode");
 }
 
 void ReportConfig::validate() const {

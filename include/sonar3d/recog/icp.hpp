@@ -1,10 +1,10 @@
 #pragma once
 #include "sonar3d/core/params.hpp"
+#include "sonar3d/core/point_index.hpp"
 // Trimmed ICP (Masuda et al. 1996, as the thesis uses it in sec. 6.3.2.5): the full 6D pose of a
 // model from scene points, each iteration keeping only the closest fraction of correspondences,
 // so that seabed, clutter and marine growth beyond the model do not pull it.
 #include <Eigen/Geometry>
-#include <memory>
 #include <vector>
 
 namespace sonar3d {
@@ -45,28 +45,16 @@ struct IcpResult {
   double rms_m = 0;      // RMS distance of those, m
 };
 
-// Nearest-neighbour index over a model's surface samples (nanoflann KD-tree).
-class ModelIndex {
+// A model's surface samples and their normals, searched by the library's nearest-neighbour
+// index (core/point_index.hpp: nearest, nearest_within, within, points()).
+class ModelIndex : public PointIndex3f {
  public:
+  // Throws Error when there are no points or not one normal per point.
   ModelIndex(std::vector<Eigen::Vector3f> points, std::vector<Eigen::Vector3f> normals);
-  ~ModelIndex();
-  ModelIndex(const ModelIndex&) = delete;
-  ModelIndex& operator=(const ModelIndex&) = delete;
-  // Nearest sample to p (model frame): its index and squared distance.
-  std::size_t nearest(const Eigen::Vector3f& p, float* dist2) const;
-  // The nearest sample to p when it lies within sqrt(max_dist2) of p (its index, *dist2 its
-  // squared distance, as nearest() gives), else false and *dist2 = +inf. Branches beyond the
-  // bound are not searched: a far query costs a descent, not a search.
-  bool nearest_within(const Eigen::Vector3f& p, float max_dist2, std::size_t* index,
-                      float* dist2) const;
-  // Indices of the samples within `radius` of p (unsorted).
-  std::vector<std::size_t> within(const Eigen::Vector3f& p, float radius) const;
-  const std::vector<Eigen::Vector3f>& points() const;
-  const std::vector<Eigen::Vector3f>& normals() const;
+  const std::vector<Eigen::Vector3f>& normals() const { return normals_; }
 
  private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
+  std::vector<Eigen::Vector3f> normals_;
 };
 
 // Registers `model` onto `scene_world` from `T_init`: per iteration, each scene point's nearest
