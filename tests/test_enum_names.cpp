@@ -1,15 +1,22 @@
 // core: the one enum <-> string convention (core/enum_names.hpp), and the tables that use it.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/scene.hpp"
+#include "sonar3d/core/sonar_spec.hpp"
 #include "sonar3d/io/aris.hpp"
 #include "sonar3d/io/holoocean.hpp"
 #include "sonar3d/io/navigation.hpp"
 #include "sonar3d/io/oculus.hpp"
+#include "sonar3d/mapping/online.hpp"
 #include "sonar3d/mapping/survey.hpp"
+#include "sonar3d/recog/catalogue.hpp"
+#include "sonar3d/recog/recognition_3d.hpp"
 #include "sonar3d/recon/deconvolve.hpp"
 #include "sonar3d/report/report.hpp"
+#include "sonar3d/world/change.hpp"
 #include "test_support.hpp"
 
 using namespace sonar3d;
@@ -92,4 +99,29 @@ TEST(EnumNames, LibraryTablesRoundTrip) {
   EXPECT_EQ(parse_report_color("height"), ReportColor::Height);
   expect_error([] { parse_aris_nav_source("gps"); }, "auto, header, file or static, got 'gps'");
   expect_error([] { parse_report_color("rainbow"); }, "error or height, got 'rainbow'");
+}
+
+// The tables kept beside their only converter: every value has its name, the names are those the
+// files hold, and the parsers give the convention's error.
+TEST(EnumNames, FileLocalTablesNameEveryValue) {
+  EXPECT_STREQ(symmetry_name(Symmetry::None), "none");
+  EXPECT_STREQ(symmetry_name(Symmetry::Half), "180");
+  EXPECT_STREQ(symmetry_name(Symmetry::Full), "full");
+  EXPECT_STREQ(subspace_test_name(SubspaceTest::None), "kept");
+  EXPECT_STREQ(subspace_test_name(SubspaceTest::Occupancy), "occupancy");
+  EXPECT_STREQ(object_status_name(ObjectStatus::Unchanged), "unchanged");
+  EXPECT_STREQ(object_status_name(ObjectStatus::Uncertain), "uncertain");
+  EXPECT_STREQ(colour_space_name(ColourSpace::Lab), "lab");
+  EXPECT_STREQ(frame_drop_name(FrameDrop::None), "none");
+  EXPECT_STREQ(frame_drop_name(FrameDrop::BadTime), "bad_time");
+  EXPECT_STREQ(report_input_name(ReportInput::Sweep), "sweep");
+  EXPECT_STREQ(report_input_name(ReportInput::Ply), "ply");
+  for (auto k : {BeamPattern::Kind::Sinc, BeamPattern::Kind::Flat, BeamPattern::Kind::Table})
+    EXPECT_EQ(BeamPattern::parse_kind(BeamPattern::kind_name(k)), k);
+  expect_error([] { BeamPattern::parse_kind("cosine"); },
+               "the beam pattern must be one of sinc, flat or table, got 'cosine'");
+  const auto dir = test::temp_dir("symmetry");
+  std::ofstream(dir / "cat.yaml") << "models:\n  - {name: box, reference: tank, symmetry: 90}\n";
+  expect_error([&] { read_catalogue((dir / "cat.yaml").string()); },
+               "must be one of none, 180 or full, got '90'");
 }

@@ -281,6 +281,13 @@ TEST(OutputRuleLibrary, KindsAreRecognisedByTheirMarks) {
   write_ply((dir / "c.ply").string(), c);
   EXPECT_TRUE(is_sonar3d_output(dir / "c.ply", OutputKind::PointCloud));
   EXPECT_FALSE(is_sonar3d_output(dir / "c.ply", OutputKind::Mesh));
+  // A writer that sorts its keys puts "format" after a long "candidates" list (a 3D recognition's
+  // placements): still its own file.
+  write(dir / "p3d.json", "{\"candidates\": [\"" + std::string(10000, 'x') +
+                              "\"], \"format\": \"sonar3d-placements\", \"version\": 1}");
+  EXPECT_TRUE(is_sonar3d_output(dir / "p3d.json", OutputKind::PlacementsJson));
+  write(dir / "other.json", "{\"candidates\": [\"" + std::string(10000, 'x') + "\"]}");
+  EXPECT_FALSE(is_sonar3d_output(dir / "other.json", OutputKind::PlacementsJson));
   write(dir / "e.json", "[{\"format\": \"sonar3d-evaluation\"}]");
   EXPECT_TRUE(is_sonar3d_output(dir / "e.json", OutputKind::EvaluationJson));
   EXPECT_FALSE(is_sonar3d_output(dir / "e.json", OutputKind::RegistrationJson));

@@ -240,10 +240,24 @@ bool is_sonar3d_png(const fs::path& path) {
   return false;
 }
 
+// The marker is looked for in the first 4 kB, then, for a JSON of up to 64 MB, in the whole file:
+// a writer that sorts its keys (nlohmann::json) puts "format" after "candidates" or "catalogue",
+// which can fill more than 4 kB (a 3D recognition's placements file).
 bool has_json_marker(const fs::path& path, const std::string& marker) {
-  const std::string head = read_head(path, 4096);
-  return head.find("\"format\": \"" + marker + "\"") != std::string::npos ||
-         head.find("\"format\":\"" + marker + "\"") != std::string::npos;
+  const auto found = [&](const std::string& text) {
+    return text.find("\"format\": \"" + marker + "\"") != std::string::npos ||
+           text.find("\"format\":\"" + marker + "\"") != std::string::npos;
+  };
+  constexpr std::size_t kHead = 4096;
+  constexpr std::uintmax_t kWhole = 64u << 20;
+  const std::string head = read_head(path, kHead);
+  if (found(head)) return true;
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec || size <= head.size() || size > kWhole) return false;
+  const std::size_t first = head.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos || (head[first] != '{' && head[first] != '[')) return false;
+  return found(read_head(path, static_cast<std::size_t>(size)));
 }
 
 bool is_sonar3d_ply_kind(const fs::path& path, bool mesh) {

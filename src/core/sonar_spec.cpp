@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/units.hpp"
@@ -35,23 +36,14 @@ double BeamPattern::amplitude(double theta, double theta_3db) const {
   }
 }
 
-const char* BeamPattern::kind_name(Kind k) {
-  switch (k) {
-    case Kind::Flat:
-      return "flat";
-    case Kind::Table:
-      return "table";
-    case Kind::Sinc:
-    default:
-      return "sinc";
-  }
-}
+namespace {
+constexpr const char* kBeamPatternNames[] = {"sinc", "flat", "table"};  // by BeamPattern::Kind
+}  // namespace
+
+const char* BeamPattern::kind_name(Kind k) { return enum_name(kBeamPatternNames, k); }
 
 BeamPattern::Kind BeamPattern::parse_kind(const std::string& s) {
-  if (s == "sinc") return Kind::Sinc;
-  if (s == "flat") return Kind::Flat;
-  if (s == "table") return Kind::Table;
-  throw Error("unknown beam pattern '" + printable(s) + "' (expected sinc, flat or table)");
+  return parse_enum<Kind>(kBeamPatternNames, s, "the beam pattern");
 }
 
 int SonarSpec::bin_of_range(double r) const {

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <unordered_map>
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/trajectory.hpp"
@@ -40,27 +41,10 @@ double quantile(std::vector<double> v, double q) {
 }  // namespace
 
 const char* frame_drop_name(FrameDrop d) {
-  switch (d) {
-    case FrameDrop::None:
-      return "none";
-    case FrameDrop::WrongSize:
-      return "wrong_size";
-    case FrameDrop::BadPose:
-      return "bad_pose";
-    case FrameDrop::NoPose:
-      return "no_pose";
-    case FrameDrop::Late:
-      return "late";
-    case FrameDrop::QueueFull:
-      return "queue_full";
-    case FrameDrop::OutsideWindow:
-      return "outside_window";
-    case FrameDrop::Memory:
-      return "memory";
-    case FrameDrop::BadTime:
-      return "bad_time";
-  }
-  return "?";
+  static constexpr const char* kNames[] = {"none",    "wrong_size", "bad_pose",       "no_pose",
+                                           "late",    "queue_full", "outside_window", "memory",
+                                           "bad_time"};  // by FrameDrop
+  return enum_name(kNames, d);
 }
 
 void OnlineMapConfig::validate() const {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <set>
 
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/reference_objects.hpp"
 #include "sonar3d/io/mesh_io.hpp"
@@ -16,17 +17,11 @@ namespace sonar3d {
 
 namespace fs = std::filesystem;
 
-const char* symmetry_name(Symmetry s) {
-  switch (s) {
-    case Symmetry::None:
-      return "none";
-    case Symmetry::Half:
-      return "180";
-    case Symmetry::Full:
-      return "full";
-  }
-  return "none";
-}
+namespace {
+constexpr const char* kSymmetryNames[] = {"none", "180", "full"};  // by Symmetry
+}  // namespace
+
+const char* symmetry_name(Symmetry s) { return enum_name(kSymmetryNames, s); }
 
 Catalogue read_catalogue(const std::string& path) {
   const YAML::Node root = yaml::load_file(path);
@@ -89,16 +84,9 @@ Catalogue read_catalogue(const std::string& path) {
       }
     }
     const std::string sym = yaml::get_string(m, "symmetry", "none", path, ctx);
-    if (sym == "none") {
-      model.symmetry = Symmetry::None;
-    } else if (sym == "180") {
-      model.symmetry = Symmetry::Half;
-    } else if (sym == "full") {
-      model.symmetry = Symmetry::Full;
-    } else {
-      throw Error(yaml::where(path, m["symmetry"], ctx + ".symmetry") + ": unknown '" +
-                  printable(sym) + "' (expected none, 180 or full)");
-    }
+    model.symmetry = parse_enum<Symmetry>(
+        kSymmetryNames, sym,
+        m["symmetry"] ? yaml::where(path, m["symmetry"], ctx + ".symmetry") : "");
     model.expected = yaml::get_int(m, "expected", -1, path, ctx);
     if (m["expected"] && !(model.expected >= 0 && model.expected <= kMaxExpectedInstances)) {
       throw Error(yaml::where(path, m["expected"], ctx + ".expected") + ": must lie in [0, " +

@@ -21,6 +21,7 @@
 #include <unordered_set>
 
 #include "recog_common.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/progress.hpp"
@@ -473,19 +474,9 @@ ShapeStats coarse_stats(const std::vector<V3f>& coarse, const std::vector<uint32
 }  // namespace
 
 const char* subspace_test_name(SubspaceTest t) {
-  switch (t) {
-    case SubspaceTest::None:
-      return "kept";
-    case SubspaceTest::Fit:
-      return "obb_fit";
-    case SubspaceTest::Volume:
-      return "volume";
-    case SubspaceTest::Points:
-      return "points";
-    case SubspaceTest::Occupancy:
-      return "occupancy";
-  }
-  return "?";
+  static constexpr const char* kNames[] = {"kept", "obb_fit", "volume", "points",
+                                           "occupancy"};  // by SubspaceTest
+  return enum_name(kNames, t);
 }
 
 SubspaceTest subspace_test(const ShapeStats& sub, const ShapeStats& model,

@@ -152,19 +152,9 @@ fs::path default_web_dir() {
 }
 
 const char* report_input_name(ReportInput kind) {
-  switch (kind) {
-    case ReportInput::Sweep:
-      return "sweep";
-    case ReportInput::Map:
-      return "map";
-    case ReportInput::World:
-      return "world";
-    case ReportInput::Changes:
-      return "changes";
-    case ReportInput::Ply:
-      return "ply";
-  }
-  return "?";
+  static constexpr const char* kNames[] = {"sweep", "map", "world", "changes",
+                                           "ply"};  // by ReportInput
+  return enum_name(kNames, kind);
 }
 
 ReportInput detect_report_input(const fs::path& input) {

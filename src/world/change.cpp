@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sonar3d/core/atomic_file.hpp"
+#include "sonar3d/core/enum_names.hpp"
 #include "sonar3d/core/error.hpp"
 #include "sonar3d/core/limits.hpp"
 #include "sonar3d/core/rgb_image.hpp"
@@ -162,9 +163,7 @@ void ChangeRegistrationConfig::validate() const {
           "yaw_search_deg / yaw_step_deg must be at most 1000 (yaws searched)");
 }
 
-const char* colour_space_name(ColourSpace s) {
-  return kColourSpaceNames[s == ColourSpace::Lab ? 1 : 0];
-}
+const char* colour_space_name(ColourSpace s) { return enum_name(kColourSpaceNames, s); }
 
 void ColourChangeConfig::validate() const {
   params::check(*this, "colour");
@@ -182,19 +181,9 @@ void ChangeConfig::validate() const {
 }
 
 const char* object_status_name(ObjectStatus s) {
-  switch (s) {
-    case ObjectStatus::Unchanged:
-      return "unchanged";
-    case ObjectStatus::Moved:
-      return "moved";
-    case ObjectStatus::Added:
-      return "added";
-    case ObjectStatus::Removed:
-      return "removed";
-    case ObjectStatus::Uncertain:
-      return "uncertain";
-  }
-  return "?";
+  static constexpr const char* kNames[] = {"unchanged", "moved", "added", "removed",
+                                           "uncertain"};  // by ObjectStatus
+  return enum_name(kNames, s);
 }
 
 namespace {
