@@ -151,6 +151,35 @@ struct Extreme {
   }
 };
 
+// The pass-end rule (docs/experiments.md) at one end: it should go 2·r·tan(A_v/2) past the
+// extreme surface e it saw; it went past_surface. Used for the ends of passes and for the top of a
+// stack of level frames.
+struct EndRule {
+  double rule = 0, extend = 0;
+  bool lower_bound = false;
+  bool stops_short =
+      false;  // short by more than end_tolerance, with the space beyond in the region
+};
+
+EndRule end_rule(const Extreme& e, double past_surface, const Eigen::Vector3d& out_dir, double tan3,
+                 const BracketConfig& config, const std::optional<Eigen::AlignedBox3d>& region) {
+  EndRule r;
+  r.rule = 2.0 * e.r * tan3;
+  r.extend = r.rule - past_surface;
+  // The extreme surface is the farthest point seen from beyond at end_view_fraction: when the end
+  // is closer to it than that, the surface may reach farther than the frames can tell, and the
+  // extension is a lower bound.
+  r.lower_bound = past_surface <= config.end_view_fraction * e.r * tan3 + 0.02;
+  if (r.extend <= config.end_tolerance * r.rule) return r;
+  // The unbracketed space beyond that end lies outside the region (e.g. under the seabed a
+  // region's floor excludes): nothing there is reconstructed, nothing to warn about.
+  bool any_inside = !region;
+  for (int a = 1; a <= 4 && !any_inside; ++a)
+    any_inside = region->contains(e.p + 0.25 * a * r.rule * out_dir);
+  r.stops_short = any_inside;
+  return r;
+}
+
 template <typename F>
 void run_in(int threads, F&& f) {
   tbb::task_arena arena(threads > 0 ? threads : static_cast<int>(tbb::task_arena::automatic));
@@ -422,24 +451,13 @@ BracketReport assess_bracketing(PointCloud& cloud,
         x.last_frame = ps.last;
         x.upper = is_upper;
         x.range = e.r;
-        x.rule = 2.0 * e.r * tan3;
         x.past_surface = is_upper ? ps.s_max - e.s : e.s - ps.s_min;
-        x.extend = x.rule - x.past_surface;
         x.direction = is_upper ? ps.axis : Eigen::Vector3d(-ps.axis);
-        if (x.extend <= config.end_tolerance * x.rule) continue;
-        // The extreme surface is the farthest point seen from beyond at end_view_fraction: when
-        // the pass ends closer to it than that, the surface may reach farther than the frames can
-        // tell, and the extension is a lower bound.
-        x.lower_bound = x.past_surface <= config.end_view_fraction * e.r * tan3 + 0.02;
-        // The unbracketed space beyond that end lies outside the region (e.g. under the seabed
-        // a region's floor excludes): nothing there is reconstructed, nothing to warn about.
-        if (region) {
-          const Eigen::Vector3d out_dir = x.direction;
-          bool any_inside = false;
-          for (int a = 1; a <= 4 && !any_inside; ++a)
-            any_inside = region->contains(e.p + 0.25 * a * x.rule * out_dir);
-          if (!any_inside) continue;
-        }
+        const EndRule r = end_rule(e, x.past_surface, x.direction, tan3, config, region);
+        if (!r.stops_short) continue;
+        x.rule = r.rule;
+        x.extend = r.extend;
+        x.lower_bound = r.lower_bound;
         rep.extensions.push_back(x);
         // The automatic filter looks beyond ends that lead into the water column only: below a
         // pass that starts over the seabed lies the seabed, seen from above only — never
@@ -459,14 +477,13 @@ BracketReport assess_bracketing(PointCloud& cloud,
     if (stack.sweeps && top.set) {
       stack.surface_z = top.s;
       stack.range = top.r;
-      stack.rule = 2.0 * top.r * tan3;
       stack.past_surface = stack.z_max - top.s;
-      stack.extend = stack.rule - stack.past_surface;
-      stack.lower_bound = stack.past_surface <= config.end_view_fraction * top.r * tan3 + 0.02;
-      bool any_inside = !region;
-      for (int a = 1; a <= 4 && !any_inside; ++a)
-        any_inside = region->contains(top.p + 0.25 * a * stack.rule * Eigen::Vector3d::UnitZ());
-      stack.stops_short = stack.extend > config.end_tolerance * stack.rule && any_inside;
+      const EndRule r =
+          end_rule(top, stack.past_surface, Eigen::Vector3d::UnitZ(), tan3, config, region);
+      stack.rule = r.rule;
+      stack.extend = r.extend;
+      stack.lower_bound = r.lower_bound;
+      stack.stops_short = r.stops_short;
     }
 
     // The region: the never-bracketed share of what the frames saw.
